@@ -1,0 +1,94 @@
+// The one interface every dynamics engine implements, and the engine-neutral state used to start
+// engines from the same point and compare them there. Engines never call each other: they meet
+// only through this interface (see README "Independence").
+//
+// Life of an engine object (const model, mutable workspace; ../shared/STYLE.md item 1):
+//   Engine e(system, options);   // preallocates its workspace; may throw InputError
+//   e.pack(tree_state, x);       // engine-neutral state => the engine's own state vector x
+//   e.rhs(t, x, xdot);           // (t, x) => xdot; no heap allocation; called by the integrator
+//   e.after_step(t, x);          // after each accepted step: renormalise, project, re-chart
+//   e.output_row(t, x, row);     // (t, x) => one CSV row, columns() order
+#pragma once
+
+#include "core/system.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+
+// Engine-neutral generalised state of a rigid tree (flexible modal coordinates to come).
+// joints[j] describes System::joints[j]; only the fields of that joint's type are used.
+struct TreeState {
+  // Base (the free joint, joints[0]).
+  Eigen::Vector3d p_NoBo_N = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond q_NB = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d w_NB_B = Eigen::Vector3d::Zero();
+  struct JointState {
+    double angle = 0, rate = 0;                                // revolute
+    Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();   // spherical (R_J of system.hpp)
+    Eigen::Vector3d w_PC_C = Eigen::Vector3d::Zero();          // spherical
+  };
+  std::vector<JointState> joints;
+  std::vector<Eigen::VectorXd> eta, eta_rate;  // per body modal coordinates (empty: rigid)
+
+  // The scene's initial conditions (System::joints[*] initial values). When
+  // System::zero_linear_momentum is set, v_NBo_N is a placeholder: pack() must replace it by the
+  // base velocity that makes the total linear momentum zero.
+  static TreeState initial(const System& system);
+};
+
+// Engine-neutral accelerations at one state, for cross-checking engines (STYLE item 6).
+struct TreeAccel {
+  std::vector<Eigen::Vector3d> wdot_NB_B;  // per body: d/dt of w_NB_B components (rad/s^2)
+  std::vector<Eigen::Vector3d> a_NBo_N;    // per body: CM acceleration in N (m/s^2)
+  std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (else 0)
+  std::vector<Eigen::Vector3d> wdot_PC_C;  // per joint: spherical d/dt of w_PC_C components
+};
+
+struct EngineOptions {
+  // Newton-Euler constraint stabilisation: "projection" (default), "baumgarte", "none".
+  std::string stabilization = "projection";
+  double baumgarte_alpha = 10.0;  // 1/s, velocity-error gain  (Baumgarte 1972)
+  double baumgarte_beta = 25.0;   // 1/s^2, position-error gain
+  // Lagrange: re-chart Euler angles near their singularity (false: stop with an error there).
+  bool rechart = true;
+  // Test-only hook: scale every body's inertia tensor (not its mass) seen by this engine instance,
+  // so that the harness can be shown to catch a wrong engine. 1 in every real run.
+  double test_inertia_scale = 1.0;
+};
+
+class Engine {
+ public:
+  virtual ~Engine() = default;
+  virtual const char* name() const = 0;
+  virtual int state_size() const = 0;
+  // Human-readable name of state component i (used in failure messages: "main.wx", "hinge1.angle").
+  virtual std::string state_label(int i) const = 0;
+
+  // TreeState => x (size state_size()).
+  virtual void pack(const TreeState& s, double* x) = 0;
+  // (t, x) => xdot. Must not allocate. Must not throw except RunFailure.
+  virtual void rhs(double t, const double* x, double* xdot) = 0;
+  // Called after every accepted step. May change x (renormalise quaternions, project onto the
+  // constraint manifold, switch Euler-angle charts); returns true when it did, so the integrator
+  // restarts (FSAL and dense-output steppers must not reuse stale derivatives). May throw
+  // RunFailure (for example at an Euler-angle singularity with re-charting off).
+  virtual bool after_step(double t, double* x) { (void)t; (void)x; return false; }
+  // (t, x) => engine-neutral accelerations.
+  virtual void accelerations(double t, const double* x, TreeAccel& a) = 0;
+  // Output columns: pinned_columns(system) first, then engine-specific extras.
+  virtual const std::vector<std::string>& columns() const = 0;
+  // (t, x) => one row of columns().size() values.
+  virtual void output_row(double t, const double* x, double* row) = 0;
+};
+
+// Names of the engines this build knows, and a factory (harness/engines.cpp). Throws InputError
+// for an unknown name, listing the known ones.
+std::vector<std::string> engine_names();
+std::unique_ptr<Engine> make_engine(const std::string& name, const System& system,
+                                    const EngineOptions& options = {});
+
+}  // namespace crossdyn

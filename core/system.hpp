@@ -1,0 +1,185 @@
+// The immutable model every engine consumes: bodies, joints and loads read from one scene file.
+//
+// Notation (Drake's monogram notation, see ../shared/STYLE.md item 3):
+//   N          the inertial (Newtonian) frame;  B, P, C   a body, a joint's parent, its child.
+//   Bo         the origin of body frame B, which is always the body's centre of mass (CM).
+//   p_PoJ_P    position from Po to the joint point J, expressed in frame P.
+//   w_NB_B     angular velocity of B in N, expressed in B.
+//   R_PC       rotation matrix taking C components to P components (v_P = R_PC v_C).
+//   q_NB       unit quaternion, scalar first, with R(q_NB) = R_NB.
+//
+// Joint kinematics, shared by every engine (../shared/SCENARIOS.md "Conventions"):
+//   R_PC = R_PJ0 * R_J(coordinates), where R_PJ0 is the joint's fixed orientation offset (the
+//   child frame's attitude in P at joint coordinate zero) and R_J the joint rotation:
+//     revolute   R_J = Rot(axis_J, angle), axis_J = R_PJ0^T axis_P (the axis is given in P);
+//     spherical  R_J = R(q_J), q_J the joint quaternion (identity at zero);
+//     fixed      R_J = identity;
+//     free       the base: parent is N, R_NB = R(q_NB), no offset.
+//   The joint point J coincides in both bodies: p_NoPo_N + R_NP p_PoJ_P = p_NoCo_N + R_NC p_CoJ_C.
+//
+// Loads, all acting on the child with the reaction on the parent:
+//   revolute   tau = -stiffness (angle - neutral_angle) - damping rate + motor(t), about the axis;
+//              potential energy V = stiffness (angle - neutral_angle)^2 / 2.
+//   spherical  tau_C = -stiffness phi - damping w_PC_C + motor(t) (components in the child frame),
+//              where phi is the rotation vector of q_J (log map); V = stiffness |phi|^2 / 2.
+//              (phi is an eigenvector of the rotation-vector Jacobian, so -stiffness phi is exactly
+//              the generalised force of V for any choice of coordinates.)
+//   body       external torque, piecewise constant in time, in the body frame or in N.
+//
+// Everything is SI (kg, m, s, rad, N, N m); the reader converts units.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+
+// A piecewise-constant function of time with values of dimension D (1 for a revolute motor,
+// 3 for a spherical motor or a body torque). value(t) = values[k] for times[k] <= t < times[k+1];
+// zero before times[0]. Empty means identically zero.
+template <int D>
+struct PiecewiseConstant {
+  std::vector<double> times;                       // strictly increasing, times[0] >= 0
+  std::vector<Eigen::Matrix<double, D, 1>> values;  // same length as times
+
+  bool empty() const { return times.empty(); }
+  Eigen::Matrix<double, D, 1> value(double t) const {
+    Eigen::Matrix<double, D, 1> v = Eigen::Matrix<double, D, 1>::Zero();
+    for (std::size_t k = 0; k < times.size() && times[k] <= t; ++k) v = values[k];
+    return v;
+  }
+};
+
+// Modal description of a flexible body (paper Eqs. 3-6, 39-40; Example 2). Not read or used by
+// any engine yet: the field exists so that flexible bodies arrive without changing interfaces.
+// Small-deformation, linear modal model about the undeformed CM frame:
+//   u(rho) = sum_k Phi_k(rho) eta_k  (paper: u_2 = sum Phi_k q_k).
+struct ModalBody {
+  std::vector<std::string> mode_names;  // output columns <body>.<mode>, <body>.<mode>_rate
+  Eigen::MatrixXd M_ee;                 // modal mass matrix, integral Phi^T Phi dm
+  Eigen::MatrixXd K_ee;                 // modal stiffness
+  Eigen::MatrixXd D_ee;                 // modal damping
+  Eigen::Matrix3Xd S_phi;               // integral Phi dm (first moment of the modes), body frame
+  Eigen::Matrix3Xd H_phi;               // integral rho x Phi dm, body frame
+  struct Node {                         // a point where a joint attaches (in the body frame)
+    Eigen::Vector3d p_BoN_B;            // undeformed position
+    Eigen::Matrix3Xd Phi_N_B;           // mode shapes (translation) at the node
+    Eigen::Matrix3Xd Psi_N_B;           // mode slopes (small rotation) at the node
+  };
+  std::vector<Node> nodes;
+};
+
+struct Body {
+  std::string name;
+  double mass = 0;              // kg
+  Eigen::Matrix3d I_BBo_B;      // inertia about the CM Bo, body axes, kg m^2
+  std::optional<ModalBody> modal;  // empty: rigid body
+
+  // External torque on this body, piecewise constant.
+  enum class Frame { Body, Inertial };
+  Frame torque_frame = Frame::Body;
+  PiecewiseConstant<3> torque;  // N m
+};
+
+enum class JointType { Free, Revolute, Spherical, Fixed };
+
+struct Joint {
+  std::string name;
+  JointType type = JointType::Revolute;
+  int parent = -1;              // body index; -1 for the free joint (parent is N)
+  int child = -1;               // body index
+  Eigen::Vector3d p_PoJ_P = Eigen::Vector3d::Zero();  // parent_point
+  Eigen::Vector3d p_CoJ_C = Eigen::Vector3d::Zero();  // child_point
+  Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute axis, unit, in the parent frame
+  Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();  // fixed orientation offset
+
+  // Hinge spring, damper and motor (revolute: scalar about the axis; spherical: see header).
+  double stiffness = 0;         // N m / rad
+  double neutral_angle = 0;     // rad, revolute spring's unstretched angle
+  double damping = 0;           // N m s / rad
+  PiecewiseConstant<1> motor_revolute;   // N m
+  PiecewiseConstant<3> motor_spherical;  // N m, child frame
+
+  // Initial conditions.
+  double angle0 = 0, rate0 = 0;                                  // revolute, rad, rad/s
+  Eigen::Quaterniond q_J0 = Eigen::Quaterniond::Identity();      // spherical joint attitude
+  Eigen::Vector3d w_PC_C0 = Eigen::Vector3d::Zero();             // spherical, rad/s
+  // Free joint (base) initial state.
+  Eigen::Vector3d p_NoBo_N0 = Eigen::Vector3d::Zero();           // m
+  Eigen::Quaterniond q_NB0 = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d w_NB_B0 = Eigen::Vector3d::Zero();             // rad/s
+  Eigen::Vector3d v_NBo_N0 = Eigen::Vector3d::Zero();            // m/s (see zero_linear_momentum)
+
+  // Number of generalised speeds this joint contributes (free 6, revolute 1, spherical 3, fixed 0).
+  int dof() const {
+    switch (type) {
+      case JointType::Free: return 6;
+      case JointType::Revolute: return 1;
+      case JointType::Spherical: return 3;
+      case JointType::Fixed: return 0;
+    }
+    return 0;
+  }
+};
+
+// Tolerance on one compared quantity: pass when |a - b| <= atol + rtol * max_t |b| over the run.
+struct Tolerance {
+  double atol = 1e-8;
+  double rtol = 1e-8;
+};
+
+struct CompareSpec {
+  Tolerance default_tolerance;
+  // Per quantity: a column name ("main.wx"), a class ("attitude", "H", "E", "H.drift",
+  // "E.drift"), or "<body>.w" / "<joint>.rate"-style prefixes as the harness documents.
+  std::vector<std::pair<std::string, Tolerance>> tolerances;
+  std::vector<std::pair<std::string, std::string>> excluded;  // quantity, reason
+};
+
+struct RunSpec {
+  double duration = 0;          // s, > 0
+  double output_step = 0;       // s, > 0
+  std::string integrator = "rkf78";
+  double rtol = 1e-10, atol = 1e-10;
+  double dt = 1e-3;             // fixed step for rk4; first trial step for adaptive methods
+};
+
+struct System {
+  std::string name;             // scene name (file stem)
+  std::string file;             // path the scene was read from ("" when built in code)
+  std::string description;
+  std::string source;
+  std::vector<Body> bodies;     // bodies[joints[j].child] ...
+  // Joints in topological order: joints[0] is the free joint of the base body, and every joint's
+  // parent appears as the child of an earlier joint. Exactly one joint per body.
+  std::vector<Joint> joints;
+  bool zero_linear_momentum = true;  // base CM velocity chosen so total linear momentum is zero
+  std::string analytic;              // "" or "torque-free" (single free rigid body, no loads)
+  RunSpec run;
+  CompareSpec compare;
+
+  int base_body() const { return joints.empty() ? -1 : joints[0].child; }
+  int joint_of_body(int b) const {
+    for (std::size_t j = 0; j < joints.size(); ++j)
+      if (joints[j].child == b) return static_cast<int>(j);
+    return -1;
+  }
+  int body_index(const std::string& n) const {
+    for (std::size_t b = 0; b < bodies.size(); ++b)
+      if (bodies[b].name == n) return static_cast<int>(b);
+    return -1;
+  }
+  // Times at which any load changes value (integrators stop there so steps do not straddle them).
+  std::vector<double> breakpoints() const;
+};
+
+// The output columns ../shared/SCENARIOS.md pins, in the order every engine writes them:
+//   t; per body <b>.wx .wy .wz .qw .qx .qy .qz; per revolute joint <j>.angle .rate; per spherical
+//   joint <j>.wx .wy .wz; per flexible body <b>.<mode> then <b>.<mode>_rate; H; E.
+std::vector<std::string> pinned_columns(const System& system);
+
+}  // namespace crossdyn

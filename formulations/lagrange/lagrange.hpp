@@ -1,0 +1,5 @@
+#pragma once
+#include "core/engine.hpp"
+namespace crossdyn {
+std::unique_ptr<Engine> make_lagrange_engine(const System& system, const EngineOptions& options);
+}

@@ -1,0 +1,15 @@
+// The crossdyn program's subcommands. Each add_*_command registers a CLI11 subcommand on `app`
+// whose callback stores the command's exit status in `exit_code` (see core/errors.hpp ExitCode).
+#pragma once
+
+namespace CLI {
+class App;
+}
+
+namespace crossdyn {
+
+void add_run_command(CLI::App& app, int& exit_code);      // harness/run_command.cpp
+void add_compare_command(CLI::App& app, int& exit_code);  // harness/compare_command.cpp
+void add_verify_command(CLI::App& app, int& exit_code);   // harness/verify_command.cpp
+
+}  // namespace crossdyn

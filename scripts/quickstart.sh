@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Quick start, step 1: install what is missing (Debian packages), build into build/, and run the main
+# job (verify every scene, write the report). Safe to run again: it only installs what is missing.
+#   CROSSDYN_WERROR=ON    treat compiler warnings as errors (CI)
+#   CROSSDYN_NO_VERIFY=1  build only
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+packages=(build-essential cmake libeigen3-dev libboost-dev libyaml-cpp-dev catch2 libbenchmark-dev
+          libcli11-dev nlohmann-json3-dev python3-matplotlib)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "Installing Debian packages: ${missing[*]}"
+  sudo_cmd=""
+  [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq "${missing[@]}"
+fi
+
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCROSSDYN_WERROR="${CROSSDYN_WERROR:-OFF}"
+cmake --build build -j2
+
+if [ -z "${CROSSDYN_NO_VERIFY:-}" ]; then
+  build/crossdyn verify --report reports/latest
+  echo "Report: reports/latest/index.html"
+fi
