@@ -1,0 +1,54 @@
+// Shared pieces of the cross-engine tests: random engine-neutral states and run helpers.
+#pragma once
+
+#include "core/engine.hpp"
+#include "core/integrate.hpp"
+#include "core/scene_reader.hpp"
+#include "tests/support/paths.hpp"
+
+#include <random>
+
+namespace crossdyn::test {
+
+// The pinned rigid scenes every engine must agree on (../shared/SCENARIOS.md).
+inline const std::vector<std::string>& pinned_rigid_scenes() {
+  static const std::vector<std::string> s{"spear1_case1", "spear1_case2", "spear1_case1_spherical",
+                                          "chain5"};
+  return s;
+}
+
+inline Eigen::Quaterniond random_quaternion(std::mt19937& g) {
+  std::normal_distribution<double> n;
+  return Eigen::Quaterniond(n(g), n(g), n(g), n(g)).normalized();
+}
+
+// A random state of the scene's tree: any attitude, rates of the order of the scene's own.
+inline TreeState random_state(const System& system, std::mt19937& g) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto vec = [&](double scale) -> Eigen::Vector3d { return Eigen::Vector3d(u(g), u(g), u(g)) * scale; };
+  TreeState s = TreeState::initial(system);
+  s.p_NoBo_N = vec(5.0);
+  s.q_NB = random_quaternion(g);
+  s.v_NBo_N = vec(1.0);
+  s.w_NB_B = vec(2.0);
+  for (std::size_t j = 0; j < system.joints.size(); ++j) {
+    s.joints[j].angle = 3.0 * u(g);
+    s.joints[j].rate = 2.0 * u(g);
+    s.joints[j].q_J = random_quaternion(g);
+    s.joints[j].w_PC_C = vec(1.0);
+  }
+  return s;
+}
+
+inline RunResult run_engine(const std::string& engine, const System& system,
+                            const std::string& method, double tol, double duration = -1,
+                            const EngineOptions& options = {}) {
+  auto e = make_engine(engine, system, options);
+  IntegratorSettings s = IntegratorSettings::from(system.run);
+  s.method = method;
+  s.rtol = s.atol = tol;
+  if (duration > 0) s.duration = duration;
+  return simulate(*e, system, TreeState::initial(system), s);
+}
+
+}  // namespace crossdyn::test
