@@ -1,5 +1,15 @@
+// The Lagrange engine: Lagrange's equations in quasi-coordinates (Boltzmann-Hamel form, reference
+// paper Eq. 23), Euler-angle coordinates with automatic re-charting. Details in
+// lagrange_engine.hpp.
 #pragma once
+
+#include <memory>
+
 #include "core/engine.hpp"
+
 namespace crossdyn {
+
+// Throws InputError for systems the engine cannot handle (flexible bodies, no free base joint).
 std::unique_ptr<Engine> make_lagrange_engine(const System& system, const EngineOptions& options);
-}
+
+}  // namespace crossdyn

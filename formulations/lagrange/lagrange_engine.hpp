@@ -1,0 +1,103 @@
+// The Lagrange engine: Lagrange's equations in quasi-coordinates (Boltzmann-Hamel form), with the
+// coordinates of MBODY (reference paper, Eqs. 15-23). Internal header: the harness uses only the
+// factory in lagrange.hpp; tests use the inspection methods below.
+//
+// Coordinates and quasi-velocities (paper Eqs. 15-19), one block per joint in System::joints order:
+//   joint       q* (generalised coordinates)               pi' (quasi-velocities)
+//   free base   p_NoBo_N (3), Euler angles of R_NB (3)     v_NBo_N (3), w_NB_B (3)
+//   revolute    angle (1)                                  rate (1)
+//   spherical   Euler angles of R_J = R(q_J) (3)           w_PC_C (3), relative, child frame
+//   fixed       -                                          -
+// so q* and pi' have the same length n and block layout, and d(pi) = A(q*) dq* (Eq. 16) with A
+// block-diagonal: identity except the Euler blocks, where A is the matrix of euler_chart.hpp.
+// State x = (q*, pi'), size 2n.
+//
+// Equations of motion (paper Eq. 23; Whittaker 1944, Ch. II, equations for quasi-coordinates;
+// Meirovitch 1970, Ch. 4, Lagrange's equations in terms of quasi-coordinates), with B = A^-1
+// (Eq. 22), T(q*, pi') the kinetic energy, V(q*) the hinge-spring potential, p = dT/dpi'. They
+// follow from Lagrange's equations in q* (Eq. 20) with dT/dq*' = A^T p, multiplied by B^T:
+//   d/dt p + B^T W^T p - B^T d(T - V)/dq* = N
+//   W_lk = sum_j (dA_lk/dq*_j - dA_lj/dq*_k) q*'_j        (Hamel's transitivity terms: the
+//                                                            paper's C matrix is B^T W^T)
+// and N = B^T Q the generalised forces of dampers, motors and external torques for the
+// quasi-velocities (virtual power N . pi'). T is quadratic in pi': T = pi'^T M(q*) pi' / 2, so
+//   d/dt p = M pi'' + (dM/dt) pi'   and   M pi'' = N + B^T d(T - V)/dq* - (dM/dt) pi' - B^T W^T p.
+// T is written once, as a function of (q*, pi'), and V as a function of q*; their derivatives are
+// taken by forward-mode automatic differentiation (autodiff.hpp), and M and p come from T's
+// polarisation on unit quasi-velocity seeds (lagrange_engine.cpp, "Passes"). Only the kinematic
+// relation A (euler_chart.hpp) is written by hand; Hamel's terms are AD derivatives of it.
+//
+// Singularities. Each Euler-angle set (base, spherical joints) lives in one of six charts
+// (euler_chart.hpp); the current chart per set is workspace state. after_step() re-charts a set
+// whose middle angle passes kRechartDeg, re-initialised from the same attitude (outputs do not
+// jump: they depend on the attitude and on pi', neither of which changes); with
+// EngineOptions::rechart == false it throws RunFailure once the middle angle passes kFailDeg.
+// after_step() also brings a first or third angle back to (-pi, pi] once it exceeds 4 pi (they grow
+// without bound in a spin), so that the integrator's tolerances keep their meaning.
+#pragma once
+
+#include <Eigen/Core>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/engine.hpp"
+
+namespace crossdyn::lagrange {
+
+inline constexpr double kPackDeg = 60.0;     // pack(): keep the default chart up to this |a2|
+inline constexpr double kRechartDeg = 75.0;  // after_step(): re-chart beyond this |a2|
+inline constexpr double kFailDeg = 89.0;     // rechart == false: stop beyond this |a2|
+
+class LagrangeEngine final : public Engine {
+ public:
+  LagrangeEngine(const System& system, const EngineOptions& options);
+  ~LagrangeEngine() override;
+  LagrangeEngine(const LagrangeEngine&) = delete;
+  LagrangeEngine& operator=(const LagrangeEngine&) = delete;
+
+  const char* name() const override { return "lagrange"; }
+  int state_size() const override;
+  std::string state_label(int i) const override;
+  void pack(const TreeState& s, double* x) override;
+  void rhs(double t, const double* x, double* xdot) override;
+  bool after_step(double t, double* x) override;
+  void accelerations(double t, const double* x, TreeAccel& a) override;
+  const std::vector<std::string>& columns() const override;
+  void output_row(double t, const double* x, double* row) override;
+
+  // ---- Inspection (tests, reports) ----
+  int dof() const;                           // n, the number of quasi-velocities
+  long recharts() const;                     // charts switched since construction
+  int euler_sets() const;                    // number of Euler-angle sets
+  std::string euler_set_owner(int s) const;  // "main" (base body) or the spherical joint's name
+  int chart(int s) const;                    // current chart of set s (index into kSequences)
+  std::string chart_name(int s) const;       // "3-2-1", ...
+  // Every term of the equations of motion at (t, x) (header comment).
+  struct Terms {
+    Eigen::MatrixXd M;       // mass matrix d2T/dpi'2
+    Eigen::VectorXd p;       // dT/dpi'
+    Eigen::VectorXd Mdot_u;  // (dM/dt) pi'
+    Eigen::VectorXd hamel;   // B^T W^T p
+    Eigen::VectorXd dL;      // B^T d(T - V)/dq*
+    Eigen::VectorXd N;       // generalised forces
+    Eigen::VectorXd qdot;    // q*' = B pi'
+    Eigen::VectorXd udot;    // pi''
+  };
+  Terms terms(double t, const double* x);
+  double kinetic_energy(const double* x);
+  double potential_energy(const double* x);
+  Eigen::Vector3d angular_momentum_N(const double* x);  // about the system CM, N components
+  Eigen::Vector3d linear_momentum_N(const double* x);
+
+  struct Model;      // immutable, built from the System (lagrange_engine.cpp)
+  struct Workspace;  // mutable scratch and the current charts (lagrange_engine.cpp)
+
+ private:
+  void evaluate(double t, const double* x);  // (t, x) => every term and pi'' in the workspace
+  void prepare_charts(double t, const double* x);
+  std::unique_ptr<const Model> model_;
+  std::unique_ptr<Workspace> ws_;
+};
+
+}  // namespace crossdyn::lagrange
