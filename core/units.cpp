@@ -1,0 +1,122 @@
+#include "core/units.hpp"
+
+#include <array>
+#include <numbers>
+
+namespace crossdyn::units {
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;  // rad per degree
+
+// Every unit the reader knows. Factors are exact definitions: 1 deg = pi/180 rad,
+// 1 rpm = 2 pi rad / 60 s, 1 min = 60 s.
+constexpr std::array<Unit, 24> kUnits{{
+    {"rad", Dimension::Angle, 1.0},
+    {"deg", Dimension::Angle, kDeg},
+    {"rad/s", Dimension::AngularRate, 1.0},
+    {"deg/s", Dimension::AngularRate, kDeg},
+    {"rpm", Dimension::AngularRate, 2.0 * std::numbers::pi / 60.0},
+    {"m", Dimension::Length, 1.0},
+    {"mm", Dimension::Length, 1e-3},
+    {"cm", Dimension::Length, 1e-2},
+    {"km", Dimension::Length, 1e3},
+    {"kg", Dimension::Mass, 1.0},
+    {"g", Dimension::Mass, 1e-3},
+    {"s", Dimension::Time, 1.0},
+    {"ms", Dimension::Time, 1e-3},
+    {"min", Dimension::Time, 60.0},
+    {"kg m^2", Dimension::Inertia, 1.0},
+    {"N m", Dimension::Torque, 1.0},
+    {"N m/rad", Dimension::Stiffness, 1.0},
+    {"N m s/rad", Dimension::Damping, 1.0},
+    {"m/s", Dimension::Velocity, 1.0},
+    // Accepted alternative spellings (same factors).
+    {"Nm", Dimension::Torque, 1.0},
+    {"Nm/rad", Dimension::Stiffness, 1.0},
+    {"Nms/rad", Dimension::Damping, 1.0},
+    {"degrees", Dimension::Angle, kDeg},
+    {"radians", Dimension::Angle, 1.0},
+}};
+
+}  // namespace
+
+std::string normalise_unit(std::string_view text) {
+  std::string spaced;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '*' || c == '\t') {
+      spaced += ' ';
+    } else if (static_cast<unsigned char>(c) == 0xC2 && i + 1 < text.size() &&
+               static_cast<unsigned char>(text[i + 1]) == 0xB7) {  // U+00B7 middle dot
+      spaced += ' ';
+      ++i;
+    } else {
+      spaced += c;
+    }
+  }
+  std::string out;
+  for (std::size_t i = 0; i < spaced.size(); ++i) {
+    const char c = spaced[i];
+    if (c == ' ') {
+      // Keep one space, and none at the ends or next to '/'.
+      if (out.empty() || out.back() == ' ' || out.back() == '/') continue;
+      out += ' ';
+    } else {
+      if (c == '/' && !out.empty() && out.back() == ' ') out.pop_back();
+      out += c;
+    }
+  }
+  if (!out.empty() && out.back() == ' ') out.pop_back();
+  return out;
+}
+
+std::optional<Unit> find_unit(std::string_view text) {
+  const std::string n = normalise_unit(text);
+  for (const Unit& u : kUnits)
+    if (u.name == n) return u;
+  return std::nullopt;
+}
+
+std::string dimension_name(Dimension d) {
+  switch (d) {
+    case Dimension::None:
+      return "a pure number";
+    case Dimension::Angle:
+      return "an angle";
+    case Dimension::AngularRate:
+      return "an angular rate";
+    case Dimension::Length:
+      return "a length";
+    case Dimension::Mass:
+      return "a mass";
+    case Dimension::Time:
+      return "a time";
+    case Dimension::Inertia:
+      return "a moment of inertia";
+    case Dimension::Torque:
+      return "a torque";
+    case Dimension::Stiffness:
+      return "a rotational stiffness";
+    case Dimension::Damping:
+      return "a rotational damping";
+    case Dimension::Velocity:
+      return "a velocity";
+  }
+  return "?";
+}
+
+std::vector<std::string> unit_names(Dimension d) {
+  std::vector<std::string> names;
+  for (const Unit& u : kUnits)
+    if (u.dimension == d) names.emplace_back(u.name);
+  return names;
+}
+
+std::string units_of(Dimension d) {
+  if (d == Dimension::None) return "no unit";
+  std::string s;
+  for (const std::string& n : unit_names(d)) s += (s.empty() ? "" : ", ") + n;
+  return s;
+}
+
+}  // namespace crossdyn::units

@@ -1,0 +1,365 @@
+// Scene validation (issue 6): one case per class of error. Each starts from a small valid scene,
+// breaks one thing, and asserts that read_scene_text throws InputError whose message starts
+// "bad.yaml:<line>:" (the line of the offending text), names the key path and says what is wrong.
+#include "core/errors.hpp"
+#include "core/scene_reader.hpp"
+#include "tests/support/paths.hpp"
+
+#include <catch2/catch.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+using namespace crossdyn;
+
+namespace {
+
+const std::string kBase = R"(name: tiny
+bodies:
+  - name: hub
+    mass: 100 kg
+    inertia: [10, 20, 25]
+  - name: arm
+    mass: 5 kg
+    inertia: [1, 1, 1]
+joints:
+  - name: base
+    type: free
+    child: hub
+    initial:
+      angular_velocity: [0, 0, 1]
+  - name: hinge
+    type: revolute
+    parent: hub
+    child: arm
+    parent_point: [1, 0, 0]
+    child_point: [-1, 0, 0]
+    axis: [0, 0, 1]
+    initial: {angle: 0, rate: 0.1}
+run:
+  duration: 10 s
+  output_step: 0.1 s
+)";
+
+// kBase with `from` (which must occur exactly once) replaced by `to`.
+std::string edit(const std::string& from, const std::string& to, const std::string& base = kBase) {
+  const std::size_t at = base.find(from);
+  REQUIRE(at != std::string::npos);
+  REQUIRE(base.find(from, at + 1) == std::string::npos);
+  return base.substr(0, at) + to + base.substr(at + from.size());
+}
+
+// 1-based line of the first occurrence of `needle` in `text`.
+int line_of(const std::string& text, const std::string& needle) {
+  const std::size_t at = text.find(needle);
+  REQUIRE(at != std::string::npos);
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
+}
+
+// Asserts the scene is rejected with a message "bad.yaml:<line>:<column>: ..." that contains
+// `key` and `phrase`.
+void expect_error(const std::string& text, int line, const std::string& key,
+                  const std::string& phrase) {
+  INFO(text);
+  try {
+    (void)read_scene_text(text, "bad.yaml");
+    FAIL("the scene was accepted");
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    INFO(message);
+    CHECK(message.rfind("bad.yaml:" + std::to_string(line) + ":", 0) == 0);
+    CHECK(message.find(key) != std::string::npos);
+    CHECK(message.find(phrase) != std::string::npos);
+  }
+}
+
+// Replace `from` by `to` and expect an error at the line of `to`'s first line.
+void expect_edit_error(const std::string& from, const std::string& to, const std::string& key,
+                       const std::string& phrase, const std::string& line_marker = "") {
+  const std::string text = edit(from, to);
+  expect_error(text, line_of(text, line_marker.empty() ? to : line_marker), key, phrase);
+}
+
+}  // namespace
+
+TEST_CASE("the base scene of these tests is valid") {
+  const System s = read_scene_text(kBase, "bad.yaml");
+  CHECK(s.joints.size() == 2);
+}
+
+TEST_CASE("errors: malformed YAML names the position") {
+  expect_error(edit("inertia: [10, 20, 25]", "inertia: [10, 20, 25"), 6, "bad.yaml",
+               "malformed YAML");
+  // yaml-cpp reports where it notices the flow mapping is not closed.
+  expect_error(edit("run:", "run: {duration: 1"), 24, "bad.yaml",
+               "malformed YAML: end of map flow not found");
+}
+
+TEST_CASE("errors: unknown keys, with a suggestion for typos") {
+  expect_edit_error("    inertia: [10, 20, 25]", "    inertai: [10, 20, 25]", "bodies[0].inertai",
+                    "did you mean 'inertia'?");
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, 1]\n    flexible: {}",
+                    "bodies[1].flexible", "unknown key 'flexible'", "flexible");
+  expect_edit_error("name: tiny", "name: tiny\ndurationn: 1", "durationn", "unknown key",
+                    "durationn");
+  expect_edit_error("  duration: 10 s", "  duraton: 10 s", "run.duraton",
+                    "did you mean 'duration'?");
+}
+
+TEST_CASE("errors: duplicate keys") {
+  expect_edit_error("    mass: 5 kg", "    mass: 5 kg\n    mass: 6 kg", "bodies[1].mass",
+                    "duplicate key 'mass'", "mass: 6 kg");
+}
+
+TEST_CASE("errors: missing required keys") {
+  // Reported at the mapping that lacks the key.
+  expect_edit_error("  - name: arm\n    mass: 5 kg\n", "  - name: arm\n", "bodies[1]",
+                    "missing required key 'mass'", "  - name: arm");
+  expect_edit_error("    axis: [0, 0, 1]\n", "", "joints[1]", "missing required key 'axis'",
+                    "  - name: hinge");
+  expect_error(edit("name: tiny\n", ""), 1, "the scene", "missing required key 'name'");
+  expect_edit_error("  output_step: 0.1 s\n", "", "run", "missing required key 'output_step'",
+                    "  duration");
+}
+
+TEST_CASE("errors: wrong types") {
+  expect_edit_error("run:\n  duration: 10 s\n  output_step: 0.1 s\n", "run: [10, 0.1]\n", "run",
+                    "expected the run block (a mapping of keys), found a list");
+  expect_edit_error("joints:\n", "joints:\n  - just a joint\n", "joints[0]",
+                    "expected a joint (a mapping of keys)", "  - just");
+  expect_edit_error("    mass: 100 kg", "    mass: [100]", "bodies[0].mass", "expected a mass");
+  expect_edit_error("    mass: 100 kg", "    mass: heavy", "bodies[0].mass", "found 'heavy'");
+  expect_edit_error("      angular_velocity: [0, 0, 1]", "      angular_velocity: [0, 1]",
+                    "joints[0].initial.angular_velocity", "found 2 elements");
+  expect_edit_error("    inertia: [10, 20, 25]", "    inertia: [10, 20, 25, 1]",
+                    "bodies[0].inertia", "6 numbers (xx, yy, zz, xy, xz, yz)");
+  expect_edit_error("  - name: arm", "  - name: [arm]", "bodies[1].name",
+                    "expected body name, found a list");
+  expect_edit_error("    mass: 100 kg", "    mass:", "bodies[0].mass", "has no value");
+}
+
+TEST_CASE("errors: non-finite and absurd numbers") {
+  expect_edit_error("    mass: 5 kg", "    mass: .nan", "bodies[1].mass", "non-finite");
+  expect_edit_error("    mass: 5 kg", "    mass: -.inf", "bodies[1].mass", "non-finite");
+  expect_edit_error("    mass: 5 kg", "    mass: 1e999", "bodies[1].mass", "out of range");
+  expect_edit_error("    parent_point: [1, 0, 0]", "    parent_point: [1e13, 0, 0]",
+                    "joints[1].parent_point", "absurd value");
+  expect_edit_error("    mass: 5 kg", "    mass: 2e9 kg", "bodies[1].mass", "absurd mass");
+}
+
+TEST_CASE("errors: zero or negative mass") {
+  expect_edit_error("    mass: 5 kg", "    mass: 0 kg", "bodies[1].mass", "mass must be positive");
+  expect_edit_error("    mass: 5 kg", "    mass: -5 kg", "bodies[1].mass", "mass must be positive");
+}
+
+TEST_CASE("errors: inertia not symmetric positive definite, or violating the triangle inequality") {
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, 0]", "bodies[1].inertia",
+                    "not positive definite");
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, -1]", "bodies[1].inertia",
+                    "not positive definite");
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]",
+                    "bodies[1].inertia", "not symmetric");
+  expect_edit_error("    inertia: [10, 20, 25]", "    inertia: [10, 20, 31]", "bodies[0].inertia",
+                    "triangle inequality");
+  // Products of inertia that make it indefinite: eigenvalues of [[1, 2], [2, 1]] are -1 and 3.
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, 1, 2, 0, 0]",
+                    "bodies[1].inertia", "not positive definite");
+  // The triangle inequality's boundary (a thin plate) is accepted.
+  CHECK_NOTHROW(read_scene_text(edit("inertia: [10, 20, 25]", "inertia: [10, 20, 30]"), "ok.yaml"));
+}
+
+TEST_CASE("errors: zero axis") {
+  expect_edit_error("    axis: [0, 0, 1]", "    axis: [0, 0, 0]", "joints[1].axis", "zero axis");
+  expect_edit_error("      angular_velocity: [0, 0, 1]",
+                    "      attitude: {axis: [0, 0, 0], angle: 1}",
+                    "joints[0].initial.attitude.axis", "zero axis");
+}
+
+TEST_CASE("errors: duplicate body or joint names") {
+  expect_error(edit("  - name: arm", "  - name: hub"), 6, "bodies[1].name",
+               "duplicate body name 'hub' (first at line 3)");
+  expect_error(edit("  - name: hinge", "  - name: base"), 15, "joints[1].name",
+               "duplicate joint name 'base'");
+  expect_error(edit("  - name: hinge", "  - name: arm"), 15, "joints[1].name", "also a body name");
+}
+
+TEST_CASE("errors: a joint naming an unknown body") {
+  expect_edit_error("    child: arm", "    child: amr", "joints[1].child",
+                    "unknown body 'amr' (did you mean 'arm'?)");
+  expect_edit_error("    parent: hub", "    parent: nobody", "joints[1].parent",
+                    "unknown body 'nobody'");
+}
+
+TEST_CASE("errors: topology") {
+  const std::string third_body =
+      edit("joints:", "  - name: tip\n    mass: 1\n    inertia: [1, 1, 1]\njoints:");
+  const std::string hinge2 =
+      "  - name: hinge2\n    type: revolute\n    parent: PARENT\n    child: CHILD\n    "
+      "parent_point: [1, 0, 0]\n"
+      "    child_point: [0, 0, 0]\n    axis: [0, 0, 1]\n";
+  auto with_hinge2 = [&](const std::string& parent, const std::string& child) {
+    return edit("run:", edit("CHILD", child, edit("PARENT", parent, hinge2)) + "run:", third_body);
+  };
+  SECTION("a body with two parents") {
+    const std::string text = with_hinge2("hub", "arm");
+    expect_error(text,
+                 line_of(text, "    child: arm\n    parent_point: [1, 0, 0]\n    child_point: [0"),
+                 "joints[2].child", "already has a parent joint 'hinge'");
+  }
+  SECTION("a body without a joint") {
+    expect_error(third_body, line_of(third_body, "  - name: tip"), "bodies[2]",
+                 "body 'tip' has no joint");
+  }
+  SECTION("a joint connecting a body to itself") {
+    const std::string text = with_hinge2("tip", "tip");
+    expect_error(text, line_of(text, "    parent: tip"), "joints[2].parent", "to itself");
+  }
+  SECTION("a cycle, which leaves bodies not connected to the base") {
+    // hinge: hub -> arm; make arm's parent tip and tip's parent arm: arm -> tip -> arm.
+    std::string text = with_hinge2("arm", "tip");
+    text = edit("    parent: hub\n    child: arm", "    parent: tip\n    child: arm", text);
+    expect_error(text, line_of(text, "    parent: tip"), "joints[1].parent",
+                 "not connected to the base body 'hub'");
+    expect_error(text, line_of(text, "    parent: tip"), "joints[1].parent",
+                 "cycle of parents (arm -> tip -> arm)");
+  }
+  SECTION("no free joint") {
+    const std::string text =
+        edit("    type: free\n    child: hub\n    initial:\n      angular_velocity: [0, 0, 1]",
+             "    type: revolute\n    parent: arm\n    child: hub\n    parent_point: [0, 0, 0]\n"
+             "    child_point: [0, 0, 0]\n    axis: [1, 0, 0]");
+    expect_error(text, line_of(text, "  - name: base"), "joints", "no free joint");
+  }
+  SECTION("more than one free joint") {
+    const std::string text =
+        edit("run:", "  - {name: base2, type: free, child: tip}\nrun:", third_body);
+    expect_error(text, line_of(text, "base2"), "joints[2].type",
+                 "a second free joint (the first is 'base')");
+  }
+}
+
+TEST_CASE("errors: keys and initial conditions a joint type does not have") {
+  expect_edit_error("    type: free\n    child: hub",
+                    "    type: free\n    parent: arm\n    child: hub", "joints[0].parent",
+                    "'parent' does not apply to a free joint", "    parent: arm");
+  expect_edit_error("    initial: {angle: 0, rate: 0.1}",
+                    "    initial: {angle: 0, angular_velocity: [0, 0, 1]}",
+                    "joints[1].initial.angular_velocity", "initial conditions of a revolute joint");
+  // The same scene with type fixed:
+  std::string fixed = edit("    type: revolute", "    type: fixed");
+  fixed = edit("    axis: [0, 0, 1]\n", "", fixed);
+  expect_error(fixed, line_of(fixed, "    initial: {angle"), "joints[1].initial",
+               "no initial conditions");
+  expect_edit_error("      angular_velocity: [0, 0, 1]", "      angle: 1",
+                    "joints[0].initial.angle", "initial conditions of a free joint");
+  // The base velocity is derived when zero_linear_momentum holds.
+  expect_edit_error("      angular_velocity: [0, 0, 1]", "      velocity: [1, 0, 0]",
+                    "joints[0].initial.velocity", "zero_linear_momentum");
+}
+
+TEST_CASE("errors: unknown units and units of the wrong dimension") {
+  expect_edit_error("    mass: 5 kg", "    mass: 5 kgs", "bodies[1].mass",
+                    "unknown unit 'kgs' (did you mean 'kg'?)");
+  expect_edit_error("  duration: 10 s", "  duration: 10 deg", "run.duration",
+                    "unit 'deg' is an angle, but this key expects a time");
+  expect_edit_error("    initial: {angle: 0, rate: 0.1}", "    initial: {angle: 0, rate: 0.1 rad}",
+                    "joints[1].initial.rate", "expects an angular rate");
+  expect_edit_error("      angular_velocity: [0, 0, 1]",
+                    "      angular_velocity: {value: [0, 0, 1], unit: m/s}",
+                    "joints[0].initial.angular_velocity.unit", "is a velocity");
+  expect_edit_error("      angular_velocity: [0, 0, 1]", "      attitude: [1 deg, 0, 0, 0]",
+                    "joints[0].initial.attitude[0]", "takes no unit");
+}
+
+TEST_CASE("errors: run block") {
+  expect_edit_error("  duration: 10 s", "  duration: 0 s", "run.duration",
+                    "duration must be positive");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: -0.1 s", "run.output_step",
+                    "output_step must be positive");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: 20 s", "run.output_step",
+                    "longer than the duration");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: 0.1 s\n  integrator: rk45",
+                    "run.integrator", "unknown integrator 'rk45'", "  integrator");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: 0.1 s\n  rtol: -1e-9", "run.rtol",
+                    "negative tolerance", "  rtol");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: 0.1 s\n  dt: 0", "run.dt",
+                    "dt must be positive", "  dt");
+  expect_edit_error("  output_step: 0.1 s", "  output_step: 1e-7 s", "run.output_step",
+                    "output rows");
+}
+
+TEST_CASE("errors: compare block") {
+  const std::string text = kBase + "compare:\n  tolerances:\n    H: {atol: -1}\n";
+  expect_error(text, line_of(text, "    H:"), "compare.tolerances.H.atol", "negative tolerance");
+  const std::string excl = kBase + "compare:\n  exclude:\n    - {quantity: E}\n";
+  expect_error(excl, line_of(excl, "    - {quantity"), "compare.exclude[0]",
+               "missing required key 'reason'");
+}
+
+TEST_CASE("errors: motor and torque profiles") {
+  const std::string motor =
+      "    motor:\n      profile:\n        - {t: 0, value: 1}\n        - {t: 2 s, value: 0}\n"
+      "        - {t: 1 s, value: -1}\n";
+  const std::string text = edit("    initial: {angle", motor + "    initial: {angle");
+  expect_error(text, line_of(text, "{t: 1 s"), "joints[1].motor.profile[2].t",
+               "times must increase strictly");
+  expect_edit_error("    initial: {angle",
+                    "    motor: {profile: [{t: -1, value: 1}]}\n    initial: {angle",
+                    "joints[1].motor.profile[0].t", "negative", "    motor:");
+  expect_edit_error("    initial: {angle",
+                    "    motor: {profile: [{t: 0, value: [1, 0, 0]}]}\n    initial: {angle",
+                    "joints[1].motor.profile[0].value", "expected a torque", "    motor:");
+  expect_edit_error("    inertia: [1, 1, 1]",
+                    "    inertia: [1, 1, 1]\n    torque: {frame: world, profile: []}",
+                    "bodies[1].torque.frame", "unknown torque frame 'world'", "    torque");
+}
+
+TEST_CASE("errors: text-level guards before parsing") {
+  expect_error(kBase + "---\nname: other\n", 26, "bad.yaml", "a second YAML document");
+  expect_error(std::string("name: ti\xffny\n"), 1, "bad.yaml", "not valid UTF-8");
+  expect_error(std::string("name: tiny\n\x01"), 2, "bad.yaml", "control character 1");
+  expect_error("", 1, "bad.yaml", "the scene is empty");
+  expect_error(std::string(2 << 20, ' '), 1, "bad.yaml", "larger than the limit of 1048576 bytes");
+  // Deep nesting: yaml-cpp's own depth guard stops it; the reader turns it into an InputError.
+  expect_error("name: " + std::string(100000, '['), 1, "bad.yaml", "nesting too deep");
+  std::string dashes;
+  for (int i = 0; i < 20000; ++i) dashes += "- ";
+  expect_error(dashes + "x", 1, "bad.yaml", "nesting too deep");
+  // Free text with control characters (by escape) and invalid names.
+  expect_edit_error("name: tiny", "name: tiny\ndescription: \"a\\x01b\"", "description",
+                    "control character", "description");
+  expect_edit_error("name: tiny", "name: 1tiny", "name", "invalid scene name");
+  expect_edit_error("  - name: arm", "  - name: arm.x", "bodies[1].name", "invalid body name");
+  expect_edit_error("name: tiny", "name: tiny\nzero_linear_momentum: maybe", "zero_linear_momentum",
+                    "expected true or false", "zero_linear");
+  expect_edit_error("name: tiny", "name: tiny\nanalytic: torque-free", "analytic",
+                    "single free rigid body", "analytic");
+}
+
+TEST_CASE("errors: files that cannot be read") {
+  try {
+    (void)read_scene("/nonexistent/scene.yaml");
+    FAIL("accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).rfind("/nonexistent/scene.yaml:1:1: cannot open", 0) == 0);
+  }
+}
+
+TEST_CASE("errors: a scene file over the size limit") {
+  const std::string path = test::binary_dir() + "/tests/scene/too_large.yaml";
+  {
+    std::ofstream out(path, std::ios::binary);
+    out << "name: big\ndescription: |\n";
+    for (int i = 0; i < 40000; ++i)
+      out << "  a line of text that makes the scene file larger than one MiB\n";
+  }
+  try {
+    (void)read_scene(path);
+    FAIL("accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).rfind(path + ":1:1: the scene is larger than the limit", 0) == 0);
+  }
+  std::remove(path.c_str());
+}
