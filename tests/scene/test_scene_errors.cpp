@@ -9,8 +9,13 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 
 using namespace crossdyn;
 
@@ -58,8 +63,31 @@ int line_of(const std::string& text, const std::string& needle) {
   return 1 + static_cast<int>(std::count(text.begin(), text.begin() + static_cast<long>(at), '\n'));
 }
 
+// The same scene through the program: `crossdyn run FILE --output OUT` must exit with status 2,
+// print a message naming the file, the line and the key on stderr, and create no output file.
+void expect_cli_rejects(const std::string& text, int line, const std::string& key) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn_cli_errors_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path scene = dir / "bad.yaml", out = dir / "out.csv", err = dir / "stderr.txt";
+  std::ofstream(scene) << text;
+  std::ostringstream cmd;  // (a stream: GCC 12 warns falsely on chained string concatenation)
+  cmd << "'" << test::binary_dir() << "/crossdyn' run '" << scene.string() << "' --output '"
+      << out.string() << "' 2> '" << err.string() << "'";
+  const int status = std::system(cmd.str().c_str());
+  std::stringstream message;
+  message << std::ifstream(err).rdbuf();
+  INFO("crossdyn printed: " << message.str());
+  CHECK(WIFEXITED(status));
+  CHECK(WEXITSTATUS(status) == 2);
+  CHECK(message.str().find(scene.string() + ":" + std::to_string(line) + ":") != std::string::npos);
+  CHECK(message.str().find(key) != std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+  fs::remove_all(dir);
+}
+
 // Asserts the scene is rejected with a message "bad.yaml:<line>:<column>: ..." that contains
-// `key` and `phrase`.
+// `key` and `phrase`, by the reader and by the program (expect_cli_rejects).
 void expect_error(const std::string& text, int line, const std::string& key,
                   const std::string& phrase) {
   INFO(text);
@@ -73,6 +101,7 @@ void expect_error(const std::string& text, int line, const std::string& key,
     CHECK(message.find(key) != std::string::npos);
     CHECK(message.find(phrase) != std::string::npos);
   }
+  expect_cli_rejects(text, line, key == "bad.yaml" ? "" : key);
 }
 
 // Replace `from` by `to` and expect an error at the line of `to`'s first line.
