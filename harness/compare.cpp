@@ -1,0 +1,593 @@
+// Comparing engines on one scene (see compare.hpp for the quantities, the pass rule and the
+// tolerance lookup).
+#include "harness/compare.hpp"
+
+#include "analytic/torque_free.hpp"
+#include "core/errors.hpp"
+#include "core/rotation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <limits>
+#include <set>
+#include <sstream>
+
+namespace crossdyn::harness {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// One compared quantity of a scene: a scalar column, or an attitude (four quaternion columns).
+struct Quantity {
+  std::string name;        // "main.wx", "main.attitude"
+  std::string group;       // "w", "attitude", ...
+  std::string vector_key;  // "main.w" for main.wx; "" when none
+  std::vector<std::string> columns;
+  bool attitude = false;
+};
+
+// The quantities every engine must output for this scene (pinned_columns), in table order.
+std::vector<Quantity> pinned_quantities(const System& s) {
+  std::vector<Quantity> q;
+  for (const Body& b : s.bodies) {
+    for (const char* c : {"wx", "wy", "wz"})
+      q.push_back({b.name + "." + c, "w", b.name + ".w", {b.name + "." + c}, false});
+    q.push_back({b.name + ".attitude", "attitude", "",
+                 {b.name + ".qw", b.name + ".qx", b.name + ".qy", b.name + ".qz"}, true});
+  }
+  for (const Joint& j : s.joints) {
+    if (j.type == JointType::Revolute) {
+      q.push_back({j.name + ".angle", "angle", "", {j.name + ".angle"}, false});
+      q.push_back({j.name + ".rate", "rate", "", {j.name + ".rate"}, false});
+    } else if (j.type == JointType::Spherical) {
+      for (const char* c : {"wx", "wy", "wz"})
+        q.push_back({j.name + "." + c, "rate", j.name + ".w", {j.name + "." + c}, false});
+    }
+  }
+  for (const Body& b : s.bodies)
+    if (b.modal) {
+      for (const std::string& m : b.modal->mode_names)
+        q.push_back({b.name + "." + m, "modal", "", {b.name + "." + m}, false});
+      for (const std::string& m : b.modal->mode_names)
+        q.push_back({b.name + "." + m + "_rate", "modal", "", {b.name + "." + m + "_rate"}, false});
+    }
+  q.push_back({"H", "H", "", {"H"}, false});
+  q.push_back({"E", "E", "", {"E"}, false});
+  return q;
+}
+
+// Keys looked up for a quantity, most specific first (compare.hpp).
+std::vector<std::string> lookup_keys(const Quantity& q) {
+  std::vector<std::string> k{q.name};
+  if (!q.vector_key.empty()) k.push_back(q.vector_key);
+  if (q.group != q.name) k.push_back(q.group);
+  return k;
+}
+
+struct Lookup {
+  const System& s;
+  std::set<std::string>* used;
+
+  std::pair<std::string, Tolerance> tolerance(const std::vector<std::string>& keys,
+                                              const Tolerance& fallback) const {
+    for (const std::string& key : keys)
+      for (const auto& [name, tol] : s.compare.tolerances)
+        if (name == key) {
+          used->insert(key);
+          return {key, tol};
+        }
+    return {"default", fallback};
+  }
+  const std::string* exclusion(const std::vector<std::string>& keys) const {
+    for (const std::string& key : keys)
+      for (const auto& [name, reason] : s.compare.excluded)
+        if (name == key) {
+          used->insert(key);
+          return &reason;
+        }
+    return nullptr;
+  }
+};
+
+int column_index(const RunResult& r, const std::string& name) {
+  const auto it = std::find(r.columns.begin(), r.columns.end(), name);
+  return it == r.columns.end() ? -1 : static_cast<int>(it - r.columns.begin());
+}
+
+std::string fmt_g(double v, int digits = 6) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+// Fills bound, normalised, status from error and scale (NaN errors fail).
+void finish(Check& c) {
+  c.bound = c.tolerance.atol + c.tolerance.rtol * c.scale;
+  if (c.error == 0) c.normalised = 0;
+  else if (c.bound > 0) c.normalised = c.error / c.bound;
+  else c.normalised = std::numeric_limits<double>::infinity();
+  if (!(c.error <= c.bound)) c.status = CheckStatus::Fail;
+  if (std::isnan(c.error)) c.normalised = kNaN;
+}
+
+// Pairwise check of one quantity: a = runs[ia] against the reference b = runs[ib].
+Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, const Lookup& look,
+                 const Tolerance& fallback) {
+  Check c;
+  c.quantity = q.name;
+  c.group = q.group;
+  c.a = A.label;
+  c.b = B.label;
+  const std::vector<std::string> keys = lookup_keys(q);
+  std::tie(c.tolerance_key, c.tolerance) = look.tolerance(keys, fallback);
+  if (const std::string* reason = look.exclusion(keys)) {
+    c.status = CheckStatus::Excluded;
+    c.note = *reason;
+    return c;
+  }
+  std::vector<int> ca, cb;
+  for (const std::string& col : q.columns) {
+    ca.push_back(column_index(A.result, col));
+    cb.push_back(column_index(B.result, col));
+    for (const auto& [run, idx] : {std::pair{&A, ca.back()}, std::pair{&B, cb.back()}})
+      if (idx < 0 && c.note.empty()) c.note = "column '" + col + "' missing from " + run->label + "'s output";
+  }
+  if (!c.note.empty()) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    return c;
+  }
+  const std::size_t n = std::min(A.result.rows(), B.result.rows());
+  const int ta = column_index(A.result, "t");
+  c.scale = q.attitude ? 1.0 : 0.0;
+  std::vector<double> err(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    if (q.attitude) {
+      const Eigen::Quaterniond qa(A.result.at(k, ca[0]), A.result.at(k, ca[1]), A.result.at(k, ca[2]),
+                                  A.result.at(k, ca[3]));
+      const Eigen::Quaterniond qb(B.result.at(k, cb[0]), B.result.at(k, cb[1]), B.result.at(k, cb[2]),
+                                  B.result.at(k, cb[3]));
+      err[k] = rot::angle_between(qa.normalized(), qb.normalized());
+    } else {
+      const double a = A.result.at(k, ca[0]), b = B.result.at(k, cb[0]);
+      err[k] = std::abs(a - b);
+      c.scale = std::max(c.scale, std::abs(b));
+      if (!std::isfinite(a) || !std::isfinite(b)) err[k] = kNaN;
+    }
+  }
+  c.error = 0;
+  for (std::size_t k = 0; k < n; ++k)
+    if (std::isnan(err[k]) || err[k] > c.error) {
+      c.error = err[k];
+      c.time = ta >= 0 ? A.result.at(k, ta) : kNaN;
+      if (std::isnan(err[k])) break;
+    }
+  finish(c);
+  for (std::size_t k = 0; k < n; ++k)
+    if (!(err[k] <= c.bound)) {
+      c.first_exceeded = ta >= 0 ? A.result.at(k, ta) : kNaN;
+      break;
+    }
+  return c;
+}
+
+// Drift of H or E of one engine from its initial value.
+Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
+                  const std::string& not_conserved) {
+  Check c;
+  c.quantity = x + ".drift";
+  c.group = c.quantity;
+  c.a = R.label;
+  const Tolerance fallback{kDefaultDriftTolerance, kDefaultDriftTolerance};
+  std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "drift"}, fallback);
+  if (!not_conserved.empty()) {
+    c.status = CheckStatus::Excluded;
+    c.note = "not conserved: " + not_conserved;
+    return c;
+  }
+  if (const std::string* reason = look.exclusion({c.quantity, "drift"})) {
+    c.status = CheckStatus::Excluded;
+    c.note = *reason;
+    return c;
+  }
+  const int ix = column_index(R.result, x), it = column_index(R.result, "t");
+  if (ix < 0 || R.result.rows() == 0) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    c.note = "column '" + x + "' missing from " + R.label + "'s output";
+    return c;
+  }
+  const double x0 = R.result.at(0, ix);
+  c.scale = std::abs(x0);
+  std::vector<double> err(R.result.rows());
+  for (std::size_t k = 0; k < err.size(); ++k) {
+    err[k] = std::abs(R.result.at(k, ix) - x0);
+    if (std::isnan(err[k]) || err[k] > c.error) {
+      c.error = err[k];
+      c.time = it >= 0 ? R.result.at(k, it) : kNaN;
+      if (std::isnan(err[k])) break;
+    }
+  }
+  finish(c);
+  for (std::size_t k = 0; k < err.size(); ++k)
+    if (!(err[k] <= c.bound)) {
+      c.first_exceeded = it >= 0 ? R.result.at(k, it) : kNaN;
+      break;
+    }
+  return c;
+}
+
+// Output times of two runs agree (row by row, to 1e-9 of the output step)?
+std::optional<Check> time_check(const EngineRun& A, const EngineRun& B, double tol) {
+  const int ta = column_index(A.result, "t"), tb = column_index(B.result, "t");
+  Check c;
+  c.quantity = c.group = "t";
+  c.a = A.label;
+  c.b = B.label;
+  c.tolerance = Tolerance{tol, 0};
+  c.tolerance_key = "output times";
+  if (ta < 0 || tb < 0) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    c.note = "column 't' missing";
+    return c;
+  }
+  const std::size_t n = std::min(A.result.rows(), B.result.rows());
+  for (std::size_t k = 0; k < n; ++k) {
+    const double d = std::abs(A.result.at(k, ta) - B.result.at(k, tb));
+    if (!(d <= tol) && (std::isnan(d) || d > c.error)) {
+      c.error = d;
+      c.time = A.result.at(k, ta);
+    }
+  }
+  if (A.result.rows() != B.result.rows()) {
+    c.note = A.label + " has " + std::to_string(A.result.rows()) + " rows, " + B.label + " " +
+             std::to_string(B.result.rows());
+    c.error = std::max(c.error, std::numeric_limits<double>::infinity());
+  }
+  if (c.error == 0) return std::nullopt;
+  finish(c);
+  if (c.note.empty()) c.note = "the two runs were sampled at different output times";
+  return c;
+}
+
+bool has_dampers(const System& s) {
+  for (const Joint& j : s.joints)
+    if (j.damping != 0) return true;
+  for (const Body& b : s.bodies)
+    if (b.modal && b.modal->D_ee.size() > 0 && b.modal->D_ee.cwiseAbs().maxCoeff() > 0) return true;
+  return false;
+}
+bool has_motors(const System& s) {
+  for (const Joint& j : s.joints)
+    if (!j.motor_revolute.empty() || !j.motor_spherical.empty()) return true;
+  return false;
+}
+bool has_external_torques(const System& s) {
+  for (const Body& b : s.bodies)
+    if (!b.torque.empty()) return true;
+  return false;
+}
+
+}  // namespace
+
+const char* to_string(CheckStatus s) {
+  switch (s) {
+    case CheckStatus::Pass: return "PASS";
+    case CheckStatus::Fail: return "FAIL";
+    case CheckStatus::Excluded: return "EXCLUDED";
+    case CheckStatus::Skipped: return "SKIPPED";
+  }
+  return "?";
+}
+
+bool SceneComparison::passed() const { return count(CheckStatus::Fail) == 0; }
+
+int SceneComparison::count(CheckStatus s) const {
+  return static_cast<int>(std::count_if(checks.begin(), checks.end(),
+                                        [s](const Check& c) { return c.status == s; }));
+}
+
+std::string energy_not_conserved_reason(const System& s) {
+  std::vector<std::string> why;
+  if (has_dampers(s)) why.push_back("dampers");
+  if (has_motors(s)) why.push_back("motors");
+  if (has_external_torques(s)) why.push_back("external torques");
+  if (why.empty()) return "";
+  std::string r = "scene has ";
+  for (std::size_t i = 0; i < why.size(); ++i)
+    r += (i == 0 ? "" : i + 1 == why.size() ? " and " : ", ") + why[i];
+  return r;
+}
+
+std::string momentum_not_conserved_reason(const System& s) {
+  return has_external_torques(s) ? "scene has external torques" : "";
+}
+
+std::vector<double> output_times(const IntegratorSettings& settings) {
+  // Same rule as the integrator plumbing (core/integrate.hpp): k * step, plus the duration.
+  std::vector<double> t;
+  const auto n = static_cast<long>(std::floor(settings.duration / settings.output_step * (1 + 1e-12)));
+  for (long k = 0; k <= n; ++k) t.push_back(static_cast<double>(k) * settings.output_step);
+  if (settings.duration - t.back() > 1e-9 * settings.output_step) t.push_back(settings.duration);
+  return t;
+}
+
+RunResult analytic_run(const System& system, const std::vector<double>& times) {
+  if (!analytic::is_torque_free(system))
+    throw InputError(system.file + ": the torque-free analytic reference needs a single free rigid "
+                     "body without loads");
+  const Body& body = system.bodies[0];
+  const TreeState s0 = TreeState::initial(system);
+  const analytic::TorqueFreeBody reference(body.I_BBo_B, s0.w_NB_B, s0.q_NB);
+  // Translational kinetic energy is constant; zero when the scene zeroes the linear momentum.
+  const double E_translation =
+      system.zero_linear_momentum ? 0.0 : 0.5 * body.mass * s0.v_NBo_N.squaredNorm();
+  RunResult r;
+  r.engine = "analytic";
+  r.columns = pinned_columns(system);
+  r.data.reserve(times.size() * r.columns.size());
+  for (double t : times) {
+    const analytic::TorqueFreeState x = reference.at(t);
+    const Eigen::Quaterniond q = rot::canonical(x.q_NB);
+    const Eigen::Vector3d H_B = body.I_BBo_B * x.w_NB_B;
+    const double row[] = {t, x.w_NB_B.x(), x.w_NB_B.y(), x.w_NB_B.z(), q.w(), q.x(), q.y(), q.z(),
+                          H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation};
+    r.data.insert(r.data.end(), std::begin(row), std::end(row));
+  }
+  return r;
+}
+
+SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) {
+  SceneComparison out;
+  out.scene = system.name;
+  out.file = system.file;
+  out.runs = std::move(runs);
+  std::set<std::string> used;
+  const Lookup look{system, &used};
+  const Tolerance fallback = system.compare.default_tolerance;
+
+  // Runs: one check each (pass, failure with time and reason, or skipped).
+  std::vector<const EngineRun*> ok;
+  for (const EngineRun& r : out.runs) {
+    if (r.engine == "analytic") {
+      ok.push_back(&r);
+      continue;
+    }
+    Check c;
+    c.quantity = c.group = "run";
+    c.a = r.label;
+    c.tolerance_key = "-";
+    c.note = r.note;
+    if (r.state == EngineRun::State::NotBuilt) {
+      c.status = CheckStatus::Skipped;
+    } else if (r.state == EngineRun::State::Failed || r.result.failure) {
+      c.status = CheckStatus::Fail;
+      c.error = c.normalised = std::numeric_limits<double>::infinity();
+      if (r.result.failure) {
+        c.time = r.result.failure->time();
+        if (c.note.empty()) c.note = r.result.failure->what();
+      }
+      out.notes.push_back(r.label + " left out of the comparison: " + c.note);
+    } else {
+      ok.push_back(&r);
+    }
+    out.checks.push_back(c);
+  }
+  for (const EngineRun& r : out.runs)
+    if (r.state == EngineRun::State::NotBuilt) out.notes.push_back(r.label + " skipped: " + r.note);
+
+  // Pairs (a, b) with b the reference: the earlier run.
+  std::vector<std::pair<const EngineRun*, const EngineRun*>> pairs;
+  for (std::size_t j = 0; j < ok.size(); ++j)
+    for (std::size_t i = 0; i < j; ++i) pairs.emplace_back(ok[j], ok[i]);
+  if (ok.size() < 2)
+    out.notes.push_back(ok.empty() ? "no run finished: nothing to compare"
+                                   : "only " + ok[0]->label + " finished: no pairwise comparison");
+
+  const double t_tol = 1e-9 * std::max(1.0, system.run.output_step);
+  for (const auto& [A, B] : pairs)
+    if (auto c = time_check(*A, *B, t_tol)) out.checks.push_back(*c);
+
+  // Pinned quantities, then extra columns the scene's tolerances name.
+  std::vector<Quantity> quantities = pinned_quantities(system);
+  std::set<std::string> known_keys{"drift", "H.drift", "E.drift"};
+  for (const Quantity& q : quantities)
+    for (const std::string& k : lookup_keys(q)) known_keys.insert(k);
+  for (const auto& [key, tol] : system.compare.tolerances) {
+    if (known_keys.count(key)) continue;
+    bool in_all = !ok.empty();
+    bool in_any = false;
+    for (const EngineRun* r : ok) {
+      const bool has = column_index(r->result, key) >= 0;
+      in_all = in_all && has;
+      in_any = in_any || has;
+    }
+    if (in_any) {
+      quantities.push_back({key, "extra", "", {key}, false});
+      known_keys.insert(key);
+      if (!in_all) out.notes.push_back("extra column '" + key + "' is not written by every engine");
+    }
+  }
+  for (const Quantity& q : quantities)
+    for (const auto& [A, B] : pairs) out.checks.push_back(pair_check(q, *A, *B, look, fallback));
+
+  // Drift of each engine (not of the analytic solution).
+  const std::string no_E = energy_not_conserved_reason(system);
+  const std::string no_H = momentum_not_conserved_reason(system);
+  for (const char* x : {"H", "E"})
+    for (const EngineRun* r : ok)
+      if (r->engine != "analytic")
+        out.checks.push_back(drift_check(x, *r, look, std::string(x) == "E" ? no_E : no_H));
+  if (!no_E.empty()) out.notes.push_back("E drift not checked: not conserved: " + no_E);
+  if (!no_H.empty()) out.notes.push_back("H drift not checked: not conserved: " + no_H);
+
+  // Scene keys that match nothing are almost always typos: say so.
+  for (const auto& [key, tol] : system.compare.tolerances)
+    if (!known_keys.count(key) && !used.count(key))
+      out.notes.push_back("tolerance '" + key + "' matches no compared quantity or column");
+  for (const auto& [key, reason] : system.compare.excluded)
+    if (!known_keys.count(key) && !used.count(key))
+      out.notes.push_back("exclusion '" + key + "' matches no compared quantity");
+  return out;
+}
+
+SceneComparison compare_scene(const System& system, const CompareOptions& options) {
+  IntegratorSettings settings = IntegratorSettings::from(system.run);
+  if (options.integrator) settings.method = *options.integrator;
+  if (options.rtol) settings.rtol = *options.rtol;
+  if (options.atol) settings.atol = *options.atol;
+  if (options.dt) settings.dt = *options.dt;
+
+  std::vector<EngineSpec> specs = options.engines;
+  if (specs.empty())
+    for (const std::string& name : engine_names()) specs.push_back({name, name, {}});
+
+  std::vector<EngineRun> runs;
+  for (const EngineSpec& spec : specs) {
+    EngineRun run;
+    run.label = spec.label;
+    run.engine = spec.engine;
+    std::unique_ptr<Engine> engine;
+    try {
+      engine = make_engine(spec.engine, system, spec.options);
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      if (what.find("not built yet") == std::string::npos) throw;
+      run.state = EngineRun::State::NotBuilt;
+      run.note = what;
+      runs.push_back(std::move(run));
+      continue;
+    }
+    try {
+      run.result = simulate(*engine, system, TreeState::initial(system), settings);
+    } catch (const InputError&) {
+      throw;
+    } catch (const RunFailure& f) {
+      run.result.failure = f;
+    } catch (const std::exception& e) {
+      run.result.failure = RunFailure(spec.label, 0.0, "", std::string("unexpected error: ") + e.what());
+    }
+    run.result.engine = spec.label;
+    if (run.result.failure) {
+      if (run.result.failure->reason() == "interrupted") throw *run.result.failure;
+      run.state = EngineRun::State::Failed;
+      run.note = run.result.failure->what();
+    }
+    runs.push_back(std::move(run));
+  }
+
+  if (options.analytic && system.analytic == "torque-free") {
+    // Sample at the engines' output times (identical by construction), else the nominal ones.
+    std::vector<double> times = output_times(settings);
+    for (const EngineRun& r : runs)
+      if (r.state == EngineRun::State::Ok && column_index(r.result, "t") == 0 &&
+          r.result.rows() == times.size()) {
+        for (std::size_t k = 0; k < times.size(); ++k) times[k] = r.result.at(k, 0);
+        break;
+      }
+    EngineRun a;
+    a.label = a.engine = "analytic";
+    a.result = analytic_run(system, times);
+    runs.insert(runs.begin(), std::move(a));
+  }
+  SceneComparison c = compare_runs(system, std::move(runs));
+  c.settings = settings;
+  return c;
+}
+
+std::string sci(double v, int digits) {
+  if (std::isnan(v)) return "nan";
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  if (v == 0) return "0";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*e", std::max(0, digits - 1), v);
+  return b;
+}
+
+std::string text_table(const std::vector<std::vector<std::string>>& rows) {
+  std::vector<std::size_t> width;
+  for (const auto& r : rows)
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      if (width.size() <= i) width.push_back(0);
+      width[i] = std::max(width[i], r[i].size());
+    }
+  std::ostringstream out;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    std::string line;
+    for (std::size_t i = 0; i < rows[k].size(); ++i) {
+      line += rows[k][i];
+      if (i + 1 < rows[k].size()) line += std::string(width[i] - rows[k][i].size() + 2, ' ');
+    }
+    out << line << '\n';
+    if (k == 0) {
+      std::size_t total = 0;
+      for (std::size_t i = 0; i < width.size(); ++i) total += width[i] + (i + 1 < width.size() ? 2 : 0);
+      out << std::string(total, '-') << '\n';
+    }
+  }
+  return out.str();
+}
+
+std::string format_comparison(const SceneComparison& c, bool failures_only) {
+  std::ostringstream out;
+  const int failed = c.count(CheckStatus::Fail);
+  out << "scene " << c.scene << (c.file.empty() ? "" : " (" + c.file + ")") << ": "
+      << (failed ? "FAIL, " + std::to_string(failed) + " of " + std::to_string(c.checks.size()) +
+                       " checks failed"
+                 : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) + " checks passed")
+      << '\n';
+  out << "integrator " << c.settings.method << ", rtol " << fmt_g(c.settings.rtol) << ", atol "
+      << fmt_g(c.settings.atol) << "; output every " << fmt_g(c.settings.output_step)
+      << " s to " << fmt_g(c.settings.duration) << " s\n\n";
+
+  std::vector<std::vector<std::string>> runs{{"run", "status", "rows", "rhs calls", "steps", "wall (s)", "note"}};
+  for (const EngineRun& r : c.runs) {
+    const char* st = r.state == EngineRun::State::Ok ? "ok"
+                     : r.state == EngineRun::State::Failed ? "FAILED" : "skipped";
+    const bool ran = r.state != EngineRun::State::NotBuilt && r.engine != "analytic";
+    runs.push_back({r.label, st, std::to_string(r.result.rows()),
+                    ran ? std::to_string(r.result.stats.rhs_calls) : "-",
+                    ran ? std::to_string(r.result.stats.steps) : "-",
+                    ran ? fmt_g(r.result.stats.wall_seconds, 3) : "-",
+                    r.engine == "analytic" ? "closed-form torque-free solution" : r.note});
+  }
+  out << text_table(runs) << '\n';
+
+  out << "pass rule: pair   max_t |a - b| <= atol + rtol * max_t |b|   (b = the reference, named "
+         "second)\n"
+         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n"
+         "           attitude error = rotation angle between the attitudes (rad), max|b| = 1\n\n";
+  std::vector<std::vector<std::string>> rows{{"quantity", "a vs b", "max error", "at t (s)",
+                                              "first over (s)", "atol", "rtol", "scale", "bound",
+                                              "error/bound", "result", "note"}};
+  for (const Check& k : c.checks) {
+    if (failures_only && k.status != CheckStatus::Fail) continue;
+    const bool numbers = k.status == CheckStatus::Pass || k.status == CheckStatus::Fail;
+    const bool run = k.group == "run";
+    rows.push_back({k.quantity, k.b.empty() ? k.a : k.a + " vs " + k.b,
+                    numbers && !run ? sci(k.error) : "-",
+                    numbers && (!run || k.status == CheckStatus::Fail) ? fmt_g(k.time) : "-",
+                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-",
+                    numbers && !run ? sci(k.tolerance.atol, 2) : "-",
+                    numbers && !run ? sci(k.tolerance.rtol, 2) : "-",
+                    numbers && !run ? sci(k.scale) : "-",
+                    numbers && !run ? sci(k.bound) : "-",
+                    numbers && !run ? sci(k.normalised) : "-", to_string(k.status),
+                    k.note.empty() && k.tolerance_key != "default" && k.tolerance_key != "-"
+                        ? "tolerance '" + k.tolerance_key + "'"
+                        : k.note});
+  }
+  if (rows.size() > 1) out << text_table(rows);
+  else out << "(no failed checks)\n";
+  if (!c.notes.empty()) {
+    out << "\nnotes:\n";
+    for (const std::string& n : c.notes) out << "  - " << n << '\n';
+  }
+  return out.str();
+}
+
+}  // namespace crossdyn::harness

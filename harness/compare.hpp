@@ -1,0 +1,149 @@
+// Comparing engines on one scene (README "Comparing engines"; `crossdyn compare`).
+//
+// What is compared, for every pair of engines that ran to the end (and the analytic solution
+// where the scene has one, as the pseudo-engine "analytic"):
+//   quantity          group      error at one output time
+//   <body>.wx/wy/wz   w          |a - b|, rad/s
+//   <body>.attitude   attitude   rotation angle between the two attitudes (q and -q agree), rad
+//   <joint>.angle     angle      |a - b|, rad                 (revolute joints)
+//   <joint>.rate      rate       |a - b|, rad/s               (revolute joints)
+//   <joint>.wx/wy/wz  rate       |a - b|, rad/s               (spherical joints)
+//   <body>.<mode>     modal      |a - b| (and <mode>_rate)    (flexible bodies)
+//   H, E              H, E       |a - b|
+//   other columns     extra      only when the scene's tolerances name them
+// and for every engine alone (not the analytic solution):
+//   H.drift, E.drift  drift      |X(t) - X(0)|
+//
+// The pass rule (written in every table and report):
+//   pair:   max_t |a(t) - b(t)| <= atol + rtol * max_t |b(t)|
+//   drift:  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|
+// where b is the pair's reference: the earlier of the two in the run order (analytic first, then
+// the engines in the order asked for). For attitude the scale max|b| is 1 (a unit quaternion), so
+// atol + rtol is a bound on the angle in rad. "normalised error" = error / bound; <= 1 passes.
+//
+// Tolerances come from the scene's compare block. The key looked up for a quantity, first match
+// wins: the quantity itself ("main.wx", "main.attitude", "H.drift"), then its vector ("main.w",
+// "hinge1.w" for a spherical joint's wx/wy/wz), then its group ("w", "rate", "angle", "attitude",
+// "modal", "H", "E"), then the scene's default (System::compare.default_tolerance). Drift checks
+// look up "H.drift" / "E.drift" only and default to atol = rtol = 1e-9. Exclusions match the same
+// keys and carry their reason into every table.
+//
+// E drift is not checked when the scene has dampers, motors or external torques (not conserved);
+// H drift is not checked when it has external torques. Engine runs that fail are recorded as a
+// failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
+// that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
+#pragma once
+
+#include "core/engine.hpp"
+#include "core/integrate.hpp"
+#include "core/system.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace CLI {
+class App;
+}
+
+namespace crossdyn::harness {
+
+// One engine to run: its label in tables ("kane"), the registry name, and its options.
+struct EngineSpec {
+  std::string label;
+  std::string engine;
+  EngineOptions options;
+};
+
+struct CompareOptions {
+  std::vector<EngineSpec> engines;          // empty: every engine of engine_names()
+  std::optional<std::string> integrator;    // overrides of the scene's run block
+  std::optional<double> rtol, atol, dt;
+  bool analytic = true;                     // add "analytic" where System::analytic is set
+};
+
+// The command-line options compare and verify share (harness/compare_command.cpp).
+struct CompareCliOptions {
+  std::string engines;                      // "kane,lagrange"; empty: all
+  std::optional<std::string> integrator;
+  std::optional<double> rtol, atol, dt;
+  bool no_analytic = false;
+  std::vector<std::string> test_inertia_scale;  // hidden: "ENGINE=FACTOR"
+};
+void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o);
+// Validates and converts; throws InputError naming the option and the bad value.
+CompareOptions to_compare_options(const CompareCliOptions& o);
+
+// Default drift tolerance (H.drift, E.drift) when the scene sets none.
+inline constexpr double kDefaultDriftTolerance = 1e-9;
+
+enum class CheckStatus { Pass, Fail, Excluded, Skipped };
+const char* to_string(CheckStatus s);
+
+struct Check {
+  std::string quantity;   // "main.wx", "main.attitude", "H", "H.drift", "run", "t"
+  std::string group;      // "w", "attitude", "angle", "rate", "modal", "H", "E", "extra",
+                          // "H.drift", "E.drift", "run", "t"
+  std::string a, b;       // engine labels: a compared with the reference b; b empty for one engine
+  std::string tolerance_key;  // scene key the tolerance came from, or "default"
+  Tolerance tolerance;
+  double scale = 0;       // max_t |b| (attitude: 1; drift: |X(0)|)
+  double bound = 0;       // atol + rtol * scale
+  double error = 0;       // max_t |a - b|, or max_t |X(t) - X(0)|
+  double time = 0;        // s, where the largest error occurred (run: when the engine failed)
+  std::optional<double> first_exceeded;  // s, first output time with error > bound
+  double normalised = 0;  // error / bound
+  CheckStatus status = CheckStatus::Pass;
+  std::string note;       // reason for exclusion, skip or failure
+};
+
+struct EngineRun {
+  std::string label;
+  std::string engine;     // registry name, or "analytic"
+  enum class State { Ok, Failed, NotBuilt };
+  State state = State::Ok;
+  std::string note;       // failure message or why it was skipped
+  RunResult result;
+};
+
+struct SceneComparison {
+  std::string scene;      // System::name
+  std::string file;       // System::file
+  IntegratorSettings settings;
+  std::vector<EngineRun> runs;
+  std::vector<Check> checks;
+  std::vector<std::string> notes;
+
+  bool passed() const;    // no check has status Fail
+  int count(CheckStatus s) const;
+};
+
+// The compare logic on runs already sampled at the same output times (testable with synthetic
+// RunResults): pairwise checks, drift checks, run-failure checks, exclusions, notes.
+SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs);
+
+// Runs the engines (and the analytic solution) on `system`, then compare_runs. Throws InputError
+// for bad options or an engine's complaint about the scene (other than "not built yet").
+SceneComparison compare_scene(const System& system, const CompareOptions& options);
+
+// The analytic torque-free solution as a run: pinned columns (t, w, q, H, E) at `times`.
+RunResult analytic_run(const System& system, const std::vector<double>& times);
+
+// Output times of a run: k * output_step for k = 0..n, plus the duration when not a multiple.
+std::vector<double> output_times(const IntegratorSettings& settings);
+
+// Why a scene's E (or H) is not conserved, or "" when it is.
+std::string energy_not_conserved_reason(const System& system);
+std::string momentum_not_conserved_reason(const System& system);
+
+// Human-readable table of every check (compare's output).
+std::string format_comparison(const SceneComparison& c, bool failures_only = false);
+
+// "1.23e-04" style number for tables ("0" for zero, "inf", "nan").
+std::string sci(double v, int digits = 3);
+
+// Rows of cells => left-aligned text columns separated by two spaces; row 0 is the header and is
+// underlined.
+std::string text_table(const std::vector<std::vector<std::string>>& rows);
+
+}  // namespace crossdyn::harness

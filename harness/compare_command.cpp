@@ -1,0 +1,126 @@
+// crossdyn compare SCENE [--engines ...]: every engine (and the analytic solution where the scene
+// has one) on one scene, every pinned quantity compared pairwise (see harness/compare.hpp).
+#include <CLI/CLI.hpp>
+
+#include "core/errors.hpp"
+#include "core/scene_reader.hpp"
+#include "harness/commands.hpp"
+#include "harness/compare.hpp"
+#include "harness/report.hpp"
+
+#include <algorithm>
+#include <iostream>
+#include <memory>
+#include <sstream>
+
+namespace crossdyn {
+
+namespace harness {
+
+void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
+  sub.add_option("--engines", o.engines,
+                 "Comma-separated engines to run, in reference order (default: "
+                 "kane,lagrange,newton-euler; engines not built yet are skipped)");
+  sub.add_option("--integrator", o.integrator,
+                 "rk4, dopri5, rkf78 or bulirsch-stoer (default: the scene's)");
+  sub.add_option("--rtol", o.rtol, "Relative tolerance of adaptive integrators (default: the scene's)");
+  sub.add_option("--atol", o.atol, "Absolute tolerance of adaptive integrators (default: the scene's)");
+  sub.add_option("--dt", o.dt, "rk4 step, or first trial step of adaptive integrators, s");
+  sub.add_flag("--no-analytic", o.no_analytic,
+               "Leave out the analytic solution even where the scene has one");
+  // Test hook (hidden): a deliberately wrong copy of an engine, to show the checks catch it.
+  sub.add_option("--test-inertia-scale", o.test_inertia_scale,
+                 "Add a copy of ENGINE whose inertias are scaled by FACTOR (ENGINE=FACTOR), "
+                 "labelled ENGINE*FACTOR; for tests")
+      ->group("");
+}
+
+CompareOptions to_compare_options(const CompareCliOptions& o) {
+  CompareOptions c;
+  c.integrator = o.integrator;
+  c.rtol = o.rtol;
+  c.atol = o.atol;
+  c.dt = o.dt;
+  c.analytic = !o.no_analytic;
+  const std::vector<std::string> known = engine_names();
+  auto check_name = [&known](const std::string& name, const std::string& option) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError(option + ": unknown engine '" + name + "' (known: " + list + ")");
+    }
+  };
+  if (!o.engines.empty()) {
+    std::stringstream in(o.engines);
+    std::string name;
+    while (std::getline(in, name, ',')) {
+      if (name.empty()) throw InputError("--engines: empty engine name in '" + o.engines + "'");
+      check_name(name, "--engines");
+      for (const EngineSpec& e : c.engines)
+        if (e.label == name) throw InputError("--engines: '" + name + "' is listed twice");
+      c.engines.push_back({name, name, {}});
+    }
+  } else {
+    for (const std::string& name : known) c.engines.push_back({name, name, {}});
+  }
+  for (const std::string& spec : o.test_inertia_scale) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos)
+      throw InputError("--test-inertia-scale: expected ENGINE=FACTOR, found '" + spec + "'");
+    const std::string name = spec.substr(0, eq), factor_text = spec.substr(eq + 1);
+    check_name(name, "--test-inertia-scale");
+    double factor = 0;
+    try {
+      std::size_t used = 0;
+      factor = std::stod(factor_text, &used);
+      if (used != factor_text.size()) throw std::invalid_argument("trailing characters");
+    } catch (const std::exception&) {
+      throw InputError("--test-inertia-scale: '" + factor_text + "' is not a number");
+    }
+    if (!(factor > 0)) throw InputError("--test-inertia-scale: the factor must be positive");
+    EngineSpec e{name + "*" + factor_text, name, {}};
+    e.options.test_inertia_scale = factor;
+    c.engines.push_back(e);
+  }
+  return c;
+}
+
+}  // namespace harness
+
+namespace {
+
+struct CompareCommandOptions {
+  std::string scene;
+  harness::CompareCliOptions common;
+  std::string json;
+  bool failures_only = false;
+};
+
+int compare(const CompareCommandOptions& o) {
+  const System system = read_scene(o.scene);
+  const harness::CompareOptions options = harness::to_compare_options(o.common);
+  const harness::SceneComparison c = harness::compare_scene(system, options);
+  std::cout << harness::format_comparison(c, o.failures_only);
+  if (!o.json.empty()) harness::write_json_summary(o.json, {harness::SceneOutcome{o.scene, system, c, ""}});
+  return c.passed() ? kExitOk : kExitCheckFailed;
+}
+
+}  // namespace
+
+void add_compare_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<CompareCommandOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "compare",
+      "Run every engine on one scene (and the analytic solution where it has one) and compare\n"
+      "them at the output times: per quantity and engine pair the largest difference, when it\n"
+      "happened and the tolerance (pass when max|a - b| <= atol + rtol * max|b|), and each\n"
+      "engine's drift of H and E. Exit status 0 all pass, 1 a check failed, 2 bad input.");
+  sub->add_option("scene", o->scene, "Scene file (YAML), e.g. scenarios/spear1_case1.yaml")
+      ->required();
+  harness::add_compare_cli_options(*sub, o->common);
+  sub->add_option("--json", o->json, "Also write the comparison as JSON to FILE (atomically)");
+  sub->add_flag("--failures", o->failures_only, "List only the failed checks");
+  sub->callback([o, &exit_code] { exit_code = compare(*o); });
+}
+
+}  // namespace crossdyn

@@ -1,0 +1,528 @@
+// JSON summary, JUnit XML and the HTML report folder (see report.hpp).
+#include "harness/report.hpp"
+
+#include "core/errors.hpp"
+#include "core/output.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <set>
+#include <sstream>
+
+extern char** environ;
+
+namespace crossdyn::harness {
+
+namespace fs = std::filesystem;
+using json = nlohmann::ordered_json;
+
+namespace {
+
+// NaN and infinity are not JSON numbers: they become null (documented in the report script).
+json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+json quat(const Eigen::Quaterniond& q) { return json::array({q.w(), q.x(), q.y(), q.z()}); }
+json mat(const Eigen::Matrix3d& m) {
+  json a = json::array();
+  for (int i = 0; i < 3; ++i) a.push_back(json::array({m(i, 0), m(i, 1), m(i, 2)}));
+  return a;
+}
+
+template <int D>
+json schedule(const PiecewiseConstant<D>& f) {
+  json a = json::array();
+  for (std::size_t k = 0; k < f.times.size(); ++k) {
+    json v = json::array();
+    for (int i = 0; i < D; ++i) v.push_back(f.values[k](i));
+    a.push_back({{"from_t", f.times[k]}, {"value", D == 1 ? v[0] : v}});
+  }
+  return a;
+}
+
+const char* joint_type(JointType t) {
+  switch (t) {
+    case JointType::Free: return "free";
+    case JointType::Revolute: return "revolute";
+    case JointType::Spherical: return "spherical";
+    case JointType::Fixed: return "fixed";
+  }
+  return "?";
+}
+
+// The scene's data and assumptions, in SI, for the report page.
+json system_json(const System& s) {
+  json bodies = json::array();
+  for (const Body& b : s.bodies) {
+    json j = {{"name", b.name}, {"mass_kg", b.mass}, {"inertia_kg_m2", mat(b.I_BBo_B)}};
+    if (b.modal) j["modes"] = b.modal->mode_names;
+    if (!b.torque.empty()) {
+      j["torque_N_m"] = schedule(b.torque);
+      j["torque_frame"] = b.torque_frame == Body::Frame::Body ? "body" : "inertial";
+    }
+    bodies.push_back(j);
+  }
+  json joints = json::array();
+  for (const Joint& J : s.joints) {
+    json j = {{"name", J.name},
+              {"type", joint_type(J.type)},
+              {"parent", J.parent < 0 ? "N (inertial)" : s.bodies[J.parent].name},
+              {"child", s.bodies[J.child].name}};
+    if (J.type == JointType::Free) {
+      j["initial"] = {{"p_NoBo_N_m", vec(J.p_NoBo_N0)},
+                      {"q_NB", quat(J.q_NB0)},
+                      {"w_NB_B_rad_s", vec(J.w_NB_B0)},
+                      {"v_NBo_N_m_s", vec(J.v_NBo_N0)}};
+    } else {
+      j["parent_point_m"] = vec(J.p_PoJ_P);
+      j["child_point_m"] = vec(J.p_CoJ_C);
+      if (!J.q_PJ0.coeffs().isApprox(Eigen::Quaterniond::Identity().coeffs()))
+        j["orientation_offset_q"] = quat(J.q_PJ0);
+      if (J.type == JointType::Revolute) {
+        j["axis"] = vec(J.axis_P);
+        j["initial"] = {{"angle_rad", J.angle0}, {"rate_rad_s", J.rate0}};
+      } else if (J.type == JointType::Spherical) {
+        j["initial"] = {{"q_J", quat(J.q_J0)}, {"w_PC_C_rad_s", vec(J.w_PC_C0)}};
+      }
+      if (J.stiffness != 0) j["stiffness_N_m_rad"] = J.stiffness;
+      if (J.neutral_angle != 0) j["neutral_angle_rad"] = J.neutral_angle;
+      if (J.damping != 0) j["damping_N_m_s_rad"] = J.damping;
+      if (!J.motor_revolute.empty()) j["motor_N_m"] = schedule(J.motor_revolute);
+      if (!J.motor_spherical.empty()) j["motor_N_m"] = schedule(J.motor_spherical);
+    }
+    joints.push_back(j);
+  }
+  json tolerances = json::array();
+  for (const auto& [key, t] : s.compare.tolerances)
+    tolerances.push_back({{"quantity", key}, {"atol", t.atol}, {"rtol", t.rtol}});
+  json excluded = json::array();
+  for (const auto& [key, reason] : s.compare.excluded)
+    excluded.push_back({{"quantity", key}, {"reason", reason}});
+  return {{"name", s.name},
+          {"file", s.file},
+          {"description", s.description},
+          {"source", s.source},
+          {"bodies", bodies},
+          {"joints", joints},
+          {"zero_linear_momentum", s.zero_linear_momentum},
+          {"analytic", s.analytic},
+          {"run", {{"duration_s", s.run.duration},
+                   {"output_step_s", s.run.output_step},
+                   {"integrator", s.run.integrator},
+                   {"rtol", s.run.rtol},
+                   {"atol", s.run.atol},
+                   {"dt_s", s.run.dt}}},
+          {"compare", {{"default", {{"atol", s.compare.default_tolerance.atol},
+                                    {"rtol", s.compare.default_tolerance.rtol}}},
+                       {"tolerances", tolerances},
+                       {"excluded", excluded}}}};
+}
+
+json check_json(const Check& c) {
+  json j = {{"quantity", c.quantity},
+            {"group", c.group},
+            {"a", c.a},
+            {"b", c.b},
+            {"tolerance_key", c.tolerance_key},
+            {"atol", number(c.tolerance.atol)},
+            {"rtol", number(c.tolerance.rtol)},
+            {"scale", number(c.scale)},
+            {"bound", number(c.bound)},
+            {"error", number(c.error)},
+            {"time", number(c.time)},
+            {"first_exceeded", c.first_exceeded ? number(*c.first_exceeded) : json(nullptr)},
+            {"normalised", number(c.normalised)},
+            {"status", to_string(c.status)},
+            {"note", c.note}};
+  return j;
+}
+
+json group_json(const GroupSummary& g) {
+  return {{"group", g.group},           {"status", to_string(g.status)},
+          {"worst", number(g.worst)},   {"worst_check", g.worst_check},
+          {"checks", g.checks},         {"failed", g.failed},
+          {"excluded", g.excluded},     {"skipped", g.skipped}};
+}
+
+const char* run_state(EngineRun::State s) {
+  switch (s) {
+    case EngineRun::State::Ok: return "ok";
+    case EngineRun::State::Failed: return "failed";
+    case EngineRun::State::NotBuilt: return "skipped";
+  }
+  return "?";
+}
+
+// A name safe in a file name: letters, digits, '.', '-', '_'; anything else becomes '_'.
+std::string file_safe(std::string s) {
+  for (char& ch : s)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_') ch = '_';
+  return s.empty() ? "_" : s;
+}
+
+// Unique page ids, one per scene: the scene's name (file stem when unreadable).
+std::vector<std::string> scene_ids(const std::vector<SceneOutcome>& scenes) {
+  std::vector<std::string> ids;
+  std::set<std::string> taken{"index", "summary", "data"};
+  for (const SceneOutcome& s : scenes) {
+    std::string base = file_safe(s.system ? s.system->name : fs::path(s.path).stem().string());
+    std::string id = base;
+    for (int k = 2; taken.count(id); ++k) id = base + "-" + std::to_string(k);
+    taken.insert(id);
+    ids.push_back(id);
+  }
+  return ids;
+}
+
+json summary_document(const std::vector<SceneOutcome>& scenes,
+                      const std::vector<std::vector<std::string>>& data_files) {
+  const std::vector<std::string> ids = scene_ids(scenes);
+  json out_scenes = json::array();
+  int n_checks = 0, n_failed = 0, n_scenes_failed = 0, n_bad = 0;
+  for (std::size_t i = 0; i < scenes.size(); ++i) {
+    const SceneOutcome& s = scenes[i];
+    json j = {{"id", ids[i]}, {"path", s.path}, {"page", ids[i] + ".html"}};
+    if (!s.comparison) {
+      j["scene"] = fs::path(s.path).stem().string();
+      j["passed"] = false;
+      j["input_error"] = s.input_error;
+      ++n_bad;
+      out_scenes.push_back(j);
+      continue;
+    }
+    const SceneComparison& c = *s.comparison;
+    j["scene"] = c.scene;
+    j["passed"] = c.passed();
+    if (!c.passed()) ++n_scenes_failed;
+    j["settings"] = {{"integrator", c.settings.method},
+                     {"rtol", c.settings.rtol},
+                     {"atol", c.settings.atol},
+                     {"dt_s", c.settings.dt},
+                     {"duration_s", c.settings.duration},
+                     {"output_step_s", c.settings.output_step}};
+    if (s.system) j["system"] = system_json(*s.system);
+    json runs = json::array();
+    for (std::size_t r = 0; r < c.runs.size(); ++r) {
+      const EngineRun& run = c.runs[r];
+      json jr = {{"label", run.label},
+                 {"engine", run.engine},
+                 {"state", run_state(run.state)},
+                 {"note", run.note},
+                 {"rows", run.result.rows()},
+                 {"rhs_calls", run.result.stats.rhs_calls},
+                 {"steps", run.result.stats.steps},
+                 {"rejected", run.result.stats.rejected},
+                 {"restarts", run.result.stats.restarts},
+                 {"wall_seconds", run.result.stats.wall_seconds}};
+      if (run.result.failure)
+        jr["failure"] = {{"time", number(run.result.failure->time())},
+                         {"quantity", run.result.failure->quantity()},
+                         {"reason", run.result.failure->reason()}};
+      if (i < data_files.size() && r < data_files[i].size() && !data_files[i][r].empty())
+        jr["data"] = data_files[i][r];
+      runs.push_back(jr);
+    }
+    j["runs"] = runs;
+    json checks = json::array();
+    for (const Check& k : c.checks) checks.push_back(check_json(k));
+    j["checks"] = checks;
+    json groups = json::array();
+    for (const GroupSummary& g : summarise_groups(c)) groups.push_back(group_json(g));
+    j["groups"] = groups;
+    j["notes"] = c.notes;
+    j["energy_not_conserved"] = s.system ? energy_not_conserved_reason(*s.system) : "";
+    j["momentum_not_conserved"] = s.system ? momentum_not_conserved_reason(*s.system) : "";
+    n_checks += static_cast<int>(c.checks.size());
+    n_failed += c.count(CheckStatus::Fail);
+    out_scenes.push_back(j);
+  }
+  return {{"tool", "crossdyn"},
+          {"format", 1},
+          {"pass_rule",
+           {{"pair", "max_t |a(t) - b(t)| <= atol + rtol * max_t |b(t)|, b = the reference "
+                     "(the earlier of the two: analytic, then engines in the order asked)"},
+            {"attitude", "error = rotation angle between the two attitudes (rad); max|b| = 1"},
+            {"drift", "max_t |X(t) - X(0)| <= atol + rtol * |X(0)|"},
+            {"normalised", "error / (atol + rtol * scale); <= 1 passes"}}},
+          {"group_order", group_order()},
+          {"passed", n_failed == 0 && n_bad == 0},
+          {"counts", {{"scenes", scenes.size()},
+                      {"scenes_failed", n_scenes_failed},
+                      {"scenes_unreadable", n_bad},
+                      {"checks", n_checks},
+                      {"checks_failed", n_failed}}},
+          {"scenes", out_scenes}};
+}
+
+std::string xml_escape(const std::string& s) {
+  std::string out;
+  for (char ch : s) {
+    switch (ch) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&apos;"; break;
+      default:
+        // XML 1.0 forbids most control characters.
+        if (static_cast<unsigned char>(ch) < 0x20 && ch != '\n' && ch != '\t' && ch != '\r') out += '?';
+        else out += ch;
+    }
+  }
+  return out;
+}
+
+std::string fmt_g(double v) {
+  if (!std::isfinite(v)) return sci(v);
+  char b[64];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+
+}  // namespace
+
+std::string describe_failure(const Check& c) {
+  std::string who = c.b.empty() ? c.a : c.a + " vs " + c.b;
+  if (c.group == "run")
+    return who + ": run failed at t = " + fmt_g(c.time) + " s: " + c.note;
+  std::string line = c.quantity + ", " + who + ": max error " + sci(c.error, 4) + " at t = " +
+                     fmt_g(c.time) + " s > bound " + sci(c.bound, 4) + " (atol " +
+                     sci(c.tolerance.atol, 2) + " + rtol " + sci(c.tolerance.rtol, 2) + " * " +
+                     sci(c.scale, 4) + "), error/bound " + sci(c.normalised);
+  if (c.first_exceeded) line += ", first over at t = " + fmt_g(*c.first_exceeded) + " s";
+  if (!c.note.empty()) line += " (" + c.note + ")";
+  return line;
+}
+
+const std::vector<std::string>& group_order() {
+  static const std::vector<std::string> order{"run", "t",  "w",       "attitude", "rate",   "angle",
+                                              "modal", "H", "E", "H.drift",  "E.drift", "extra"};
+  return order;
+}
+
+std::vector<GroupSummary> summarise_groups(const SceneComparison& c) {
+  std::vector<GroupSummary> out;
+  for (const std::string& g : group_order()) {
+    GroupSummary s;
+    s.group = g;
+    bool any_pass = false;
+    for (const Check& k : c.checks) {
+      if (k.group != g) continue;
+      ++s.checks;
+      switch (k.status) {
+        case CheckStatus::Fail: ++s.failed; break;
+        case CheckStatus::Excluded: ++s.excluded; break;
+        case CheckStatus::Skipped: ++s.skipped; break;
+        case CheckStatus::Pass: any_pass = true; break;
+      }
+      if (k.group != "run" && (k.status == CheckStatus::Pass || k.status == CheckStatus::Fail) &&
+          (std::isnan(k.normalised) || !(k.normalised <= s.worst)) && !std::isnan(s.worst)) {
+        s.worst = k.normalised;
+        s.worst_check = k.quantity + " " + (k.b.empty() ? k.a : k.a + " vs " + k.b);
+      }
+    }
+    if (s.checks == 0) continue;
+    s.status = s.failed ? CheckStatus::Fail
+               : any_pass ? CheckStatus::Pass
+               : s.excluded ? CheckStatus::Excluded : CheckStatus::Skipped;
+    out.push_back(s);
+  }
+  return out;
+}
+
+std::string json_summary(const std::vector<SceneOutcome>& scenes,
+                         const std::vector<std::vector<std::string>>& data_files) {
+  return summary_document(scenes, data_files).dump(1) + "\n";
+}
+
+void make_directories(const std::string& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw InputError("cannot create folder '" + dir + "': " + ec.message());
+}
+
+void write_json_summary(const std::string& path, const std::vector<SceneOutcome>& scenes) {
+  make_directories(fs::path(path).parent_path().string());
+  write_file_atomic(path, json_summary(scenes));
+}
+
+std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
+  const std::vector<std::string> ids = scene_ids(scenes);
+  std::ostringstream body;
+  int all_tests = 0, all_failures = 0, all_errors = 0, all_skipped = 0;
+  double all_time = 0;
+  for (std::size_t i = 0; i < scenes.size(); ++i) {
+    const SceneOutcome& s = scenes[i];
+    const std::string classname = "crossdyn.verify." + ids[i];
+    std::ostringstream cases;
+    int tests = 0, failures = 0, errors = 0, skipped = 0;
+    double time = 0;
+    if (!s.comparison) {
+      tests = errors = 1;
+      cases << "    <testcase classname=\"" << xml_escape(classname)
+            << "\" name=\"read scene\" time=\"0\">\n      <error type=\"InputError\" message=\""
+            << xml_escape(s.input_error) << "\">" << xml_escape(s.input_error)
+            << "</error>\n    </testcase>\n";
+    } else {
+      const SceneComparison& c = *s.comparison;
+      for (const EngineRun& r : c.runs) time += r.result.stats.wall_seconds;
+      // Test cases: each engine's run, then each quantity (over all pairs / engines).
+      std::vector<std::pair<std::string, std::vector<const Check*>>> tcs;
+      std::map<std::string, std::size_t> where;
+      for (const Check& k : c.checks) {
+        const std::string name = k.group == "run" ? "run " + k.a : k.quantity;
+        auto it = where.find(name);
+        if (it == where.end()) {
+          where[name] = tcs.size();
+          tcs.push_back({name, {}});
+          it = where.find(name);
+        }
+        tcs[it->second].second.push_back(&k);
+      }
+      for (const auto& [name, checks] : tcs) {
+        ++tests;
+        double t = 0;
+        for (const Check* k : checks)
+          if (k->group == "run")
+            for (const EngineRun& r : c.runs)
+              if (r.label == k->a) t = r.result.stats.wall_seconds;
+        cases << "    <testcase classname=\"" << xml_escape(classname) << "\" name=\""
+              << xml_escape(name) << "\" time=\"" << fmt_g(t) << "\"";
+        std::vector<const Check*> failed, passed, excluded, skip;
+        for (const Check* k : checks) {
+          if (k->status == CheckStatus::Fail) failed.push_back(k);
+          else if (k->status == CheckStatus::Pass) passed.push_back(k);
+          else if (k->status == CheckStatus::Excluded) excluded.push_back(k);
+          else skip.push_back(k);
+        }
+        if (!failed.empty()) {
+          ++failures;
+          std::string text;
+          for (const Check* k : failed) text += describe_failure(*k) + "\n";
+          cases << ">\n      <failure type=\"" << (failed[0]->group == "run" ? "RunFailure" : "tolerance")
+                << "\" message=\"" << xml_escape(describe_failure(*failed[0]))
+                << (failed.size() > 1 ? xml_escape(" (and " + std::to_string(failed.size() - 1) + " more)") : "")
+                << "\">" << xml_escape(text) << "</failure>\n    </testcase>\n";
+        } else if (passed.empty()) {
+          ++skipped;
+          const Check* k = excluded.empty() ? skip.front() : excluded.front();
+          cases << ">\n      <skipped message=\""
+                << xml_escape((k->status == CheckStatus::Excluded ? "excluded: " : "skipped: ") + k->note)
+                << "\"/>\n    </testcase>\n";
+        } else {
+          std::string out;
+          for (const Check* k : passed)
+            if (k->group != "run")
+              out += k->quantity + ", " + (k->b.empty() ? k->a : k->a + " vs " + k->b) +
+                     ": error/bound " + sci(k->normalised) + "\n";
+          if (out.empty()) cases << "/>\n";
+          else cases << ">\n      <system-out>" << xml_escape(out) << "</system-out>\n    </testcase>\n";
+        }
+      }
+    }
+    body << "  <testsuite name=\"" << xml_escape(ids[i]) << "\" tests=\"" << tests
+         << "\" failures=\"" << failures << "\" errors=\"" << errors << "\" skipped=\"" << skipped
+         << "\" time=\"" << fmt_g(time) << "\">\n"
+         << "    <properties>\n      <property name=\"file\" value=\"" << xml_escape(s.path)
+         << "\"/>\n    </properties>\n"
+         << cases.str() << "  </testsuite>\n";
+    all_tests += tests;
+    all_failures += failures;
+    all_errors += errors;
+    all_skipped += skipped;
+    all_time += time;
+  }
+  std::ostringstream out;
+  out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      << "<testsuites name=\"crossdyn verify\" tests=\"" << all_tests << "\" failures=\""
+      << all_failures << "\" errors=\"" << all_errors << "\" skipped=\"" << all_skipped
+      << "\" time=\"" << fmt_g(all_time) << "\">\n"
+      << body.str() << "</testsuites>\n";
+  return out.str();
+}
+
+namespace {
+
+// The report script: as given, else reports/make_report.py next to the scenes' folder, else in
+// the current folder.
+std::string find_script(const std::vector<SceneOutcome>& scenes, const std::string& given) {
+  if (!given.empty()) {
+    if (!fs::exists(given)) throw InputError("--report-script: '" + given + "' does not exist");
+    return given;
+  }
+  std::vector<fs::path> candidates;
+  for (const SceneOutcome& s : scenes)
+    candidates.push_back(fs::absolute(s.path).parent_path().parent_path() / "reports" / "make_report.py");
+  candidates.push_back(fs::path("reports") / "make_report.py");
+  for (const fs::path& p : candidates)
+    if (fs::exists(p)) return p.string();
+  throw InputError("cannot find the report script reports/make_report.py (looked next to the "
+                   "scenes' folder and in the current folder); give it with --report-script");
+}
+
+void run_script(const std::string& python, const std::vector<std::string>& args) {
+  std::vector<char*> argv;
+  argv.push_back(const_cast<char*>(python.c_str()));
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  pid_t pid = 0;
+  const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), environ);
+  if (rc != 0)
+    throw InputError("cannot run '" + python + "' for the report: " + std::strerror(rc));
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw InputError("the report script '" + args[0] + "' failed (" +
+                     (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
+                                        : std::string("killed by a signal")) +
+                     "); see its messages above");
+}
+
+}  // namespace
+
+void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options) {
+  const std::string script = find_script(scenes, options.script);
+  const fs::path dir(options.dir);
+  make_directories(dir.string());
+  const std::vector<std::string> ids = scene_ids(scenes);
+  std::vector<std::vector<std::string>> data_files(scenes.size());
+  for (std::size_t i = 0; i < scenes.size(); ++i) {
+    if (!scenes[i].comparison) continue;
+    const fs::path data_dir = dir / "data" / ids[i];
+    make_directories(data_dir.string());
+    std::set<std::string> used;
+    for (const EngineRun& r : scenes[i].comparison->runs) {
+      if (r.result.columns.empty()) {
+        data_files[i].push_back("");
+        continue;
+      }
+      std::string name = file_safe(r.label);
+      while (used.count(name)) name += "_";
+      used.insert(name);
+      const fs::path rel = fs::path("data") / ids[i] / (name + ".csv");
+      AtomicFile f((dir / rel).string());
+      write_csv_header(f.stream(), r.result.columns);
+      for (std::size_t k = 0; k < r.result.rows(); ++k)
+        write_csv_row(f.stream(), r.result.data.data() + k * r.result.columns.size(), r.result.columns.size());
+      f.commit();
+      data_files[i].push_back(rel.generic_string());
+    }
+  }
+  const std::string summary = (dir / "summary.json").string();
+  write_file_atomic(summary, json_summary(scenes, data_files));
+  run_script(options.python, {script, summary, dir.string()});
+}
+
+}  // namespace crossdyn::harness

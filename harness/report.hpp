@@ -1,0 +1,68 @@
+// What verify and compare write: the JSON summary, JUnit XML, and the HTML report folder (made by
+// reports/make_report.py from the JSON summary and the runs' CSV files). Every file is written
+// atomically (core/output.hpp AtomicFile): a reader sees the old file or the complete new one.
+#pragma once
+
+#include "harness/compare.hpp"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace crossdyn::harness {
+
+// One scene of a verify run: read and compared, or rejected as bad input.
+struct SceneOutcome {
+  std::string path;                           // the scene file as given
+  std::optional<System> system;               // empty when the file could not be read
+  std::optional<SceneComparison> comparison;  // empty when the file could not be read
+  std::string input_error;                    // InputError message when it could not
+};
+
+// The scene x check-group summary cell (verify's table, the report index, JSON "groups").
+struct GroupSummary {
+  std::string group;        // "run", "w", "attitude", "rate", "angle", "modal", "H", "E",
+                            // "H.drift", "E.drift", "extra", "t"
+  CheckStatus status = CheckStatus::Pass;  // Fail if any fails; Pass if any passes; else the rest
+  double worst = 0;         // largest normalised error of the group's passed/failed checks
+  std::string worst_check;  // "main.wx kane*1.001 vs kane"
+  int checks = 0, failed = 0, excluded = 0, skipped = 0;
+};
+// Groups in table order; only groups that have checks.
+std::vector<GroupSummary> summarise_groups(const SceneComparison& c);
+// The fixed order of the groups in tables.
+const std::vector<std::string>& group_order();
+
+// One line with the numbers of a failed check: "main.wx, lagrange vs kane: max error 1.2e-05 at
+// t = 3.4 s > bound 2.6e-08 (atol 1e-08 + rtol 1e-08 * 1.57), error/bound 4.6e+02, first over at
+// t = 0.05 s"; for a run: "kane: run failed at t = 2.1 s: <reason>".
+std::string describe_failure(const Check& c);
+
+// JSON summary of every scene: settings, scene data and assumptions, runs, every check, the
+// group summary and notes. `data_files`, when not empty, gives per scene (same order) and per run
+// the CSV file written for the report (relative to the JSON file).
+std::string json_summary(const std::vector<SceneOutcome>& scenes,
+                         const std::vector<std::vector<std::string>>& data_files = {});
+void write_json_summary(const std::string& path, const std::vector<SceneOutcome>& scenes);
+
+// JUnit XML (the Jenkins/Ant schema CI systems read): one <testsuite> per scene, one <testcase>
+// per scene and check (a quantity over all engine pairs, a drift over all engines, or one
+// engine's run); <failure> carries the numbers, <skipped> the reason, and an unreadable scene is
+// an <error>.
+std::string junit_xml(const std::vector<SceneOutcome>& scenes);
+
+struct ReportOptions {
+  std::string dir = "reports/latest";
+  std::string python = "/usr/bin/python3";  // Debian's, which has matplotlib
+  std::string script;                        // "" : found next to the scenes or in ./reports
+};
+
+// Writes DIR/summary.json and DIR/data/<scene>/<run>.csv, then runs the report script, which
+// writes DIR/index.html, DIR/<scene>.html and the PNG charts next to them. Throws InputError when
+// the folder cannot be written or the script cannot be found or fails.
+void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options);
+
+// Creates a folder and its parents; InputError naming it when that fails.
+void make_directories(const std::string& dir);
+
+}  // namespace crossdyn::harness

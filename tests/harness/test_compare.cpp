@@ -1,0 +1,314 @@
+// The comparison logic (harness/compare.hpp) on synthetic runs: the pass rule and where it is
+// evaluated, attitudes (q and -q), tolerance lookup, exclusions with reasons, drift, failed and
+// missing engines, and the analytic pseudo-engine's columns.
+#include <catch2/catch.hpp>
+
+#include "harness/compare.hpp"
+#include "tests/harness/synthetic.hpp"
+#include "tests/support/close.hpp"
+
+#include <cmath>
+
+using crossdyn::RunFailure;
+using crossdyn::RunResult;
+using crossdyn::System;
+using crossdyn::Tolerance;
+using crossdyn::harness::Check;
+using crossdyn::harness::CheckStatus;
+using crossdyn::harness::compare_runs;
+using crossdyn::harness::EngineRun;
+using crossdyn::harness::SceneComparison;
+using crossdyn::test::baseline;
+using crossdyn::test::engine_run;
+using crossdyn::test::find_checks;
+using crossdyn::test::make_run;
+using crossdyn::test::two_body_system;
+
+namespace {
+
+// Run "b" is the baseline; run "a" adds `offset` to `column` at `row`.
+SceneComparison compare_offset(const System& s, const std::string& column, std::size_t row,
+                               double offset) {
+  auto a = [&](const std::string& c, std::size_t r) {
+    return baseline(c, r) + (c == column && r == row ? offset : 0.0);
+  };
+  return compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, a))});
+}
+
+}  // namespace
+
+TEST_CASE("compare: identical runs pass every check and the reference is the earlier run") {
+  const System s = two_body_system();
+  const SceneComparison c =
+      compare_runs(s, {engine_run("first", make_run(s)), engine_run("second", make_run(s))});
+  CHECK(c.passed());
+  CHECK(c.count(CheckStatus::Fail) == 0);
+  // Per pair: 2 bodies x (3 w + attitude) + hinge angle + rate + H + E = 12; 2 runs; drift 2 x 2.
+  CHECK(find_checks(c, "base.wx").size() == 1);
+  CHECK(find_checks(c, "base.wx")[0].a == "second");
+  CHECK(find_checks(c, "base.wx")[0].b == "first");
+  CHECK(find_checks(c, "arm.attitude").size() == 1);
+  CHECK(find_checks(c, "hinge.angle").size() == 1);
+  CHECK(find_checks(c, "hinge.rate").size() == 1);
+  CHECK(find_checks(c, "H.drift").size() == 2);
+  CHECK(find_checks(c, "E.drift").size() == 2);
+  CHECK(find_checks(c, "run").size() == 2);
+  CHECK(c.checks.size() == 12 + 2 * 2 + 2);
+}
+
+TEST_CASE("compare: pass rule is |a - b| <= atol + rtol * max|b|, evaluated at its boundary") {
+  System s = two_body_system();
+  // Binary fractions so that the boundary is exact: max|b| of hinge.rate is 1, bound 0.5.
+  s.compare.tolerances.push_back({"hinge.rate", Tolerance{0.25, 0.25}});
+  const SceneComparison at = compare_offset(s, "hinge.rate", 2, 0.5);
+  const Check k = find_checks(at, "hinge.rate")[0];
+  CHECK(k.status == CheckStatus::Pass);
+  CHECK(k.error == 0.5);
+  CHECK(k.bound == 0.5);
+  CHECK(k.scale == 1.0);
+  CHECK(k.normalised == 1.0);
+  CHECK(k.tolerance_key == "hinge.rate");
+  CHECK_FALSE(k.first_exceeded);
+
+  const SceneComparison over = compare_offset(s, "hinge.rate", 2, 0.5 + std::ldexp(1.0, -30));
+  const Check f = find_checks(over, "hinge.rate")[0];
+  CHECK(f.status == CheckStatus::Fail);
+  CHECK_FALSE(over.passed());
+  CHECK(f.time == 0.5);  // row 2
+  REQUIRE(f.first_exceeded);
+  CHECK(*f.first_exceeded == 0.5);
+}
+
+TEST_CASE("compare: the scale is max|b| over the whole run, not |b| at the worst time") {
+  System s = two_body_system();
+  s.compare.tolerances.push_back({"hinge.angle", Tolerance{0.0, 0.5}});
+  // b = hinge.angle = t, max |b| = 1 at t = 1; a differs by 0.5 at t = 0 where b = 0: passes.
+  const Check k = find_checks(compare_offset(s, "hinge.angle", 0, 0.5), "hinge.angle")[0];
+  CHECK(k.scale == 1.0);
+  CHECK(k.bound == 0.5);
+  CHECK(k.status == CheckStatus::Pass);
+  CHECK(k.time == 0.0);
+}
+
+TEST_CASE("compare: reports the largest error, its time and the first time over the bound") {
+  const System s = two_body_system();  // default tolerance atol = rtol = 1e-8
+  auto a = [](const std::string& c, std::size_t r) {
+    const double bump = r == 1 ? 1e-6 : r == 3 ? 4e-6 : 0.0;  // over at t = 0.25, worst at 0.75
+    return baseline(c, r) + (c == "arm.wy" ? bump : 0.0);
+  };
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, a))});
+  const Check k = find_checks(c, "arm.wy")[0];
+  CHECK(k.status == CheckStatus::Fail);
+  CHECK(crossdyn::test::close(k.error, 4e-6, 1e-20, 1e-9));
+  CHECK(k.time == 0.75);
+  REQUIRE(k.first_exceeded);
+  CHECK(*k.first_exceeded == 0.25);
+  CHECK(k.scale == 2.0);
+  CHECK(crossdyn::test::close(k.bound, 1e-8 + 1e-8 * 2.0, 0, 1e-15));
+  CHECK(crossdyn::test::close(k.normalised, 4e-6 / 3e-8, 0, 1e-9));
+  // Every other quantity still passes.
+  CHECK(c.count(CheckStatus::Fail) == 1);
+}
+
+TEST_CASE("compare: attitudes compare as rotations, so q and -q agree") {
+  const System s = two_body_system();
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, 2, 2).normalized()));
+  auto with_q = [q](double sign, double extra_angle) {
+    const Eigen::Quaterniond r = q * Eigen::Quaterniond(Eigen::AngleAxisd(extra_angle, Eigen::Vector3d::UnitZ()));
+    return [=](const std::string& c, std::size_t row) {
+      if (c == "base.qw") return sign * r.w();
+      if (c == "base.qx") return sign * r.x();
+      if (c == "base.qy") return sign * r.y();
+      if (c == "base.qz") return sign * r.z();
+      return baseline(c, row);
+    };
+  };
+  const SceneComparison flipped =
+      compare_runs(s, {engine_run("b", make_run(s, with_q(1, 0))), engine_run("a", make_run(s, with_q(-1, 0)))});
+  const Check k = find_checks(flipped, "base.attitude")[0];
+  CHECK(k.status == CheckStatus::Pass);
+  CHECK(k.error < 1e-15);
+  CHECK(k.scale == 1.0);
+
+  const SceneComparison turned =
+      compare_runs(s, {engine_run("b", make_run(s, with_q(1, 0))), engine_run("a", make_run(s, with_q(-1, 1e-3)))});
+  const Check t = find_checks(turned, "base.attitude")[0];
+  CHECK(t.status == CheckStatus::Fail);
+  CHECK(crossdyn::test::close(t.error, 1e-3, 0, 1e-9));
+}
+
+TEST_CASE("compare: tolerance lookup goes quantity, vector, group, default") {
+  System s = two_body_system();
+  s.compare.default_tolerance = Tolerance{1e-3, 0};
+  s.compare.tolerances = {{"base.wx", Tolerance{1e-4, 0}}, {"base.w", Tolerance{1e-5, 0}},
+                          {"w", Tolerance{1e-6, 0}}, {"attitude", Tolerance{1e-7, 0}}};
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s))});
+  auto key = [&c](const std::string& q) { return find_checks(c, q)[0].tolerance_key; };
+  auto atol = [&c](const std::string& q) { return find_checks(c, q)[0].tolerance.atol; };
+  CHECK(key("base.wx") == "base.wx");
+  CHECK(atol("base.wx") == 1e-4);
+  CHECK(key("base.wy") == "base.w");
+  CHECK(atol("base.wy") == 1e-5);
+  CHECK(key("arm.wz") == "w");
+  CHECK(atol("arm.wz") == 1e-6);
+  CHECK(key("arm.attitude") == "attitude");
+  CHECK(key("hinge.rate") == "default");
+  CHECK(atol("hinge.rate") == 1e-3);
+  CHECK(c.notes.empty());
+}
+
+TEST_CASE("compare: excluded quantities carry their reason and cannot fail") {
+  System s = two_body_system();
+  s.compare.excluded = {{"hinge.rate", "rate sensor not modelled"}, {"w", "angular velocities excluded"}};
+  auto a = [](const std::string& c, std::size_t r) {
+    return baseline(c, r) + (c == "hinge.rate" || c.find(".w") != std::string::npos ? 1.0 : 0.0);
+  };
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, a))});
+  CHECK(c.passed());
+  const Check rate = find_checks(c, "hinge.rate")[0];
+  CHECK(rate.status == CheckStatus::Excluded);
+  CHECK(rate.note == "rate sensor not modelled");
+  for (const char* q : {"base.wx", "base.wy", "base.wz", "arm.wx", "arm.wy", "arm.wz"}) {
+    INFO(q);
+    CHECK(find_checks(c, q)[0].status == CheckStatus::Excluded);
+    CHECK(find_checks(c, q)[0].note == "angular velocities excluded");
+  }
+  CHECK(find_checks(c, "hinge.angle")[0].status == CheckStatus::Pass);
+}
+
+TEST_CASE("compare: drift of H and E from their initial values, per engine") {
+  System s = two_body_system();
+  // H drifts by 2e-8 relative: fails the default 1e-9, passes an H.drift tolerance of 1e-7.
+  auto drifting = [](const std::string& c, std::size_t r) {
+    return c == "H" ? 10.0 * (1 + 2e-8 * static_cast<double>(r == 3)) : baseline(c, r);
+  };
+  const SceneComparison strict =
+      compare_runs(s, {engine_run("steady", make_run(s)), engine_run("drifty", make_run(s, drifting))});
+  const Check d = find_checks(strict, "H.drift", "drifty")[0];
+  CHECK(d.status == CheckStatus::Fail);
+  CHECK(crossdyn::test::close(d.error, 2e-7, 0, 1e-6));
+  CHECK(d.scale == 10.0);
+  CHECK(d.time == 0.75);
+  CHECK(d.tolerance.rtol == crossdyn::harness::kDefaultDriftTolerance);
+  CHECK(find_checks(strict, "H.drift", "steady")[0].status == CheckStatus::Pass);
+  CHECK(find_checks(strict, "E.drift", "drifty")[0].status == CheckStatus::Pass);
+
+  s.compare.tolerances.push_back({"H.drift", Tolerance{0, 1e-7}});
+  s.compare.tolerances.push_back({"H", Tolerance{0, 1e-7}});
+  const SceneComparison loose =
+      compare_runs(s, {engine_run("steady", make_run(s)), engine_run("drifty", make_run(s, drifting))});
+  CHECK(loose.passed());
+  CHECK(find_checks(loose, "H.drift", "drifty")[0].tolerance_key == "H.drift");
+}
+
+TEST_CASE("compare: E drift is not checked when the scene has motors or dampers") {
+  System s = two_body_system();
+  s.joints[1].damping = 0.5;
+  s.joints[1].motor_revolute.times = {0.0};
+  s.joints[1].motor_revolute.values = {Eigen::Matrix<double, 1, 1>(1.0)};
+  auto losing = [](const std::string& c, std::size_t r) {
+    return c == "E" ? 5.0 - static_cast<double>(r) : baseline(c, r);
+  };
+  const SceneComparison c =
+      compare_runs(s, {engine_run("x", make_run(s, losing)), engine_run("y", make_run(s, losing))});
+  CHECK(c.passed());
+  const Check e = find_checks(c, "E.drift", "x")[0];
+  CHECK(e.status == CheckStatus::Excluded);
+  CHECK(e.note == "not conserved: scene has dampers and motors");
+  CHECK(find_checks(c, "H.drift", "x")[0].status == CheckStatus::Pass);
+  CHECK(crossdyn::harness::energy_not_conserved_reason(s) == "scene has dampers and motors");
+  CHECK(crossdyn::harness::momentum_not_conserved_reason(s).empty());
+}
+
+TEST_CASE("compare: a failed engine run is a failure with engine, time and reason") {
+  const System s = two_body_system();
+  RunResult broken = make_run(s);
+  broken.data.resize(2 * broken.columns.size());  // rows before the failure stay
+  broken.failure = RunFailure("wobbly", 0.3, "arm.wx", "non-finite derivative");
+  EngineRun w = engine_run("wobbly", broken);
+  w.state = EngineRun::State::Failed;
+  w.note = broken.failure->what();
+  const SceneComparison c = compare_runs(s, {engine_run("good", make_run(s)), w, engine_run("fine", make_run(s))});
+  CHECK_FALSE(c.passed());
+  const Check run = find_checks(c, "run", "wobbly")[0];
+  CHECK(run.status == CheckStatus::Fail);
+  CHECK(run.time == 0.3);
+  CHECK(run.note.find("non-finite derivative") != std::string::npos);
+  CHECK(run.note.find("wobbly") != std::string::npos);
+  // The others are still compared with each other; the failed one is left out.
+  CHECK(find_checks(c, "base.wx", "fine", "good").size() == 1);
+  for (const Check& k : c.checks)
+    if (k.group != "run") {
+      CHECK(k.a != "wobbly");
+      CHECK(k.b != "wobbly");
+    }
+  CHECK(c.count(CheckStatus::Fail) == 1);
+}
+
+TEST_CASE("compare: an engine that is not built yet is skipped with a note, not failed") {
+  const System s = two_body_system();
+  EngineRun missing;
+  missing.label = missing.engine = "future";
+  missing.state = EngineRun::State::NotBuilt;
+  missing.note = "engine future not built yet";
+  const SceneComparison c = compare_runs(s, {engine_run("only", make_run(s)), missing});
+  CHECK(c.passed());
+  CHECK(find_checks(c, "run", "future")[0].status == CheckStatus::Skipped);
+  REQUIRE(c.notes.size() >= 2);
+  CHECK(c.notes[0] == "future skipped: engine future not built yet");
+  CHECK(c.notes[1] == "only only finished: no pairwise comparison");
+}
+
+TEST_CASE("compare: missing columns fail, extra columns count only when named, typos are noted") {
+  System s = two_body_system();
+  RunResult lacking = make_run(s);
+  const auto at = std::find(lacking.columns.begin(), lacking.columns.end(), "hinge.rate") - lacking.columns.begin();
+  lacking.columns[static_cast<std::size_t>(at)] = "hinge.speed";
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", lacking)});
+  const Check k = find_checks(c, "hinge.rate")[0];
+  CHECK(k.status == CheckStatus::Fail);
+  CHECK(k.note == "column 'hinge.rate' missing from a's output");
+
+  auto extra = [](const std::string& c2, std::size_t r) { return c2 == "arm.torque" ? 1.0 * r : baseline(c2, r); };
+  auto extra2 = [](const std::string& c2, std::size_t r) { return c2 == "arm.torque" ? 2.0 * r : baseline(c2, r); };
+  const SceneComparison unnamed = compare_runs(
+      s, {engine_run("b", make_run(s, extra, {"arm.torque"})), engine_run("a", make_run(s, extra2, {"arm.torque"}))});
+  CHECK(unnamed.passed());
+  CHECK(find_checks(unnamed, "arm.torque").empty());
+  s.compare.tolerances.push_back({"arm.torque", Tolerance{0.1, 0}});
+  s.compare.tolerances.push_back({"arm.wq", Tolerance{0.1, 0}});
+  const SceneComparison named = compare_runs(
+      s, {engine_run("b", make_run(s, extra, {"arm.torque"})), engine_run("a", make_run(s, extra2, {"arm.torque"}))});
+  REQUIRE(find_checks(named, "arm.torque").size() == 1);
+  CHECK(find_checks(named, "arm.torque")[0].group == "extra");
+  CHECK(find_checks(named, "arm.torque")[0].status == CheckStatus::Fail);
+  CHECK(find_checks(named, "arm.torque")[0].error == 4.0);
+  CHECK(std::find(named.notes.begin(), named.notes.end(),
+                  "tolerance 'arm.wq' matches no compared quantity or column") != named.notes.end());
+}
+
+TEST_CASE("compare: runs sampled at different times fail the output-time check") {
+  const System s = two_body_system();
+  auto shifted = [](const std::string& c, std::size_t r) { return c == "t" ? 0.25 * r + 0.01 : baseline(c, r); };
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, shifted))});
+  REQUIRE(find_checks(c, "t").size() == 1);
+  CHECK(find_checks(c, "t")[0].status == CheckStatus::Fail);
+  CHECK_FALSE(c.passed());
+}
+
+TEST_CASE("compare: the analytic pseudo-engine writes the pinned columns of a torque-free body") {
+  System s = two_body_system();
+  s.bodies.pop_back();
+  s.joints.pop_back();
+  s.analytic = "torque-free";
+  s.joints[0].w_NB_B0 = Eigen::Vector3d(0.1, 1.0, 0.1);
+  const RunResult r = crossdyn::harness::analytic_run(s, {0.0, 0.5, 1.0});
+  CHECK(r.columns == crossdyn::pinned_columns(s));
+  REQUIRE(r.rows() == 3);
+  const Eigen::Matrix3d I = s.bodies[0].I_BBo_B;
+  const Eigen::Vector3d w0 = s.joints[0].w_NB_B0;
+  CHECK(crossdyn::test::close(r.at(0, 1), w0.x(), 1e-14, 1e-13));
+  CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 2), (I * w0).norm(), 0, 1e-14));
+  CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 1), 0.5 * w0.dot(I * w0), 0, 1e-14));
+  CHECK(r.at(1, 4) >= 0);  // qw, canonical sign
+}
