@@ -1,0 +1,12 @@
+// The factory of the Kane engine (the class and its passes: kane_engine.hpp / kane_engine.cpp).
+#include "formulations/kane/kane.hpp"
+
+#include "formulations/kane/kane_engine.hpp"
+
+namespace crossdyn {
+
+std::unique_ptr<Engine> make_kane_engine(const System& system, const EngineOptions& options) {
+  return std::make_unique<kane::KaneEngine>(system, options);
+}
+
+}  // namespace crossdyn
