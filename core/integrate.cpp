@@ -104,7 +104,7 @@ class Runner {
     for (std::size_t i = 0; i < row_.size(); ++i)
       if (!std::isfinite(row_[i]))
         throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
-    result_.data.insert(result_.data.end(), row_.begin(), row_.end());
+    if (s_.keep_rows) result_.data.insert(result_.data.end(), row_.begin(), row_.end());
     if (on_row_) on_row_(row_.data());
   }
 

@@ -30,6 +30,7 @@ struct IntegratorSettings {
   double output_step = 0;        // s
   long max_steps = 20'000'000;   // accepted + rejected steps before the run is declared failed
   double min_step = 1e-13;       // s; an adaptive step below this is a step-size underflow
+  bool keep_rows = true;         // false: rows go only to the RowCallback (long streamed runs)
   // From a scene's run block (duration, output step, method, tolerances, dt).
   static IntegratorSettings from(const RunSpec& run);
 };

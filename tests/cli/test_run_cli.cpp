@@ -151,3 +151,24 @@ TEST_CASE("--help explains every run option") {
                              "--stabilization", "--baumgarte-alpha", "--no-rechart"})
     CHECK(o.out.find(option) != std::string::npos);
 }
+
+TEST_CASE("Ctrl-C ends a long run cleanly: status 130, a message, and no output file") {
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn_sigint_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path out = dir / "out.csv", err = dir / "err", status = dir / "status";
+  // A run of a million seconds, interrupted after half a second.
+  std::ostringstream cmd;
+  cmd << "'" << test::binary_dir() << "/crossdyn' run '" << test::scene_path("chain5")
+      << "' --duration 1e6 --output-step 10 --output '" << out.string() << "' 2> '" << err.string()
+      << "' & pid=$!; sleep 0.5; kill -INT $pid; wait $pid; echo $? > '" << status.string() << "'";
+  REQUIRE(std::system(cmd.str().c_str()) == 0);  // std::system runs the line with sh -c
+  std::stringstream code, message;
+  code << std::ifstream(status).rdbuf();
+  message << std::ifstream(err).rdbuf();
+  INFO(message.str());
+  CHECK(std::stoi(code.str()) == 130);
+  CHECK(message.str().find("interrupted") != std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+  CHECK(std::distance(fs::directory_iterator(dir), fs::directory_iterator()) == 2);  // err, status
+  fs::remove_all(dir);
+}
