@@ -426,7 +426,9 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->Xi_dot = w->Xi;
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
   w->M = Eigen::MatrixXd::Zero(n, n);
-  w->llt = Eigen::LLT<Eigen::MatrixXd>(n);
+  // Size the factorisation's storage by factorising once (assigning LLT(n) would copy Eigen's
+  // uninitialised m_info member, which UBSan reports as an invalid enum load).
+  w->llt.compute(Eigen::MatrixXd::Identity(n, n));
   for (Eigen::VectorXd* v :
        {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed})
     *v = Eigen::VectorXd::Zero(n);
