@@ -1,0 +1,22 @@
+# cmake -DROOT=<project> -DFOLDERS="a;b" -P check_includes.cmake
+# Fails when a source in one of FOLDERS includes a project header ("...") that is neither in core/
+# nor in that folder, or climbs out of it with "../". System headers (<...>) are not checked.
+set(bad "")
+foreach(folder ${FOLDERS})
+  file(GLOB_RECURSE files ${ROOT}/${folder}/*.cpp ${ROOT}/${folder}/*.hpp ${ROOT}/${folder}/*.h)
+  foreach(f ${files})
+    file(STRINGS ${f} lines REGEX "^[ \t]*#[ \t]*include[ \t]*\"")
+    foreach(line ${lines})
+      string(REGEX REPLACE "^[ \t]*#[ \t]*include[ \t]*\"([^\"]*)\".*" "\\1" inc "${line}")
+      if(inc MATCHES "\\.\\.")
+        list(APPEND bad "${f}: ${inc} (climbs out with ../)")
+      elseif(NOT inc MATCHES "^core/" AND NOT inc MATCHES "^${folder}/")
+        list(APPEND bad "${f}: ${inc} (neither core/ nor ${folder}/)")
+      endif()
+    endforeach()
+  endforeach()
+endforeach()
+if(bad)
+  string(REPLACE ";" "\n  " text "${bad}")
+  message(FATAL_ERROR "includes outside core/ and the engine's own folder:\n  ${text}")
+endif()
