@@ -1,0 +1,285 @@
+// The beam generator (core/flex/beam.hpp): closed-form Euler-Bernoulli modes sampled at slice
+// centres and ends.
+#include "core/flex/beam.hpp"
+
+#include <boost/math/tools/roots.hpp>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+
+#include "core/errors.hpp"
+
+namespace crossdyn::flex {
+
+namespace {
+
+constexpr std::array<char, 3> kAxisLetter = {'x', 'y', 'z'};
+std::string axis_name(int a) { return std::string(1, kAxisLetter[static_cast<std::size_t>(a)]); }
+
+// sech x = 2 e^-x / (1 + e^-2x): no overflow for large x.
+double sech(double x) {
+  const double e = std::exp(-std::abs(x));
+  return 2 * e / (1 + e * e);
+}
+
+// The k-th root of cos x - eps sech x = 0 near `centre`, the zero of cos x it approaches:
+// cos x cosh x = eps  <=>  cos x = eps sech x. In [centre - pi/4, centre + pi/4] cos x runs
+// monotonically through [-0.71, 0.71] while |sech x| <= sech(pi/4) < 0.76 and decreases, so the
+// bracket holds exactly one sign change for every root used (tests/flex checks the first ones
+// against published values). TOMS 748 (Alefeld, Potra & Shi 1995) in Boost.Math, to full precision.
+double root_near(double eps, double centre) {
+  const auto f = [eps](double x) { return std::cos(x) - eps * sech(x); };
+  constexpr double kQuarterPi = std::numbers::pi / 4;
+  std::uintmax_t iterations = 200;
+  const auto r = boost::math::tools::toms748_solve(
+      f, centre - kQuarterPi, centre + kQuarterPi,
+      boost::math::tools::eps_tolerance<double>(std::numeric_limits<double>::digits), iterations);
+  // The bracket is one or two ulps wide: keep the end with the smaller residual.
+  return std::abs(f(r.first)) <= std::abs(f(r.second)) ? r.first : r.second;
+}
+
+// The constants of one mode's stable form (beam.hpp). With eps = +1 (free-free) or -1 (clamped),
+//   phi(x) = cosh x - sigma sinh x + eps (cos x - sigma sin x),
+//   sigma  = (cosh l - eps cos l) / (sinh l - eps sin l),     l = lambda.
+// Then 1 - sigma = (eps (cos l - sin l) - e^-l) / (sinh l - eps sin l), and with
+// sinh l - eps sin l = e^l (1 - e^-2l - 2 eps sin l e^-l) / 2:
+//   1 - sigma = 2 G e^-l,   G = (eps (cos l - sin l) - e^-l) / (1 - e^-2l - 2 eps sin l e^-l),
+//   cosh x - sigma sinh x = (1 - sigma)/2 e^x + (1 + sigma)/2 e^-x = G e^(x-l) + (1 - G e^-l) e^-x,
+// every factor of order one for x in [0, l] (Goncalves, Brennan & Elliott 2007). The denominator
+// is 2 e^-l (sinh l - eps sin l) > 0 for l > 0.
+struct Mode {
+  double lambda, eps, G, B, sigma;
+  Mode(bool clamped, double l) : lambda(l), eps(clamped ? -1.0 : 1.0) {
+    const double el = std::exp(-l);
+    G = (eps * (std::cos(l) - std::sin(l)) - el) / (1 - el * el - 2 * eps * std::sin(l) * el);
+    B = 1 - G * el;
+    sigma = 1 - 2 * G * el;
+  }
+  ShapeValue at(double xi) const {
+    const double x = lambda * xi;
+    const double grow = G * std::exp(x - lambda), decay = B * std::exp(-x);
+    const double c = std::cos(x), s = std::sin(x);
+    return {grow + decay + eps * (c - sigma * s), lambda * (grow - decay - eps * (s + sigma * c))};
+  }
+};
+
+std::string join_problem(const SpecProblem& p) { return p.key + ": " + p.what; }
+
+std::string shortest(double x) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, x);
+  return std::string(buf, r.ptr);
+}
+
+}  // namespace
+
+double free_free_root(int k) { return root_near(1.0, (2 * k + 1) * std::numbers::pi / 2); }
+double clamped_root(int k) { return root_near(-1.0, (2 * k - 1) * std::numbers::pi / 2); }
+
+ShapeValue beam_shape(bool clamped, int k, double xi) {
+  return Mode(clamped, clamped ? clamped_root(k) : free_free_root(k)).at(xi);
+}
+
+std::vector<SpecProblem> beam_spec_problems(const BeamSpec& s) {
+  std::vector<SpecProblem> out;
+  const auto bad = [&](std::string key, std::string what) {
+    out.push_back({std::move(key), std::move(what)});
+  };
+  if (!std::isfinite(s.length) || s.length <= 0)
+    bad("length", "the beam's length must be positive, found " + shortest(s.length) + " m");
+  if (s.axis < 0 || s.axis > 2) {
+    bad("axis", "the long axis must be x, y or z");
+    return out;
+  }
+  if (!std::isfinite(s.mass_per_length) || s.mass_per_length <= 0)
+    bad("mass_per_length",
+        "the mass per length must be positive, found " + shortest(s.mass_per_length) + " kg/m");
+  int most_modes = 0, total_modes = 0;
+  for (int d = 0; d < 3; ++d) {
+    const std::string A = axis_name(d);
+    const auto& plane = s.bending[static_cast<std::size_t>(d)];
+    const double side = s.section[static_cast<std::size_t>(d)];
+    if (d == s.axis) {
+      if (side != 0)
+        bad("section." + A, "the beam lies along " + A +
+                                ": give the section's sides across it only (its length is `length`)");
+      if (plane.modes != 0 || plane.EI != 0)
+        bad("bending." + A, "the beam lies along " + A + ": it bends along the two other axes only");
+      continue;
+    }
+    if (!std::isfinite(side) || side <= 0)
+      bad("section." + A, "the section's side along " + A + " must be positive, found " +
+                              shortest(side) + " m");
+    if (plane.modes < 0 || plane.modes > kMaxBeamModes)
+      bad("bending." + A + ".modes", "the number of modes must be 0 to " +
+                                         std::to_string(kMaxBeamModes) + ", found " +
+                                         std::to_string(plane.modes));
+    else if (plane.modes > 0 && (!std::isfinite(plane.EI) || plane.EI <= 0))
+      bad("bending." + A + ".EI",
+          "the bending stiffness must be positive, found " + shortest(plane.EI) + " N m^2");
+    if (plane.modes > 0 && plane.modes <= kMaxBeamModes) {
+      most_modes = std::max(most_modes, plane.modes);
+      total_modes += plane.modes;
+    }
+  }
+  if (s.slices < 1 || s.slices > kMaxSlices)
+    bad("slices", "the number of slices must be 1 to " + std::to_string(kMaxSlices) + ", found " +
+                      std::to_string(s.slices));
+  else if (most_modes > 0 && s.slices < 2 * (most_modes + 1))
+    bad("slices", std::to_string(s.slices) + " slices cannot resolve mode " +
+                      std::to_string(most_modes) + " (about " + std::to_string(most_modes + 1) +
+                      " half-waves): use at least " + std::to_string(2 * (most_modes + 1)));
+  if (s.normalisation == BeamNormalisation::Top && s.boundary == BeamBoundary::ClampedTop)
+    bad("normalisation", "the beam is clamped at the top, where every shape is zero: normalise at "
+                         "the bottom or to unit modal mass");
+  if (s.normalisation == BeamNormalisation::Bottom && s.boundary == BeamBoundary::ClampedBottom)
+    bad("normalisation", "the beam is clamped at the bottom, where every shape is zero: normalise "
+                         "at the top or to unit modal mass");
+  const BeamDamping& dmp = s.damping;
+  if (dmp.kind == BeamDamping::Kind::Ratio) {
+    if (dmp.ratios.size() != 1 && dmp.ratios.size() != static_cast<std::size_t>(total_modes))
+      bad("damping.ratios", "give one damping ratio for every mode or one per mode (" +
+                                std::to_string(total_modes) + "), found " +
+                                std::to_string(dmp.ratios.size()));
+    for (double z : dmp.ratios)
+      if (!std::isfinite(z) || z < 0) {
+        bad("damping.ratios", "a damping ratio must be >= 0, found " + shortest(z));
+        break;
+      }
+  } else if (dmp.kind == BeamDamping::Kind::Rayleigh) {
+    if (!std::isfinite(dmp.alpha) || dmp.alpha < 0)
+      bad("damping.alpha", "Rayleigh alpha must be >= 0, found " + shortest(dmp.alpha) + " 1/s");
+    if (!std::isfinite(dmp.beta) || dmp.beta < 0)
+      bad("damping.beta", "Rayleigh beta must be >= 0, found " + shortest(dmp.beta) + " s");
+  }
+  return out;
+}
+
+FlexModel make_beam(const BeamSpec& s, const std::string& context) {
+  if (const auto problems = beam_spec_problems(s); !problems.empty())
+    throw InputError(context + ": " + join_problem(problems.front()));
+
+  const int a = s.axis, N = s.slices;
+  const double L = s.length, h = L / N, m_slice = s.mass_per_length * h;
+  const Eigen::Vector3d e_a = Eigen::Vector3d::Unit(a);
+  std::array<int, 2> across{};  // the transverse axes, alphabetical
+  for (int d = 0, j = 0; d < 3; ++d)
+    if (d != a) across[static_cast<std::size_t>(j++)] = d;
+
+  // Nodes: bottom, slice1 .. sliceN, top. Slice centres from the exact half-integers
+  // (i + 1/2 - N/2) h, so the positions are exactly antisymmetric about the CM.
+  const int n_nodes = N + 2;
+  std::vector<double> x(static_cast<std::size_t>(n_nodes)), mass(x.size(), 0.0);
+  x.front() = -L / 2;
+  x.back() = L / 2;
+  for (int i = 0; i < N; ++i) {
+    x[static_cast<std::size_t>(i + 1)] = (i + 0.5 - 0.5 * N) * h;
+    mass[static_cast<std::size_t>(i + 1)] = m_slice;
+  }
+  // xi = s / L along the shape's coordinate (from the clamped end; from bottom for free-free),
+  // computed from the node index, and dxi/dx_a.
+  const bool clamped = s.boundary != BeamBoundary::FreeFree;
+  const bool from_top = s.boundary == BeamBoundary::ClampedTop;
+  std::vector<double> xi(x.size());
+  for (int j = 0; j < n_nodes; ++j) {
+    const double up = j == 0 ? 0.0 : j == n_nodes - 1 ? 1.0 : (j - 0.5) / N;  // from bottom
+    xi[static_cast<std::size_t>(j)] = from_top ? (j == 0 ? 1.0 : j == n_nodes - 1 ? 0.0 : (N - j + 0.5) / N)
+                                               : up;
+  }
+  const double dxi_dx = (from_top ? -1.0 : 1.0) / L;
+
+  // Slice box inertia: sides h along a, section[d] across.
+  Eigen::Vector3d side;
+  for (int d = 0; d < 3; ++d) side(d) = d == a ? h : s.section[static_cast<std::size_t>(d)];
+  const Eigen::Vector3d sq = side.cwiseAbs2();
+  const Eigen::Matrix3d J_slice =
+      (m_slice / 12.0) * Eigen::Vector3d(sq(1) + sq(2), sq(0) + sq(2), sq(0) + sq(1)).asDiagonal();
+
+  int n_modes = 0;
+  for (int d : across) n_modes += s.bending[static_cast<std::size_t>(d)].modes;
+
+  FlexModel out;
+  FlexBody& f = out.flex;
+  f.nodes.resize(static_cast<std::size_t>(n_nodes));
+  for (int j = 0; j < n_nodes; ++j) {
+    FlexNode& node = f.nodes[static_cast<std::size_t>(j)];
+    node.name = j == 0 ? "bottom" : j == n_nodes - 1 ? "top" : "slice" + std::to_string(j);
+    node.mass = mass[static_cast<std::size_t>(j)];
+    node.p_BoNi_B = x[static_cast<std::size_t>(j)] * e_a;
+    node.J_Ni_B = node.mass > 0 ? J_slice : Eigen::Matrix3d::Zero();
+    node.Phi_B = Eigen::Matrix3Xd::Zero(3, n_modes);
+    node.Psi_B = Eigen::Matrix3Xd::Zero(3, n_modes);
+  }
+  f.K = Eigen::MatrixXd::Zero(n_modes, n_modes);
+  f.D = Eigen::MatrixXd::Zero(n_modes, n_modes);
+
+  // The end whose displacement is the modal coordinate (and the sign reference for unit mass).
+  const BeamNormalisation norm = s.normalisation;
+  const bool at_top = norm == BeamNormalisation::Top ||
+                      ((norm == BeamNormalisation::Auto || norm == BeamNormalisation::Mass) && !from_top);
+  const int ref_node = at_top ? n_nodes - 1 : 0;
+
+  std::vector<double> phi(x.size()), dphi(x.size());
+  int col = 0;
+  for (int d : across) {
+    const BeamPlane& plane = s.bending[static_cast<std::size_t>(d)];
+    const Eigen::Vector3d e_d = Eigen::Vector3d::Unit(d), e_rot = e_a.cross(e_d);
+    for (int k = 1; k <= plane.modes; ++k, ++col) {
+      const Mode mode(clamped, clamped ? clamped_root(k) : free_free_root(k));
+      double sum_m_phi2 = 0;
+      for (std::size_t j = 0; j < x.size(); ++j) {
+        const ShapeValue v = mode.at(xi[j]);
+        phi[j] = v.phi;
+        dphi[j] = v.dphi;
+        sum_m_phi2 += mass[j] * v.phi * v.phi;
+      }
+      const double end_value = phi[static_cast<std::size_t>(ref_node)];
+      const double c = norm == BeamNormalisation::Mass
+                           ? std::copysign(1.0 / std::sqrt(sum_m_phi2), end_value)
+                           : 1.0 / end_value;
+      double M_k = 0;
+      for (std::size_t j = 0; j < x.size(); ++j) {
+        FlexNode& node = f.nodes[j];
+        node.Phi_B.col(col) = (c * phi[j]) * e_d;
+        node.Psi_B.col(col) = (c * dphi[j] * dxi_dx) * e_rot;
+        M_k += mass[j] * (c * phi[j]) * (c * phi[j]);
+      }
+      const double omega = mode.lambda * mode.lambda * std::sqrt(plane.EI / (s.mass_per_length * L * L * L * L));
+      f.K(col, col) = omega * omega * M_k;
+      switch (s.damping.kind) {
+        case BeamDamping::Kind::None: break;
+        case BeamDamping::Kind::Ratio: {
+          const auto& z = s.damping.ratios;
+          const double zeta = z.size() == 1 ? z[0] : z[static_cast<std::size_t>(col)];
+          f.D(col, col) = 2 * zeta * omega * M_k;
+          break;
+        }
+        case BeamDamping::Kind::Rayleigh:
+          f.D(col, col) = s.damping.alpha * M_k + s.damping.beta * f.K(col, col);
+          break;
+      }
+      f.mode_names.push_back("q" + axis_name(d) + std::to_string(k));
+    }
+  }
+
+  static constexpr const char* kBoundary[] = {"free-free", "clamped at the bottom",
+                                              "clamped at the top"};
+  f.origin = "beam generator: length " + shortest(L) + " m along " + axis_name(a) + ", " +
+             std::to_string(N) + " slices, " + kBoundary[static_cast<int>(s.boundary)] + ", " +
+             std::to_string(n_modes) + " modes, " +
+             (norm == BeamNormalisation::Mass
+                  ? std::string("unit modal mass")
+                  : std::string("unit displacement at the ") + (at_top ? "top" : "bottom") + " end");
+
+  const RigidProperties r = rigid_properties(f);
+  out.mass = r.mass;
+  out.I_BBo_B = r.I;
+  validate_flex(f, context);
+  return out;
+}
+
+}  // namespace crossdyn::flex

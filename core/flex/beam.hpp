@@ -1,0 +1,122 @@
+// The beam generator: a uniform Euler-Bernoulli beam as a flexible body (docs/flexible-data.md
+// "Beam generator"; ../shared/SCENARIOS.md "Beam generator"; issue 11 "Sources of modal data").
+//
+// Geometry. The beam lies along one body axis a (the long axis), centred on the body origin Bo
+// (its undeformed CM): it spans x_a in [-L/2, +L/2]. The end at +L/2 is the node `top`, the end at
+// -L/2 the node `bottom` (whatever the axis), both massless: joints attach there. Between them, N
+// slices of equal length h = L/N: slice node `slice<i>` (i = 1..N from bottom to top) sits at the
+// slice centre x_a = -L/2 + (i - 1/2) h, carries the slice's mass m_i = rho A h and its own box
+// inertia J_i = m_i/12 diag(...) (sides h along a and the section's sides across), so that the
+// node sums give exactly the uniform box's inertia about the CM (the parallel-axis terms
+// m_i x_i^2 sum to M L^2/12 - M h^2/12, the slices' own h^2 terms to M h^2/12).
+// The nodes are in that order: bottom, slice1 .. sliceN, top.
+//
+// Bending. The two transverse axes, in alphabetical order (a = z: x, y; a = y: x, z; a = x: y, z),
+// are the bending directions d: "the plane of d" is the plane spanned by d and a, and its modes
+// displace the centre line along d, named q<d><k> (qx1, qx2, ... then qy1, ...). Sections translate
+// with the centre line and keep their orientation (no rotary inertia from slope), so a node's mode
+// shape is Phi = c phi(s) e_d and its mode slope, the small rotation of the section that turns the
+// axis e_a to the tangent e_a + (du/dx_a), is Psi = c (dphi/dx_a) (e_a x e_d): in the x-z plane of a
+// beam along z a displacement along +x with positive slope is a rotation about +y; in the y-z
+// plane, about -x.
+//
+// Modes (Blevins, "Formulas for Natural Frequency and Mode Shape", 1979, Table 8-1), s the coordinate along the beam from the clamped
+// end (from `bottom` for free-free), x = b s, lambda = b L:
+//   free-free   phi = cosh x + cos x - sigma (sinh x + sin x),
+//               sigma = (cosh lambda - cos lambda) / (sinh lambda - sin lambda),
+//               cos lambda cosh lambda = 1   (lambda = 4.730040744862704, 7.853204624095838, ...)
+//   clamped     phi = cosh x - cos x - sigma (sinh x - sin x),
+//               sigma = (cosh lambda + cos lambda) / (sinh lambda + sin lambda),
+//               cos lambda cosh lambda = -1  (lambda = 1.875104068711961, 4.694091132974175, ...)
+//   omega_k = lambda_k^2 sqrt(EI / (rho A L^4)).
+// The roots are found to machine precision by TOMS 748 (Boost.Math) on cos x -/+ sech x, bracketed
+// around the asymptote (2k+1) pi/2 (free-free) or (2k-1) pi/2 (clamped). The shapes are evaluated
+// in the cancellation-free form of Goncalves, Brennan & Elliott ("Numerical evaluation of
+// high-order modes of vibration in uniform Euler-Bernoulli beams", J. Sound Vib. 301, 2007): cosh x - sigma sinh x = G e^(x - lambda) + (1 - G e^-lambda) e^-x with
+// 1 - sigma = 2 G e^-lambda computed without forming sigma from cosh/sinh (see beam.cpp), so modes
+// of any order have every term of order one (no overflow, no loss of digits near sigma -> 1).
+//
+// Normalisation and modal mass. Each shape is scaled by c, by default to unit displacement along
+// +d at the `top` end (at `bottom` when clamped at the top): the paper's Example 2 convention, "a
+// modal coordinate is that end's deflection, in m". Or to unit modal mass (1 kg). The modal mass
+// is the NODE SUM M_k = sum_i m_i |Phi_ik|^2, not the continuous integral, and K_k = omega_k^2 M_k:
+// the engines simulate the discrete nodes, whose modal mass is that sum, so the discrete free
+// body then vibrates at omega_k up to O(h^4) (the mode/mode and mode/rigid couplings of the
+// sampled shapes are O(h^2) and enter the frequency squared), while the continuous integral would
+// shift it by O(h^2). tests/flex/test_beam.cpp measures both (1e-8 against 1e-4 at N = 100).
+// K and D are diagonal; D_k = 2 zeta_k omega_k M_k (damping ratios) or D_k = alpha M_k + beta K_k
+// (Rayleigh).
+#pragma once
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/flex/flex_model.hpp"
+
+namespace crossdyn::flex {
+
+enum class BeamBoundary { FreeFree, ClampedBottom, ClampedTop };
+enum class BeamNormalisation { Auto, Top, Bottom, Mass };  // Auto: Top, or Bottom if clamped at top
+
+struct BeamDamping {
+  enum class Kind { None, Ratio, Rayleigh };
+  Kind kind = Kind::None;
+  std::vector<double> ratios;  // Ratio: one for every mode, or one per mode in mode order
+  double alpha = 0;            // Rayleigh D = alpha M + beta K: alpha in 1/s
+  double beta = 0;             //                                 beta in s
+};
+
+// One bending plane, named by its displacement direction d (BeamSpec::bending[d]).
+struct BeamPlane {
+  int modes = 0;    // number of modes (0 allowed)
+  double EI = 0;    // bending stiffness for displacement along d, N m^2 (needed when modes > 0)
+};
+
+struct BeamSpec {
+  double length = 0;                    // L, m
+  int axis = 2;                         // long axis: 0 x, 1 y, 2 z
+  double mass_per_length = 0;           // rho A, kg/m
+  std::array<double, 3> section{};      // box sides along each body axis, m; 0 along the long axis
+  std::array<BeamPlane, 3> bending{};   // by displacement axis; no modes along the long axis
+  BeamBoundary boundary = BeamBoundary::FreeFree;
+  int slices = 100;                     // N
+  BeamNormalisation normalisation = BeamNormalisation::Auto;
+  BeamDamping damping;
+};
+
+// What is wrong with a spec: the key (relative to the beam block of a scene, as in
+// docs/flexible-data.md: "length", "bending.x.EI", "damping.ratios", ...) and what. The scene
+// reader maps the key to its line and column.
+struct SpecProblem {
+  std::string key;
+  std::string what;
+};
+std::vector<SpecProblem> beam_spec_problems(const BeamSpec& spec);
+
+// Limits (docs/flexible-data.md): slices 1 .. kMaxSlices and at least 2 (k + 1) for a plane's
+// highest mode k (two nodes per half-wave); at most kMaxBeamModes modes per plane.
+inline constexpr int kMaxSlices = 100000;
+inline constexpr int kMaxBeamModes = 100;
+
+// The beam's nodes, modes, K and D, with its rigid mass and inertia. Throws InputError
+// "<context>: <key>: <what>" for the first of beam_spec_problems(); validate_flex passes on the
+// result.
+FlexModel make_beam(const BeamSpec& spec, const std::string& context);
+
+// The k-th root (k >= 1) lambda_k = b_k L of the frequency equation: free-free cos cosh = 1 (the
+// elastic roots, 0 excluded), clamped-free cos cosh = -1. Machine precision, any k.
+double free_free_root(int k);
+double clamped_root(int k);
+
+// The unnormalised closed-form shape of mode k and its derivative at xi = s / L in [0, 1]
+// (s from the clamped end; from either end for free-free), in the stable form; normalised as
+// the classical forms above, so that the integral of phi^2 over xi in [0, 1] is 1.
+struct ShapeValue {
+  double phi;     // phi(xi)
+  double dphi;    // d phi / d xi
+};
+ShapeValue beam_shape(bool clamped, int k, double xi);
+
+}  // namespace crossdyn::flex

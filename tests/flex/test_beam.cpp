@@ -1,0 +1,457 @@
+// The beam generator (core/flex/beam.hpp) against closed forms, published roots and its model's
+// own physics: the node sums, the slicing error and its order, the slopes' signs, the frequency
+// of the discrete free body.
+#include <catch2/catch.hpp>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
+#include <boost/math/quadrature/gauss.hpp>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "core/errors.hpp"
+#include "core/flex/beam.hpp"
+#include "tests/support/close.hpp"
+
+using namespace crossdyn;
+using namespace crossdyn::flex;
+using crossdyn::test::close;
+
+namespace {
+
+// Scene 2's beam (../shared/SCENARIOS.md): 10 m along z, 50 kg/m, 2 x 2 m section, EI = 100 N m^2
+// in both planes, two free-free modes per plane, unit displacement at the top end.
+BeamSpec scene2_beam(int slices = 100, int modes = 2) {
+  BeamSpec s;
+  s.length = 10;
+  s.axis = 2;
+  s.mass_per_length = 50;
+  s.section = {2, 2, 0};
+  s.bending = {BeamPlane{modes, 100}, BeamPlane{modes, 100}, BeamPlane{}};
+  s.slices = slices;
+  return s;
+}
+
+// The same beam along another axis: the section and the bending planes move with it.
+BeamSpec along(int axis, BeamBoundary boundary, int slices, int modes) {
+  BeamSpec s = scene2_beam(slices, modes);
+  s.axis = axis;
+  s.section = {2, 2, 2};
+  s.section[static_cast<std::size_t>(axis)] = 0;
+  s.bending = {BeamPlane{modes, 100}, BeamPlane{modes, 100}, BeamPlane{modes, 100}};
+  s.bending[static_cast<std::size_t>(axis)] = BeamPlane{};
+  s.boundary = boundary;
+  return s;
+}
+
+double omega(const BeamSpec& s, double lambda, int d) {
+  return lambda * lambda *
+         std::sqrt(s.bending[static_cast<std::size_t>(d)].EI /
+                   (s.mass_per_length * std::pow(s.length, 4)));
+}
+
+// The textbook form (beam.hpp), fine for low modes only.
+double naive_phi(bool clamped, double lambda, double xi) {
+  const double x = lambda * xi, e = clamped ? -1 : 1;
+  const double sigma = (std::cosh(lambda) - e * std::cos(lambda)) /
+                       (std::sinh(lambda) - e * std::sin(lambda));
+  return std::cosh(x) + e * std::cos(x) - sigma * (std::sinh(x) + e * std::sin(x));
+}
+
+Eigen::Vector3d sum_m_Phi(const FlexBody& f, int k) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (const FlexNode& n : f.nodes) s += n.mass * n.Phi_B.col(k);
+  return s;
+}
+Eigen::Vector3d sum_m_p_cross_Phi(const FlexBody& f, int k) {
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (const FlexNode& n : f.nodes) s += n.mass * n.p_BoNi_B.cross(n.Phi_B.col(k));
+  return s;
+}
+double modal_mass(const FlexBody& f, int k, int l) {
+  double s = 0;
+  for (const FlexNode& n : f.nodes) s += n.mass * n.Phi_B.col(k).dot(n.Phi_B.col(l));
+  return s;
+}
+
+// The small-motion frequencies of the free body: K x = w^2 M x with M the rest mass matrix of
+// rigid motion and modes (flex_model.hpp) and K padded with zeros for the six rigid speeds.
+Eigen::VectorXd free_body_frequencies(const FlexBody& f, const Eigen::MatrixXd& K) {
+  const int n = f.modes();
+  const Eigen::MatrixXd M = rest_mass_matrix(f);
+  Eigen::MatrixXd Kfull = Eigen::MatrixXd::Zero(6 + n, 6 + n);
+  Kfull.bottomRightCorner(n, n) = K;
+  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(Kfull, M);
+  return es.eigenvalues().tail(n).cwiseMax(0).cwiseSqrt();  // the six zeros first
+}
+
+double observed_order(double e_coarse, double e_fine) { return std::log2(e_coarse / e_fine); }
+
+}  // namespace
+
+TEST_CASE("the frequency-equation roots equal the published values to 1e-14") {
+  // Blevins (1979) Table 8-1 to 16 digits; k = 20 from the equation solved in 40-digit arithmetic.
+  const double free_free[] = {4.730040744862704, 7.853204624095838, 10.99560783800167,
+                              14.13716549125746, 17.27875965739948};
+  const double clamped[] = {1.875104068711961, 4.694091132974175, 7.854757438237613,
+                            10.99554073487547, 14.13716839104647};
+  for (int k = 1; k <= 5; ++k) {
+    INFO("k = " << k);
+    CHECK(close(free_free_root(k), free_free[k - 1], 0, 1e-14));
+    CHECK(close(clamped_root(k), clamped[k - 1], 0, 1e-14));
+  }
+  CHECK(close(free_free_root(20), 64.402649398590761388, 0, 1e-14));
+  CHECK(close(clamped_root(20), 61.26105674500096815, 0, 1e-14));
+}
+
+TEST_CASE("the roots solve cos(x) cosh(x) = +-1 to rounding and approach (2k +- 1) pi / 2") {
+  for (int k = 1; k <= 60; ++k) {
+    const double f = free_free_root(k), c = clamped_root(k);
+    INFO("k = " << k);
+    // cos x = +-sech x, with cos evaluated to an absolute error of a few ulp of x.
+    CHECK(std::abs(std::cos(f) - 1 / std::cosh(f)) <= 4e-16 * f);
+    CHECK(std::abs(std::cos(c) + 1 / std::cosh(c)) <= 4e-16 * c);
+    // The asymptotes: |x - (2k+1) pi/2| ~ 2 e^-x.
+    CHECK(std::abs(f - (2 * k + 1) * std::numbers::pi / 2) <= 2.5 * std::exp(-f) + 1e-14 * f);
+    CHECK(std::abs(c - (2 * k - 1) * std::numbers::pi / 2) <= 2.5 * std::exp(-c) + 1e-14 * c);
+  }
+}
+
+TEST_CASE("the stable shapes equal the textbook form for low modes and stay exact for high ones") {
+  for (bool clamped : {false, true}) {
+    for (int k = 1; k <= 3; ++k)
+      for (double xi : {0.0, 0.13, 0.5, 0.77, 1.0}) {
+        const double lambda = clamped ? clamped_root(k) : free_free_root(k);
+        CHECK(close(beam_shape(clamped, k, xi).phi, naive_phi(clamped, lambda, xi), 1e-12, 0));
+      }
+    for (int k = 1; k <= 30; ++k) {
+      INFO((clamped ? "clamped" : "free-free") << ", k = " << k);
+      // End values: free-free |phi| = 2 at both ends; clamped: phi = phi' = 0 at 0, |phi(1)| = 2.
+      const ShapeValue s0 = beam_shape(clamped, k, 0), s1 = beam_shape(clamped, k, 1);
+      CHECK(close(std::abs(s1.phi), 2, 1e-12, 0));
+      if (clamped) {
+        CHECK(std::abs(s0.phi) <= 1e-12);
+        CHECK(std::abs(s0.dphi) <= 1e-12 * k);
+      } else {
+        CHECK(close(s0.phi, 2, 1e-12, 0));
+      }
+      // Unit mean square: the integral of phi^2 over [0, 1] is 1 (Gauss-Legendre, 200 panels).
+      double integral = 0;
+      for (int p = 0; p < 200; ++p)
+        integral += boost::math::quadrature::gauss<double, 15>::integrate(
+            [&](double xi) { return std::pow(beam_shape(clamped, k, xi).phi, 2); }, p / 200.0,
+            (p + 1) / 200.0);
+      CHECK(close(integral, 1, 1e-11, 0));
+      // dphi is the derivative of phi (central difference, h = 1e-6).
+      for (double xi : {0.1, 0.4, 0.9}) {
+        const double h = 1e-6;
+        const double fd = (beam_shape(clamped, k, xi + h).phi - beam_shape(clamped, k, xi - h).phi) / (2 * h);
+        CHECK(close(beam_shape(clamped, k, xi).dphi, fd, 1e-6 * k * k, 0));
+      }
+    }
+  }
+}
+
+TEST_CASE("the beam's rigid mass and inertia equal the uniform box's, for every long axis") {
+  // 500 kg, 2 x 2 x 10 m: I = m/12 (b^2 + c^2) = diag(4333.33..., 4333.33..., 333.33...) along z.
+  for (int axis = 0; axis < 3; ++axis)
+    for (int slices : {1, 7, 100}) {
+      BeamSpec s = along(axis, BeamBoundary::FreeFree, slices, 0);
+      const FlexModel b = make_beam(s, "beam");
+      Eigen::Vector3d expected = Eigen::Vector3d::Constant(500.0 / 12 * (4 + 100));
+      expected(axis) = 500.0 / 12 * (4 + 4);
+      INFO("axis " << axis << ", " << slices << " slices");
+      CHECK(close(b.mass, 500, 0, 1e-14));
+      CHECK(test::all_close(b.I_BBo_B, Eigen::Matrix3d(expected.asDiagonal()), 0, 1e-14));
+      const RigidProperties r = rigid_properties(b.flex);
+      CHECK(test::all_close(r.I, b.I_BBo_B, 0, 1e-15));
+      CHECK(b.p_RoBo_R.norm() == 0.0);
+    }
+  // Scene 2's numbers as written in ../shared/SCENARIOS.md.
+  const FlexModel b = make_beam(scene2_beam(), "beam");
+  CHECK(close(b.I_BBo_B(0, 0), 4333.33, 0.01, 0));
+  CHECK(close(b.I_BBo_B(2, 2), 333.33, 0.01, 0));
+}
+
+TEST_CASE("nodes: bottom, slices and top along the axis, massless ends, CM at the origin") {
+  const FlexModel b = make_beam(along(0, BeamBoundary::FreeFree, 4, 1), "beam");
+  const auto& n = b.flex.nodes;
+  REQUIRE(n.size() == 6);
+  CHECK(n[0].name == "bottom");
+  CHECK(n[1].name == "slice1");
+  CHECK(n[4].name == "slice4");
+  CHECK(n[5].name == "top");
+  CHECK(n[0].mass == 0.0);
+  CHECK(n[5].mass == 0.0);
+  CHECK(test::all_close(n[0].p_BoNi_B, Eigen::Vector3d(-5, 0, 0), 0, 0));
+  CHECK(test::all_close(n[1].p_BoNi_B, Eigen::Vector3d(-3.75, 0, 0), 0, 0));
+  CHECK(test::all_close(n[5].p_BoNi_B, Eigen::Vector3d(5, 0, 0), 0, 0));
+  CHECK(close(n[1].mass, 125, 0, 1e-15));
+  CHECK(b.flex.mode_names == std::vector<std::string>{"qy1", "qz1"});
+}
+
+TEST_CASE("K is diagonal positive definite with the closed-form frequencies and node-sum modal masses") {
+  const BeamSpec s = scene2_beam(100, 3);
+  const FlexModel b = make_beam(s, "beam");
+  const FlexBody& f = b.flex;
+  REQUIRE(f.modes() == 6);
+  CHECK(f.mode_names == std::vector<std::string>{"qx1", "qx2", "qx3", "qy1", "qy2", "qy3"});
+  CHECK(test::all_close(f.K, Eigen::MatrixXd(f.K.transpose()), 0, 0));
+  CHECK(f.K.isDiagonal(0));
+  CHECK(f.D.isZero(0));
+  CHECK(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(f.K).eigenvalues().minCoeff() > 0);
+  for (int k = 0; k < 6; ++k) {
+    const double w = omega(s, free_free_root(k % 3 + 1), k < 3 ? 0 : 1);
+    CHECK(close(std::sqrt(f.K(k, k) / modal_mass(f, k, k)), w, 0, 1e-14));
+  }
+  // Scene 2: omega_1 = 4.730040744862704^2 sqrt(100 / (50 10^4)) = 0.316406037... rad/s.
+  CHECK(close(std::sqrt(f.K(0, 0) / modal_mass(f, 0, 0)), 0.31640603715492926, 0, 1e-14));
+}
+
+TEST_CASE("unit displacement at the named end: the top by default, the free end of a cantilever") {
+  for (int axis = 0; axis < 3; ++axis) {
+    const FlexModel ff = make_beam(along(axis, BeamBoundary::FreeFree, 40, 3), "beam");
+    const FlexModel ct = make_beam(along(axis, BeamBoundary::ClampedTop, 40, 3), "beam");
+    for (int k = 0; k < 6; ++k) {
+      const int d = ff.flex.mode_names[static_cast<std::size_t>(k)][1] - 'x';
+      CHECK(test::all_close(ff.flex.nodes.back().Phi_B.col(k), Eigen::Vector3d::Unit(d), 1e-15, 0));
+      CHECK(test::all_close(ct.flex.nodes.front().Phi_B.col(k), Eigen::Vector3d::Unit(d), 1e-15, 0));
+    }
+  }
+  BeamSpec s = scene2_beam(60, 2);
+  s.normalisation = BeamNormalisation::Bottom;
+  const FlexModel bottom = make_beam(s, "beam");
+  CHECK(test::all_close(bottom.flex.nodes.front().Phi_B.col(1), Eigen::Vector3d::UnitX(), 1e-15, 0));
+  s.normalisation = BeamNormalisation::Mass;
+  const FlexModel unit = make_beam(s, "beam");
+  for (int k = 0; k < 4; ++k) {
+    CHECK(close(modal_mass(unit.flex, k, k), 1, 0, 1e-14));
+    CHECK(unit.flex.nodes.back().Phi_B.col(k).sum() > 0);  // sign: the top end moves along +d
+  }
+}
+
+TEST_CASE("cantilever shapes and slopes vanish at the clamped end, for both ends and every axis") {
+  for (int axis = 0; axis < 3; ++axis)
+    for (BeamBoundary b : {BeamBoundary::ClampedBottom, BeamBoundary::ClampedTop}) {
+      const FlexModel m = make_beam(along(axis, b, 50, 4), "beam");
+      const FlexNode& root = b == BeamBoundary::ClampedBottom ? m.flex.nodes.front() : m.flex.nodes.back();
+      const FlexNode& tip = b == BeamBoundary::ClampedBottom ? m.flex.nodes.back() : m.flex.nodes.front();
+      INFO("axis " << axis << (b == BeamBoundary::ClampedBottom ? " clamped bottom" : " clamped top"));
+      for (int k = 0; k < m.flex.modes(); ++k) {
+        CHECK(root.Phi_B.col(k).norm() <= 1e-13);
+        CHECK(root.Psi_B.col(k).norm() <= 1e-13);
+        CHECK(close(tip.Phi_B.col(k).norm(), 1, 1e-15, 0));
+      }
+    }
+}
+
+TEST_CASE("slopes: the section turns the long axis to the centre line's tangent (right-hand rule)") {
+  // Psi x e_a must equal d Phi / d x_a (a rotation psi takes e_a to e_a + psi x e_a), checked
+  // against a central difference of the slice nodes' shapes (error O(h^2)), for every long axis,
+  // both planes, free-free and both cantilevers.
+  const int N = 400;
+  for (int axis = 0; axis < 3; ++axis)
+    for (BeamBoundary bc : {BeamBoundary::FreeFree, BeamBoundary::ClampedBottom, BeamBoundary::ClampedTop}) {
+      const FlexModel m = make_beam(along(axis, bc, N, 2), "beam");
+      const auto& nodes = m.flex.nodes;
+      const double h = 10.0 / N;
+      const Eigen::Vector3d e_a = Eigen::Vector3d::Unit(axis);
+      for (int k = 0; k < m.flex.modes(); ++k) {
+        double worst = 0, scale = 0;
+        for (int j = 2; j < N; ++j) {
+          const Eigen::Vector3d fd = (nodes[static_cast<std::size_t>(j + 1)].Phi_B.col(k) -
+                                      nodes[static_cast<std::size_t>(j - 1)].Phi_B.col(k)) / (2 * h);
+          const Eigen::Vector3d psi = nodes[static_cast<std::size_t>(j)].Psi_B.col(k);
+          worst = std::max(worst, (psi.cross(e_a) - fd).norm());
+          scale = std::max(scale, fd.norm());
+          // The slope is a rotation about e_a x e_d only (no twist, no component along e_a).
+          CHECK(std::abs(psi.dot(e_a)) == 0.0);
+        }
+        INFO("axis " << axis << ", mode " << m.flex.mode_names[static_cast<std::size_t>(k)]);
+        CHECK(worst <= 1e-4 * scale);
+      }
+    }
+  // The examples of the brief: a beam along z, bending in x with positive slope d phi/dz turns
+  // about +y; bending in y with positive slope turns about -x. And exp([psi x]) e_z is the unit
+  // tangent of the deformed centre line for a small deflection eta.
+  const FlexModel m = make_beam(scene2_beam(400, 1), "beam");
+  const FlexNode& n = m.flex.nodes[300];  // slice 300: z = 2.4875 m
+  const FlexNode& up = m.flex.nodes[301];
+  const FlexNode& down = m.flex.nodes[299];
+  const double slope_x = (up.Phi_B(0, 0) - down.Phi_B(0, 0)) / (2 * 10.0 / 400);
+  const double slope_y = (up.Phi_B(1, 1) - down.Phi_B(1, 1)) / (2 * 10.0 / 400);
+  CHECK(n.Psi_B(1, 0) * slope_x > 0);
+  CHECK(close(n.Psi_B(1, 0), slope_x, 1e-5, 0));
+  CHECK(n.Psi_B(0, 1) * slope_y < 0);
+  CHECK(close(n.Psi_B(0, 1), -slope_y, 1e-5, 0));
+  const double eta = 1e-4;
+  const Eigen::Vector3d psi = n.Psi_B.col(0) * eta;
+  const Eigen::Vector3d turned = Eigen::AngleAxisd(psi.norm(), psi.normalized()) * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d tangent = (Eigen::Vector3d::UnitZ() + Eigen::Vector3d(slope_x * eta, 0, 0)).normalized();
+  CHECK((turned - tangent).norm() <= 1e-8);
+}
+
+TEST_CASE("free-free modes: sum m_i Phi_ik = 0 and sum m_i p_i x Phi_ik = 0 to the slicing error, O(N^-2)") {
+  // The node sums are the midpoint rule of integrals that vanish for the continuum: with a
+  // symmetric mode (k = 1) the linear one, with an antisymmetric mode (k = 2) the angular one; the
+  // other is zero by symmetry. The midpoint rule's error is -(h^2/24) [f'(L) - f'(0)] + O(h^4)
+  // for f = rho A c phi(s) and f = rho A c (s - L/2) phi(s), which is the slicing error stated.
+  const double rhoA = 50, L = 10;
+  double lin[3], ang[3];
+  const int Ns[3] = {50, 100, 200};
+  for (int i = 0; i < 3; ++i) {
+    const FlexModel b = make_beam(scene2_beam(Ns[i], 2), "beam");
+    const FlexBody& f = b.flex;
+    const double h = L / Ns[i];
+    // Mode qx1 (symmetric): c = 1 / phi(L).
+    const ShapeValue s0 = beam_shape(false, 1, 0), s1 = beam_shape(false, 1, 1);
+    const double c1 = 1 / s1.phi;
+    const double lin_pred = -(h * h / 24) * rhoA * c1 * (s1.dphi - s0.dphi) / L;
+    lin[i] = sum_m_Phi(f, 0).x();
+    CHECK(close(lin[i], lin_pred, 0, 0.01));
+    CHECK(std::abs(sum_m_Phi(f, 0).y()) + std::abs(sum_m_Phi(f, 0).z()) == 0.0);
+    CHECK(sum_m_p_cross_Phi(f, 0).norm() <= 1e-12);
+    // Mode qx2 (antisymmetric): f(s) = (s - L/2) phi(s), f' = phi + (s - L/2) phi' / L (xi units).
+    const ShapeValue t0 = beam_shape(false, 2, 0), t1 = beam_shape(false, 2, 1);
+    const double c2 = 1 / t1.phi;
+    const double df = (t1.phi - t0.phi) + (L / 2) * (t1.dphi + t0.dphi) / L;
+    const double ang_pred = -(h * h / 24) * rhoA * c2 * df;  // the moment about y of x-displacement: +z x x = +y
+    ang[i] = sum_m_p_cross_Phi(f, 1).y();
+    CHECK(close(ang[i], ang_pred, 0, 0.01));
+    CHECK(std::abs(sum_m_Phi(f, 1).x()) <= 1e-12);
+    // The stated error, relative to the beam's mass times the tip deflection: below 1e-4 at N = 100.
+    INFO("N = " << Ns[i] << ": |sum m Phi| = " << lin[i] << " kg m, |sum m p x Phi| = " << ang[i] << " kg m^2");
+  }
+  CHECK(std::abs(lin[1]) / 500 < 1e-4);
+  for (int i = 0; i < 2; ++i) {
+    CHECK(observed_order(std::abs(lin[i]), std::abs(lin[i + 1])) == Approx(2).margin(0.02));
+    CHECK(observed_order(std::abs(ang[i]), std::abs(ang[i + 1])) == Approx(2).margin(0.02));
+  }
+}
+
+TEST_CASE("modes are orthogonal in the nodes' mass to the slicing error, O(N^-2); across planes exactly") {
+  double cross13[3];
+  const int Ns[3] = {50, 100, 200};
+  for (int i = 0; i < 3; ++i) {
+    const FlexBody f = make_beam(scene2_beam(Ns[i], 3), "beam").flex;
+    cross13[i] = modal_mass(f, 0, 2) / std::sqrt(modal_mass(f, 0, 0) * modal_mass(f, 2, 2));
+    CHECK(std::abs(modal_mass(f, 0, 1)) <= 1e-12);  // symmetric x antisymmetric
+    for (int k = 0; k < 3; ++k)
+      for (int l = 3; l < 6; ++l) CHECK(modal_mass(f, k, l) == 0.0);  // x-plane against y-plane
+  }
+  CHECK(std::abs(cross13[1]) < 1e-3);
+  CHECK(observed_order(std::abs(cross13[0]), std::abs(cross13[1])) == Approx(2).margin(0.05));
+  CHECK(observed_order(std::abs(cross13[1]), std::abs(cross13[2])) == Approx(2).margin(0.05));
+}
+
+TEST_CASE("the discrete free beam vibrates at the closed-form frequencies: node-sum modal mass, O(N^-4)") {
+  // The choice of beam.hpp: K_k = omega_k^2 sum_i m_i |Phi_ik|^2. The small-motion frequencies of
+  // the discrete free body (rigid motion and modes, the model every engine integrates) then equal
+  // the closed form to O(h^4); with the continuous modal mass (rho A L / 4 for a free-free shape
+  // of unit end value) they would be off by O(h^2).
+  const BeamSpec s = scene2_beam(100, 2);
+  double err[3];
+  const int Ns[3] = {50, 100, 200};
+  for (int i = 0; i < 3; ++i) {
+    const BeamSpec si = scene2_beam(Ns[i], 2);
+    const FlexBody f = make_beam(si, "beam").flex;
+    const Eigen::VectorXd w = free_body_frequencies(f, f.K);
+    // The frequencies in ascending order: the two planes share them (equal EI).
+    const double w1 = omega(s, free_free_root(1), 0), w2 = omega(s, free_free_root(2), 0);
+    err[i] = std::max({std::abs(w(0) / w1 - 1), std::abs(w(1) / w1 - 1), std::abs(w(2) / w2 - 1),
+                       std::abs(w(3) / w2 - 1)});
+    if (Ns[i] == 100) {
+      CHECK(err[i] < 1e-7);
+      Eigen::MatrixXd K_continuous = f.K;
+      for (int k = 0; k < 4; ++k) K_continuous(k, k) *= (50 * 10 / 4.0) / modal_mass(f, k, k);
+      const Eigen::VectorXd wc = free_body_frequencies(f, K_continuous);
+      CHECK(std::abs(wc(0) / w1 - 1) > 1e-4);
+    }
+  }
+  CHECK(observed_order(err[0], err[1]) == Approx(4).margin(0.1));
+  CHECK(observed_order(err[1], err[2]) == Approx(4).margin(0.1));
+}
+
+TEST_CASE("high modes (k = 20) are finite, normalised and near the continuum's modal mass") {
+  for (BeamBoundary bc : {BeamBoundary::FreeFree, BeamBoundary::ClampedBottom}) {
+    BeamSpec s = along(2, bc, 2000, 20);
+    const FlexModel m = make_beam(s, "beam");  // validate_flex passes inside
+    const FlexBody& f = m.flex;
+    REQUIRE(f.modes() == 40);
+    const int k = 19;  // qx20
+    CHECK(f.mode_names[19] == "qx20");
+    CHECK(close(f.nodes.back().Phi_B(0, k), 1, 1e-14, 0));
+    for (const FlexNode& n : f.nodes) {
+      CHECK(n.Phi_B.allFinite());
+      CHECK(n.Psi_B.allFinite());
+      CHECK(n.Phi_B.col(k).norm() <= 1.0 + 1e-9);  // |phi| <= |phi(L)| = 2: the tip is the largest
+    }
+    // Continuum modal mass of a shape with unit end value: rho A L / 4 (integral of phi^2 = L, phi(L) = +-2).
+    CHECK(close(modal_mass(f, k, k), 50 * 10 / 4.0, 0, 1e-3));
+    const double w = omega(s, bc == BeamBoundary::FreeFree ? free_free_root(20) : clamped_root(20), 0);
+    CHECK(close(std::sqrt(f.K(k, k) / modal_mass(f, k, k)), w, 0, 1e-14));
+  }
+}
+
+TEST_CASE("damping: ratios give D_k = 2 zeta_k omega_k M_k, Rayleigh gives alpha M_k + beta K_k") {
+  BeamSpec s = scene2_beam(60, 2);
+  s.damping.kind = BeamDamping::Kind::Ratio;
+  s.damping.ratios = {0.01, 0.02, 0.03, 0.04};
+  const FlexBody f = make_beam(s, "beam").flex;
+  CHECK(f.D.isDiagonal(0));
+  for (int k = 0; k < 4; ++k) {
+    const double M = modal_mass(f, k, k), w = std::sqrt(f.K(k, k) / M);
+    CHECK(close(f.D(k, k), 2 * 0.01 * (k + 1) * w * M, 0, 1e-14));
+  }
+  s.damping.ratios = {0.05};
+  const FlexBody one = make_beam(s, "beam").flex;
+  CHECK(close(one.D(3, 3), 2 * 0.05 * std::sqrt(one.K(3, 3) / modal_mass(one, 3, 3)) * modal_mass(one, 3, 3), 0, 1e-14));
+  s.damping = {BeamDamping::Kind::Rayleigh, {}, 0.1, 0.2};
+  const FlexBody r = make_beam(s, "beam").flex;
+  for (int k = 0; k < 4; ++k) CHECK(close(r.D(k, k), 0.1 * modal_mass(r, k, k) + 0.2 * r.K(k, k), 0, 1e-14));
+}
+
+TEST_CASE("a bad beam description names the key and what is wrong") {
+  struct Case {
+    void (*change)(BeamSpec&);
+    std::string message;
+  };
+  const Case cases[] = {
+      {[](BeamSpec& s) { s.length = 0; }, "length: the beam's length must be positive, found 0 m"},
+      {[](BeamSpec& s) { s.length = NAN; }, "length: the beam's length must be positive, found nan m"},
+      {[](BeamSpec& s) { s.axis = 3; }, "axis: the long axis must be x, y or z"},
+      {[](BeamSpec& s) { s.mass_per_length = -1; }, "mass_per_length: the mass per length must be positive, found -1 kg/m"},
+      {[](BeamSpec& s) { s.section[2] = 10; }, "section.z: the beam lies along z: give the section's sides across it only (its length is `length`)"},
+      {[](BeamSpec& s) { s.section[1] = 0; }, "section.y: the section's side along y must be positive, found 0 m"},
+      {[](BeamSpec& s) { s.bending[2].modes = 1; }, "bending.z: the beam lies along z: it bends along the two other axes only"},
+      {[](BeamSpec& s) { s.bending[0].modes = -1; }, "bending.x.modes: the number of modes must be 0 to 100, found -1"},
+      {[](BeamSpec& s) { s.bending[1].modes = 101; }, "bending.y.modes: the number of modes must be 0 to 100, found 101"},
+      {[](BeamSpec& s) { s.bending[1].EI = 0; }, "bending.y.EI: the bending stiffness must be positive, found 0 N m^2"},
+      {[](BeamSpec& s) { s.slices = 0; }, "slices: the number of slices must be 1 to 100000, found 0"},
+      {[](BeamSpec& s) { s.slices = 5; }, "slices: 5 slices cannot resolve mode 2 (about 3 half-waves): use at least 6"},
+      {[](BeamSpec& s) { s.boundary = BeamBoundary::ClampedTop; s.normalisation = BeamNormalisation::Top; },
+       "normalisation: the beam is clamped at the top, where every shape is zero: normalise at the bottom or to unit modal mass"},
+      {[](BeamSpec& s) { s.boundary = BeamBoundary::ClampedBottom; s.normalisation = BeamNormalisation::Bottom; },
+       "normalisation: the beam is clamped at the bottom, where every shape is zero: normalise at the top or to unit modal mass"},
+      {[](BeamSpec& s) { s.damping = {BeamDamping::Kind::Ratio, {0.1, 0.2}, 0, 0}; },
+       "damping.ratios: give one damping ratio for every mode or one per mode (4), found 2"},
+      {[](BeamSpec& s) { s.damping = {BeamDamping::Kind::Ratio, {-0.1}, 0, 0}; },
+       "damping.ratios: a damping ratio must be >= 0, found -0.1"},
+      {[](BeamSpec& s) { s.damping = {BeamDamping::Kind::Rayleigh, {}, -1, 0}; },
+       "damping.alpha: Rayleigh alpha must be >= 0, found -1 1/s"},
+      {[](BeamSpec& s) { s.damping = {BeamDamping::Kind::Rayleigh, {}, 0, INFINITY}; },
+       "damping.beta: Rayleigh beta must be >= 0, found inf s"},
+  };
+  for (const Case& c : cases) {
+    BeamSpec s = scene2_beam(100, 2);
+    c.change(s);
+    const auto problems = beam_spec_problems(s);
+    REQUIRE(!problems.empty());
+    CHECK(problems.front().key + ": " + problems.front().what == c.message);
+    CHECK_THROWS_WITH(make_beam(s, "scene.yaml:7:5: bodies[0].flexible.beam"),
+                      "scene.yaml:7:5: bodies[0].flexible.beam: " + c.message);
+  }
+  CHECK(beam_spec_problems(scene2_beam()).empty());
+}

@@ -1,0 +1,189 @@
+// validate_flex (core/flex/flex_model.hpp): one case per class of bad modal data, each message
+// checked; and the helpers it is built from.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <functional>
+#include <string>
+
+#include "core/errors.hpp"
+#include "core/flex/beam.hpp"
+#include "core/flex/flex_model.hpp"
+#include "tests/support/close.hpp"
+
+using namespace crossdyn;
+using namespace crossdyn::flex;
+
+namespace {
+
+// A small valid body: a 4-slice free-free beam along z, one mode per plane (qx1, qy1),
+// 6 nodes (bottom, slice1..4, top), K diagonal, D zero.
+FlexBody small_body() {
+  BeamSpec s;
+  s.length = 4;
+  s.axis = 2;
+  s.mass_per_length = 10;
+  s.section = {1, 1, 0};
+  s.bending = {BeamPlane{1, 50}, BeamPlane{1, 50}, BeamPlane{}};
+  s.slices = 4;
+  return make_beam(s, "b").flex;
+}
+
+std::string message_of(const std::function<void(FlexBody&)>& change) {
+  FlexBody f = small_body();
+  change(f);
+  try {
+    validate_flex(f, "body 'beam'");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+TEST_CASE("validate_flex accepts the generator's bodies and a body with no modes") {
+  CHECK(message_of([](FlexBody&) {}) == "(no error)");
+  CHECK(message_of([](FlexBody& f) {
+          f.mode_names.clear();
+          for (FlexNode& n : f.nodes) {
+            n.Phi_B.resize(3, 0);
+            n.Psi_B.resize(3, 0);
+          }
+          f.K.resize(0, 0);
+          f.D.resize(0, 0);
+        }) == "(no error)");
+}
+
+TEST_CASE("validate_flex: bad mode names") {
+  CHECK(message_of([](FlexBody& f) { f.mode_names[1] = "qx1"; }) ==
+        "body 'beam': duplicate mode name 'qx1'");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = "1q"; }) ==
+        "body 'beam': invalid name '1q': use 1 to 64 letters, digits, '_' or '-', starting with a letter");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = "q.1"; }) ==
+        "body 'beam': invalid name 'q.1': use 1 to 64 letters, digits, '_' or '-', starting with a letter");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = std::string(65, 'q'); }) ==
+        "body 'beam': invalid name '" + std::string(40, 'q') +
+            "...': use 1 to 64 letters, digits, '_' or '-', starting with a letter");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = "qx"; }) ==
+        "body 'beam': mode name 'qx' clashes with the body's output column <body>.qx");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = "wz"; }) ==
+        "body 'beam': mode name 'wz' clashes with the body's output column <body>.wz");
+  CHECK(message_of([](FlexBody& f) { f.mode_names[0] = "q1_rate"; }) ==
+        "body 'beam': mode name 'q1_rate' ends in '_rate', which would clash with a mode's rate "
+        "column <body>.<mode>_rate");
+}
+
+TEST_CASE("validate_flex: bad nodes") {
+  CHECK(message_of([](FlexBody& f) { f.nodes.clear(); }) ==
+        "body 'beam': the body has no nodes: at least one node must carry its mass");
+  CHECK(message_of([](FlexBody& f) { f.nodes[3].name = "slice1"; }) ==
+        "body 'beam': duplicate node name 'slice1'");
+  CHECK(message_of([](FlexBody& f) { f.nodes[3].name = "slice 3"; }) ==
+        "body 'beam': node: invalid name 'slice 3': use 1 to 64 letters, digits, '_' or '-', "
+        "starting with a letter");
+  CHECK(message_of([](FlexBody& f) { f.nodes[2].mass = -1; }) ==
+        "body 'beam': node 'slice2': mass -1 kg: a node's mass must be finite and >= 0");
+  CHECK(message_of([](FlexBody& f) { f.nodes[2].mass = NAN; }) ==
+        "body 'beam': node 'slice2': mass nan kg: a node's mass must be finite and >= 0");
+  CHECK(message_of([](FlexBody& f) { f.nodes[0].p_BoNi_B.x() = INFINITY; }) ==
+        "body 'beam': node 'bottom': position is not finite");
+  CHECK(message_of([](FlexBody& f) { f.nodes[1].J_Ni_B(0, 1) = 0.1; }) ==
+        "body 'beam': node 'slice1': J: the inertia is not symmetric (entries differ by 0.1)");
+  CHECK(message_of([](FlexBody& f) { f.nodes[1].J_Ni_B(0, 0) = -1; }) ==
+        "body 'beam': node 'slice1': J: the inertia is not positive semi-definite (principal "
+        "moments -1, 1.6666666666666667, 1.6666666666666667)");
+  CHECK(message_of([](FlexBody& f) { f.nodes[1].J_Ni_B = Eigen::Vector3d(1, 1, 3).asDiagonal(); }) ==
+        "body 'beam': node 'slice1': J: the inertia is not physically realisable: principal moments "
+        "1, 1, 3 break the triangle inequality I1 + I2 >= I3");
+  CHECK(message_of([](FlexBody& f) { f.nodes[4].Phi_B.resize(3, 1); }) ==
+        "body 'beam': node 'slice4': mode shapes are 3 x 1 and slopes 3 x 2, expected 3 x 2 (one "
+        "column per mode)");
+  CHECK(message_of([](FlexBody& f) { f.nodes[4].Phi_B(2, 1) = NAN; }) ==
+        "body 'beam': node 'slice4': mode 'qy1': shape is not finite");
+  CHECK(message_of([](FlexBody& f) { f.nodes[5].Psi_B(0, 0) = INFINITY; }) ==
+        "body 'beam': node 'top': mode 'qx1': slope is not finite");
+}
+
+TEST_CASE("validate_flex: bad mass distribution") {
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) n.mass = 0;
+        }) == "body 'beam': the nodes' total mass is zero: at least one node needs mass");
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) n.p_BoNi_B.x() += 0.5;
+        }) ==
+        "body 'beam': the nodes' centre of mass is at [0.5, 0, 0] m, not at the body origin (node "
+        "positions are from the undeformed CM: sum m_i p_i = 0)");
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) n.J_Ni_B.setZero();
+        }) ==
+        "body 'beam': the rigid inertia (node sum) is singular, principal moments 0, 50, 50 kg "
+        "m^2: the mass lies on a line; give the nodes a rotational inertia J");
+}
+
+TEST_CASE("validate_flex: modes that move no mass or are rigid motions") {
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes)
+            if (n.mass > 0) n.Phi_B.col(1).setZero();
+        }) == "body 'beam': mode 'qy1' moves no mass (its shape is zero at every node with mass)");
+  // A rigid translation along y exported as a mode (a common slip with finite-element output).
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) n.Phi_B.col(1) = Eigen::Vector3d::UnitY();
+        }).rfind("body 'beam': mode 'qy1' is (nearly) a rigid-body motion of the body or a "
+                 "combination of other modes (the mass matrix of rigid motion and modes, scaled to "
+                 "unit diagonal, has smallest eigenvalue ", 0) == 0);
+  // A rigid rotation about x as a mode: the displacement e_x x p_i. It is a rigid motion of the
+  // model only when the nodes have no rotational inertia about x (J_i does not turn with the
+  // modes, docs/flexible-bodies.md), as for lumped finite-element masses: here J_i = diag(0, c, c),
+  // a realisable inertia (a rod along x) that keeps the body's inertia positive definite.
+  const auto rotation_mode = [](double Jxx) {
+    return message_of([Jxx](FlexBody& f) {
+      for (FlexNode& n : f.nodes) {
+        n.Phi_B.col(0) = Eigen::Vector3d::UnitX().cross(n.p_BoNi_B);
+        if (n.mass > 0) n.J_Ni_B = Eigen::Vector3d(Jxx, 0.1, 0.1).asDiagonal();
+      }
+    });
+  };
+  CHECK(rotation_mode(0.1) == "(no error)");  // J_xx > 0: the mode does not move J, not rigid
+  const std::string rot = rotation_mode(0);
+  INFO(rot);
+  CHECK(rot.find("mode 'qx1' is (nearly) a rigid-body motion") != std::string::npos);
+  CHECK(rot.find("remove rigid-body modes from the data") != std::string::npos);
+  // Two copies of one mode.
+  CHECK(message_of([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) n.Phi_B.col(1) = n.Phi_B.col(0);
+        }).find("is (nearly) a rigid-body motion of the body or a combination of other modes") !=
+        std::string::npos);
+}
+
+TEST_CASE("validate_flex: K and D sizes, finiteness, symmetry, definiteness") {
+  CHECK(message_of([](FlexBody& f) { f.K.resize(1, 1); }) ==
+        "body 'beam': K is 1 x 1 but the body has 2 modes");
+  CHECK(message_of([](FlexBody& f) { f.D.resize(2, 3); }) ==
+        "body 'beam': D is 2 x 3 but the body has 2 modes");
+  CHECK(message_of([](FlexBody& f) { f.K(0, 1) = NAN; }) == "body 'beam': K(qx1, qy1) is not finite");
+  CHECK(message_of([](FlexBody& f) { f.K(1, 0) = 0.5; }) ==
+        "body 'beam': K is not symmetric: K(qy1, qx1) = 0.5 but K(qx1, qy1) = 0");
+  CHECK(message_of([](FlexBody& f) {
+          f.K(0, 1) = f.K(1, 0) = 2 * f.K(0, 0);
+        }).rfind("body 'beam': K is not positive semi-definite: eigenvalue -", 0) == 0);
+  CHECK(message_of([](FlexBody& f) { f.D(1, 1) = -1e-3; }) ==
+        "body 'beam': D is not positive semi-definite: eigenvalue -0.001 (the largest is 0), its "
+        "eigenvector mostly along mode 'qy1'");
+  // Within the tolerance: a rounding-level negative eigenvalue relative to the largest passes.
+  CHECK(message_of([](FlexBody& f) { f.K(1, 1) = -1e-12 * f.K(0, 0); }) == "(no error)");
+}
+
+TEST_CASE("validate_flex: size limits") {
+  CHECK(message_of([](FlexBody& f) {
+          f.mode_names.resize(kMaxModes + 1, "m");
+        }) == "body 'beam': 1001 modes: at most 1000 are accepted");
+  CHECK(message_of([](FlexBody& f) { f.nodes.resize(kMaxNodes + 1, f.nodes[1]); }) ==
+        "body 'beam': 200001 nodes: at most 200000 are accepted");
+}
+
+TEST_CASE("inertia_problem accepts realisable inertias at the triangle limit and rejects others") {
+  CHECK(!inertia_problem(Eigen::Vector3d(1, 1, 2).asDiagonal()));  // a thin disc: I1 + I2 = I3
+  CHECK(!inertia_problem(Eigen::Matrix3d::Zero()));                // a point mass
+  CHECK(inertia_problem(Eigen::Vector3d(1, 1, 2.001).asDiagonal()));
+}
