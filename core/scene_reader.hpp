@@ -1,21 +1,6 @@
-// Reading and validating scene files (YAML). See README "Writing a scene" for the format.
+// The scene reader moved to core/scene/ (scene.hpp: read_scene, read_scene_text,
+// write_scene_text, SceneWarning, check_topology). This header forwards to it so that existing
+// callers keep compiling; new code includes "core/scene/scene.hpp".
 #pragma once
 
-#include "core/system.hpp"
-
-#include <string>
-
-namespace crossdyn {
-
-// Reads, validates and converts (units to SI) one scene file. Throws InputError whose message
-// starts "<file>:<line>:<column>: " and names the key and what is wrong. Never returns an invalid
-// System: every check in README "What the reader checks" has passed.
-System read_scene(const std::string& path);
-
-// The same, from text already in memory; `file_label` is used in messages (fuzzing, tests).
-System read_scene_text(const std::string& text, const std::string& file_label);
-
-// Writes a System back as a scene file (SI units) that read_scene_text reads to an equal System.
-std::string write_scene_text(const System& system);
-
-}  // namespace crossdyn
+#include "core/scene/scene.hpp"
