@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
 #include "harness/report.hpp"
@@ -97,7 +97,9 @@ struct CompareCommandOptions {
 };
 
 int compare(const CompareCommandOptions& o) {
-  const System system = read_scene(o.scene);
+  std::vector<SceneWarning> warnings;
+  const System system = read_scene(o.scene, &warnings);
+  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   const harness::CompareOptions options = harness::to_compare_options(o.common);
   const harness::SceneComparison c = harness::compare_scene(system, options);
   std::cout << harness::format_comparison(c, o.failures_only);

@@ -4,7 +4,7 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
 
 #include <iostream>
@@ -28,7 +28,9 @@ struct RunOptions {
 };
 
 int run(const RunOptions& o) {
-  const System system = read_scene(o.scene);
+  std::vector<SceneWarning> warnings;
+  const System system = read_scene(o.scene, &warnings);
+  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   IntegratorSettings s = IntegratorSettings::from(system.run);
   if (o.integrator) s.method = *o.integrator;
   if (o.rtol) s.rtol = *o.rtol;

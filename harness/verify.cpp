@@ -3,7 +3,7 @@
 
 #include "core/errors.hpp"
 #include "core/output.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -48,7 +48,9 @@ VerifyResult run_verify(const VerifyOptions& o) {
     s.path = path;
     const auto start = std::chrono::steady_clock::now();
     try {
-      s.system = read_scene(path);
+      std::vector<SceneWarning> warnings;
+      s.system = read_scene(path, &warnings);
+      for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
       s.comparison = compare_scene(*s.system, o.compare);
     } catch (const InputError& e) {
       s.comparison.reset();

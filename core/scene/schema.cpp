@@ -202,19 +202,23 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "compare.exclude[].reason", .type = Text, .required = true, .noun = "reason",
  .doc = "Why it is not compared (not empty)."},
 
-// ----- value forms (wherever a value of that type is accepted) --------------------------------
-{.path = "(list with unit)", .type = Map, .noun = "a list with a unit",
- .doc = "A list of numbers with one unit for all: `{value: [0, 0, 10], unit: deg/s}`."},
-{.path = "(list with unit).value", .type = List, .required = true,
+// ----- value forms (wherever a value of that type is accepted; the writer writes SI lists) -----
+{.path = "(list with unit)", .type = Map, .noun = "a list with a unit", .written = false,
+ .doc = "A list of numbers with one unit for all: `{value: [0, 0, 10], unit: deg/s}`; accepted "
+        "for every 3-vector and inertia."},
+{.path = "(list with unit).value", .type = List, .required = true, .noun = "a list of numbers",
+ .written = false,
  .doc = "The numbers, bare (no unit of their own)."},
-{.path = "(list with unit).unit", .type = Text, .default_value = "SI",
+{.path = "(list with unit).unit", .type = Text, .default_value = "SI", .written = false,
  .doc = "Their unit, of the key's dimension."},
-{.path = "(axis-angle)", .type = Map, .noun = "an axis-angle rotation",
+{.path = "(axis-angle)", .type = Map, .noun = "an axis-angle rotation", .written = false,
  .doc = "An attitude as a rotation by `angle` about `axis`: `{axis: [0, 0, 1], angle: 90 deg}`."},
 {.path = "(axis-angle).axis", .type = Direction, .required = true, .noun = "an axis",
+ .written = false,
  .doc = "The rotation axis, in the frame the attitude is expressed in (normalised)."},
 {.path = "(axis-angle).angle", .type = Quantity, .dimension = Dimension::Angle, .required = true,
- .doc = "The rotation angle, right-hand rule."},
+ .written = false,
+ .doc = "The rotation angle, right-hand rule. A bare number is radians (a warning above 2 pi)."},
 });
 // clang-format on
 

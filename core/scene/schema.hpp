@@ -105,4 +105,9 @@ std::string noun(const Key& key, std::string_view type_name = "");
 // per block of the format, the joint-type table, the value forms and the units.
 std::string markdown_reference();
 
+// fuzz/scene.dict: every key ("mass:"), word and unit of the schema, then YAML syntax, so that
+// libFuzzer's mutations reach past the first unknown-key check (tests/scene/test_schema.cpp
+// compares the committed file with this).
+std::string fuzz_dictionary();
+
 }  // namespace crossdyn::scene

@@ -1,6 +1,7 @@
 // The key reference of docs/scene-format.md, generated from the schema table (schema.hpp).
 // tests/scene/test_scene_docs.cpp fails when the committed file differs from this output;
-// `build/tests/scene/crossdyn_scene_doc --write docs/scene-format.md` rewrites it.
+// `build/tests/scene/crossdyn_scene_doc --write-docs docs/scene-format.md` rewrites it.
+#include <algorithm>
 #include <initializer_list>
 #include <sstream>
 
@@ -68,7 +69,8 @@ std::string types_text(unsigned joints) {
 }
 
 bool under(std::string_view path, std::string_view block) {
-  return path.starts_with(std::string(block) + ".") || path.starts_with(std::string(block) + "[");
+  // A value form's own row heads its table; a block's own row is in the table above it.
+  return (block.starts_with('(') && path == block) || path.starts_with(std::string(block) + ".") || path.starts_with(std::string(block) + "[");
 }
 
 // One table of the rows under `blocks` ("" for the scene's own keys: those without '.' or '[').
@@ -84,7 +86,8 @@ void table(std::ostringstream& md, std::string_view title,
           k.path.find_first_of(".[") == std::string_view::npos && !k.path.starts_with('(');
       if (k.path.empty() || (block.empty() ? !top : !under(k.path, block))) continue;
       md << "| `" << k.path << "` | " << type_text(k) << " | " << si_unit(k.dimension) << " | "
-         << (k.required ? "yes" : "no") << " | " << cell(k.default_value) << " |";
+         << (k.path.ends_with("[]") ? "" : k.required ? "yes" : "no") << " | "
+         << cell(k.default_value) << " |";
       if (joint_column) md << " " << types_text(k.joints) << " |";
       md << " " << cell(k.doc) << " |\n";
     }
@@ -96,7 +99,7 @@ void table(std::ostringstream& md, std::string_view title,
 std::string markdown_reference() {
   std::ostringstream md;
   md << "<!-- Generated from core/scene/schema.cpp: do not edit by hand; run\n"
-        "     build/tests/scene/crossdyn_scene_doc --write docs/scene-format.md -->\n\n";
+        "     build/tests/scene/crossdyn_scene_doc --write-docs docs/scene-format.md -->\n\n";
   table(md, "The scene", {""}, false);
   table(md, "Bodies: `bodies[]`", {"bodies"}, false);
   table(md, "Joints: `joints[]`", {"joints"}, true);
@@ -128,6 +131,39 @@ std::string markdown_reference() {
     md << "| " << units::dimension_name(d) << " | " << si_unit(d) << " | " << accepted << " |\n";
   }
   return md.str();
+}
+
+std::string fuzz_dictionary() {
+  std::ostringstream d;
+  d << "# libFuzzer dictionary for scene files, generated from core/scene/schema.cpp by\n"
+       "# build/tests/scene/crossdyn_scene_doc --dict (tests/scene/test_schema.cpp checks it).\n";
+  std::vector<std::string> seen;
+  auto add = [&](const std::string& entry) {
+    if (std::find(seen.begin(), seen.end(), entry) != seen.end()) return;
+    seen.push_back(entry);
+    d << '"' << entry << "\"\n";
+  };
+  d << "# keys\n";
+  for (const Key& k : keys()) {
+    const std::string_view p = k.path;
+    const std::size_t dot = p.rfind('.');
+    const std::string_view name = dot == std::string_view::npos ? p : p.substr(dot + 1);
+    if (name.empty() || name.starts_with('(') || name.ends_with("[]")) continue;
+    add(name.starts_with('<') ? "default:" : std::string(name) + ":");
+  }
+  d << "# words\n";
+  for (const Key& k : keys())
+    for (const std::string& w : words(k)) add(w);
+  add("true");
+  add("false");
+  d << "# units\n";
+  for (units::Dimension dim : units::kDimensions)
+    for (const std::string& u : units::unit_names(dim)) add(" " + u);
+  d << "# other spellings, numbers and YAML syntax\n";
+  for (const char* s : {" kg*m^2", " N*m", "1e308", "-0", ".inf", ".nan", "&a ", "*a", "? ", "- ", "[]", "{}",
+                        "!!str ", "---", "...", "|", ">"})
+    add(s);
+  return d.str();
 }
 
 }  // namespace crossdyn::scene
