@@ -4,6 +4,7 @@
 
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/engines.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
 #include "harness/report.hpp"

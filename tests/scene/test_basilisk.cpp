@@ -12,6 +12,7 @@
 // child_point or no offset must miss by far more (issue 10: what agreement alone cannot catch).
 #include "core/engine.hpp"
 #include "core/integrate.hpp"
+#include "harness/engines.hpp"
 #include "core/scene/scene.hpp"
 #include "tests/support/paths.hpp"
 
