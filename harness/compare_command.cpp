@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
+#include "harness/engines.hpp"
 #include "core/scene_reader.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
