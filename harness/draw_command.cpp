@@ -11,6 +11,7 @@
 #include "core/scene_reader.hpp"
 #include "harness/commands.hpp"
 #include "harness/report.hpp"
+#include "harness/engines.hpp"
 #include "harness/scene_geometry.hpp"
 
 #include <cctype>

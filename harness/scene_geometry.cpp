@@ -72,12 +72,35 @@ Vector3d revolute_axis_in_child(const Joint& joint) {
   return joint.q_PJ0.normalized().toRotationMatrix().transpose() * joint.axis_P.normalized();
 }
 
+namespace {
+
+// A node's displacement u = Phi eta and turn exp([psi x]), psi = Psi eta (core/system.hpp
+// FlexBody); zero and identity for a rigid attachment or an undeformed body.
+struct NodeMotion {
+  Vector3d u = Vector3d::Zero();
+  Matrix3d turn = Matrix3d::Identity();
+};
+NodeMotion node_motion(const Body& body, int node, const ModalCoordinates& eta, std::size_t b) {
+  NodeMotion m;
+  if (node < 0 || !body.flex || b >= eta.size() || eta[b].size() == 0) return m;
+  const FlexNode& n = body.flex->nodes.at(static_cast<std::size_t>(node));
+  if (n.Phi_B.cols() == eta[b].size()) m.u = n.Phi_B * eta[b];
+  if (n.Psi_B.cols() == eta[b].size()) {
+    const Vector3d psi = n.Psi_B * eta[b];
+    if (psi.norm() > 0) m.turn = Eigen::AngleAxisd(psi.norm(), psi.normalized()).toRotationMatrix();
+  }
+  return m;
+}
+
+}  // namespace
+
 Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_NB,
-                           const Vector3d& p_NoBo_N_base, double t) {
+                           const Vector3d& p_NoBo_N_base, double t, const ModalCoordinates& eta) {
   Configuration c;
   c.t = t;
   c.bodies.resize(system.bodies.size());
   c.joints.resize(system.joints.size());
+  c.nodes_N.resize(system.bodies.size());
   for (std::size_t b = 0; b < system.bodies.size(); ++b) c.bodies[b].R_NB = R_NB.at(b);
   // Joints are in tree order (core/system.hpp): every parent is placed before its children.
   for (std::size_t j = 0; j < system.joints.size(); ++j) {
@@ -90,23 +113,32 @@ Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_
       continue;
     }
     const BodyPose& P = c.bodies[J.parent];
-    out.p_NoJ_N_parent = P.p_NoBo_N + P.R_NB * J.p_PoJ_P;
-    // p_NoCo_N = p_NoPo_N + R_NP p_PoJ_P - R_NC p_CoJ_C
-    C.p_NoBo_N = out.p_NoJ_N_parent - C.R_NB * J.p_CoJ_C;
-    out.p_NoJ_N_child = C.p_NoBo_N + C.R_NB * J.p_CoJ_C;
+    const NodeMotion mp = node_motion(system.bodies[J.parent], J.parent_node, eta, J.parent);
+    const NodeMotion mc = node_motion(system.bodies[J.child], J.child_node, eta, J.child);
+    out.p_NoJ_N_parent = P.p_NoBo_N + P.R_NB * (J.p_PoJ_P + mp.u);
+    // p_NoCo_N = p_NoPo_N + R_NP (p_PoJ_P + u_P) - R_NC (p_CoJ_C + u_C)
+    C.p_NoBo_N = out.p_NoJ_N_parent - C.R_NB * (J.p_CoJ_C + mc.u);
+    out.p_NoJ_N_child = C.p_NoBo_N + C.R_NB * (J.p_CoJ_C + mc.u);
+    // R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, so R_J = R_PJ0^T exp(psi_P)^T R_NP^T R_NC exp(psi_C).
     const Matrix3d R_PJ0 = J.q_PJ0.normalized().toRotationMatrix();
-    const Matrix3d R_J = R_PJ0.transpose() * P.R_NB.transpose() * C.R_NB;
+    const Matrix3d R_J = R_PJ0.transpose() * mp.turn.transpose() * P.R_NB.transpose() * C.R_NB * mc.turn;
     out.phi_J = rot::rotation_vector(Quaterniond(R_J));
     if (J.type == JointType::Revolute) {
-      out.axis_N_parent = P.R_NB * J.axis_P.normalized();
-      out.axis_N_child = C.R_NB * revolute_axis_in_child(J);
+      out.axis_N_parent = P.R_NB * mp.turn * J.axis_P.normalized();
+      out.axis_N_child = C.R_NB * mc.turn * revolute_axis_in_child(J);
     }
   }
   double mass = 0;
   c.p_NoScm_N.setZero();
   for (std::size_t b = 0; b < system.bodies.size(); ++b) {
-    mass += system.bodies[b].mass;
-    c.p_NoScm_N += system.bodies[b].mass * c.bodies[b].p_NoBo_N;
+    const Body& B = system.bodies[b];
+    mass += B.mass;
+    c.p_NoScm_N += B.mass * c.bodies[b].p_NoBo_N;
+    if (!B.flex) continue;
+    for (std::size_t k = 0; k < B.flex->nodes.size(); ++k)
+      c.nodes_N[b].push_back(c.bodies[b].p_NoBo_N +
+                             c.bodies[b].R_NB * (B.flex->nodes[k].p_BoNi_B +
+                                                 node_motion(B, static_cast<int>(k), eta, b).u));
   }
   if (mass > 0) c.p_NoScm_N /= mass;
   return c;
@@ -130,6 +162,8 @@ Configuration initial_configuration(const System& system) {
 void center_at_origin(Configuration& c) {
   const Vector3d shift = c.p_NoScm_N;
   for (BodyPose& b : c.bodies) b.p_NoBo_N -= shift;
+  for (std::vector<Vector3d>& nodes : c.nodes_N)
+    for (Vector3d& p : nodes) p -= shift;
   for (JointPose& j : c.joints) {
     j.p_NoJ_N_parent -= shift;
     j.p_NoJ_N_child -= shift;
@@ -155,7 +189,14 @@ Configuration configuration_from_row(const System& system, const std::vector<std
     const Quaterniond q(wxyz[0], wxyz[1], wxyz[2], wxyz[3]);
     R_NB.push_back(q.normalized().toRotationMatrix());
   }
-  Configuration c = place_bodies(system, R_NB, Vector3d::Zero(), row[column("t")]);
+  ModalCoordinates eta(system.bodies.size());
+  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+    const Body& B = system.bodies[b];
+    if (!B.flex) continue;
+    eta[b].resize(B.flex->modes());
+    for (int k = 0; k < B.flex->modes(); ++k) eta[b](k) = row[column(B.name + "." + B.flex->mode_names[static_cast<std::size_t>(k)])];
+  }
+  Configuration c = place_bodies(system, R_NB, Vector3d::Zero(), row[column("t")], eta);
   center_at_origin(c);
   return c;
 }
@@ -221,7 +262,15 @@ const char* type_name(JointType t) {
 
 json configuration_json(const Configuration& c, bool centred) {
   json bodies = json::array();
-  for (const BodyPose& b : c.bodies) bodies.push_back({{"p_NoBo_N", vec(b.p_NoBo_N)}, {"R_NB", mat(b.R_NB)}});
+  for (std::size_t i = 0; i < c.bodies.size(); ++i) {
+    json b = {{"p_NoBo_N", vec(c.bodies[i].p_NoBo_N)}, {"R_NB", mat(c.bodies[i].R_NB)}};
+    if (i < c.nodes_N.size() && !c.nodes_N[i].empty()) {
+      json nodes = json::array();
+      for (const Vector3d& p : c.nodes_N[i]) nodes.push_back(vec(p));
+      b["nodes_N"] = nodes;
+    }
+    bodies.push_back(b);
+  }
   json joints = json::array();
   for (const JointPose& j : c.joints) {
     const double cos_mismatch = j.axis_N_parent.dot(j.axis_N_child);
@@ -250,13 +299,13 @@ std::string geometry_json(const System& system, const Configuration& initial,
     const Body& B = system.bodies[b];
     const EquivalentBox box = equivalent_box(B);
     json nodes = json::array();
-    if (B.modal)
-      for (std::size_t k = 0; k < B.modal->nodes.size(); ++k)
-        nodes.push_back({{"index", k}, {"p_BoN_B", vec(B.modal->nodes[k].p_BoN_B)}});
+    if (B.flex)
+      for (std::size_t k = 0; k < B.flex->nodes.size(); ++k)
+        nodes.push_back({{"name", B.flex->nodes[k].name}, {"p_BoN_B", vec(B.flex->nodes[k].p_BoNi_B)}});
     bodies.push_back({{"name", B.name},
                       {"mass_kg", B.mass},
                       {"is_base", static_cast<int>(b) == base},
-                      {"flexible", B.modal.has_value()},
+                      {"flexible", B.flex.has_value()},
                       {"shape", {{"type", "box"},
                                  {"what", "equivalent-inertia box: the uniform box with the body's "
                                           "mass and principal moments, centred at its CM"},
@@ -273,6 +322,8 @@ std::string geometry_json(const System& system, const Configuration& initial,
               {"prescribed", false},
               {"parent", J.parent},
               {"child", J.child},
+              {"parent_node", J.parent_node},
+              {"child_node", J.child_node},
               {"parent_point_P_m", vec(J.p_PoJ_P)},
               {"child_point_C_m", vec(J.p_CoJ_C)},
               {"R_PJ0", mat(J.q_PJ0.normalized().toRotationMatrix())},

@@ -14,6 +14,10 @@
 // R_PC = R_PJ0 R_J(coordinates)) or from a run's output columns <body>.qw .qx .qy .qz. The outputs
 // carry no position, so a configuration made from a run is placed with the system centre of mass
 // at N's origin (it stays there when the total linear momentum is zero).
+// A joint at a node of a flexible body (core/system.hpp FlexBody) moves with the node: the
+// parent_point / child_point above become p_PoJ_P + u_P and p_CoJ_C + u_C, with u = Phi_node eta
+// from the run's modal columns <body>.<mode> (zero at t = 0: bodies start undeformed), and the
+// joint frame turns with the node's slope psi = Psi_node eta.
 #pragma once
 
 #include "core/system.hpp"
@@ -63,8 +67,16 @@ struct Configuration {
   double t = 0;
   std::vector<BodyPose> bodies;   // System::bodies order
   std::vector<JointPose> joints;  // System::joints order
-  Eigen::Vector3d p_NoScm_N = Eigen::Vector3d::Zero();  // system centre of mass
+  // Per body, its flexible nodes in N (p_NoBo_N + R_NB (p_BoNi_B + u_i)); empty for a rigid body.
+  std::vector<std::vector<Eigen::Vector3d>> nodes_N;
+  // The rigid bodies' CMs and the flexible bodies' body-frame origins (their undeformed CMs),
+  // weighted by mass: the system CM of the undeformed bodies.
+  Eigen::Vector3d p_NoScm_N = Eigen::Vector3d::Zero();
 };
+
+// Modal coordinates per body (System::bodies order; size 0 for a rigid body, and an empty vector
+// for "every body undeformed").
+using ModalCoordinates = std::vector<Eigen::VectorXd>;
 
 // R_PC of a joint at its coordinates (free joint: identity; the base attitude is not a joint
 // rotation here).
@@ -74,16 +86,18 @@ Eigen::Matrix3d joint_rotation(const Joint& joint, double angle, const Eigen::Qu
 Eigen::Vector3d revolute_axis_in_child(const Joint& joint);
 
 // Places every body from its attitude (R_NB per body, System::bodies order) by walking the joints
-// from the base, whose CM is put at p_NoBo_N_base; fills the joint poses and the system CM.
+// from the base, whose CM is put at p_NoBo_N_base; fills the joint poses, the flexible nodes and
+// the system CM. `eta`: the flexible bodies' modal coordinates (empty: undeformed).
 Configuration place_bodies(const System& system, const std::vector<Eigen::Matrix3d>& R_NB,
-                           const Eigen::Vector3d& p_NoBo_N_base, double t = 0);
+                           const Eigen::Vector3d& p_NoBo_N_base, double t = 0,
+                           const ModalCoordinates& eta = {});
 
 // The configuration at t = 0 from the scene's initial conditions (base at its given position).
 Configuration initial_configuration(const System& system);
 
 // The configuration of one output row (columns as the run wrote them): attitudes from the
-// <body>.qw .qx .qy .qz columns, system CM at N's origin. Throws InputError naming the missing
-// column.
+// <body>.qw .qx .qy .qz columns, flexible bodies' modal coordinates from <body>.<mode>, system CM
+// at N's origin. Throws InputError naming a missing column.
 Configuration configuration_from_row(const System& system, const std::vector<std::string>& columns,
                                      const double* row);
 

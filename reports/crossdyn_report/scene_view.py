@@ -6,8 +6,9 @@ numbers, matrices lists of 3 rows; SI units; frames as in core/system.hpp:
 
     bodies[i]   name, mass_kg, is_base, flexible,
                 shape: {type: "box", R_BX (columns: box axes in B), size_m (sides along them)},
-                nodes: [{index, p_BoN_B}]          (flexible bodies' nodes, undeformed; may be [])
+                nodes: [{name, p_BoN_B}]           (a flexible body's nodes, undeformed; else [])
     joints[j]   name, type (free|revolute|spherical|fixed), dof, prescribed, parent (-1: N), child,
+                parent_node, child_node (-1: rigid attachment),
                 parent_point_P_m, child_point_C_m, R_PJ0 (offset), has_offset,
                 revolute: axis_P, axis_C, initial_angle_rad, initial_rate_rad_s;
                 free: initial_w_NB_B_rad_s
@@ -15,7 +16,7 @@ numbers, matrices lists of 3 rows; SI units; frames as in core/system.hpp:
     motion      {engine, state (ok|failed|not run), note, duration_s, frames: [configuration...]}
                 the later configurations, each with the system CM at N's origin
     configuration = {t, centred_at_cm, p_NoScm_N,
-                     bodies: [{p_NoBo_N, R_NB}],
+                     bodies: [{p_NoBo_N, R_NB, nodes_N (flexible bodies: the nodes, deformed)}],
                      joints: [{p_NoJ_N_parent, p_NoJ_N_child, gap_m, axis_N_parent, axis_N_child,
                                axis_mismatch_rad, phi_J_rad}]}
 
@@ -395,8 +396,9 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
         if labels is not None:
             labels.add(p, b["name"] + (" (base, free joint)" if b.get("is_base") else ""),
                        colour=darker(cols[i], 0.5), size=9.5 if detail else 7.5, weight="bold", priority=3)
-        for node in b.get("nodes", []):
-            painter.marker(p + R @ np.asarray(node["p_BoN_B"], float), s=12, marker="d", color=darker(cols[i]))
+        nodes = pose.get("nodes_N") or [p + R @ np.asarray(n["p_BoN_B"], float) for n in b.get("nodes", [])]
+        for q in nodes:
+            painter.marker(np.asarray(q, float), s=14 if detail else 8, marker="D", color=darker(cols[i]))
 
     for joint, js in zip(geom["joints"], frame["joints"]):
         pp = np.asarray(js["p_NoJ_N_parent"], float)

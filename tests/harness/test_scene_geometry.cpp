@@ -8,6 +8,7 @@
 #include "core/integrate.hpp"
 #include "core/rotation.hpp"
 #include "core/scene_reader.hpp"
+#include "harness/engines.hpp"
 #include "harness/scene_geometry.hpp"
 #include "tests/support/paths.hpp"
 
@@ -268,4 +269,70 @@ TEST_CASE("scene geometry: the geometry document has what the drawing script rea
   CHECK(j["initial"]["joints"][1]["gap_m"] == 0.0);
   CHECK(j["motion"]["state"] == "failed");
   CHECK(j["motion"]["frames"].empty());
+}
+
+TEST_CASE("scene geometry: a joint at a flexible body's node moves and turns with the node") {
+  // A flexible beam (base) with a node at (2, 0, 0) whose one mode moves it by (0, 0.1, 0) per unit
+  // eta and turns it by 0.05 rad about z per unit eta; a tip mass hinged there about z, its CM 1 m
+  // further along its own x. With eta = 2 and both attitudes identity the joint point is at
+  // (2, 0.2, 0), the tip's CM at (3, 0.2, 0), and the joint rotation is -0.1 rad about z (the
+  // node turned, the tip did not).
+  System s;
+  s.name = "flex";
+  Body beam;
+  beam.name = "beam";
+  beam.mass = 10;
+  beam.I_BBo_B = Vector3d(1, 10, 10).asDiagonal();
+  crossdyn::FlexBody flex;
+  flex.mode_names = {"m1"};
+  crossdyn::FlexNode node;
+  node.name = "tip";
+  node.mass = 1;
+  node.p_BoNi_B = Vector3d(2, 0, 0);
+  node.Phi_B = Eigen::Matrix3Xd(3, 1);
+  node.Phi_B << 0, 0.1, 0;
+  node.Psi_B = Eigen::Matrix3Xd(3, 1);
+  node.Psi_B << 0, 0, 0.05;
+  flex.nodes.push_back(node);
+  beam.flex = flex;
+  Body mass;
+  mass.name = "mass";
+  mass.mass = 1;
+  mass.I_BBo_B = Vector3d(0.1, 0.1, 0.1).asDiagonal();
+  s.bodies = {beam, mass};
+  Joint free;
+  free.name = "base";
+  free.type = JointType::Free;
+  free.child = 0;
+  Joint hinge;
+  hinge.name = "hinge";
+  hinge.type = JointType::Revolute;
+  hinge.parent = 0;
+  hinge.child = 1;
+  hinge.parent_node = 0;
+  hinge.p_PoJ_P = Vector3d(2, 0, 0);
+  hinge.p_CoJ_C = Vector3d(-1, 0, 0);
+  hinge.axis_P = Vector3d::UnitZ();
+  s.joints = {free, hinge};
+  const std::vector<Matrix3d> R(2, Matrix3d::Identity());
+  g::ModalCoordinates eta(2);
+  eta[0] = Eigen::VectorXd::Constant(1, 2.0);
+  const g::Configuration c = g::place_bodies(s, R, Vector3d::Zero(), 0.5, eta);
+  CHECK(c.joints[1].p_NoJ_N_parent.isApprox(Vector3d(2, 0.2, 0), kTight));
+  CHECK(c.joints[1].p_NoJ_N_child.isApprox(Vector3d(2, 0.2, 0), kTight));
+  CHECK(c.bodies[1].p_NoBo_N.isApprox(Vector3d(3, 0.2, 0), kTight));
+  REQUIRE(c.nodes_N[0].size() == 1);
+  CHECK(c.nodes_N[0][0].isApprox(Vector3d(2, 0.2, 0), kTight));
+  CHECK(c.nodes_N[1].empty());
+  CHECK(c.joints[1].phi_J.isApprox(Vector3d(0, 0, -0.1), kTight));
+  // Undeformed (no modal coordinates): the rigid placement.
+  const g::Configuration u = g::place_bodies(s, R, Vector3d::Zero());
+  CHECK(u.bodies[1].p_NoBo_N.isApprox(Vector3d(3, 0, 0), kTight));
+  CHECK(u.joints[1].phi_J.norm() == 0);
+  // From an output row: the modal column <body>.<mode> is read.
+  const std::vector<std::string> columns{"t", "beam.qw", "beam.qx", "beam.qy", "beam.qz",
+                                         "mass.qw", "mass.qx", "mass.qy", "mass.qz", "beam.m1"};
+  const double row[] = {0.5, 1, 0, 0, 0, 1, 0, 0, 0, 2.0};
+  const g::Configuration r = g::configuration_from_row(s, columns, row);
+  CHECK((r.bodies[1].p_NoBo_N - r.bodies[0].p_NoBo_N).isApprox(Vector3d(3, 0.2, 0), kTight));
 }
