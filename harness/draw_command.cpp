@@ -20,6 +20,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace crossdyn {
@@ -32,6 +33,7 @@ struct DrawOptions {
   std::string scene;
   std::string output;  // "" : <scene name>.png in the current folder
   std::string python = "/usr/bin/python3";
+  std::string geometry;  // "" : not kept
   bool no_motion = false;
   int panels = 4;
 };
@@ -79,12 +81,16 @@ int draw(const DrawOptions& o) {
   if (fs::is_directory(out, ec)) throw InputError("-o '" + out + "' is a folder; give a file name ending in .png");
   if (fs::exists(out, ec) && fs::equivalent(out, o.scene, ec))
     throw InputError("-o '" + out + "' is the scene file itself");
+  if (!o.geometry.empty() && lower(fs::path(o.geometry).extension().string()) != ".json")
+    throw InputError("--geometry '" + o.geometry + "': the geometry is a JSON file; give a name ending in .json");
   if (o.panels < 1 || o.panels > 12) throw InputError("--panels " + std::to_string(o.panels) + ": give 1 to 12");
   const fs::path script = fs::path(harness::installed_reports_dir()) / "draw_scene.py";
   if (!fs::is_regular_file(script))
     throw InputError("the drawing script '" + script.string() + "' is missing (it is part of the "
                      "crossdyn source tree this program was built from)");
   AtomicFile file(out);  // fails now, before the run, when the folder cannot be written
+  std::optional<AtomicFile> geometry_file;
+  if (!o.geometry.empty()) geometry_file.emplace(o.geometry);
 
   namespace g = harness::geometry;
   const IntegratorSettings settings = IntegratorSettings::from(system.run);
@@ -112,13 +118,19 @@ int draw(const DrawOptions& o) {
   const TempFolder tmp;
   const fs::path geometry = tmp.path() / "geometry.json";
   const fs::path picture = tmp.path() / "picture.png";
-  write_file_atomic(geometry.string(), g::geometry_json(system, g::initial_configuration(system), frames, source));
+  const std::string document = g::geometry_json(system, g::initial_configuration(system), frames, source);
+  write_file_atomic(geometry.string(), document);
   harness::run_python(o.python, {script.string(), geometry.string(), picture.string()});
   std::ifstream in(picture, std::ios::binary);
   if (!in) throw InputError("the drawing script wrote no picture");
   file.stream() << in.rdbuf();
   file.commit();
   std::cout << "picture: " << out << '\n';
+  if (geometry_file) {
+    geometry_file->stream() << document;
+    geometry_file->commit();
+    std::cout << "geometry: " << o.geometry << '\n';
+  }
   if (source.state == "failed")
     std::cerr << "crossdyn draw: the kane run failed (" << source.note << "); the picture shows "
               << frames.size() << " of " << o.panels << " later times\n";
@@ -140,6 +152,8 @@ void add_draw_command(CLI::App& app, int& exit_code) {
   sub->add_option("--output,-o", o->output,
                   "The PNG file to write, atomically (default: <scene name>.png in the current folder)");
   sub->add_flag("--no-motion", o->no_motion, "Only the picture at t = 0 (no kane run)");
+  sub->add_option("--geometry", o->geometry,
+                  "Also write the drawing geometry (JSON, format in reports/crossdyn_report/scene_view.py)");
   sub->add_option("--panels", o->panels, "Number of times drawn from the run: 0, T/(n-1), ..., T (default 4)");
   sub->add_option("--python", o->python,
                   "Python with matplotlib (default: /usr/bin/python3, Debian's)");

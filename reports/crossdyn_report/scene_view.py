@@ -376,6 +376,40 @@ def geometry_warnings(geom, frame):
     return out
 
 
+def symmetry_notes(geom, frame):
+    """Pairs of revolute joints on one parent that carry identical bodies at the same or mirror-image
+    points, where a positive angle moves the two children to mirror-opposite sides: often a flipped
+    axis sign, sometimes the design. Said, not judged."""
+    out = []
+    rev = [(joint, js) for joint, js in zip(geom["joints"], frame["joints"]) if joint["type"] == "revolute"]
+    bodies = geom["bodies"]
+    for k, (ja, sa) in enumerate(rev):
+        for jb, sb in rev[k + 1:]:
+            if ja["parent"] != jb["parent"]:
+                continue
+            ba, bb = bodies[ja["child"]], bodies[jb["child"]]
+            if abs(ba.get("mass_kg", 0) - bb.get("mass_kg", 0)) > 1e-9 * max(1.0, abs(ba.get("mass_kg", 0))) or \
+                    not np.allclose(ba["shape"]["size_m"], bb["shape"]["size_m"], rtol=1e-9, atol=1e-12):
+                continue
+            da, db = positive_direction(frame, ja, sa), positive_direction(frame, jb, sb)
+            if da is None or db is None:
+                continue
+            pa, pb = np.asarray(sa["p_NoJ_N_parent"], float), np.asarray(sb["p_NoJ_N_parent"], float)
+            if np.linalg.norm(pa - pb) > 1e-9:
+                n = (pa - pb) / np.linalg.norm(pa - pb)
+                db = db - 2 * np.dot(db, n) * n  # the mirror image of b's direction
+                where = "at mirror-image points"
+            else:
+                where = "at one point"
+            if np.dot(da, db) < -0.5:
+                out.append("note: %s and %s carry identical bodies %s of %s, yet a positive angle moves them "
+                           "to opposite sides (%s towards N %s, %s towards N %s)" % (
+                               ja["name"], jb["name"], where, bodies[ja["parent"]]["name"], ba["name"],
+                               direction_name(positive_direction(frame, ja, sa)), bb["name"],
+                               direction_name(positive_direction(frame, jb, sb))))
+    return out
+
+
 def draw_configuration(painter, geom, frame, half, detail=True, labels=None, initial=False):
     """Boxes, body axes, joint points (both sides), revolute axes and the direction of a positive
     angle, spherical balls, fixed-joint squares and, at t = 0, the base's spin."""
@@ -607,8 +641,10 @@ def draw_initial(fig, geom, title=None):
                handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)})
     notes = joint_notes(geom, frame)
     warnings = geometry_warnings(geom, frame)
+    symmetry = symmetry_notes(geom, frame)
     y = 0.245
     for text, colour, weight in ([(w, MISMATCH, "bold") for w in warnings] +
+                                 [(n, "#b35900", "bold") for n in symmetry] +
                                  [(n, "0.1", "normal") for n in notes])[:8]:
         fig.text(0.015, y, text, fontsize=8, color=colour, weight=weight, ha="left", va="top")
         y -= 0.018

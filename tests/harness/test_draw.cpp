@@ -98,6 +98,13 @@ TEST_CASE("draw: never writes over an input, and refuses bad input before runnin
   CHECK_FALSE(fs::exists(dir / "broken.png"));
   CHECK_FALSE(fs::exists(dir / "broken.yaml.png"));
 
+  r = crossdyn::test::run_crossdyn("draw '" + kPanels + "' --geometry '" + (dir / "g.yaml").string() + "' -o '" +
+                                   (dir / "p.png").string() + "'");
+  CHECK(r.status == 2);
+  CHECK(r.output == "crossdyn: error: --geometry '" + (dir / "g.yaml").string() +
+                        "': the geometry is a JSON file; give a name ending in .json\n");
+  CHECK_FALSE(fs::exists(dir / "p.png"));
+
   r = crossdyn::test::run_crossdyn("draw '" + kPanels + "' --panels 0 -o '" + (dir / "p.png").string() + "'");
   CHECK(r.status == 2);
   CHECK(r.output == "crossdyn: error: --panels 0: give 1 to 12\n");

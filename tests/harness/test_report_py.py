@@ -295,5 +295,42 @@ class ScenePicture(unittest.TestCase):
                          ["hinge: axis (0, 0, 1) in hub, (0, 0, 1) in N; + angle moves arm towards N +y"])
 
 
+class CheckScenes(unittest.TestCase):
+    """The Basilisk-like hinged panels and two copies with one wrong sign each
+    (tests/harness/scenes): the picture of each says what is wrong, the correct one says nothing."""
+
+    def geometry(self, name):
+        scene = os.path.join(SOURCE, "tests", "harness", "scenes", name + ".yaml")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "geometry.json")
+            subprocess.run([CROSSDYN, "draw", scene, "--no-motion", "-o", os.path.join(tmp, "p.png"),
+                            "--geometry", out], check=True, stdout=subprocess.DEVNULL)
+            return scene_view.load(out)
+
+    def messages(self, g):
+        f = g["initial"]
+        return scene_view.geometry_warnings(g, f), scene_view.symmetry_notes(g, f), scene_view.joint_notes(g, f)
+
+    def test_the_correct_panels_raise_nothing(self):
+        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels"))
+        self.assertEqual(warnings, [])
+        self.assertEqual(symmetry, [])
+        self.assertIn("hinge1: axis (0, -1, 0) in hub, (0, -1, 0) in N (offset); + angle moves panel1 towards N +z",
+                      notes)
+        self.assertIn("hinge2: axis (0, 1, 0) in hub, (0, 1, 0) in N; + angle moves panel2 towards N +z", notes)
+
+    def test_a_flipped_axis_is_named(self):
+        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels_flipped_axis"))
+        self.assertEqual(warnings, [])
+        self.assertEqual(symmetry, ["note: hinge1 and hinge2 carry identical bodies at mirror-image points of "
+                                    "hub, yet a positive angle moves them to opposite sides (panel1 towards "
+                                    "N -z, panel2 towards N +z)"])
+
+    def test_a_flipped_child_point_is_named(self):
+        warnings, _, _ = self.messages(self.geometry("hinged_panels_flipped_child_point"))
+        self.assertEqual(warnings, ["hinge1: panel1's CM is inboard of the joint, inside hub's box: check the "
+                                    "sign of child_point and the offset"])
+
+
 if __name__ == "__main__":
     unittest.main()
