@@ -30,17 +30,20 @@ from crossdyn_report.common import Run, plt, warn, write_atomic  # noqa: E402
 
 
 def scene_pictures(scene, out_dir, sid):
-    """The scene drawn at t = 0 and at later times: [(file, alt, caption)], note on the run."""
+    """The scene drawn at t = 0 and at later times: [(file, alt, caption)], note on the run. Sets
+    scene["picture_notes"]: what the picture flags (likely mistakes, asymmetries), for the pages."""
     if not scene.get("geometry"):
         return [], ""
     geom = scene_view.load(os.path.join(out_dir, scene["geometry"]))
+    scene["picture_notes"] = (scene_view.geometry_warnings(geom, geom["initial"]) +
+                              scene_view.symmetry_notes(geom, geom["initial"]))
     pictures = []
     name = "%s-scene.png" % sid
     write_atomic(os.path.join(out_dir, name), scene_view.initial_png(geom))
     pictures.append(dict(name=name, alt="%s at t = 0" % scene.get("scene"), caption=(
         "The scene at t = 0 as crossdyn read it: a 3-D view (left) and three projections along N's "
-        "axes (right), in N, SI units. " + scene_view.conventions_text() + " Red marks what must "
-        "agree and does not, or a likely mistake (a child's CM inside its parent's box).")))
+        "axes (right), in N, SI units; the conventions are written under the picture. Red marks what "
+        "must agree and does not, or a likely mistake; orange, what may be intended or not.")))
     motion = geom.get("motion", {})
     note = ""
     if motion.get("state") != "ok":

@@ -112,7 +112,7 @@ def index_context(summary):
             if c["status"] == "FAIL":
                 failed_checks.append(dict(scene=s.get("scene"), page=s["page"], line=check_line(c)))
         rows.append(dict(scene=s.get("scene"), page=s["page"], cells=cells, result=scene_result(s),
-                         input_error=s.get("input_error", "")))
+                         input_error=s.get("input_error", ""), picture_notes=len(s.get("picture_notes", []))))
     counts = summary.get("counts", {})
     n = counts.get("scenes", len(scenes))
     unreadable = counts.get("scenes_unreadable", 0)
@@ -253,7 +253,7 @@ def scene_context(scene, pictures, charts, motion_note):
         counts=status_counts(checks), checks_total=len(checks),
         failed=[check_line(c) for c in checks if c["status"] == "FAIL"],
         description=system.get("description", ""), source=system.get("source", ""),
-        pictures=pictures, motion_note=motion_note,
+        pictures=pictures, motion_note=motion_note, picture_notes=scene.get("picture_notes", []),
         tables=scene_tables(system) if system else None,
         run_text=("0 to %s s, output every %s s, integrator %s (rtol %s, atol %s). Total linear momentum %s."
                   % (gfmt(settings.get("duration_s", run.get("duration_s"))),

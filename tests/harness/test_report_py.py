@@ -178,6 +178,15 @@ class Pages(unittest.TestCase):
         self.assertNotIn("joint angles", text)
         self.assertNotIn("<script", html)
 
+    def test_a_scene_whose_picture_flags_something_is_pointed_at(self):
+        summary = summary_three_scenes()
+        summary["scenes"][0]["picture_notes"] = ["hinge1: arm's CM is inboard of the joint"]
+        html = pages.render(self.env, "index.html", pages.index_context(summary))
+        self.assertIn('<a href="good.html#picture">look at the picture: 1 note</a>', html)
+        self.assertEqual(html.count("look at the picture:"), 1)
+        page = pages.render(self.env, "scene.html", pages.scene_context(summary["scenes"][0], [], [], ""))
+        self.assertIn("The picture flags: hinge1: arm's CM is inboard of the joint", visible(page))
+
     def test_scene_page_links_csv_and_has_no_empty_columns(self):
         s = summary_three_scenes()["scenes"][1]
         s["group_order"] = []
