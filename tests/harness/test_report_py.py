@@ -11,6 +11,7 @@ joints and dashes runs with its legend outside the data, and the scene picture f
 folded into its parent.
 """
 
+import html
 import json
 import math
 import os
@@ -36,11 +37,11 @@ def quat(axis, angle):
     return np.concatenate([[math.cos(angle / 2)], math.sin(angle / 2) * a])
 
 
-def visible(html):
+def visible(page):
     """The text of a page a reader sees: tags and their attributes (tooltips) removed."""
-    text = re.sub(r"</(td|th|li|p|h1|h2|tr|div|small|pre)>", " ", html)
+    text = re.sub(r"</(td|th|li|p|h1|h2|tr|div|small|pre)>", " ", page)
     text = re.sub(r"<[^>]*>", "", text)
-    return re.sub(r"\s+", " ", text).replace("&gt;", ">").replace("&lt;", "<")
+    return html.unescape(re.sub(r"\s+", " ", text))
 
 
 class FakeRun(Run):
