@@ -680,6 +680,10 @@ def draw_motion(fig, geom, panels=4):
     for k, f in enumerate(frames):
         ax = fig.add_axes([k * width, 0.0, width, 0.86], projection="3d")
         setup_3d(ax, lo, hi, labels=False)
+        # Small panels: the grid without numbers (the view at t = 0 above has the scale).
+        ax.set_xticklabels([])
+        ax.set_yticklabels([])
+        ax.set_zticklabels([])
         painter = Painter3D(ax)
         draw_N_axes(painter, lo, hi, half)
         draw_configuration(painter, geom, f, half, detail=False)
