@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   crossdyn::add_run_command(app, exit_code);
   crossdyn::add_compare_command(app, exit_code);
   crossdyn::add_verify_command(app, exit_code);
+  crossdyn::add_draw_command(app, exit_code);
   std::signal(SIGINT, on_sigint);
   std::signal(SIGTERM, on_sigint);
   try {
