@@ -2,10 +2,14 @@
 #include "harness/report.hpp"
 
 #include "core/errors.hpp"
+#include "core/integrate.hpp"
 #include "core/output.hpp"
+#include "harness/locations.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <poll.h>
+#include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 
@@ -292,6 +296,7 @@ std::string fmt_g(double v) {
 }  // namespace
 
 std::string describe_failure(const Check& c) {
+  if (c.quantity == "comparison") return c.note;  // nothing compared (harness/verify.hpp)
   std::string who = c.b.empty() ? c.a : c.a + " vs " + c.b;
   if (c.group == "run")
     return who + ": run failed at t = " + fmt_g(c.time) + " s: " + c.note;
@@ -454,21 +459,16 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
 
 namespace {
 
-// The report script: as given, else reports/make_report.py next to the scenes' folder, else in
-// the current folder.
-std::string find_script(const std::vector<SceneOutcome>& scenes, const std::string& given) {
-  if (!given.empty()) {
-    if (!fs::exists(given)) throw InputError("--report-script: '" + given + "' does not exist");
-    return given;
-  }
-  std::vector<fs::path> candidates;
-  for (const SceneOutcome& s : scenes)
-    candidates.push_back(fs::absolute(s.path).parent_path().parent_path() / "reports" / "make_report.py");
-  candidates.push_back(fs::path("reports") / "make_report.py");
-  for (const fs::path& p : candidates)
-    if (fs::exists(p)) return p.string();
-  throw InputError("cannot find the report script reports/make_report.py (looked next to the "
-                   "scenes' folder and in the current folder); give it with --report-script");
+// The report script: as given (--report-script), else the installed one (harness/locations.hpp),
+// never one found beside the scenes: a downloaded scene bundle must not run code.
+std::string find_script(const std::string& given) {
+  const std::string script = given.empty() ? installed_report_script() : given;
+  std::error_code ec;
+  if (!fs::is_regular_file(script, ec))
+    throw InputError("the report script '" + script + "' " +
+                     (fs::exists(script, ec) ? "is not a regular file" : "does not exist") +
+                     (given.empty() ? " (was the source tree moved? give --report-script)" : ""));
+  return script;
 }
 
 void run_script(const std::string& python, const std::vector<std::string>& args) {
@@ -480,9 +480,21 @@ void run_script(const std::string& python, const std::vector<std::string>& args)
   const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), environ);
   if (rc != 0)
     throw InputError("cannot run '" + python + "' for the report: " + std::strerror(rc));
+  // Wait, polling the interrupt flag: Ctrl-C ends the script and the command (exit 130).
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR) throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+  for (;;) {
+    const pid_t done = waitpid(pid, &status, WNOHANG);
+    if (done == pid) break;
+    if (done < 0 && errno != EINTR)
+      throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+    if (interrupt_requested()) {
+      ::kill(pid, SIGTERM);
+      while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      throw RunFailure("report", 0.0, "", "interrupted");
+    }
+    ::poll(nullptr, 0, 20);
+  }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw InputError("the report script '" + args[0] + "' failed (" +
                      (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
@@ -493,7 +505,7 @@ void run_script(const std::string& python, const std::vector<std::string>& args)
 }  // namespace
 
 void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options) {
-  const std::string script = find_script(scenes, options.script);
+  const std::string script = find_script(options.script);
   const fs::path dir(options.dir);
   make_directories(dir.string());
   const std::vector<std::string> ids = scene_ids(scenes);

@@ -17,6 +17,7 @@ struct SceneOutcome {
   std::optional<System> system;               // empty when the file could not be read
   std::optional<SceneComparison> comparison;  // empty when the file could not be read
   std::string input_error;                    // InputError message when it could not
+  bool internal_error = false;                // input_error is another error (verify: exit 3)
 };
 
 // The scene x check-group summary cell (verify's table, the report index, JSON "groups").
@@ -54,7 +55,7 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes);
 struct ReportOptions {
   std::string dir = "reports/latest";
   std::string python = "/usr/bin/python3";  // Debian's, which has matplotlib
-  std::string script;                        // "" : found next to the scenes or in ./reports
+  std::string script;                        // "" : the installed one (locations.hpp)
 };
 
 // Writes DIR/summary.json and DIR/data/<scene>/<run>.csv, then runs the report script, which
