@@ -17,16 +17,20 @@ namespace crossdyn {
 
 namespace {
 
+// Optimal string alignment distance: insertions, deletions, substitutions and transpositions of
+// adjacent characters ("lsit" for "list") each cost one.
 std::size_t edit_distance(const std::string& a, const std::string& b) {
-  std::vector<std::size_t> prev(b.size() + 1), row(b.size() + 1);
-  for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
-  for (std::size_t i = 1; i <= a.size(); ++i) {
-    row[0] = i;
-    for (std::size_t j = 1; j <= b.size(); ++j)
-      row[j] = std::min({prev[j] + 1, row[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
-    std::swap(prev, row);
-  }
-  return prev[b.size()];
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1,
+                          d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
 }
 
 // Every spelling of the options of `app` ("--engines", "-o"), and its subcommands' names.
@@ -70,6 +74,7 @@ std::string unexpected_arguments(CLI::App& app, const CLI::ExtrasError& e) {
 }  // namespace
 
 std::string closest_match(const std::string& word, const std::vector<std::string>& known) {
+  if (word.size() < 4) return "";  // "-x": any one-letter option would be "close"
   std::string best;
   std::size_t best_d = std::string::npos;
   for (const std::string& k : known) {
@@ -156,7 +161,24 @@ int crossdyn_main(int argc, char** argv) {
                 << "\nRun with --help for the options.\n";
       exit_code = kExitBadInput;
     } catch (const CLI::ParseError& e) {
-      std::cerr << "crossdyn: error: " << e.what() << "\nRun with --help for the options.\n";
+      std::string message = e.what();
+      if (app.get_subcommands().empty()) {  // no command recognised
+        const std::vector<std::string> rest = app.remaining(true);
+        if (rest.empty()) message = "no command given (commands: run, compare, verify, list)";
+        else if (rest.front().size() > 1 && rest.front()[0] == '-') {
+          const std::string name = rest.front().substr(0, rest.front().find('='));
+          const std::string hint = closest_match(name, known_words(app, true));
+          message = "unknown option '" + name + "'" +
+                    (hint.empty() ? " (a command comes first: run, compare, verify, list)"
+                                  : " (did you mean '" + hint + "'?)");
+        } else {
+          const std::string hint = closest_match(rest.front(), known_words(app, false));
+          message = "unknown command '" + rest.front() + "'" +
+                    (hint.empty() ? " (commands: run, compare, verify, list)"
+                                  : " (did you mean '" + hint + "'?)");
+        }
+      }
+      std::cerr << "crossdyn: error: " << message << "\nRun with --help for the options.\n";
       exit_code = kExitBadInput;
     }
     check_written(std::cout);

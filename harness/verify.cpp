@@ -86,14 +86,13 @@ void require_comparison(SceneComparison& c, bool allow) {
   Check k;
   k.quantity = "comparison";
   k.group = "run";
-  k.a = "comparison";
+  k.a = "all runs";
   k.tolerance_key = "-";
   k.status = CheckStatus::Fail;
   k.error = k.normalised = std::numeric_limits<double>::infinity();
   k.note = "nothing was compared: " + why +
            " (run more engines, or pass --allow-no-comparison to accept this)";
   c.checks.push_back(k);
-  c.notes.push_back(k.note);
 }
 
 VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& files) {
