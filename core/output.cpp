@@ -69,6 +69,21 @@ std::string follow_links(const std::string& path, const std::string& label) {
                    ": too many levels of symbolic links (a symbolic link loop)");
 }
 
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// The descriptor a path names (/dev/stdout, /dev/stderr, /dev/fd/N, /proc/self/fd/N), or -1.
+int descriptor_of(const std::string& path) {
+  if (path == "/dev/stdout") return STDOUT_FILENO;
+  if (path == "/dev/stderr") return STDERR_FILENO;
+  for (const char* prefix : {"/dev/fd/", "/proc/self/fd/"}) {
+    const std::string p(prefix);
+    if (path.size() > p.size() && path.compare(0, p.size(), p) == 0 && path.size() - p.size() <= 6 &&
+        std::all_of(path.begin() + static_cast<long>(p.size()), path.end(), is_digit))
+      return std::stoi(path.substr(p.size()));
+  }
+  return -1;
+}
+
 mode_t current_umask() {
   const mode_t m = ::umask(0);
   ::umask(m);
@@ -208,7 +223,7 @@ int remove_stale_temporaries(const std::string& folder, const std::string& name)
     const auto dash = rest.find('-');
     if (dash == std::string::npos || dash == 0 || rest.size() - dash - 1 != 6) continue;
     const std::string digits = rest.substr(0, dash);
-    if (digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), ::isdigit)) continue;
+    if (digits.size() > 9 || !std::all_of(digits.begin(), digits.end(), is_digit)) continue;
     const long pid = std::stol(digits);
     if (process_exists(pid)) continue;
     const std::string path = folder + "/" + entry;
@@ -231,11 +246,23 @@ AtomicFile::AtomicFile(std::string path, std::string label)
     fd_ = STDOUT_FILENO;
     owns_fd_ = false;
   } else {
-    target_ = follow_links(path_, label_);
     struct stat st {};
-    const bool exists = ::stat(target_.c_str(), &st) == 0;
+    bool exists = ::stat(path_.c_str(), &st) == 0;
+    if (!exists && errno == ELOOP)
+      throw InputError("cannot write " + me +
+                       ": too many levels of symbolic links (a symbolic link loop)");
     if (!exists && errno != ENOENT)
       throw InputError("cannot write " + me + ": " + errno_text(errno));
+    // An existing file: its real path (links resolved); none yet: where a dangling link points.
+    if (exists) {
+      char* real = ::realpath(path_.c_str(), nullptr);
+      target_ = real ? real : path_;
+      std::free(real);
+    } else {
+      target_ = follow_links(path_, label_);
+      exists = ::stat(target_.c_str(), &st) == 0;
+    }
+    const int descriptor = descriptor_of(path_);
     if (exists && S_ISDIR(st.st_mode))
       throw InputError("cannot write " + me + ": it is a directory (name a file in it)");
     if (exists && S_ISSOCK(st.st_mode))
@@ -243,7 +270,12 @@ AtomicFile::AtomicFile(std::string path, std::string label)
     if (exists && S_ISBLK(st.st_mode))
       throw InputError("cannot write " + me + ": it is a block device (crossdyn writes its "
                        "outputs only to regular files, character devices, FIFOs and stdout)");
-    if (exists && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode))) {
+    if (descriptor >= 0) {
+      // /dev/stdout, /dev/fd/N: the descriptor itself (its offset and append mode are kept).
+      fd_ = ::fcntl(descriptor, F_DUPFD_CLOEXEC, 3);
+      if (fd_ < 0) throw InputError("cannot write " + me + ": " + errno_text(errno));
+      owns_fd_ = true;
+    } else if (exists && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode))) {
       // Written in place. A FIFO's open waits for a reader: poll, so that Ctrl-C ends the wait.
       const bool fifo = S_ISFIFO(st.st_mode);
       for (;;) {

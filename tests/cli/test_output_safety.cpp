@@ -113,8 +113,13 @@ TEST_CASE("special files are written in place: /dev/null stays a device, a FIFO 
   CHECK(S_ISCHR(st.st_mode));  // as root the old code renamed a regular file over it
   const std::string expected = run_in(s.dir(), "run scene.yaml").out;
   REQUIRE(contains(expected, "t,hub.wx"));
-  // '-' is standard output.
+  // '-', /dev/stdout and /dev/fd/1 are standard output, written through its descriptor (so an
+  // appending redirection keeps what was there).
   CHECK(run_in(s.dir(), "run scene.yaml -o -").out == expected);
+  CHECK(run_in(s.dir(), "run scene.yaml -o /dev/stdout").out == expected);
+  s.write("appended.csv", "before\n");
+  CHECK(run_in(s.dir(), "run scene.yaml -o /dev/fd/1", ">> appended.csv").status == 0);
+  CHECK(read_file(s.path("appended.csv")) == "before\n" + expected);
   // A FIFO: crossdyn waits for the reader, then writes the whole CSV into it.
   REQUIRE(::mkfifo(s.path("fifo").c_str(), 0644) == 0);
   const int rc = sh("cd " + quote(s.dir().string()) + " && { cat fifo > got & } && " +
