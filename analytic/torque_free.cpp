@@ -246,7 +246,7 @@ bool is_torque_free(const System& system) {
   if (system.bodies.size() != 1 || system.joints.size() != 1) return false;
   const Body& b = system.bodies[0];
   const Joint& j = system.joints[0];
-  return j.type == JointType::Free && !b.modal && b.torque.empty();
+  return j.type == JointType::Free && !b.flex && b.torque.empty();
 }
 
 }  // namespace crossdyn::analytic

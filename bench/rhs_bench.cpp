@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include "core/engine.hpp"
+#include "harness/engines.hpp"
 #include "core/errors.hpp"
 #include "core/scene_reader.hpp"
 

@@ -7,9 +7,10 @@
 //   e.pack(tree_state, x);       // engine-neutral state => the engine's own state vector x
 //   e.rhs(t, x, xdot);           // (t, x) => xdot; no heap allocation; called by the integrator
 //   e.after_step(t, x);          // after each accepted step: renormalise, project, re-chart
-//   e.output_row(t, x, row);     // (t, x) => one CSV row, columns() order
+//   e.output_row(t, x, row);     // (t, x) => one CSV row, layout() order (core/output_layout.hpp)
 #pragma once
 
+#include "core/output_layout.hpp"
 #include "core/system.hpp"
 
 #include <memory>
@@ -18,7 +19,7 @@
 
 namespace crossdyn {
 
-// Engine-neutral generalised state of a rigid tree (flexible modal coordinates to come).
+// Engine-neutral generalised state of a tree of rigid and flexible bodies.
 // joints[j] describes System::joints[j]; only the fields of that joint's type are used.
 struct TreeState {
   // Base (the free joint, joints[0]).
@@ -32,7 +33,10 @@ struct TreeState {
     Eigen::Vector3d w_PC_C = Eigen::Vector3d::Zero();          // spherical
   };
   std::vector<JointState> joints;
-  std::vector<Eigen::VectorXd> eta, eta_rate;  // per body modal coordinates (empty: rigid)
+  // Per body (System::bodies order) modal coordinates eta and their rates (size 0 for a rigid
+  // body). For a flexible base, p_NoBo_N, q_NB, v_NBo_N, w_NB_B describe its body frame (origin at
+  // the undeformed CM), not the deformed CM.
+  std::vector<Eigen::VectorXd> eta, eta_rate;
 
   // The scene's initial conditions (System::joints[*] initial values). When
   // System::zero_linear_momentum is set, v_NBo_N is a placeholder: pack() must replace it by the
@@ -46,6 +50,7 @@ struct TreeAccel {
   std::vector<Eigen::Vector3d> a_NBo_N;    // per body: CM acceleration in N (m/s^2)
   std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (else 0)
   std::vector<Eigen::Vector3d> wdot_PC_C;  // per joint: spherical d/dt of w_PC_C components
+  std::vector<Eigen::VectorXd> eta_ddot;   // per body: modal accelerations (size 0: rigid)
 };
 
 struct EngineOptions {
@@ -79,16 +84,11 @@ class Engine {
   virtual bool after_step(double t, double* x) { (void)t; (void)x; return false; }
   // (t, x) => engine-neutral accelerations.
   virtual void accelerations(double t, const double* x, TreeAccel& a) = 0;
-  // Output columns: pinned_columns(system) first, then engine-specific extras.
-  virtual const std::vector<std::string>& columns() const = 0;
-  // (t, x) => one row of columns().size() values.
+  // Output columns (core/output_layout.hpp): the pinned ones first, then engine-specific extras.
+  virtual const OutputLayout& layout() const = 0;
+  const std::vector<std::string>& columns() const { return layout().names(); }
+  // (t, x) => one row of layout().size() values, written through a RowWriter on layout().
   virtual void output_row(double t, const double* x, double* row) = 0;
 };
-
-// Names of the engines this build knows, and a factory (harness/engines.cpp). Throws InputError
-// for an unknown name, listing the known ones.
-std::vector<std::string> engine_names();
-std::unique_ptr<Engine> make_engine(const std::string& name, const System& system,
-                                    const EngineOptions& options = {});
 
 }  // namespace crossdyn

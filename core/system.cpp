@@ -20,28 +20,6 @@ std::vector<double> System::breakpoints() const {
   return t;
 }
 
-std::vector<std::string> pinned_columns(const System& system) {
-  std::vector<std::string> c{"t"};
-  for (const Body& b : system.bodies)
-    for (const char* s : {".wx", ".wy", ".wz", ".qw", ".qx", ".qy", ".qz"}) c.push_back(b.name + s);
-  for (const Joint& j : system.joints) {
-    if (j.type == JointType::Revolute) {
-      c.push_back(j.name + ".angle");
-      c.push_back(j.name + ".rate");
-    } else if (j.type == JointType::Spherical) {
-      for (const char* s : {".wx", ".wy", ".wz"}) c.push_back(j.name + s);
-    }
-  }
-  for (const Body& b : system.bodies)
-    if (b.modal) {
-      for (const std::string& m : b.modal->mode_names) c.push_back(b.name + "." + m);
-      for (const std::string& m : b.modal->mode_names) c.push_back(b.name + "." + m + "_rate");
-    }
-  c.push_back("H");
-  c.push_back("E");
-  return c;
-}
-
 TreeState TreeState::initial(const System& system) {
   TreeState s;
   s.joints.resize(system.joints.size());
@@ -68,8 +46,8 @@ TreeState TreeState::initial(const System& system) {
   s.eta.resize(system.bodies.size());
   s.eta_rate.resize(system.bodies.size());
   for (std::size_t b = 0; b < system.bodies.size(); ++b)
-    if (system.bodies[b].modal) {
-      const auto n = static_cast<Eigen::Index>(system.bodies[b].modal->mode_names.size());
+    if (system.bodies[b].flex) {
+      const auto n = static_cast<Eigen::Index>(system.bodies[b].flex->modes());
       s.eta[b] = Eigen::VectorXd::Zero(n);
       s.eta_rate[b] = Eigen::VectorXd::Zero(n);
     }

@@ -16,6 +16,12 @@
 //     fixed      R_J = identity;
 //     free       the base: parent is N, R_NB = R(q_NB), no offset.
 //   The joint point J coincides in both bodies: p_NoPo_N + R_NP p_PoJ_P = p_NoCo_N + R_NC p_CoJ_C.
+//   At a node of a flexible body (Joint::parent_node, child_node; FlexBody below) the point moves
+//   with the node and the joint frame turns with the node's slope:
+//     R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T,
+//     p_NoPo_N + R_NP (p_PoJ_P + u_P) = p_NoCo_N + R_NC (p_CoJ_C + u_C),
+//   with u, psi the node's displacement and small rotation (zero for a rigid attachment); a
+//   revolute axis turns with the parent side: exp([psi_P x]) axis_P.
 //
 // Loads, all acting on the child with the reaction on the parent:
 //   revolute   tau = -stiffness (angle - neutral_angle) - damping rate + motor(t), about the axis;
@@ -54,30 +60,51 @@ struct PiecewiseConstant {
   }
 };
 
-// Modal description of a flexible body (paper Eqs. 3-6, 39-40; Example 2). Not read or used by
-// any engine yet: the field exists so that flexible bodies arrive without changing interfaces.
-// Small-deformation, linear modal model about the undeformed CM frame:
-//   u(rho) = sum_k Phi_k(rho) eta_k  (paper: u_2 = sum Phi_k q_k).
-struct ModalBody {
-  std::vector<std::string> mode_names;  // output columns <body>.<mode>, <body>.<mode>_rate
-  Eigen::MatrixXd M_ee;                 // modal mass matrix, integral Phi^T Phi dm
-  Eigen::MatrixXd K_ee;                 // modal stiffness
-  Eigen::MatrixXd D_ee;                 // modal damping
-  Eigen::Matrix3Xd S_phi;               // integral Phi dm (first moment of the modes), body frame
-  Eigen::Matrix3Xd H_phi;               // integral rho x Phi dm, body frame
-  struct Node {                         // a point where a joint attaches (in the body frame)
-    Eigen::Vector3d p_BoN_B;            // undeformed position
-    Eigen::Matrix3Xd Phi_N_B;           // mode shapes (translation) at the node
-    Eigen::Matrix3Xd Psi_N_B;           // mode slopes (small rotation) at the node
-  };
-  std::vector<Node> nodes;
+// A flexible body: the modal model every engine implements exactly, with no term dropped
+// (docs/conventions.md "Flexible bodies"; reference paper Eqs. (3)-(6) and (39)-(40), Example 2).
+//
+//   The body's mass is carried by nodes. Node i has mass m_i, undeformed position p_BoNi_B from the
+//   body origin Bo (the undeformed CM: sum_i m_i p_BoNi_B = 0), an optional rigid rotational
+//   inertia J_Ni_B about itself (fixed in the body frame: it does not turn with deformation), mode
+//   shapes Phi_i (3 x n, translation per unit modal coordinate, body frame) and mode slopes Psi_i
+//   (3 x n, small rotation vector per unit modal coordinate; zero where no joint attaches).
+//   Deformation:       u_i = Phi_i eta,  psi_i = Psi_i eta   (paper Eq. (3): u = sum_k Phi_k q_k)
+//   Kinetic energy:    T = 1/2 sum_i m_i |v_NBo_N + w x (p_i + u_i) + du_i/dt|^2 + 1/2 sum_i w . J_i w
+//                      (exact for that displacement field: every term second order in eta kept)
+//   Elastic energy:    V = 1/2 eta^T K eta;   modal damping force on eta: -D eta'.
+//   The body's rigid mass and inertia (Body::mass, Body::I_BBo_B) are the node sums
+//   m = sum m_i,  I = sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))   (the reader sets them).
+//   A joint attached at node i (Joint::parent_node / child_node) has its point at p_i + u_i and
+//   its frame turned from the body frame by the rotation exp([psi_i x]) (exact, so orthonormal).
+struct FlexNode {
+  std::string name;
+  double mass = 0;                                        // m_i, kg
+  Eigen::Vector3d p_BoNi_B = Eigen::Vector3d::Zero();     // undeformed position, m
+  Eigen::Matrix3d J_Ni_B = Eigen::Matrix3d::Zero();       // rigid inertia about the node, kg m^2
+  Eigen::Matrix3Xd Phi_B;                                 // 3 x n mode shapes, m per unit eta
+  Eigen::Matrix3Xd Psi_B;                                 // 3 x n mode slopes, rad per unit eta
+};
+
+struct FlexBody {
+  std::vector<std::string> mode_names;  // n modes: output columns <body>.<mode>, <body>.<mode>_rate
+  std::vector<FlexNode> nodes;
+  Eigen::MatrixXd K;                    // n x n modal stiffness (symmetric, positive semi-definite)
+  Eigen::MatrixXd D;                    // n x n modal damping (symmetric, positive semi-definite)
+  std::string origin;                   // where the data came from ("beam generator: ...", a file)
+
+  int modes() const { return static_cast<int>(mode_names.size()); }
+  int node_index(const std::string& n) const {
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+      if (nodes[i].name == n) return static_cast<int>(i);
+    return -1;
+  }
 };
 
 struct Body {
   std::string name;
   double mass = 0;              // kg
-  Eigen::Matrix3d I_BBo_B;      // inertia about the CM Bo, body axes, kg m^2
-  std::optional<ModalBody> modal;  // empty: rigid body
+  Eigen::Matrix3d I_BBo_B;      // inertia about the CM Bo, body axes, kg m^2 (flexible: undeformed)
+  std::optional<FlexBody> flex;  // empty: rigid body
 
   // External torque on this body, piecewise constant.
   enum class Frame { Body, Inertial };
@@ -96,6 +123,11 @@ struct Joint {
   Eigen::Vector3d p_CoJ_C = Eigen::Vector3d::Zero();  // child_point
   Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute axis, unit, in the parent frame
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();  // fixed orientation offset
+  // Attachment to a node of a flexible parent or child (FlexBody::nodes index; -1: rigid). When
+  // set, p_PoJ_P (p_CoJ_C) is that node's undeformed position, the joint point moves with the
+  // node's displacement and the joint frame turns with its slope (see FlexBody).
+  int parent_node = -1;
+  int child_node = -1;
 
   // Hinge spring, damper and motor (revolute: scalar about the axis; spherical: see header).
   double stiffness = 0;         // N m / rad
@@ -176,10 +208,5 @@ struct System {
   // Times at which any load changes value (integrators stop there so steps do not straddle them).
   std::vector<double> breakpoints() const;
 };
-
-// The output columns ../shared/SCENARIOS.md pins, in the order every engine writes them:
-//   t; per body <b>.wx .wy .wz .qw .qx .qy .qz; per revolute joint <j>.angle .rate; per spherical
-//   joint <j>.wx .wy .wz; per flexible body <b>.<mode> then <b>.<mode>_rate; H; E.
-std::vector<std::string> pinned_columns(const System& system);
 
 }  // namespace crossdyn

@@ -1,9 +1,11 @@
 // Comparing engines on one scene (see compare.hpp for the quantities, the pass rule and the
 // tolerance lookup).
 #include "harness/compare.hpp"
+#include "harness/engines.hpp"
 
 #include "analytic/torque_free.hpp"
 #include "core/errors.hpp"
+#include "core/output_layout.hpp"
 #include "core/rotation.hpp"
 
 #include <algorithm>
@@ -30,33 +32,32 @@ struct Quantity {
   bool attitude = false;
 };
 
-// The quantities every engine must output for this scene (pinned_columns), in table order.
+// The quantities every engine must output for this scene, in table order: the pinned columns of
+// the output layout (core/output_layout.hpp), a body's four quaternion columns as one attitude.
 std::vector<Quantity> pinned_quantities(const System& s) {
+  const OutputLayout layout(s);
   std::vector<Quantity> q;
-  for (const Body& b : s.bodies) {
-    for (const char* c : {"wx", "wy", "wz"})
-      q.push_back({b.name + "." + c, "w", b.name + ".w", {b.name + "." + c}, false});
-    q.push_back({b.name + ".attitude", "attitude", "",
-                 {b.name + ".qw", b.name + ".qx", b.name + ".qy", b.name + ".qz"}, true});
-  }
-  for (const Joint& j : s.joints) {
-    if (j.type == JointType::Revolute) {
-      q.push_back({j.name + ".angle", "angle", "", {j.name + ".angle"}, false});
-      q.push_back({j.name + ".rate", "rate", "", {j.name + ".rate"}, false});
-    } else if (j.type == JointType::Spherical) {
-      for (const char* c : {"wx", "wy", "wz"})
-        q.push_back({j.name + "." + c, "rate", j.name + ".w", {j.name + "." + c}, false});
+  for (const Column& c : layout.columns()) {
+    const std::string body = c.body >= 0 ? s.bodies[static_cast<std::size_t>(c.body)].name : "";
+    const std::string joint = c.joint >= 0 ? s.joints[static_cast<std::size_t>(c.joint)].name : "";
+    switch (c.kind) {
+      case ColumnKind::BodyW: q.push_back({c.name, "w", body + ".w", {c.name}, false}); break;
+      case ColumnKind::BodyQ:
+        if (c.component == 0)
+          q.push_back({body + ".attitude", "attitude", "",
+                       {body + ".qw", body + ".qx", body + ".qy", body + ".qz"}, true});
+        break;
+      case ColumnKind::RevoluteAngle: q.push_back({c.name, "angle", "", {c.name}, false}); break;
+      case ColumnKind::RevoluteRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
+      case ColumnKind::SphericalW: q.push_back({c.name, "rate", joint + ".w", {c.name}, false}); break;
+      case ColumnKind::Modal:
+      case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
+      case ColumnKind::MomentumH: q.push_back({"H", "H", "", {"H"}, false}); break;
+      case ColumnKind::EnergyE: q.push_back({"E", "E", "", {"E"}, false}); break;
+      case ColumnKind::Time:
+      case ColumnKind::Extra: break;
     }
   }
-  for (const Body& b : s.bodies)
-    if (b.modal) {
-      for (const std::string& m : b.modal->mode_names)
-        q.push_back({b.name + "." + m, "modal", "", {b.name + "." + m}, false});
-      for (const std::string& m : b.modal->mode_names)
-        q.push_back({b.name + "." + m + "_rate", "modal", "", {b.name + "." + m + "_rate"}, false});
-    }
-  q.push_back({"H", "H", "", {"H"}, false});
-  q.push_back({"E", "E", "", {"E"}, false});
   return q;
 }
 
@@ -259,7 +260,7 @@ bool has_dampers(const System& s) {
   for (const Joint& j : s.joints)
     if (j.damping != 0) return true;
   for (const Body& b : s.bodies)
-    if (b.modal && b.modal->D_ee.size() > 0 && b.modal->D_ee.cwiseAbs().maxCoeff() > 0) return true;
+    if (b.flex && b.flex->D.size() > 0 && b.flex->D.cwiseAbs().maxCoeff() > 0) return true;
   return false;
 }
 bool has_motors(const System& s) {

@@ -7,6 +7,7 @@
 #include "core/scene_reader.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
+#include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
 #include "harness/settings.hpp"

@@ -1,5 +1,6 @@
 // The engine registry: the only place that knows all engines (they never know each other).
-#include "core/engine.hpp"
+#include "harness/engines.hpp"
+
 #include "core/errors.hpp"
 #include "formulations/kane/kane.hpp"
 #include "formulations/lagrange/lagrange.hpp"

@@ -69,7 +69,7 @@ json system_json(const System& s) {
   json bodies = json::array();
   for (const Body& b : s.bodies) {
     json j = {{"name", b.name}, {"mass_kg", b.mass}, {"inertia_kg_m2", mat(b.I_BBo_B)}};
-    if (b.modal) j["modes"] = b.modal->mode_names;
+    if (b.flex) j["modes"] = b.flex->mode_names;
     if (!b.torque.empty()) {
       j["torque_N_m"] = schedule(b.torque);
       j["torque_frame"] = b.torque_frame == Body::Frame::Body ? "body" : "inertial";

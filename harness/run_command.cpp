@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
+#include "harness/engines.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
 #include "core/scene_reader.hpp"

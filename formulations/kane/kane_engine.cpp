@@ -41,7 +41,8 @@ Matrix3d shifted_inertia(const Matrix3d& I, double m, const Vector3d& d) {
 // ------------------------------------------------------------------------------------------------
 // Construction: validate the tree, build the node tables, size the workspace.
 
-KaneEngine::KaneEngine(const System& system, const EngineOptions& options) : system_(system) {
+KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
+    : system_(system), layout_(system_) {
   const std::string file = where(system_);
   const std::size_t nj = system_.joints.size();
   if (nj == 0) throw InputError(file + ": no joints: the kane engine needs a free base joint");
@@ -52,7 +53,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options) : sys
     throw InputError("engine option test_inertia_scale must be positive and finite");
 
   for (const Body& b : system_.bodies)
-    if (b.modal)
+    if (b.flex)
       throw InputError(file + ": body '" + b.name +
                        "': flexible bodies are not supported by the kane engine yet");
 
@@ -154,10 +155,11 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options) : sys
   }
 
   // Output columns: the pinned ones, then this engine's extras.
-  columns_ = pinned_columns(system_);
-  for (const char* c : {"kane.T", "kane.V", "kane.H_N.x", "kane.H_N.y", "kane.H_N.z", "kane.P_N.x",
-                        "kane.P_N.y", "kane.P_N.z", "kane.quat_norm_error"})
-    columns_.push_back(c);
+  extra0_ = layout_.add_extra("kane.T", "J");
+  layout_.add_extra("kane.V", "J");
+  for (const char* c : {"kane.H_N.x", "kane.H_N.y", "kane.H_N.z"}) layout_.add_extra(c, "kg m^2/s");
+  for (const char* c : {"kane.P_N.x", "kane.P_N.y", "kane.P_N.z"}) layout_.add_extra(c, "kg m/s");
+  layout_.add_extra("kane.quat_norm_error", "");
 
   // Workspace.
   work_.resize(nj);
@@ -761,36 +763,28 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     q_N[k] = (q_N[static_cast<std::size_t>(n.parent)] * n.q_PJ0 * q_J).normalized();
   }
 
-  std::size_t c = 0;
-  row[c++] = t;
+  RowWriter out(layout_, row);
+  out.time(t);
   for (std::size_t b = 0; b < system_.bodies.size(); ++b) {
     const std::size_t k = static_cast<std::size_t>(system_.joint_of_body(static_cast<int>(b)));
-    const Vector3d w_NB_B = work_[k].R_NB.transpose() * work_[k].w_NB_N;
-    const Quaterniond q = rot::canonical(q_N[k]);
-    for (int i = 0; i < 3; ++i) row[c++] = w_NB_B(i);
-    row[c++] = q.w();
-    row[c++] = q.x();
-    row[c++] = q.y();
-    row[c++] = q.z();
+    out.body(static_cast<int>(b), work_[k].R_NB.transpose() * work_[k].w_NB_N, q_N[k]);
   }
   for (const Node& n : nodes_) {
-    if (n.type == JointType::Revolute) {
-      row[c++] = x[n.q0];
-      row[c++] = u[n.u0];
-    } else if (n.type == JointType::Spherical) {
-      for (int i = 0; i < 3; ++i) row[c++] = u[n.u0 + i];
-    }
+    if (n.type == JointType::Revolute) out.revolute(n.joint, x[n.q0], u[n.u0]);
+    if (n.type == JointType::Spherical)
+      out.spherical(n.joint, Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
   }
   const Vector3d H = sum_angular_momentum();
   const double T = sum_kinetic_energy(), V = potential_energy(x);
   const Vector3d P = sum_linear_momentum();
-  row[c++] = H.norm();
-  row[c++] = T + V;
-  row[c++] = T;
-  row[c++] = V;
-  for (int i = 0; i < 3; ++i) row[c++] = H(i);
-  for (int i = 0; i < 3; ++i) row[c++] = P(i);
-  row[c++] = quat_err;
+  out.momentum(H.norm());
+  out.energy(T + V);
+  int c = extra0_;
+  out.extra(c++, T);
+  out.extra(c++, V);
+  for (int i = 0; i < 3; ++i) out.extra(c++, H(i));
+  for (int i = 0; i < 3; ++i) out.extra(c++, P(i));
+  out.extra(c++, quat_err);
 }
 
 }  // namespace crossdyn::kane

@@ -135,7 +135,7 @@ class KaneEngine final : public Engine {
   void rhs(double t, const double* x, double* xdot) override;
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
-  const std::vector<std::string>& columns() const override { return columns_; }
+  const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
 
   // Introspection for tests (allocate; not for the hot path).
@@ -173,7 +173,8 @@ class KaneEngine final : public Engine {
   std::vector<Node> nodes_;
   int n_q_ = 0, n_u_ = 0;
   double total_mass_ = 0;
-  std::vector<std::string> labels_, columns_;
+  std::vector<std::string> labels_;
+  OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
 
   // Workspace, sized in the constructor; rhs() never allocates.
   std::vector<NodeWork> work_;
@@ -182,6 +183,7 @@ class KaneEngine final : public Engine {
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
+  int extra0_ = 0;                        // first extra column
 };
 
 }  // namespace crossdyn::kane

@@ -96,7 +96,8 @@ struct LagrangeEngine::Model {
   bool zero_linear_momentum = true;
   bool rechart = true;
   std::vector<std::string> labels;   // state labels, size 2n
-  std::vector<std::string> columns;  // pinned columns, then extras
+  OutputLayout layout;               // pinned columns, then extras
+  int recharts_column = -1;          // extra column lagrange.recharts
 };
 
 // ------------------------------------------------------------------------------------------------
@@ -281,7 +282,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     throw InputError(where + "engine option test_inertia_scale must be positive, got " +
                      format_number(options.test_inertia_scale));
   for (const Body& b : system.bodies) {
-    if (b.modal)
+    if (b.flex)
       throw InputError(where + "bodies: body '" + b.name +
                        "' is flexible (modal data): flexible bodies are not supported yet by "
                        "engine lagrange");
@@ -408,8 +409,8 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   for (int r = 3; r < m->n; ++r) m->gradient_dirs.push_back(r);
   m->zero_linear_momentum = system.zero_linear_momentum;
   m->rechart = options.rechart;
-  m->columns = pinned_columns(system);
-  m->columns.push_back("lagrange.recharts");
+  m->layout = OutputLayout(system);
+  m->recharts_column = m->layout.add_extra("lagrange.recharts", "");
 
   // Workspace, sized once.
   auto w = std::make_unique<Workspace>();
@@ -459,8 +460,8 @@ int LagrangeEngine::chart(int s) const {
 std::string LagrangeEngine::chart_name(int s) const {
   return kSequences[static_cast<std::size_t>(chart(s))].name;
 }
-const std::vector<std::string>& LagrangeEngine::columns() const {
-  return model_->columns;
+const OutputLayout& LagrangeEngine::layout() const {
+  return model_->layout;
 }
 
 std::string LagrangeEngine::state_label(int i) const {
@@ -846,27 +847,19 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
     if (J.type == JointType::Spherical) q_J = euler_q(qj);
     w.q_NB[c] = (w.q_NB[static_cast<std::size_t>(J.parent)] * J.q_PJ0 * q_J).normalized();
   }
-  std::size_t col = 0;
-  row[col++] = t;
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    for (int a = 0; a < 3; ++a) row[col++] = w.k0.w_NB_B[b](a);
-    const Eigen::Quaterniond q = rot::canonical(w.q_NB[b]);
-    row[col++] = q.w();
-    row[col++] = q.x();
-    row[col++] = q.y();
-    row[col++] = q.z();
+  RowWriter out(m.layout, row);
+  out.time(t);
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
+    out.body(static_cast<int>(b), w.k0.w_NB_B[b], w.q_NB[b]);
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    if (J.type == JointType::Revolute) out.revolute(static_cast<int>(j), x[J.i0], u[J.i0]);
+    if (J.type == JointType::Spherical)
+      out.spherical(static_cast<int>(j), Eigen::Vector3d(u[J.i0], u[J.i0 + 1], u[J.i0 + 2]));
   }
-  for (const Model::JointM& J : m.joints) {
-    if (J.type == JointType::Revolute) {
-      row[col++] = x[J.i0];
-      row[col++] = u[J.i0];
-    } else if (J.type == JointType::Spherical) {
-      for (int a = 0; a < 3; ++a) row[col++] = u[J.i0 + a];
-    }
-  }
-  row[col++] = H;
-  row[col++] = E;
-  row[col++] = static_cast<double>(w.recharts);
+  out.momentum(H);
+  out.energy(E);
+  out.extra(m.recharts_column, static_cast<double>(w.recharts));
 }
 
 void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {

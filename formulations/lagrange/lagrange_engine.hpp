@@ -63,7 +63,7 @@ class LagrangeEngine final : public Engine {
   void rhs(double t, const double* x, double* xdot) override;
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
-  const std::vector<std::string>& columns() const override;
+  const OutputLayout& layout() const override;
   void output_row(double t, const double* x, double* row) override;
 
   // ---- Inspection (tests, reports) ----

@@ -62,7 +62,7 @@ class NewtonEulerEngine final : public Engine {
   void rhs(double t, const double* x, double* xdot) override;
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
-  const std::vector<std::string>& columns() const override { return columns_; }
+  const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
 
  private:
@@ -93,7 +93,8 @@ class NewtonEulerEngine final : public Engine {
   std::vector<Matrix3d> I_B_;            // inertia about the CM in body axes (scaled for tests)
   std::vector<JointModel> joints_;       // per System joint
   double lever_scale_ = 0;               // m, largest |r_P| + |r_C| over the joints
-  std::vector<std::string> columns_;
+  OutputLayout layout_;          // pinned columns, then joint wrenches, then constraint violations
+  int wrench0_ = 0, violation0_ = 0;  // first extra column of each group
   std::vector<std::string> labels_;
 
   // ---- workspace (mutable, preallocated) ----
@@ -136,7 +137,7 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   for (int b = 0; b < nb_; ++b) {
     const Body& body = system.bodies[at(b)];
     const std::string key = file + ": bodies[" + std::to_string(b) + "] '" + body.name + "'";
-    if (body.modal)
+    if (body.flex)
       throw InputError(key + ": flexible bodies (modal data) are not supported yet by the " +
                        std::string(kEngineName) + " engine");
     if (!(body.mass > 0) || !std::isfinite(body.mass))
@@ -182,12 +183,17 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   }
 
   // Columns and labels.
-  columns_ = pinned_columns(system);
-  for (int j = 1; j < nj_; ++j)
-    for (const char* s : {".fx", ".fy", ".fz", ".mx", ".my", ".mz"})
-      columns_.push_back(system.joints[at(j)].name + s);
-  for (const char* s : {"constraint.pos", "constraint.vel", "constraint.ang", "constraint.angvel"})
-    columns_.emplace_back(s);
+  layout_ = OutputLayout(system);
+  wrench0_ = static_cast<int>(layout_.size());
+  for (int j = 1; j < nj_; ++j) {
+    for (const char* s : {".fx", ".fy", ".fz"}) layout_.add_extra(system.joints[at(j)].name + s, "N");
+    for (const char* s : {".mx", ".my", ".mz"})
+      layout_.add_extra(system.joints[at(j)].name + s, "N m");
+  }
+  violation0_ = layout_.add_extra("constraint.pos", "m");
+  layout_.add_extra("constraint.vel", "m/s");
+  layout_.add_extra("constraint.ang", "rad");
+  layout_.add_extra("constraint.angvel", "rad/s");
   labels_.resize(at(13 * nb_));
   for (int b = 0; b < nb_; ++b) {
     const std::string& n = system.bodies[at(b)].name;
@@ -565,28 +571,17 @@ double NewtonEulerEngine::energy() const {
 
 void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   dynamics(t, x);  // the constraint forces need the accelerations
-  std::size_t c = 0;
-  row[c++] = t;
-  for (int b = 0; b < nb_; ++b) {
-    const BodyKinematics& k = bk_[at(b)];
-    const Quaterniond q = rot::canonical(k.q_NB);
-    for (int i = 0; i < 3; ++i) row[c++] = k.w_NB_B(i);
-    row[c++] = q.w();
-    row[c++] = q.x();
-    row[c++] = q.y();
-    row[c++] = q.z();
-  }
+  RowWriter out(layout_, row);
+  out.time(t);
+  for (int b = 0; b < nb_; ++b) out.body(b, bk_[at(b)].w_NB_B, bk_[at(b)].q_NB);
   for (int j = 1; j < nj_; ++j) {
     const JointType type = joints_[at(j)].type;
-    if (type == JointType::Revolute) {
-      row[c++] = angle_[at(j)];
-      row[c++] = jk_[at(j)].rate;
-    } else if (type == JointType::Spherical) {
-      for (int i = 0; i < 3; ++i) row[c++] = jk_[at(j)].w_PC_C(i);
-    }
+    if (type == JointType::Revolute) out.revolute(j, angle_[at(j)], jk_[at(j)].rate);
+    if (type == JointType::Spherical) out.spherical(j, jk_[at(j)].w_PC_C);
   }
-  row[c++] = angular_momentum();
-  row[c++] = energy();
+  out.momentum(angular_momentum());
+  out.energy(energy());
+  int c = wrench0_;
   // Constraint wrench on the child, J_C^T lambda = [F_N; M_Co_C], lambda = -y; moved to the joint
   // point and expressed in P.
   double pos_violation = 0, vel_violation = 0, ang_violation = 0, angvel_violation = 0;
@@ -600,8 +595,8 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     const Vector3d M_J_C = wrench.tail<3>() - m.r_C.cross(R_NC.transpose() * F_N);
     const Vector3d F_P = bk_[at(m.parent)].R_NB.transpose() * F_N;
     const Vector3d M_P = jk.R_PC * M_J_C;
-    for (int i = 0; i < 3; ++i) row[c + at(i)] = F_P(i);
-    for (int i = 0; i < 3; ++i) row[c + 3 + at(i)] = M_P(i);
+    for (int i = 0; i < 3; ++i) out.extra(c + i, F_P(i));
+    for (int i = 0; i < 3; ++i) out.extra(c + 3 + i, M_P(i));
     c += 6;
     pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
     vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
@@ -615,10 +610,10 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
       angvel_violation = std::max(angvel_violation, jk.w_PC_C.norm());
     }
   }
-  row[c++] = pos_violation;
-  row[c++] = vel_violation;
-  row[c++] = ang_violation;
-  row[c++] = angvel_violation;
+  out.extra(violation0_, pos_violation);
+  out.extra(violation0_ + 1, vel_violation);
+  out.extra(violation0_ + 2, ang_violation);
+  out.extra(violation0_ + 3, angvel_violation);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // wrong (issue 6: clear message, non-zero exit, no half-written file).
 #include <catch2/catch.hpp>
 
+#include "core/output_layout.hpp"
 #include "core/system.hpp"
 #include "core/scene_reader.hpp"
 #include "tests/support/paths.hpp"

@@ -16,7 +16,9 @@ constexpr double kOmega = 2.0;  // rad/s
 // x'' = -omega^2 x + F(t), F the piecewise-constant body torque x-component of the toy System.
 class Oscillator : public Engine {
  public:
-  explicit Oscillator(const System& s) : s_(s) {}
+  explicit Oscillator(const System& s) : s_(s) {
+    for (const char* c : {"t", "x", "v"}) layout_.add_extra(c, "");
+  }
   const char* name() const override { return "oscillator"; }
   int state_size() const override { return 2; }
   std::string state_label(int i) const override { return i == 0 ? "x" : "v"; }
@@ -28,7 +30,7 @@ class Oscillator : public Engine {
   }
   bool after_step(double, double*) override { return report_change; }
   void accelerations(double, const double*, TreeAccel&) override {}
-  const std::vector<std::string>& columns() const override { return columns_; }
+  const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override {
     row[0] = t;
     row[1] = x[0];
@@ -39,7 +41,7 @@ class Oscillator : public Engine {
 
  private:
   const System& s_;
-  std::vector<std::string> columns_{"t", "x", "v"};
+  OutputLayout layout_;  // not a scene's layout: three plain columns
 };
 
 System toy(bool forced) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include "core/engine.hpp"
+#include "harness/engines.hpp"
 #include "core/integrate.hpp"
 #include "core/scene_reader.hpp"
 #include "tests/support/paths.hpp"

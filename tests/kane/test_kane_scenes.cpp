@@ -33,7 +33,7 @@ bool momentum_conserved(const System& s) {
 }
 bool flexible(const System& s) {
   return std::any_of(s.bodies.begin(), s.bodies.end(),
-                     [](const Body& b) { return b.modal.has_value(); });
+                     [](const Body& b) { return b.flex.has_value(); });
 }
 
 double relative_drift(const RunResult& r, const std::string& column) {

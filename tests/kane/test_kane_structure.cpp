@@ -313,7 +313,7 @@ TEST_CASE("kane: columns begin with the pinned columns; state labels are readabl
 
 TEST_CASE("kane: flexible bodies and malformed trees are refused with InputError") {
   System s = spear1_case1();
-  s.bodies[1].modal = ModalBody{};
+  s.bodies[1].flex = FlexBody{};
   CHECK_THROWS_WITH(
       make_kane_engine(s, {}),
       Catch::Contains("boom1") &&

@@ -405,7 +405,7 @@ TEST_CASE("lagrange: options, columns, labels and rejected systems", "[lagrange]
   // Flexible bodies are refused by the constructor.
   System flex = test::spear1();
   flex.file = "flex.yaml";
-  flex.bodies[0].modal = ModalBody{};
+  flex.bodies[0].flex = FlexBody{};
   try {
     make_lagrange_engine(flex, {});
     FAIL("no InputError for a flexible body");

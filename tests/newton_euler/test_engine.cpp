@@ -294,7 +294,7 @@ TEST_CASE("newton-euler: state labels, columns and input errors", "[newton_euler
     CHECK_NOTHROW(column(*e, c));
 
   System flexible = s;
-  flexible.bodies[1].modal = ModalBody{};
+  flexible.bodies[1].flex = FlexBody{};
   CHECK_THROWS_WITH(make_newton_euler_engine(flexible, {}), Catch::Contains("not supported yet") &&
                                                                 Catch::Contains("boom1"));
   EngineOptions bad;

@@ -41,7 +41,7 @@ inline std::string system_difference(const System& a, const System& b) {
       eq(p + "name", x.name == y.name);
       eq(p + "mass", x.mass == y.mass);
       eq(p + "I_BBo_B", x.I_BBo_B == y.I_BBo_B);
-      eq(p + "modal", !x.modal && !y.modal);
+      eq(p + "flex", !x.flex && !y.flex);
       eq(p + "torque_frame", x.torque_frame == y.torque_frame);
       eq(p + "torque", pc3(x.torque, y.torque));
     }

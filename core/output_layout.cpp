@@ -1,0 +1,95 @@
+// The output layout (see output_layout.hpp).
+#include "core/output_layout.hpp"
+
+#include <limits>
+
+namespace crossdyn {
+
+int OutputLayout::push(Column c) {
+  names_.push_back(c.name);
+  columns_.push_back(std::move(c));
+  return static_cast<int>(columns_.size()) - 1;
+}
+
+OutputLayout::OutputLayout(const System& s)
+    : body_w_(s.bodies.size(), -1), joint_(s.joints.size(), -1), modal_(s.bodies.size(), -1) {
+  push({"t", ColumnKind::Time, -1, -1, -1, "s"});
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+    const int bi = static_cast<int>(b);
+    const std::string& n = s.bodies[b].name;
+    body_w_[b] = static_cast<int>(columns_.size());
+    for (int i = 0; i < 3; ++i)
+      push({n + ".w" + "xyz"[i], ColumnKind::BodyW, bi, -1, i, "rad/s"});
+    for (int i = 0; i < 4; ++i) push({n + ".q" + "wxyz"[i], ColumnKind::BodyQ, bi, -1, i, ""});
+  }
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const int ji = static_cast<int>(j);
+    const Joint& J = s.joints[j];
+    if (J.type == JointType::Revolute) {
+      joint_[j] = static_cast<int>(columns_.size());
+      push({J.name + ".angle", ColumnKind::RevoluteAngle, J.child, ji, 0, "rad"});
+      push({J.name + ".rate", ColumnKind::RevoluteRate, J.child, ji, 0, "rad/s"});
+    } else if (J.type == JointType::Spherical) {
+      joint_[j] = static_cast<int>(columns_.size());
+      for (int i = 0; i < 3; ++i)
+        push({J.name + ".w" + "xyz"[i], ColumnKind::SphericalW, J.child, ji, i, "rad/s"});
+    }
+  }
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+    const Body& B = s.bodies[b];
+    if (!B.flex) continue;
+    const int bi = static_cast<int>(b);
+    modal_[b] = static_cast<int>(columns_.size());
+    const auto& modes = B.flex->mode_names;
+    for (std::size_t k = 0; k < modes.size(); ++k)
+      push({B.name + "." + modes[k], ColumnKind::Modal, bi, -1, static_cast<int>(k), "m"});
+    for (std::size_t k = 0; k < modes.size(); ++k)
+      push({B.name + "." + modes[k] + "_rate", ColumnKind::ModalRate, bi, -1,
+            static_cast<int>(k), "m/s"});
+  }
+  H_ = push({"H", ColumnKind::MomentumH, -1, -1, -1, "kg m^2/s"});
+  E_ = push({"E", ColumnKind::EnergyE, -1, -1, -1, "J"});
+  pinned_ = columns_.size();
+}
+
+int OutputLayout::add_extra(std::string name, std::string unit) {
+  return push({std::move(name), ColumnKind::Extra, -1, -1, -1, std::move(unit)});
+}
+
+RowWriter::RowWriter(const OutputLayout& layout, double* row) : layout_(layout), row_(row) {
+  for (std::size_t i = 0; i < layout.size(); ++i) row_[i] = std::numeric_limits<double>::quiet_NaN();
+}
+
+void RowWriter::body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterniond& q_NB) {
+  double* w = row_ + layout_.body_w(b);
+  for (int i = 0; i < 3; ++i) w[i] = w_NB_B(i);
+  // q and -q are the same attitude: write the one with qw >= 0.
+  const double s = q_NB.w() < 0 ? -1.0 : 1.0;
+  w[3] = s * q_NB.w();
+  w[4] = s * q_NB.x();
+  w[5] = s * q_NB.y();
+  w[6] = s * q_NB.z();
+}
+
+void RowWriter::revolute(int joint, double angle, double rate) {
+  double* r = row_ + layout_.joint_first(joint);
+  r[0] = angle;
+  r[1] = rate;
+}
+
+void RowWriter::spherical(int joint, const Eigen::Vector3d& w_PC_C) {
+  double* r = row_ + layout_.joint_first(joint);
+  for (int i = 0; i < 3; ++i) r[i] = w_PC_C(i);
+}
+
+void RowWriter::modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,
+                      const Eigen::Ref<const Eigen::VectorXd>& eta_rate) {
+  double* r = row_ + layout_.modal_first(b);
+  const Eigen::Index n = eta.size();
+  for (Eigen::Index k = 0; k < n; ++k) r[k] = eta(k);
+  for (Eigen::Index k = 0; k < n; ++k) r[n + k] = eta_rate(k);
+}
+
+std::vector<std::string> pinned_columns(const System& system) { return OutputLayout(system).names(); }
+
+}  // namespace crossdyn

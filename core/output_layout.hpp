@@ -1,0 +1,110 @@
+// The output layout: the one owner of the output columns (docs/conventions.md "Output columns").
+//
+// Every engine writes one row per output time through a RowWriter on this layout, so the names,
+// the order, the units and the sign conventions of the pinned columns are written down here once:
+//   t;
+//   per body (System order)       <body>.wx .wy .wz   w_NB_B, rad/s
+//                                 <body>.qw .qx .qy .qz  q_NB, scalar first, qw >= 0 (canonical)
+//   per joint (System order)      revolute:  <joint>.angle (rad) <joint>.rate (rad/s)
+//                                 spherical: <joint>.wx .wy .wz  w_PC_C, rad/s
+//   per flexible body             <body>.<mode> for every mode, then <body>.<mode>_rate
+//   H                             |angular momentum about the system CM|, kg m^2/s
+//   E                             kinetic + elastic + spring energy, J
+// then the engine's extra columns in the order it adds them (add_extra).
+//
+// Each column carries its kind and the body or joint it belongs to, so that the harness can group
+// and compare columns without parsing their names.
+#pragma once
+
+#include "core/system.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+
+enum class ColumnKind {
+  Time,            // t
+  BodyW,           // <body>.wx/wy/wz       component 0..2
+  BodyQ,           // <body>.qw/qx/qy/qz    component 0..3
+  RevoluteAngle,   // <joint>.angle
+  RevoluteRate,    // <joint>.rate
+  SphericalW,      // <joint>.wx/wy/wz      component 0..2
+  Modal,           // <body>.<mode>         component = mode index
+  ModalRate,       // <body>.<mode>_rate    component = mode index
+  MomentumH,       // H
+  EnergyE,         // E
+  Extra            // engine-specific
+};
+
+struct Column {
+  std::string name;
+  ColumnKind kind = ColumnKind::Extra;
+  int body = -1;       // System::bodies index (BodyW, BodyQ, Modal, ModalRate)
+  int joint = -1;      // System::joints index (RevoluteAngle, RevoluteRate, SphericalW)
+  int component = -1;  // see ColumnKind
+  std::string unit;    // SI unit of the values ("rad/s", "" for pure numbers)
+};
+
+class OutputLayout {
+ public:
+  OutputLayout() = default;  // no columns (engines assign the real one in their constructors)
+  explicit OutputLayout(const System& system);
+
+  // Appends an engine-specific column after the pinned ones; returns its index.
+  int add_extra(std::string name, std::string unit);
+
+  const std::vector<Column>& columns() const { return columns_; }
+  const std::vector<std::string>& names() const { return names_; }
+  std::size_t size() const { return columns_.size(); }
+  std::size_t pinned_size() const { return pinned_; }
+
+  // Index of the first column of each block (-1 when the block does not exist).
+  int body_w(int body) const { return body_w_[static_cast<std::size_t>(body)]; }
+  int body_q(int body) const { return body_w_[static_cast<std::size_t>(body)] + 3; }
+  int joint_first(int joint) const { return joint_[static_cast<std::size_t>(joint)]; }
+  int modal_first(int body) const { return modal_[static_cast<std::size_t>(body)]; }
+  int H() const { return H_; }
+  int E() const { return E_; }
+
+ private:
+  int push(Column c);
+  std::vector<Column> columns_;
+  std::vector<std::string> names_;
+  std::size_t pinned_ = 0;
+  std::vector<int> body_w_, joint_, modal_;
+  int H_ = -1, E_ = -1;
+};
+
+// Fills one row of an OutputLayout. Every pinned value must be written once per row; the writer
+// starts the row as NaN, so a value an engine forgets shows up as a non-finite output (a run
+// failure naming the column), never as a silent zero.
+class RowWriter {
+ public:
+  RowWriter(const OutputLayout& layout, double* row);
+
+  void time(double t) { row_[0] = t; }
+  // Body b's angular velocity w_NB_B and attitude q_NB (written with qw >= 0: q and -q are the
+  // same attitude, and one sign makes engines' columns directly comparable).
+  void body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterniond& q_NB);
+  void revolute(int joint, double angle, double rate);
+  void spherical(int joint, const Eigen::Vector3d& w_PC_C);
+  // A flexible body's modal coordinates and their rates (sizes: the body's mode count).
+  void modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,
+             const Eigen::Ref<const Eigen::VectorXd>& eta_rate);
+  void momentum(double H) { row_[layout_.H()] = H; }
+  void energy(double E) { row_[layout_.E()] = E; }
+  void extra(int column, double value) { row_[column] = value; }
+
+ private:
+  const OutputLayout& layout_;
+  double* row_;
+};
+
+// The pinned column names of a scene (OutputLayout(system).names()).
+std::vector<std::string> pinned_columns(const System& system);
+
+}  // namespace crossdyn
