@@ -249,7 +249,7 @@ IntegratorSettings IntegratorSettings::from(const RunSpec& run) {
   return s;
 }
 
-std::vector<std::string> integrator_names() { return {"rk4", "dopri5", "rkf78", "bulirsch-stoer"}; }
+// integrator_names() is defined in core/run_limits.cpp, with the other limits on run settings.
 
 int RunResult::column(const std::string& name) const {
   const auto it = std::find(columns.begin(), columns.end(), name);
@@ -257,6 +257,8 @@ int RunResult::column(const std::string& name) const {
 }
 
 void request_interrupt() { g_interrupt.store(true, std::memory_order_relaxed); }
+bool interrupt_requested() { return g_interrupt.load(std::memory_order_relaxed); }
+void clear_interrupt() { g_interrupt.store(false, std::memory_order_relaxed); }
 
 RunResult simulate(Engine& engine, const System& system, const TreeState& initial,
                    const IntegratorSettings& s, const RowCallback& on_row) {

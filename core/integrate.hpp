@@ -69,5 +69,9 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
 
 // Async-signal-safe: asks every running simulate() to stop at its next step (Ctrl-C).
 void request_interrupt();
+// Whether an interrupt was requested (long waits outside simulate() poll it), and clearing it
+// (an in-process caller that runs several commands: the fuzz target, tests).
+bool interrupt_requested();
+void clear_interrupt();
 
 }  // namespace crossdyn

@@ -21,6 +21,7 @@
 #include "core/scene_reader.hpp"
 
 #include "core/errors.hpp"
+#include "core/run_limits.hpp"
 #include "core/units.hpp"
 
 #include <yaml-cpp/anchor.h>
@@ -28,9 +29,14 @@
 #include <yaml-cpp/yaml.h>
 #include <Eigen/Eigenvalues>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -52,7 +58,6 @@ using units::Dimension;
 constexpr std::size_t kMaxSceneBytes = 1u << 20;   // 1 MiB of YAML
 constexpr double kAbsurd = 1e12;                   // any SI value beyond this is a typo
 constexpr double kMaxMass = 1e9;                   // kg
-constexpr double kMaxOutputRows = 1e7;             // duration / output_step
 constexpr double kMinAxisLength = 1e-9;            // a shorter axis counts as zero
 constexpr double kUnitQuaternionTolerance = 1e-3;  // |norm(q) - 1| accepted (then normalised)
 constexpr double kSymmetryTolerance = 1e-9;        // |I_ij - I_ji| <= this * max |I_kl|
@@ -965,37 +970,30 @@ System Reader::read(const std::string& text) const {
          "or "
          "set zero_linear_momentum: false");
 
-  // ----- read_run -----
+  // ----- read_run ----- (the limits are core/run_limits.hpp's, shared with the command line)
   {
     const MapView m(*this, top.require("run"),
                     {"duration", "output_step", "integrator", "rtol", "atol", "dt"},
                     "the run block");
+    auto limit = [this](const Val& v, const std::string& problem) {
+      if (!problem.empty()) fail(v, problem);
+    };
     const Val dv = m.require("duration");
     s.run.duration = quantity(dv, Dimension::Time);
-    if (!(s.run.duration > 0))
-      fail(dv, "duration must be positive, found " + shortest(s.run.duration) + " s");
+    limit(dv, run_limits::duration_problem(s.run.duration));
     const Val ov = m.require("output_step");
     s.run.output_step = quantity(ov, Dimension::Time);
-    if (!(s.run.output_step > 0))
-      fail(ov, "output_step must be positive, found " + shortest(s.run.output_step) + " s");
-    if (s.run.output_step > s.run.duration)
-      fail(ov, "output_step " + shortest(s.run.output_step) + " s is longer than the duration " +
-                   shortest(s.run.duration) + " s");
-    if (s.run.duration / s.run.output_step > kMaxOutputRows)
-      fail(ov, "duration / output_step = " + shortest(s.run.duration / s.run.output_step) +
-                   " output rows; the limit is 1e7");
+    limit(ov, run_limits::output_step_problem(s.run.output_step, s.run.duration));
     if (auto v = m.get("integrator")) s.run.integrator = choice(*v, "integrator", kIntegrators);
     for (const char* key : {"rtol", "atol"})
       if (auto v = m.get(key)) {
         const double x = quantity(*v, Dimension::None);
-        if (x < 0) fail(*v, "negative tolerance " + shortest(x));
-        if (x == 0)
-          fail(*v, std::string(key) + " must be positive (the step-size control needs it)");
+        limit(*v, run_limits::tolerance_problem(key, x));
         (std::string(key) == "rtol" ? s.run.rtol : s.run.atol) = x;
       }
     if (auto v = m.get("dt")) {
       s.run.dt = quantity(*v, Dimension::Time);
-      if (!(s.run.dt > 0)) fail(*v, "dt must be positive, found " + shortest(s.run.dt) + " s");
+      limit(*v, run_limits::dt_problem(s.run.dt));
     }
   }
 
@@ -1096,9 +1094,35 @@ System read_scene_text(const std::string& text, const std::string& file_label) {
   }
 }
 
+// Why `path` cannot be read as a scene, or "" when it can be opened: missing, a directory, no
+// permission, a symbolic link loop, not a regular file (FIFOs are read: `<(...)`).
+std::string scene_open_problem(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int e = errno;
+    if (e == ENOENT) {
+      struct stat lst {};
+      return ::lstat(path.c_str(), &lst) == 0 ? "it is a symbolic link to a file that does not exist"
+                                             : "no such file";
+    }
+    if (e == ELOOP) return "too many levels of symbolic links (a symbolic link loop)";
+    if (e == EACCES) return "permission denied (a folder on the path cannot be searched)";
+    if (e == ENOTDIR) return "a part of the path is not a folder";
+    return std::strerror(e);
+  }
+  if (S_ISDIR(st.st_mode)) return "it is a directory, not a scene file";
+  if (S_ISSOCK(st.st_mode)) return "it is a socket, not a regular file";
+  if (S_ISBLK(st.st_mode)) return "it is a block device, not a regular file";
+  if (::access(path.c_str(), R_OK) != 0)
+    return errno == EACCES ? "permission denied (the file is not readable)" : std::strerror(errno);
+  return "";
+}
+
 System read_scene(const std::string& path) {
+  if (const std::string why = scene_open_problem(path); !why.empty())
+    throw InputError(path + ":1:1: cannot open the scene file: " + why);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ":1:1: cannot open the scene file");
+  if (!in) throw InputError(path + ":1:1: cannot open the scene file: " + std::strerror(errno));
   std::string text;
   char buf[65536];
   while (in.read(buf, sizeof buf) || in.gcount() > 0) {

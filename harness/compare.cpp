@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -533,19 +534,106 @@ std::string text_table(const std::vector<std::vector<std::string>>& rows) {
   return out.str();
 }
 
-std::string format_comparison(const SceneComparison& c, bool failures_only) {
-  std::ostringstream out;
-  const int failed = c.count(CheckStatus::Fail);
-  out << "scene " << c.scene << (c.file.empty() ? "" : " (" + c.file + ")") << ": "
-      << (failed ? "FAIL, " + std::to_string(failed) + " of " + std::to_string(c.checks.size()) +
-                       " checks failed"
-                 : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) + " checks passed")
-      << '\n';
-  out << "integrator " << c.settings.method << ", rtol " << fmt_g(c.settings.rtol) << ", atol "
-      << fmt_g(c.settings.atol) << "; output every " << fmt_g(c.settings.output_step)
-      << " s to " << fmt_g(c.settings.duration) << " s\n\n";
+namespace {
 
-  std::vector<std::vector<std::string>> runs{{"run", "status", "rows", "rhs calls", "steps", "wall (s)", "note"}};
+// ---- compare's text output (format_comparison): at most kTextWidth characters a line ----
+constexpr std::size_t kTextWidth = 100;
+
+// `text` wrapped at kTextWidth, every line starting with `indent` (the first with `first`).
+std::string wrap(const std::string& text, const std::string& first, const std::string& indent) {
+  std::string out, line = first;
+  std::size_t pos = 0;
+  bool line_empty = true;
+  while (pos < text.size()) {
+    while (pos < text.size() && text[pos] == ' ') ++pos;
+    std::size_t end = text.find(' ', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string word = text.substr(pos, end - pos);
+    pos = end;
+    if (word.empty()) continue;
+    if (!line_empty && line.size() + 1 + word.size() > kTextWidth) {
+      out += line + "\n";
+      line = indent;
+      line_empty = true;
+    }
+    while (line.size() + (line_empty ? 0 : 1) + word.size() > kTextWidth) {  // a very long word
+      const std::size_t room = kTextWidth - line.size() - (line_empty ? 0 : 1);
+      line += (line_empty ? "" : " ") + word.substr(0, room);
+      word = word.substr(room);
+      out += line + "\n";
+      line = indent;
+      line_empty = true;
+    }
+    line += (line_empty ? "" : " ") + word;
+    line_empty = false;
+  }
+  if (!line_empty) out += line + "\n";
+  return out;
+}
+
+// A table that fits kTextWidth: columns in `shrinkable` give up width (widest first, down to 8
+// characters), their cut cells ending in '~'. Row 0 is the header, underlined.
+std::string fitted_table(std::vector<std::vector<std::string>> rows,
+                         const std::vector<std::size_t>& shrinkable) {
+  std::vector<std::size_t> width;
+  for (const auto& r : rows)
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      if (width.size() <= i) width.push_back(0);
+      width[i] = std::max(width[i], r[i].size());
+    }
+  auto total = [&width] {
+    std::size_t t = 0;
+    for (std::size_t w : width) t += w;
+    return t + 2 * (width.empty() ? 0 : width.size() - 1);
+  };
+  while (total() > kTextWidth) {
+    std::size_t widest = width.size();
+    for (std::size_t i : shrinkable)
+      if (i < width.size() && width[i] > 8 && (widest == width.size() || width[i] > width[widest]))
+        widest = i;
+    if (widest == width.size()) break;
+    --width[widest];
+  }
+  for (auto& r : rows)
+    for (std::size_t i = 0; i < r.size(); ++i)
+      if (r[i].size() > width[i]) r[i] = r[i].substr(0, width[i] - 1) + "~";
+  std::string out;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    std::string line;
+    for (std::size_t i = 0; i < rows[k].size(); ++i) {
+      line += rows[k][i];
+      if (i + 1 < rows[k].size()) line += std::string(width[i] - rows[k][i].size() + 2, ' ');
+    }
+    out += line + "\n";
+    if (k == 0) out += std::string(std::min(total(), kTextWidth), '-') + "\n";
+  }
+  return out;
+}
+
+std::string who(const Check& k) { return k.b.empty() ? k.a : k.a + " vs " + k.b; }
+
+}  // namespace
+
+// Layout (every line at most 100 characters): the verdict, the settings, the runs, the pass rule,
+// then one table of checks with the failures first (worst error/bound first), then the passes in
+// table order, then what was excluded or skipped and why, the tolerances used, and the notes.
+std::string format_comparison(const SceneComparison& c, bool failures_only) {
+  std::string out;
+  const int failed = c.count(CheckStatus::Fail);
+  out += wrap("scene " + c.scene + (c.file.empty() ? "" : " (" + c.file + ")") + ": " +
+                  (failed ? "FAIL, " + std::to_string(failed) + " of " +
+                                std::to_string(c.checks.size()) + " checks failed"
+                          : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) +
+                                " checks passed"),
+              "", "  ");
+  out += wrap("integrator " + c.settings.method + ", rtol " + fmt_g(c.settings.rtol) + ", atol " +
+                  fmt_g(c.settings.atol) + "; output every " + fmt_g(c.settings.output_step) +
+                  " s to " + fmt_g(c.settings.duration) + " s",
+              "", "  ");
+  out += "\n";
+
+  std::vector<std::vector<std::string>> runs{{"run", "status", "rows", "rhs calls", "steps", "wall (s)"}};
+  std::string run_notes;
   for (const EngineRun& r : c.runs) {
     const char* st = r.state == EngineRun::State::Ok ? "ok"
                      : r.state == EngineRun::State::Failed ? "FAILED" : "skipped";
@@ -553,42 +641,103 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
     runs.push_back({r.label, st, std::to_string(r.result.rows()),
                     ran ? std::to_string(r.result.stats.rhs_calls) : "-",
                     ran ? std::to_string(r.result.stats.steps) : "-",
-                    ran ? fmt_g(r.result.stats.wall_seconds, 3) : "-",
-                    r.engine == "analytic" ? "closed-form torque-free solution" : r.note});
+                    ran ? fmt_g(r.result.stats.wall_seconds, 3) : "-"});
+    const std::string note = r.engine == "analytic" ? "closed-form torque-free solution" : r.note;
+    if (!note.empty()) run_notes += wrap(note, "  " + r.label + ": ", "    ");
   }
-  out << text_table(runs) << '\n';
+  out += fitted_table(runs, {0}) + run_notes + "\n";
 
-  out << "pass rule: pair   max_t |a - b| <= atol + rtol * max_t |b|   (b = the reference, named "
-         "second)\n"
-         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n"
-         "           attitude error = rotation angle between the attitudes (rad), max|b| = 1\n\n";
-  std::vector<std::vector<std::string>> rows{{"quantity", "a vs b", "max error", "at t (s)",
-                                              "first over (s)", "atol", "rtol", "scale", "bound",
-                                              "error/bound", "result", "note"}};
-  for (const Check& k : c.checks) {
-    if (failures_only && k.status != CheckStatus::Fail) continue;
-    const bool numbers = k.status == CheckStatus::Pass || k.status == CheckStatus::Fail;
+  out += "pass rule: pair   max_t |a - b| <= bound = atol + rtol * max_t |b|  (b: the reference,\n"
+         "                  named second); attitude error = rotation angle between the attitudes\n"
+         "                  (rad), with max|b| = 1\n"
+         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n\n";
+
+  // Checks: failures (worst first), then passes in table order; exclusions and skips listed apart.
+  std::vector<const Check*> fails, passes, others;
+  for (const Check& k : c.checks)
+    (k.status == CheckStatus::Fail ? fails : k.status == CheckStatus::Pass ? passes : others)
+        .push_back(&k);
+  std::stable_sort(fails.begin(), fails.end(), [](const Check* x, const Check* y) {
+    const double a = std::isnan(x->normalised) ? std::numeric_limits<double>::infinity() : x->normalised;
+    const double b = std::isnan(y->normalised) ? std::numeric_limits<double>::infinity() : y->normalised;
+    return a > b;
+  });
+  std::vector<std::vector<std::string>> rows{
+      {"quantity", "a vs b", "max error", "at t (s)", "1st over", "err/bound", "result"}};
+  auto add = [&rows](const Check& k) {
     const bool run = k.group == "run";
-    rows.push_back({k.quantity, k.b.empty() ? k.a : k.a + " vs " + k.b,
-                    numbers && !run ? sci(k.error) : "-",
-                    numbers && (!run || k.status == CheckStatus::Fail) ? fmt_g(k.time) : "-",
-                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-",
-                    numbers && !run ? sci(k.tolerance.atol, 2) : "-",
-                    numbers && !run ? sci(k.tolerance.rtol, 2) : "-",
-                    numbers && !run ? sci(k.scale) : "-",
-                    numbers && !run ? sci(k.bound) : "-",
-                    numbers && !run ? sci(k.normalised) : "-", to_string(k.status),
-                    k.note.empty() && k.tolerance_key != "default" && k.tolerance_key != "-"
-                        ? "tolerance '" + k.tolerance_key + "'"
-                        : k.note});
+    rows.push_back({k.quantity, who(k), run ? "-" : sci(k.error),
+                    !run || k.status == CheckStatus::Fail ? fmt_g(k.time) : "-",
+                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-", run ? "-" : sci(k.normalised),
+                    to_string(k.status)});
+  };
+  for (const Check* k : fails) add(*k);
+  if (!failures_only)
+    for (const Check* k : passes) add(*k);
+  if (rows.size() > 1) out += fitted_table(rows, {0, 1});
+  else out += "(no failed checks)\n";
+
+  // What the failures say beyond their numbers (a missing column, a failed run, nothing compared).
+  std::string fail_notes;
+  for (const Check* k : fails)
+    if (!k->note.empty()) fail_notes += wrap(k->note, "  " + k->quantity + ", " + who(*k) + ": ", "    ");
+  if (!fail_notes.empty()) out += "\nfailed checks, why:\n" + fail_notes;
+
+  // Excluded and skipped, one line per quantity and reason.
+  if (!failures_only && !others.empty()) {
+    std::vector<std::pair<std::string, std::vector<std::string>>> groups;  // "EXCLUDED E: reason"
+    for (const Check* k : others) {
+      const std::string key = std::string(to_string(k->status)) + " " + k->quantity + ": " + k->note;
+      auto it = std::find_if(groups.begin(), groups.end(), [&key](const auto& g) { return g.first == key; });
+      if (it == groups.end()) it = groups.insert(groups.end(), {key, {}});
+      it->second.push_back(who(*k));
+    }
+    out += "\nexcluded or skipped:\n";
+    for (const auto& [key, pairs] : groups) {
+      const auto colon = key.find(": ");
+      std::string line = key.substr(0, colon) + " (" + std::to_string(pairs.size()) +
+                         (pairs.size() == 1 ? " check" : " checks") + ")" + key.substr(colon);
+      out += wrap(line, "  ", "    ");
+    }
   }
-  if (rows.size() > 1) out << text_table(rows);
-  else out << "(no failed checks)\n";
+
+  // The tolerances used: per tolerance key, which quantities and the numbers.
+  if (!failures_only) {
+    std::vector<std::pair<std::string, std::set<std::string>>> keys;
+    std::map<std::string, Tolerance> tol;
+    for (const Check& k : c.checks) {
+      if (k.tolerance_key == "-" || k.status == CheckStatus::Excluded) continue;
+      const std::string key = k.group.size() > 6 && k.group.substr(k.group.size() - 6) == ".drift"
+                                  ? (k.tolerance_key == "default" ? "drift default" : k.tolerance_key)
+                                  : k.tolerance_key;
+      auto it = std::find_if(keys.begin(), keys.end(), [&key](const auto& x) { return x.first == key; });
+      if (it == keys.end()) it = keys.insert(keys.end(), {key, {}});
+      it->second.insert(k.quantity);
+      tol[key] = k.tolerance;
+    }
+    if (!keys.empty()) {
+      out += "\ntolerances (atol, rtol) and the quantities they apply to:\n";
+      for (const auto& [key, quantities] : keys) {
+        std::string list;
+        std::size_t n = 0;
+        for (const std::string& q : quantities) {
+          if (++n > 8) {
+            list += ", ... (" + std::to_string(quantities.size()) + " quantities)";
+            break;
+          }
+          list += (list.empty() ? "" : ", ") + q;
+        }
+        const std::string name = key == "default" || key == "drift default" ? key : "'" + key + "'";
+        out += wrap(name + ": " + sci(tol[key].atol, 2) + ", " + sci(tol[key].rtol, 2) + " for " + list,
+                    "  ", "    ");
+      }
+    }
+  }
   if (!c.notes.empty()) {
-    out << "\nnotes:\n";
-    for (const std::string& n : c.notes) out << "  - " << n << '\n';
+    out += "\nnotes:\n";
+    for (const std::string& n : c.notes) out += wrap(n, "  - ", "    ");
   }
-  return out.str();
+  return out;
 }
 
 }  // namespace crossdyn::harness
