@@ -23,6 +23,7 @@ struct VerifyCommandOptions {
 };
 
 int verify(VerifyCommandOptions& o) {
+  o.common.quiet = o.verify.quiet;  // --quiet also silences the progress line
   o.verify.compare = harness::to_compare_options(o.common);
   if (o.report) {
     harness::ReportOptions r;
