@@ -3,12 +3,14 @@
 
 #include <CLI/CLI.hpp>
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
 
 #include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <new>
@@ -90,10 +92,22 @@ std::string closest_match(const std::string& word, const std::vector<std::string
   return best_d <= limit ? best : "";
 }
 
+int interrupted_status(std::ostream& err, const std::string& what) {
+  cancel::acknowledge_interrupt();  // the watchdog's forced exit stays silent
+  err << "crossdyn: interrupted" << (what.empty() ? "" : " (" + what + ")") << '\n';
+  return kExitInterrupted;
+}
+
 int exit_status_for(const std::exception_ptr& e, std::ostream& err) {
   try {
     std::rethrow_exception(e);
+  } catch (const cancel::Cancelled& x) {
+    if (x.reason() == cancel::Reason::Interrupt) return interrupted_status(err, "");
+    err << "crossdyn: run failed: " << x.what() << '\n';
+    return kExitRunFailed;
   } catch (const InputError& x) {
+    // An interrupted system call or child process can surface as an input error: 130 wins.
+    if (cancel::interrupted()) return interrupted_status(err, "");
     err << "crossdyn: error: " << x.what() << '\n';
     return kExitBadInput;
   } catch (const OutputError& x) {
@@ -102,10 +116,12 @@ int exit_status_for(const std::exception_ptr& e, std::ostream& err) {
     err << "crossdyn: error: " << x.what() << '\n';
     return kExitRunFailed;
   } catch (const RunFailure& x) {
-    if (x.reason() == "interrupted") {
-      err << "crossdyn: interrupted" << (x.engine() == "output" ? "" : std::string(": ") + x.what())
-          << '\n';
-      return kExitInterrupted;
+    if (x.reason() == "interrupted" || cancel::interrupted()) {
+      if (x.engine().empty() || x.engine() == "output" || x.engine() == "report")
+        return interrupted_status(err, "");
+      char t[64];
+      std::snprintf(t, sizeof t, "%.9g", x.time());
+      return interrupted_status(err, "engine " + x.engine() + " at t = " + t + " s");
     }
     err << "crossdyn: run failed: " << x.what() << '\n';
     return kExitRunFailed;
@@ -183,6 +199,8 @@ int crossdyn_main(int argc, char** argv) {
       exit_code = kExitBadInput;
     }
     check_written(std::cout);
+    // Ctrl-C during a command that finished anyway (between its last poll and its return): 130.
+    if (cancel::interrupted()) exit_code = interrupted_status(std::cerr, "");
   } catch (...) {
     exit_code = exit_status_for(std::current_exception(), std::cerr);
   }

@@ -14,6 +14,8 @@
 #include "harness/verify.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -34,6 +36,12 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
   sub.add_option("--dt", o.dt, "rk4 step, or first trial step of adaptive integrators, s");
   sub.add_flag("--no-analytic", o.no_analytic,
                "Leave out the analytic solution even where the scene has one");
+  sub.add_option("--max-steps", o.max_steps,
+                 "Per engine run: fail the run after N steps (accepted and rejected); the other "
+                 "engines and scenes go on (default 20000000)");
+  sub.add_option("--timeout", o.timeout,
+                 "Per engine run: fail the run after SECONDS of wall-clock time, set-up included; "
+                 "the other engines and scenes go on (default: none)");
   // Test hook (hidden): a deliberately wrong copy of an engine, to show the checks catch it.
   sub.add_option("--test-inertia-scale", o.test_inertia_scale,
                  "Add a copy of ENGINE whose inertias are scaled by FACTOR (ENGINE=FACTOR), "
@@ -55,6 +63,17 @@ CompareOptions to_compare_options(const CompareCliOptions& o) {
   c.atol = o.atol;
   c.dt = o.dt;
   c.analytic = !o.no_analytic;
+  if (o.max_steps && *o.max_steps <= 0)
+    throw InputError("--max-steps: must be a positive number of steps, got " +
+                     std::to_string(*o.max_steps));
+  if (o.timeout && !(*o.timeout > 0 && std::isfinite(*o.timeout))) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%g", *o.timeout);
+    throw InputError(std::string("--timeout: must be a positive, finite number of seconds, got ") + b);
+  }
+  c.max_steps = o.max_steps;
+  c.timeout = o.timeout;
+  c.progress = !o.quiet;
   const std::vector<std::string> known = engine_names();
   auto check_name = [&known](const std::string& name, const std::string& option) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
@@ -157,6 +176,7 @@ void add_compare_command(CLI::App& app, int& exit_code) {
                 "by default that fails with exit status 1");
   sub->add_option("--json", o->json, "Also write the comparison as JSON to FILE (atomically)");
   sub->add_flag("--failures", o->failures_only, "List only the failed checks");
+  sub->add_flag("--quiet,-q", o->common.quiet, "No progress line on stderr");
   sub->callback([o, &exit_code] { exit_code = compare(*o); });
 }
 

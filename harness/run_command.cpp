@@ -5,6 +5,7 @@
 #include "harness/engines.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
+#include "core/progress.hpp"
 #include "core/scene_reader.hpp"
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
@@ -24,6 +25,7 @@ struct RunOptions {
   harness::RunOverrides overrides;
   std::string output;
   bool stats = false;
+  bool quiet = false;
   EngineOptions engine_options;
   bool no_rechart = false;
 };
@@ -41,6 +43,10 @@ int run(const RunOptions& o) {
   s.keep_rows = false;  // rows stream to the CSV as they are computed; memory stays flat
   EngineOptions eo = o.engine_options;
   eo.rechart = !o.no_rechart;
+  // On a terminal only (and not when the rows themselves go to it); erased before any message.
+  ProgressLine progress(!o.quiet && (!o.output.empty() || !ProgressLine::stdout_is_terminal()));
+  progress.start(system.name + " " + o.engine, s.duration);
+  progress.phase("setting up the engine");
   std::unique_ptr<Engine> engine = make_engine(o.engine, system, eo);
   const std::size_t n = engine->columns().size();
 
@@ -57,7 +63,9 @@ int run(const RunOptions& o) {
                                  write_csv_row(out, row, n);
                                  if (!out) check_written(out);
                                  ++rows;
-                               });
+                               },
+                               [&progress](double t, const RunStats& st) { progress.update(t, st.steps); });
+  progress.clear();
   if (o.stats)
     std::cerr << "engine " << r.engine << ", integrator " << s.method << ": " << rows
               << " rows, " << r.stats.steps << " steps, " << r.stats.rejected << " rejected, "
@@ -100,6 +108,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
                   "Write the CSV to FILE (atomically: complete file or none; '-' is stdout; see "
                   "README for devices, FIFOs, symbolic links and read-only files)");
   sub->add_flag("--stats", o->stats, "Print step and right-hand-side counts to stderr");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
   sub->add_option("--stabilization", o->engine_options.stabilization,
                   "newton-euler: projection (default), baumgarte or none")
       ->check(CLI::IsMember({"projection", "baumgarte", "none"}));

@@ -1,6 +1,7 @@
 // crossdyn verify (see verify.hpp).
 #include "harness/verify.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/scene_reader.hpp"
@@ -108,11 +109,17 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
       s.comparison = o.compare_fn ? o.compare_fn(*s.system, o.compare)
                                   : compare_scene(*s.system, o.compare);
       require_comparison(*s.comparison, o.allow_no_comparison);
+    } catch (const cancel::Cancelled& c) {
+      if (c.reason() == cancel::Reason::Interrupt) throw;  // Ctrl-C ends verify (exit 130)
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = std::string("error: ") + c.what();
     } catch (const InputError& e) {
+      if (cancel::interrupted()) throw;  // an interrupted read is not bad input
       s.comparison.reset();
       s.input_error = e.what();
     } catch (const RunFailure& f) {
-      if (f.reason() == "interrupted") throw;
+      if (f.reason() == "interrupted" || cancel::interrupted()) throw;
       s.comparison.reset();
       s.internal_error = true;
       s.input_error = std::string("error: ") + f.what();
@@ -121,6 +128,7 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
       s.internal_error = true;
       s.input_error = "error: out of memory";
     } catch (const std::exception& e) {
+      if (cancel::interrupted()) throw;
       s.comparison.reset();
       s.internal_error = true;
       s.input_error = std::string("internal error: ") + e.what();

@@ -40,6 +40,7 @@ void open_output(std::optional<AtomicFile>& f, const std::string& path, const st
 }
 
 int verify(VerifyCommandOptions& o) {
+  o.common.quiet = o.verify.quiet;  // --quiet also silences the progress line
   // 1. Everything that can be refused before the work: options, scenes, outputs (exit 2).
   o.verify.compare = harness::to_compare_options(o.common);
   const std::vector<std::string> files = harness::scene_files(o.verify);

@@ -132,7 +132,7 @@ TEST_CASE("crossdyn --version prints the project version of CMakeLists.txt") {
   CHECK(r.out.rfind("crossdyn " + m[1].str(), 0) == 0);
 }
 
-TEST_CASE("mistyped options and commands get a \"did you mean\"; exit status 2") {
+TEST_CASE("mistyped options and commands get a \"did you mean\": exit status 2") {
   const std::string scene = quote(source_dir() + "/scenarios/spear1_case1.yaml");
   struct Case {
     std::string args, message;

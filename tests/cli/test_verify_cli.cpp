@@ -75,7 +75,7 @@ TEST_CASE("verify: Ctrl-C during the report ends the script and the command with
   CHECK(fs::exists(s.dir() / "j.json"));
 }
 
-TEST_CASE("verify: *.yml scenes are verified like *.yaml; hidden files and others are not") {
+TEST_CASE("verify: *.yml scenes are verified like *.yaml: hidden files and others are not") {
   Scratch s("yml");
   s.write("scenes/a.yaml", kSmallScene);
   std::string b = kSmallScene;
