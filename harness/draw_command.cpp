@@ -8,10 +8,11 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
 #include "harness/report.hpp"
 #include "harness/engines.hpp"
+#include "harness/locations.hpp"
 #include "harness/scene_geometry.hpp"
 
 #include <cctype>
@@ -71,7 +72,10 @@ std::string lower(std::string s) {
 }
 
 int draw(const DrawOptions& o) {
-  const System system = read_scene(o.scene);
+  const std::string scene = harness::resolve_scene(o.scene);
+  std::vector<SceneWarning> warnings;
+  const System system = read_scene(scene, &warnings);
+  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   const std::string out = o.output.empty() ? file_safe(system.name) + ".png" : o.output;
   // The picture is a PNG: a name without .png is a mistake (and keeps `-o scene.yaml` from ever
   // replacing an input).
@@ -79,12 +83,13 @@ int draw(const DrawOptions& o) {
     throw InputError("-o '" + out + "': the picture is a PNG file; give a name ending in .png");
   std::error_code ec;
   if (fs::is_directory(out, ec)) throw InputError("-o '" + out + "' is a folder; give a file name ending in .png");
-  if (fs::exists(out, ec) && fs::equivalent(out, o.scene, ec))
-    throw InputError("-o '" + out + "' is the scene file itself");
   if (!o.geometry.empty() && lower(fs::path(o.geometry).extension().string()) != ".json")
     throw InputError("--geometry '" + o.geometry + "': the geometry is a JSON file; give a name ending in .json");
-  if (o.panels < 1 || o.panels > 12) throw InputError("--panels " + std::to_string(o.panels) + ": give 1 to 12");
   const fs::path script = fs::path(harness::installed_reports_dir()) / "draw_scene.py";
+  std::vector<NamedPath> outputs{{"-o", out}};
+  if (!o.geometry.empty()) outputs.push_back({"--geometry", o.geometry});
+  check_outputs_are_not_inputs(outputs, {{"the scene file", scene}, {"the drawing script", script.string()}});
+  if (o.panels < 1 || o.panels > 12) throw InputError("--panels " + std::to_string(o.panels) + ": give 1 to 12");
   if (!fs::is_regular_file(script))
     throw InputError("the drawing script '" + script.string() + "' is missing (it is part of the "
                      "crossdyn source tree this program was built from)");
@@ -148,7 +153,7 @@ void add_draw_command(CLI::App& app, int& exit_code) {
       "direction of a positive angle, spherical joints, offsets applied, names), and the\n"
       "configuration at a few later times from a kane run at the scene's settings. Look at it\n"
       "before trusting a new scene: the engines all agree on a wrong axis sign or joint point.");
-  sub->add_option("scene", o->scene, "Scene file (YAML)")->required();
+  sub->add_option("scene", o->scene, "Scene file (YAML), or a scene name (crossdyn list)")->required();
   sub->add_option("--output,-o", o->output,
                   "The PNG file to write, atomically (default: <scene name>.png in the current folder)");
   sub->add_flag("--no-motion", o->no_motion, "Only the picture at t = 0 (no kane run)");

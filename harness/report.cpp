@@ -2,12 +2,15 @@
 #include "harness/report.hpp"
 
 #include "core/errors.hpp"
+#include "core/integrate.hpp"
 #include "core/output.hpp"
+#include "harness/locations.hpp"
 #include "harness/scene_geometry.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/file.h>
@@ -304,6 +307,7 @@ std::string fmt_g(double v) {
 }  // namespace
 
 std::string describe_failure(const Check& c) {
+  if (c.quantity == "comparison") return c.note;  // nothing compared (harness/verify.hpp)
   std::string who = c.b.empty() ? c.a : c.a + " vs " + c.b;
   if (c.group == "run")
     return who + ": run failed at t = " + fmt_g(c.time) + " s: " + c.note;
@@ -465,21 +469,39 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
 }
 
 
-std::string installed_reports_dir() { return CROSSDYN_REPORTS_DIR; }
 
 void run_python(const std::string& python, const std::vector<std::string>& args) {
-  std::vector<std::string> all{python, "-B"};  // -B: no __pycache__ in the installed folder
+  std::vector<std::string> all{python};
   all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
   for (std::string& a : all) argv.push_back(a.data());
   argv.push_back(nullptr);
+  // PYTHONDONTWRITEBYTECODE: no __pycache__ in the installed scripts' folder (the source tree).
+  std::string no_bytecode = "PYTHONDONTWRITEBYTECODE=1";
+  std::vector<char*> envp;
+  for (char** e = environ; *e != nullptr; ++e)
+    if (std::strncmp(*e, "PYTHONDONTWRITEBYTECODE=", 24) != 0) envp.push_back(*e);
+  envp.push_back(no_bytecode.data());
+  envp.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), environ);
-  if (rc != 0) throw InputError("cannot run '" + python + "' for '" + args.at(0) + "': " + std::strerror(rc));
+  const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), envp.data());
+  if (rc != 0)
+    throw InputError("cannot run '" + python + "' for '" + args.at(0) + "': " + std::strerror(rc));
+  // Wait, polling the interrupt flag: Ctrl-C ends the script and the command (exit 130).
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR)
-      throw InputError("waiting for '" + args.at(0) + "' failed: " + std::string(std::strerror(errno)));
+  for (;;) {
+    const pid_t done = waitpid(pid, &status, WNOHANG);
+    if (done == pid) break;
+    if (done < 0 && errno != EINTR)
+      throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+    if (interrupt_requested()) {
+      ::kill(pid, SIGTERM);
+      while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      throw RunFailure("report", 0.0, "", "interrupted");
+    }
+    ::poll(nullptr, 0, 20);
+  }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
     throw InputError("'" + args.at(0) + "' failed (" +
                      (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))

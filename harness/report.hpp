@@ -17,6 +17,7 @@ struct SceneOutcome {
   std::optional<System> system;               // empty when the file could not be read
   std::optional<SceneComparison> comparison;  // empty when the file could not be read
   std::string input_error;                    // InputError message when it could not
+  bool internal_error = false;                // input_error is another error (verify: exit 3)
 };
 
 // The scene x check-group summary cell (verify's table, the report index, JSON "groups").
@@ -57,11 +58,6 @@ struct ReportOptions {
   std::string script;                        // "" : the installed reports/make_report.py
 };
 
-// The folder of the installed report scripts (make_report.py, draw_scene.py and their modules
-// and templates): fixed when crossdyn is built, never looked up next to the scenes (a scene
-// bundle must not be able to run code).
-std::string installed_reports_dir();
-
 // Writes the report into a new sibling folder of DIR (DIR.partial-<pid>-<random>): the runs' CSV
 // files DIR/data/<scene>/<run>.csv, each scene's drawing geometry DIR/data/<scene>/geometry.json
 // (harness/scene_geometry.hpp; the later pictures from the kane run), DIR/summary.json; then runs
@@ -75,7 +71,8 @@ std::string installed_reports_dir();
 // by killed runs whose process is gone).
 void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options);
 
-// Runs `python -B ARGS...` and waits; InputError naming args[0] when it cannot start or fails.
+// Runs `python ARGS...` (with PYTHONDONTWRITEBYTECODE=1) and waits; Ctrl-C ends it (RunFailure
+// "interrupted"); InputError naming args[0] when it cannot start or fails.
 void run_python(const std::string& python, const std::vector<std::string>& args);
 
 // Creates a folder and its parents; InputError naming it when that fails.

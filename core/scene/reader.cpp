@@ -25,12 +25,18 @@
 #include <yaml-cpp/anchor.h>
 #include <yaml-cpp/eventhandler.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
 
 #include "core/errors.hpp"
+#include "core/run_limits.hpp"
 
 namespace crossdyn {
 
@@ -377,34 +383,28 @@ void order(const Reader& r, const Val& joints_val, std::vector<RawJoint>& raw,
 // ---------------------------------------------------------------------------------------------
 // Run and compare
 
+// The limits are core/run_limits.hpp's, shared with the command line's overrides.
 void read_run(const Reader& r, const MapView& top, System& s) {
   const MapView m(r, top.at("run").val, "run");
+  auto limit = [&r](const Val& v, const std::string& problem) {
+    if (!problem.empty()) r.fail(v, problem);
+  };
   const Field d = m.at("duration");
   s.run.duration = r.number(d);
-  if (!(s.run.duration > 0))
-    r.fail(d.val, "duration must be positive, found " + shortest(s.run.duration) + " s");
+  limit(d.val, run_limits::duration_problem(s.run.duration));
   const Field o = m.at("output_step");
   s.run.output_step = r.number(o);
-  if (!(s.run.output_step > 0))
-    r.fail(o.val, "output_step must be positive, found " + shortest(s.run.output_step) + " s");
-  if (s.run.output_step > s.run.duration)
-    r.fail(o.val, "output_step " + shortest(s.run.output_step) + " s is longer than the duration " +
-                      shortest(s.run.duration) + " s");
-  if (s.run.duration / s.run.output_step > kMaxOutputRows)
-    r.fail(o.val, "duration / output_step = " + shortest(s.run.duration / s.run.output_step) +
-                      " output rows; the limit is 1e7");
+  limit(o.val, run_limits::output_step_problem(s.run.output_step, s.run.duration));
   if (auto f = m.get("integrator")) s.run.integrator = r.word(*f);
   for (const char* key : {"rtol", "atol"})
     if (auto f = m.get(key)) {
       const double x = r.number(*f);
-      if (x < 0) r.fail(f->val, "negative tolerance " + shortest(x));
-      if (x == 0)
-        r.fail(f->val, std::string(key) + " must be positive (the step-size control needs it)");
+      limit(f->val, run_limits::tolerance_problem(key, x));
       (std::string(key) == "rtol" ? s.run.rtol : s.run.atol) = x;
     }
   if (auto f = m.get("dt")) {
     s.run.dt = r.number(*f);
-    if (!(s.run.dt > 0)) r.fail(f->val, "dt must be positive, found " + shortest(s.run.dt) + " s");
+    limit(f->val, run_limits::dt_problem(s.run.dt));
   }
 }
 
@@ -496,9 +496,35 @@ System read_scene_text(const std::string& text, const std::string& file_label,
   return s;
 }
 
+// Why `path` cannot be read as a scene, or "" when it can be opened: missing, a directory, no
+// permission, a symbolic link loop, not a regular file (FIFOs are read: `<(...)`).
+std::string scene_open_problem(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int e = errno;
+    if (e == ENOENT) {
+      struct stat lst {};
+      return ::lstat(path.c_str(), &lst) == 0 ? "it is a symbolic link to a file that does not exist"
+                                             : "no such file";
+    }
+    if (e == ELOOP) return "too many levels of symbolic links (a symbolic link loop)";
+    if (e == EACCES) return "permission denied (a folder on the path cannot be searched)";
+    if (e == ENOTDIR) return "a part of the path is not a folder";
+    return std::strerror(e);
+  }
+  if (S_ISDIR(st.st_mode)) return "it is a directory, not a scene file";
+  if (S_ISSOCK(st.st_mode)) return "it is a socket, not a regular file";
+  if (S_ISBLK(st.st_mode)) return "it is a block device, not a regular file";
+  if (::access(path.c_str(), R_OK) != 0)
+    return errno == EACCES ? "permission denied (the file is not readable)" : std::strerror(errno);
+  return "";
+}
+
 System read_scene(const std::string& path, std::vector<SceneWarning>* warnings) {
+  if (const std::string why = scene_open_problem(path); !why.empty())
+    throw InputError(path + ":1:1: cannot open the scene file: " + why);
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ":1:1: cannot open the scene file");
+  if (!in) throw InputError(path + ":1:1: cannot open the scene file: " + std::strerror(errno));
   std::string text;
   char buf[65536];
   while (in.read(buf, sizeof buf) || in.gcount() > 0) {

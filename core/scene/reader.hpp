@@ -27,7 +27,6 @@ namespace crossdyn::scene {
 inline constexpr std::size_t kMaxSceneBytes = 1u << 20;  // 1 MiB of YAML
 inline constexpr double kAbsurd = 1e12;                  // any SI value beyond this is a typo
 inline constexpr double kMaxMass = 1e9;                  // kg
-inline constexpr double kMaxOutputRows = 1e7;            // duration / output_step
 inline constexpr double kMinAxisLength = 1e-9;           // a shorter axis counts as zero
 inline constexpr double kUnitQuaternionTolerance =
     1e-3;  // |norm(q) - 1| accepted (then normalised)

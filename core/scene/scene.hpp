@@ -33,6 +33,11 @@ struct SceneWarning {
 // are appended to *warnings when given.
 System read_scene(const std::string& path, std::vector<SceneWarning>* warnings = nullptr);
 
+// Why `path` cannot be opened as a scene file ("no such file", "it is a directory, not a scene
+// file", "permission denied ...", "too many levels of symbolic links ...", "it is a socket ..."),
+// or "" when it can. read_scene's message is "<path>:1:1: cannot open the scene file: <why>".
+std::string scene_open_problem(const std::string& path);
+
 // The same, from text already in memory; `file_label` is used in messages (fuzzing, tests).
 System read_scene_text(const std::string& text, const std::string& file_label,
                        std::vector<SceneWarning>* warnings = nullptr);

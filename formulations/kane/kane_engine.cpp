@@ -1,6 +1,7 @@
 // Kane's method for a tree of rigid bodies: the passes declared in kane_engine.hpp.
 #include "formulations/kane/kane_engine.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 
@@ -61,6 +62,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
   std::vector<int> node_of_body(system_.bodies.size(), -1);
   int nq = 0, nu = 0;
   for (std::size_t k = 0; k < nj; ++k) {
+    cancel::poll();
     const Joint& J = system_.joints[k];
     Node& n = nodes_[k];
     const std::string jname = file + ": joint '" + J.name + "'";
@@ -379,6 +381,7 @@ void KaneEngine::mass_matrix_pass() {
     M_.block<3, 3>(r0 + 3, r0 + 3) = Matrix3d::Identity() * base.m_sub;
   }
   for (std::size_t k = 1; k < nodes_.size(); ++k) {
+    cancel::poll();
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
     for (int i = 0; i < n.nu; ++i) {
@@ -460,6 +463,7 @@ bool KaneEngine::solve() {
   auto h = [H, ld](int i, int j) -> double& { return H[i * ld + j]; };  // row major (row i, col j)
   const int* lambda = lambda_.data();
   for (int k = n_u_ - 1; k >= 0; --k) {
+    cancel::poll();
     const double d = h(k, k);
     if (!(d > 0)) return false;
     const double inv_d = 1.0 / d;

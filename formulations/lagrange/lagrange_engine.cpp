@@ -27,6 +27,7 @@
 #include <tuple>
 #include <utility>
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/autodiff.hpp"
@@ -362,6 +363,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   for (std::size_t j = 0; j < nj; ++j)
     joint_of_body[static_cast<std::size_t>(m->joints[j].child)] = static_cast<int>(j);
   for (std::size_t j = 0; j < nj; ++j) {
+    cancel::poll();
     // Joint k is below j when walking up from k's child reaches j's child.
     for (std::size_t k = j; k < nj; ++k) {
       int b = m->joints[k].child;
@@ -610,6 +612,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   // columns of other bodies stay zero from construction).
   w.seed.setZero();
   for (int i = 0; i < n; ++i) {
+    cancel::poll();
     const Model::JointM& Ji =
         m.joints[static_cast<std::size_t>(m.coordinate_joint[static_cast<std::size_t>(i)])];
     if (Ji.parent >= 0) {
@@ -637,6 +640,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   w.Mdot_u.setZero();
   w.N.setZero();
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    cancel::poll();
     const Model::BodyM& B = m.bodies[b];
     const std::vector<int>& sup = m.support[b];
     const auto& X = w.Xi[b];
@@ -687,6 +691,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   w.dL.setZero();
   const int nd = static_cast<int>(m.gradient_dirs.size());
   for (int c0 = 0; c0 < nd; c0 += kMaxChunk) {
+    cancel::poll();
     const int width = std::min(kMaxChunk, nd - c0);
     gradient_dispatch(std::make_integer_sequence<int, kMaxChunk>(), width, m, w, chart, x,
                       m.gradient_dirs.data() + c0);

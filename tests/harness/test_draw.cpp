@@ -74,7 +74,9 @@ TEST_CASE("draw: never writes over an input, and refuses bad input before runnin
   const std::string before = read_bytes(dir / "scene.png");
   r = crossdyn::test::run_crossdyn("draw scene.png -o ./scene.png", dir.string());
   CHECK(r.status == 2);
-  CHECK(r.output == "crossdyn: error: -o './scene.png' is the scene file itself\n");
+  CHECK(r.output ==
+        "crossdyn: error: -o './scene.png' is the same file as the scene file 'scene.png': an output "
+        "must never overwrite an input (nothing was written)\n");
   CHECK(read_bytes(dir / "scene.png") == before);
 
   // A folder, or a folder that does not exist.

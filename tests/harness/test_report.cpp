@@ -236,7 +236,7 @@ TEST_CASE("report: two verify runs writing one report folder at once leave one w
   }
 }
 
-TEST_CASE("report: a folder that is not a report is never replaced; other files in a report folder are kept") {
+TEST_CASE("report: a folder that is not a report is never replaced: other files in a report folder are kept") {
   const fs::path base = fs::path(crossdyn::test::binary_dir()) / "test-report-folders";
   fs::remove_all(base);
   fs::create_directories(base / "mine");

@@ -7,7 +7,7 @@
 
 #include "core/integrate.hpp"
 #include "core/rotation.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/engines.hpp"
 #include "harness/scene_geometry.hpp"
 #include "tests/support/paths.hpp"

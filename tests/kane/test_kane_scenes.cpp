@@ -6,7 +6,7 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/rotation.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "formulations/kane/kane.hpp"
 #include "tests/kane/kane_systems.hpp"
 #include "tests/support/paths.hpp"
@@ -49,7 +49,7 @@ double relative_drift(const RunResult& r, const std::string& column) {
 }  // namespace
 
 TEST_CASE(
-    "kane: every committed rigid scene runs to its end; H and E are conserved where they must be") {
+    "kane: every committed rigid scene runs to its end: H and E are conserved where they must be") {
   std::vector<std::string> scenes;
   for (const auto& f :
        std::filesystem::directory_iterator(crossdyn::test::source_dir() + "/scenarios"))

@@ -285,7 +285,7 @@ TEST_CASE("kane: after_step renormalises only a visible quaternion drift") {
   CHECK(close(Eigen::Map<const Eigen::Vector4d>(y.data() + 3).norm(), 1.0, 1e-15, 0));
 }
 
-TEST_CASE("kane: columns begin with the pinned columns; state labels are readable") {
+TEST_CASE("kane: columns begin with the pinned columns: state labels are readable") {
   const System s = spear1_case1();
   auto engine = make_kane_engine(s, {});
   REQUIRE(std::string(engine->name()) == "kane");

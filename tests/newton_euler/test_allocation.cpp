@@ -4,7 +4,7 @@
 // allocate).
 #include "formulations/newton_euler/newton_euler.hpp"
 
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>

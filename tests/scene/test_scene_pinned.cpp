@@ -6,7 +6,7 @@
 // reading it gives the bits that reader produced; any change in how a committed scene is read
 // (units, defaults, centre-of-mass shifts, joint order) shows here as a field that differs.
 // Regenerate a pin only when a scene's physics is meant to change, and say so in the commit.
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/scene/system_equal.hpp"
 #include "tests/support/paths.hpp"
 
