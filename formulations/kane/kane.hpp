@@ -1,6 +1,6 @@
 // The Kane engine: Kane's method (generalised speeds, partial velocities and partial angular
-// velocities, F_r + F_r* = 0) for a tree of rigid and flexible (modal) bodies. See kane_engine.hpp for the state
-// layout, the passes and the bibliography.
+// velocities, F_r + F_r* = 0) for a tree of rigid and flexible (modal) bodies. See
+// kane_engine.hpp for the state layout, the passes and the bibliography.
 #pragma once
 
 #include "core/engine.hpp"

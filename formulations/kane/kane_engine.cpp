@@ -418,7 +418,6 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     w.R_NB.setIdentity();
     w.I_BBo_N.setZero();
     w.W_N.setZero();
-    w.R_NJp.setIdentity();
     w.p_B0oBo_N.setZero();
     w.p_B0oOk_N.setZero();
     w.w_NB_N.setZero();
@@ -485,7 +484,7 @@ Quaterniond KaneEngine::read_quat(const double* x, int i) const {
 }
 
 // ------------------------------------------------------------------------------------------------
-// Pass 1. q => R_NB, R_NJp, I_BBo_N, W_N (partial angular velocities), p_B0oBo_N, p_B0oOk_N, and
+// Pass 1. q => R_NB, I_BBo_N, W_N (partial angular velocities), p_B0oBo_N, p_B0oOk_N, and
 // at nodes of flexible bodies the twists of the modal speeds.
 // Joint kinematics of core/system.hpp and docs/flexible-bodies.md "Joints at nodes":
 //   R_NJp = R_NP E_Pj,  R_NJc = R_NJp R_PJ0 R_J,  R_NC = R_NJc E_Cj^T  (E = exp([psi x]));
@@ -507,33 +506,42 @@ void KaneEngine::position_pass(const double* x) {
     } else {
       const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
       Vector3d r_Pj = n.p_PoJ_P;
+      // Frames by pointer so that a rigid attachment copies no matrix: R_NJp is R_NP, and R_NJc
+      // is written straight into R_NB.
+      const Matrix3d* R_NJp = &P.R_NB;
+      Matrix3d R_NJp_node;
       if (n.parent_attach) {
         const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
         const double* eta_P = x + pn.q0 + pn.nqj;
         w.rot_P.set(combine(n.Psi_Pj, eta_P));
         r_Pj += combine(n.Phi_Pj, eta_P);
-        w.R_NJp.noalias() = P.R_NB * w.rot_P.R();
+        R_NJp_node.noalias() = P.R_NB * w.rot_P.R();
+        R_NJp = &R_NJp_node;
         const Matrix3d RJl = P.R_NB * w.rot_P.Jl();
         for (int l = 0; l < n.pm; ++l) {
           w.Wp_N.col(l).noalias() = RJl * n.Psi_Pj.col(l);
           w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
         }
-      } else {
-        w.R_NJp = P.R_NB;
       }
-      const Matrix3d R_NJ0 = n.has_offset ? Matrix3d(w.R_NJp * n.R_PJ0) : w.R_NJp;
-      Matrix3d R_NJc;
+      const Matrix3d* R_NJ0 = R_NJp;
+      Matrix3d R_NJ0_offset;
+      if (n.has_offset) {
+        R_NJ0_offset.noalias() = *R_NJp * n.R_PJ0;
+        R_NJ0 = &R_NJ0_offset;
+      }
+      Matrix3d R_NJc_node;
+      Matrix3d& R_NJc = n.child_attach ? R_NJc_node : w.R_NB;
       switch (n.type) {
         case JointType::Revolute:
-          R_NJc.noalias() = R_NJ0 * axis_angle_matrix(n.axis_J, x[n.q0]);
-          w.W_N.col(0).noalias() = w.R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
+          R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, x[n.q0]);
+          w.W_N.col(0).noalias() = *R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
           break;
         case JointType::Spherical:
-          R_NJc.noalias() = R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
+          R_NJc.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
           w.W_N = R_NJc;  // W_r = j_r for u_r = w_PC,r in Jc components
           break;
         default:
-          R_NJc = R_NJ0;
+          R_NJc = *R_NJ0;
           break;
       }
       w.p_B0oOk_N.noalias() = P.p_B0oBo_N + P.R_NB * r_Pj;
@@ -548,8 +556,6 @@ void KaneEngine::position_pass(const double* x) {
           w.Wm_N.col(l).noalias() = RJl * n.Psi_Cj.col(l);
           w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
         }
-      } else {
-        w.R_NB = R_NJc;
       }
       w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * r_Cj;
     }

@@ -194,7 +194,6 @@ struct NodeWork {
   Eigen::Matrix3d R_NB;       // attitude of the node's body
   Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
   Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
-  Eigen::Matrix3d R_NJp;      // parent-side joint frame (flexible parent: turned by E_Pj)
   Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
   Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
   Eigen::Vector3d w_NB_N, v_NBo_N;
@@ -288,7 +287,7 @@ class KaneEngine final : public Engine {
 
  private:
   // Named passes; "=>" reads inputs => writes outputs (all into work_ / M_ / f_).
-  // q => R_NB, R_NJp, I_BBo_N, W_N, p_B0oBo_N, p_B0oOk_N; attachment twists Wp, Vp, Wm, Vm;
+  // q => R_NB, I_BBo_N, W_N, p_B0oBo_N, p_B0oOk_N; attachment twists Wp, Vp, Wm, Vm;
   //   flexible bodies' integrals at eta (flex_position)
   void position_pass(const double* x);
   // (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N, w_att, v_att, w_m, v_m, Jl-rate terms;
