@@ -38,7 +38,6 @@ Matrix3d shifted_inertia(const Matrix3d& I, double m, const Vector3d& d) {
   return J;
 }
 
-
 // The first moment s about O of a mass m moved to the point O' = O - e:  s' = s + m e, and its
 // inertia J_O' = J_O + (2 s.e + m |e|^2) 1 - s e^T - e s^T - m e e^T (the transfer theorem for
 // a mass distribution whose centre is not at O; [KLL] Sec. 3.4).
@@ -134,8 +133,7 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
     if (may_be_empty && M.size() == 0) return;
     if (M.rows() != ni || M.cols() != ni)
       throw InputError(where_b + ": " + key + " is " + std::to_string(M.rows()) + " x " +
-                       std::to_string(M.cols()) + ", the body has " + std::to_string(n) +
-                       " modes");
+                       std::to_string(M.cols()) + ", the body has " + std::to_string(n) + " modes");
     if (!M.allFinite()) throw InputError(where_b + ": " + key + " has a non-finite entry");
     if ((M - M.transpose()).cwiseAbs().maxCoeff() > 1e-12 * M.cwiseAbs().maxCoeff())
       throw InputError(where_b + ": " + key + " is not symmetric");
@@ -153,8 +151,10 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
   F.Q.assign(static_cast<std::size_t>(n * n), Matrix3d::Zero());
   F.C.assign(static_cast<std::size_t>(n * n), Vector3d::Zero());
   F.Mm = Eigen::MatrixXd::Zero(ni, ni);
-  F.K = fb.K.size() ? Eigen::MatrixXd(0.5 * (fb.K + fb.K.transpose())) : Eigen::MatrixXd::Zero(ni, ni);
-  F.D = fb.D.size() ? Eigen::MatrixXd(0.5 * (fb.D + fb.D.transpose())) : Eigen::MatrixXd::Zero(ni, ni);
+  F.K = fb.K.size() ? Eigen::MatrixXd(0.5 * (fb.K + fb.K.transpose()))
+                    : Eigen::MatrixXd::Zero(ni, ni);
+  F.D = fb.D.size() ? Eigen::MatrixXd(0.5 * (fb.D + fb.D.transpose()))
+                    : Eigen::MatrixXd::Zero(ni, ni);
   // The body's mass matrix at eta = 0 in body-frame speeds (v_Bo, w, eta'): every node moves
   // with v - [r_i x] w + Phi_i eta' (the singularity check below).
   Eigen::MatrixXd Mb = Eigen::MatrixXd::Zero(6 + ni, 6 + ni);
@@ -208,8 +208,8 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
                      " kg differs from the sum of its node masses " + std::to_string(F.mass) +
                      " kg");
   if ((B.I_BBo_B - I_nodes).cwiseAbs().maxCoeff() > 1e-9 * I_nodes.cwiseAbs().maxCoeff())
-    throw InputError(where_b +
-                     ": inertia differs from the node sum sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))");
+    throw InputError(
+        where_b + ": inertia differs from the node sum sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))");
   F.I0 = inertia_scale * I_nodes;
   for (int k = 0; k < n; ++k)
     if (!(F.Mm(k, k) > 0))
@@ -222,10 +222,11 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
   const Eigen::MatrixXd Ms = d.asDiagonal() * Mb * d.asDiagonal();
   const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Ms).eigenvalues().minCoeff();
   if (!(lmin > 1e-12))
-    throw InputError(where_b +
-                     ": the node masses cannot tell the modes and the rigid motions apart (the "
-                     "body's mass matrix at eta = 0 is singular: a mode is a rigid-body motion or a "
-                     "combination of other modes, or the rigid inertia is singular)");
+    throw InputError(
+        where_b +
+        ": the node masses cannot tell the modes and the rigid motions apart (the "
+        "body's mass matrix at eta = 0 is singular: a mode is a rigid-body motion or a "
+        "combination of other modes, or the rigid inertia is singular)");
   return F;
 }
 
@@ -310,8 +311,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
         return false;
       }
       if (!A.flex)
-        throw InputError(jname + ": " + side + "_node is set but body '" + A.name +
-                         "' is rigid");
+        throw InputError(jname + ": " + side + "_node is set but body '" + A.name + "' is rigid");
       if (node >= static_cast<int>(A.flex->nodes.size()))
         throw InputError(jname + ": " + side + "_node " + std::to_string(node) + " of body '" +
                          A.name + "' does not exist (it has " +
@@ -333,8 +333,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     }
     n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj);
     if (k == 0 && J.child_node >= 0)
-      throw InputError(jname + ": the free joint moves the base's body frame; child_node must "
-                               "not be set");
+      throw InputError(jname +
+                       ": the free joint moves the base's body frame; child_node must "
+                       "not be set");
     if (n.parent_attach)
       nodes_[static_cast<std::size_t>(n.parent)].attached_children.push_back(static_cast<int>(k));
 
@@ -754,7 +755,8 @@ void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
 //     R_B = -(m a_t + alpha_t x c + w x (w x c) + 2 w x cdot),
 //     T_B = T_ext - c x a_t - I alpha_t - w x I w - 2 R (w_B tr L - L^T w_B)   (about Bo);
 //   F_sub = sum R_B,  M_sub = sum T_B + (p_Bo - p_Ok) x R_B.
-// A child's sums move to its parent's point Op with e = p_Ok - p_Op (moved_inertia); M' = M + e x F.
+// A child's sums move to its parent's point Op with e = p_Ok - p_Op (moved_inertia); M' = M + e x
+// F.
 
 void KaneEngine::subtree_pass(double t) {
   for (NodeWork& w : work_) {
@@ -829,8 +831,7 @@ void KaneEngine::subtree_pass(double t) {
 //                    S(c) about Oc in the motion r.
 //   Base block: M(w, w) = R^T J_0 R;  M(v_i, w_j) = n_i . (b_j x s_0);  M(v, v) = m 1.
 
-void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p,
-                                       const Vector3d& h) {
+void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, const Vector3d& h) {
   const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
   for (const Node::Ancestor& an : n.speed_ancestors) {
     const Node& A = nodes_[static_cast<std::size_t>(an.node)];
@@ -1198,8 +1199,7 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.wdot_PC_C.assign(nj, Vector3d::Zero());
   a.eta_ddot.assign(nb, Eigen::VectorXd());
   for (const Node& n : nodes_) {
-    if (n.nm > 0)
-      a.eta_ddot[static_cast<std::size_t>(n.body)] = udot_.segment(n.u0 + n.nuj, n.nm);
+    if (n.nm > 0) a.eta_ddot[static_cast<std::size_t>(n.body)] = udot_.segment(n.u0 + n.nuj, n.nm);
     const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
     // d/dt of the body-frame components of w_NB: R_NB^T alpha (the w x w term vanishes).
     // For a flexible body: its frame; a_NBo_N is the acceleration of the frame origin Bo.
@@ -1371,8 +1371,7 @@ std::vector<MassPoint> KaneEngine::mass_points(const double* x) {
 std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
   const std::vector<BodyMotion> bm = body_motion(x);
   std::vector<JointFrames> jf(nodes_.size());
-  auto node_of = [&](int body, int node, const Eigen::Vector3d& point, Vector3d& r,
-                     Matrix3d& E) {
+  auto node_of = [&](int body, int node, const Eigen::Vector3d& point, Vector3d& r, Matrix3d& E) {
     r = point;
     E.setIdentity();
     if (node < 0) return;

@@ -126,16 +126,16 @@ namespace crossdyn::kane {
 
 // The modal integrals of one flexible body (body frame), built once from its nodes (see above).
 struct FlexModel {
-  int n = 0;                  // modes
-  double mass = 0;            // sum m_i
-  Eigen::Vector3d c0;         // sum m_i p_i (zero when Bo is the undeformed CM)
-  Eigen::Matrix3d I0;         // sum J_i + m_i (|p_i|^2 1 - p_i p_i^T), times test_inertia_scale
-  Eigen::Matrix3Xd S, Hs;     // 3 x n: sum m_i Phi_i, sum m_i [p_i x] Phi_i
+  int n = 0;               // modes
+  double mass = 0;         // sum m_i
+  Eigen::Vector3d c0;      // sum m_i p_i (zero when Bo is the undeformed CM)
+  Eigen::Matrix3d I0;      // sum J_i + m_i (|p_i|^2 1 - p_i p_i^T), times test_inertia_scale
+  Eigen::Matrix3Xd S, Hs;  // 3 x n: sum m_i Phi_i, sum m_i [p_i x] Phi_i
   std::vector<Eigen::Matrix3d> G;  // n:     G_k  = sum m_i p_i Phi_ik^T
   std::vector<Eigen::Matrix3d> Q;  // n * n: Q_kl = sum m_i Phi_ik Phi_il^T   (index k n + l)
   std::vector<Eigen::Vector3d> C;  // n * n: C_kl = sum m_i Phi_ik x Phi_il   (index k n + l)
-  Eigen::MatrixXd Mm;         // n x n: sum m_i Phi_i^T Phi_i (modal mass)
-  Eigen::MatrixXd K, D;       // n x n: modal stiffness and damping
+  Eigen::MatrixXd Mm;              // n x n: sum m_i Phi_i^T Phi_i (modal mass)
+  Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping
 };
 
 // exp([psi x]) and its left Jacobian Jl(psi) for a node's rotation vector psi ([Barfoot] Sec.
@@ -238,7 +238,7 @@ struct FlexWork {
 struct MassPoint {
   int body = -1, node = -1;  // System::bodies index; FlexBody::nodes index or -1 (rigid CM)
   double mass = 0;
-  Eigen::Matrix3d J_N;       // rotational inertia carried by the body frame, N axes
+  Eigen::Matrix3d J_N;  // rotational inertia carried by the body frame, N axes
   Eigen::Vector3d p_NoP_N, v_NP_N;
 };
 
@@ -277,11 +277,11 @@ class KaneEngine final : public Engine {
   Eigen::MatrixXd mass_matrix(const double* x);                   // full symmetric M(q)
   Eigen::VectorXd generalized_forces(double t, const double* x);  // f = F_r + F_r*|_{u'=0}
   double kinetic_energy(const double* x);                         // sum over bodies
-  double potential_energy(const double* x) const;  // hinge springs + 1/2 eta^T K eta
+  double potential_energy(const double* x) const;                 // hinge springs + 1/2 eta^T K eta
   Eigen::Vector3d linear_momentum_N(const double* x);
-  Eigen::Vector3d angular_momentum_N(const double* x);   // about the system CM
-  std::vector<BodyMotion> body_motion(const double* x);  // per System::bodies index (frame Bo)
-  std::vector<MassPoint> mass_points(const double* x);   // every node and rigid CM, in N
+  Eigen::Vector3d angular_momentum_N(const double* x);     // about the system CM
+  std::vector<BodyMotion> body_motion(const double* x);    // per System::bodies index (frame Bo)
+  std::vector<MassPoint> mass_points(const double* x);     // every node and rigid CM, in N
   std::vector<JointFrames> joint_frames(const double* x);  // per joint (System order)
   const std::vector<FlexModel>& flex_models() const { return flex_; }
 
@@ -293,9 +293,9 @@ class KaneEngine final : public Engine {
   // (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N, w_att, v_att, w_m, v_m, Jl-rate terms;
   //   flexible bodies' rate terms (flex_velocity)
   void velocity_pass(const double* u);
-  void remainder_pass();                // (q, u) => alpha_t_N, a_t_N
-  void subtree_pass(double t);          // => m_sub, s_sub, J_sub, F_sub, M_sub
-  void mass_matrix_pass();              // subtree sums => M_ (lower triangle)
+  void remainder_pass();                                   // (q, u) => alpha_t_N, a_t_N
+  void subtree_pass(double t);                             // => m_sub, s_sub, J_sub, F_sub, M_sub
+  void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   bool solve();                                // (M_, f_) => udot_ (false: M not positive definite)
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
@@ -327,12 +327,12 @@ class KaneEngine final : public Engine {
   // Workspace, sized in the constructor; rhs() never allocates.
   std::vector<NodeWork> work_;
   std::vector<FlexWork> flex_work_;  // per flexible body (Node::flex)
-  std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
+  std::vector<int> lambda_;          // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // Mass matrix (lower triangle, row major); after solve() its factors L and D.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
-  int extra0_ = 0;                        // first extra column
+  int extra0_ = 0;                       // first extra column
 };
 
 }  // namespace crossdyn::kane

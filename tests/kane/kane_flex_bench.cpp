@@ -33,8 +33,8 @@ System flexible_system(int nodes, bool tree) {
     j.rate0 = 0.2;
     s.joints.push_back(j);
     s.bodies.push_back(random_flex_body("panel", nodes, 2, g, 1.0, 0.3, 0.3, 20.0, 0.01));
-    Joint k = joint("mount", JointType::Spherical, 0, 2, node_position(s, 0, 1),
-                    node_position(s, 2, 0));
+    Joint k =
+        joint("mount", JointType::Spherical, 0, 2, node_position(s, 0, 1), node_position(s, 2, 0));
     k.parent_node = 1;
     k.child_node = 0;
     s.joints.push_back(k);

@@ -47,8 +47,8 @@ inline FlexNode flex_node(const std::string& name, double mass, const Eigen::Vec
   return nd;
 }
 
-// `nodes` nodes with random masses (1..3 kg), positions (spread ~size, shifted so that sum m p = 0),
-// small random node inertias, shapes (~shape m per unit) and slopes (~slope rad per unit); K
+// `nodes` nodes with random masses (1..3 kg), positions (spread ~size, shifted so that sum m p =
+// 0), small random node inertias, shapes (~shape m per unit) and slopes (~slope rad per unit); K
 // diagonal with the given stiffness per mode, D = damping * K.
 inline Body random_flex_body(const std::string& name, int nodes, int modes, std::mt19937& g,
                              double size = 1.0, double shape = 0.6, double slope = 0.8,
@@ -81,7 +81,8 @@ inline Body random_flex_body(const std::string& name, int nodes, int modes, std:
 }
 
 inline Eigen::Vector3d node_position(const System& s, int body, int node) {
-  return s.bodies[static_cast<std::size_t>(body)].flex->nodes[static_cast<std::size_t>(node)]
+  return s.bodies[static_cast<std::size_t>(body)]
+      .flex->nodes[static_cast<std::size_t>(node)]
       .p_BoNi_B;
 }
 
@@ -107,10 +108,11 @@ inline System flex_tree(bool loaded = false, unsigned seed = 11) {
       rigid_body("tip", 1.5, turned_inertia(0.02, 0.03, 0.035, quat_from_axis(0.9, {0, 1, 1}))));
   s.bodies.push_back(random_flex_body("boom", 4, 2, g, 0.7, 0.4, 0.6, 20.0, damping));
   s.bodies.push_back(random_flex_body("probe", 3, 1, g, 0.4, 0.3, 0.5, 10.0, damping));
-  s.bodies.push_back(rigid_body("antenna", 2,
-                                turned_inertia(0.05, 0.06, 0.08, quat_from_axis(-0.7, {2, 0, 1}))));
+  s.bodies.push_back(
+      rigid_body("antenna", 2, turned_inertia(0.05, 0.06, 0.08, quat_from_axis(-0.7, {2, 0, 1}))));
 
-  s.joints.push_back(free_joint("base", 0, Vector3d(0.3, -0.2, 0.4), quat_from_axis(0.6, {1, 1, 0})));
+  s.joints.push_back(
+      free_joint("base", 0, Vector3d(0.3, -0.2, 0.4), quat_from_axis(0.6, {1, 1, 0})));
   s.joints.back().p_NoBo_N0 = Vector3d(1, 2, 3);
 
   Joint shoulder = joint("shoulder", JointType::Revolute, 0, 1, node_position(s, 0, 2),
@@ -124,8 +126,8 @@ inline System flex_tree(bool loaded = false, unsigned seed = 11) {
   shoulder.rate0 = 0.5;
   s.joints.push_back(shoulder);
 
-  Joint hinge = joint("gimbal", JointType::Spherical, 0, 2, node_position(s, 0, 4),
-                      node_position(s, 2, 0));
+  Joint hinge =
+      joint("gimbal", JointType::Spherical, 0, 2, node_position(s, 0, 4), node_position(s, 2, 0));
   hinge.parent_node = 4;
   hinge.child_node = 0;
   hinge.q_PJ0 = quat_from_axis(-0.4, {1, 0, 2});
@@ -134,27 +136,29 @@ inline System flex_tree(bool loaded = false, unsigned seed = 11) {
   hinge.w_PC_C0 = Vector3d(0.2, 0.1, -0.3);
   s.joints.push_back(hinge);
 
-  Joint weld = joint("weld", JointType::Fixed, 2, 3, node_position(s, 2, 3), Vector3d(0.1, 0, -0.1));
+  Joint weld =
+      joint("weld", JointType::Fixed, 2, 3, node_position(s, 2, 3), Vector3d(0.1, 0, -0.1));
   weld.parent_node = 3;
   weld.q_PJ0 = quat_from_axis(0.8, {1, 1, 1});
   s.joints.push_back(weld);
 
-  Joint elbow = joint("elbow", JointType::Revolute, 1, 4, Vector3d(0.7, -0.1, 0.2),
-                      node_position(s, 4, 1));
+  Joint elbow =
+      joint("elbow", JointType::Revolute, 1, 4, Vector3d(0.7, -0.1, 0.2), node_position(s, 4, 1));
   elbow.child_node = 1;
   elbow.axis_P = Vector3d(1, -0.3, 0.4).normalized();
   elbow.angle0 = -0.3;
   elbow.rate0 = -0.4;
   s.joints.push_back(elbow);
 
-  Joint clamp = joint("clamp", JointType::Fixed, 2, 5, node_position(s, 2, 2), node_position(s, 5, 0));
+  Joint clamp =
+      joint("clamp", JointType::Fixed, 2, 5, node_position(s, 2, 2), node_position(s, 5, 0));
   clamp.parent_node = 2;
   clamp.child_node = 0;
   clamp.q_PJ0 = quat_from_axis(-1.1, {0, 1, -1});
   s.joints.push_back(clamp);
 
-  Joint feed = joint("feed", JointType::Spherical, 4, 6, node_position(s, 4, 3),
-                     Vector3d(0.0, 0.2, -0.15));
+  Joint feed =
+      joint("feed", JointType::Spherical, 4, 6, node_position(s, 4, 3), Vector3d(0.0, 0.2, -0.15));
   feed.parent_node = 3;
   feed.stiffness = 1.5;
   feed.q_J0 = quat_from_axis(-0.5, {0, 2, 1});

@@ -46,8 +46,7 @@ double relative_drift(const RunResult& r, const std::string& column) {
 
 }  // namespace
 
-TEST_CASE(
-    "kane: every committed scene runs to its end; H and E are conserved where they must be") {
+TEST_CASE("kane: every committed scene runs to its end; H and E are conserved where they must be") {
   std::vector<std::string> scenes;
   for (const auto& f :
        std::filesystem::directory_iterator(crossdyn::test::source_dir() + "/scenarios"))
