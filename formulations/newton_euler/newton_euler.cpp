@@ -97,6 +97,10 @@ class NewtonEulerEngine final : public Engine {
   Vector3d frame_angular_acceleration(const JointSide& side, const NodeFrame& fr, int b) const;
   bool project(double t, double* x);
   void update_turn_counters(double t, const double* x);
+  double total_mass() const;
+  Vector3d first_moment() const;     // sum over elements of m x (from bk_)
+  Vector3d linear_momentum() const;  // sum over elements of m v (from bk_)
+  void shift_all(const Vector3d& dp, const Vector3d& dv);
   double angular_momentum() const;
   double energy() const;
   [[noreturn]] void fail(double t, const std::string& quantity, const std::string& reason) const;
@@ -590,33 +594,65 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(F.s_B) + F.sdot_B) -
                 C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
   }
-  if (system_.zero_linear_momentum) {
-    // Linear momentum of body b: m v + R (w x S + Phi_bar eta') (modal_body.hpp); a common
-    // velocity change dv changes the total by (sum m) dv.
-    Vector3d momentum = Vector3d::Zero();
-    double total_mass = 0;
-    for (int b = 0; b < nb_; ++b) {
-      const BodyKinematics& k = bk_[at(b)];
-      momentum += mass_[at(b)] * k.v_NBo_N;
-      total_mass += mass_[at(b)];
-      const int fi = flex_[at(b)];
-      if (fi < 0) continue;
-      const ModalInvariants& inv = inv_[at(fi)];
-      const Vector3d S = inv.S0 + inv.Phi_bar * k.eta;
-      momentum += k.R_NB * (k.w_NB_B.cross(S) + inv.Phi_bar * k.eta_dot);
-    }
-    const Vector3d v_cm = momentum / total_mass;
-    for (int b = 0; b < nb_; ++b) bk_[at(b)].v_NBo_N -= v_cm;
-  }
+  if (system_.zero_linear_momentum) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
   for (int j = 1; j < nj_; ++j) angle_[at(j)] = angle_ref_[at(j)];
+}
+
+double NewtonEulerEngine::total_mass() const {
+  double m = 0;
+  for (double mb : mass_) m += mb;
+  return m;
+}
+
+// Per body (modal_body.hpp): first moment m p + R S, linear momentum m v + R (w x S + Phi_bar eta'),
+// S = S0 + Phi_bar eta (zero for a rigid body).
+Vector3d NewtonEulerEngine::first_moment() const {
+  Vector3d sum = Vector3d::Zero();
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematics& k = bk_[at(b)];
+    sum += mass_[at(b)] * k.p_NoBo_N;
+    if (flex_[at(b)] < 0) continue;
+    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
+    Vector3d S = inv.S0;
+    S.noalias() += inv.Phi_bar * k.eta;
+    sum += k.R_NB * S;
+  }
+  return sum;
+}
+
+Vector3d NewtonEulerEngine::linear_momentum() const {
+  Vector3d sum = Vector3d::Zero();
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematics& k = bk_[at(b)];
+    sum += mass_[at(b)] * k.v_NBo_N;
+    if (flex_[at(b)] < 0) continue;
+    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
+    Vector3d S = inv.S0, p_rel;
+    S.noalias() += inv.Phi_bar * k.eta;
+    p_rel.noalias() = inv.Phi_bar * k.eta_dot;
+    sum += k.R_NB * (k.w_NB_B.cross(S) + p_rel);
+  }
+  return sum;
+}
+
+// Every body translated by dp and given the extra velocity dv: a rigid translation of the whole
+// system, which leaves every joint condition as it was (g and J nu depend on differences only).
+void NewtonEulerEngine::shift_all(const Vector3d& dp, const Vector3d& dv) {
+  for (BodyKinematics& k : bk_) {
+    k.p_NoBo_N += dp;
+    k.v_NBo_N += dv;
+  }
 }
 
 // Mass-metric projection onto {g = 0} then {J nu = 0} [HLW06 Sec. IV.4]: the corrections solve
 // [M J^T; J 0] [delta; y] = [0; -g] (Newton, a few iterations) and [0; -J nu] (once), delta over
 // every unknown, the modal coordinates and rates included (a joint at a node is closed by moving
-// eta as well as the bodies). They are internal impulses/displacements: total linear momentum is
-// unchanged, and the CM moves only at second order in the correction.
+// eta as well as the bodies). They are internal impulses/displacements, so the system's CM moves
+// only at second order and the velocity step keeps the linear momentum; but a flexible body's
+// momentum m v + R (w x S + Phi_bar eta') also depends on R and eta, which the position step moves.
+// A final rigid translation of the whole system (the mass-metric projection onto "CM and linear
+// momentum as before", which leaves every joint condition unchanged) restores both exactly.
 bool NewtonEulerEngine::project(double t, double* x) {
   bool changed = false;
   for (int b = 0; b < nb_; ++b) {
@@ -652,6 +688,7 @@ bool NewtonEulerEngine::project(double t, double* x) {
   body_pass(t, x);
   mass_pass(t);  // the metric: the mass matrix at the step's state
   joint_pass();
+  const Vector3d moment0 = first_moment(), momentum0 = linear_momentum();
   if (max_violation(false) > kProjectTrigger * L) {
     for (int iter = 0; iter < kNewtonMaxIterations; ++iter) {
       load_rows(false);
@@ -682,8 +719,11 @@ bool NewtonEulerEngine::project(double t, double* x) {
     }
     changed = true;
   }
-  if (changed) write_state(x);
-  return changed;
+  if (!changed) return false;
+  const double m = total_mass();
+  shift_all((moment0 - first_moment()) / m, (momentum0 - linear_momentum()) / m);
+  write_state(x);
+  return true;
 }
 
 void NewtonEulerEngine::update_turn_counters(double t, const double* x) {

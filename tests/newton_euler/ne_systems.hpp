@@ -333,6 +333,35 @@ inline System flexible_tree() {
   return s;
 }
 
+// n flexible beams (10 kg, 2 m, 6 slices, one bending mode per plane) joined node to node: the
+// "top" node of beam k-1 to the "bottom" node of beam k, by spherical joints (even k) and revolute
+// joints about x (odd k). The base spins; every joint moves.
+inline System flexible_chain(int n) {
+  System s;
+  s.name = "flexible_chain" + std::to_string(n);
+  for (int k = 1; k <= n; ++k)
+    s.bodies.push_back(flexible_beam("beam" + std::to_string(k), 10, 2, 6, 1, 1, {30, 50}));
+  Joint base = free_joint(0);
+  base.w_NB_B0 = Eigen::Vector3d(0.3, 0.2, 0.5);
+  s.joints.push_back(base);
+  for (int k = 2; k <= n; ++k) {
+    Joint j;
+    j.name = "joint" + std::to_string(k);
+    j.type = k % 2 == 0 ? JointType::Spherical : JointType::Revolute;
+    j.parent = k - 2;
+    j.child = k - 1;
+    j.parent_node = node_of(s, k - 2, "top");
+    j.child_node = node_of(s, k - 1, "bottom");
+    j.p_PoJ_P = Eigen::Vector3d(0, 0, 1);
+    j.p_CoJ_C = Eigen::Vector3d(0, 0, -1);
+    j.axis_P = Eigen::Vector3d::UnitX();
+    j.rate0 = 0.4;
+    j.w_PC_C0 = Eigen::Vector3d(0.1, -0.2, 0.3);
+    s.joints.push_back(j);
+  }
+  return s;
+}
+
 // A state of `system` with deformation: eta and eta' of every flexible body uniform in
 // [-eta_max, eta_max] and [-rate_max, rate_max].
 inline void deform(const System& system, TreeState& ts, std::mt19937& rng, double eta_max,
