@@ -23,12 +23,13 @@ auto size_arg(int d) {
 }
 
 // Views of a body's d x d matrices, d x 6 and 6 x d link matrices and d-vectors, with the
-// compile-time size D (6 or Eigen::Dynamic).
-template <int D> using Mat = Eigen::Map<Eigen::Matrix<double, D, D>>;
+// compile-time size D (6 or Eigen::Dynamic). Whole matrices start at an Eigen heap block, aligned
+// to 16 bytes; vector segments at body offsets need not be.
+template <int D> using Mat = Eigen::Map<Eigen::Matrix<double, D, D>, Eigen::Aligned16>;
 template <int D> using Vec = Eigen::Map<Eigen::Matrix<double, D, 1>>;
 template <int D> using ConstVec = Eigen::Map<const Eigen::Matrix<double, D, 1>>;
-template <int D> using ColsD = Eigen::Map<Eigen::Matrix<double, D, 6>>;  // d x 6
-template <int D> using RowsD = Eigen::Map<Eigen::Matrix<double, 6, D>>;  // 6 x d
+template <int D> using ColsD = Eigen::Map<Eigen::Matrix<double, D, 6>, Eigen::Aligned16>;  // d x 6
+template <int D> using RowsD = Eigen::Map<Eigen::Matrix<double, 6, D>, Eigen::Aligned16>;  // 6 x d
 
 // A = L L^T on the leading n x n block (Golub & Van Loan 2013, Alg. 4.2.1, column form). Writes
 // L's lower triangle and 1 / L(j, j). False when A is not (numerically) positive definite: a
@@ -83,10 +84,10 @@ TreeKkt::TreeKkt(std::vector<int> dofs, std::vector<KktLink> links)
   const std::size_t nb = dofs_.size(), nl = links_.size();
   // The base is the one body that is nobody's child.
   std::vector<bool> is_child(nb, false);
-  leaf_.assign(nb, true);
+  leaf_.assign(nb, 1);
   for (const KktLink& l : links_) {
     is_child[at(l.child)] = true;
-    leaf_[at(l.parent)] = false;
+    leaf_[at(l.parent)] = 0;
   }
   for (std::size_t b = 0; b < nb; ++b)
     if (!is_child[b]) base_ = static_cast<int>(b);
@@ -96,7 +97,7 @@ TreeKkt::TreeKkt(std::vector<int> dofs, std::vector<KktLink> links)
     offset_.push_back(size_);
     size_ += d;
     max_dofs = std::max(max_dofs, d);
-    rigid_.push_back(d == 6);
+    rigid_.push_back(d == 6 ? 1 : 0);
     M_.push_back(Eigen::MatrixXd::Identity(d, d));
     D_body_.push_back(Eigen::MatrixXd::Zero(d, d));
     L_body_.push_back(Eigen::MatrixXd::Identity(d, d));
@@ -138,7 +139,7 @@ bool TreeKkt::set_mass(int b, const Eigen::Ref<const Eigen::MatrixXd>& M) {
 // With D_C = L_C L_C^T:   -D_k = J_C D_C^{-1} J_C^T = V_k^T V_k,      V_k = L_C^{-1} J_C^T;
 // with -D_k = L_k L_k^T:  D_P -= J_P^T D_k^{-1} J_P, i.e. D_P += W_k^T W_k, W_k = L_k^{-1} J_P.
 template <int D>
-void TreeKkt::link_child_factor(std::size_t k) {
+EIGEN_ALWAYS_INLINE void TreeKkt::link_child_factor(std::size_t k) {
   const KktLink& l = links_[k];
   const std::size_t c = at(l.child);
   const int d = dofs_[c];
@@ -150,7 +151,7 @@ void TreeKkt::link_child_factor(std::size_t k) {
 }
 
 template <int D>
-void TreeKkt::link_parent_update(std::size_t k) {
+EIGEN_ALWAYS_INLINE void TreeKkt::link_parent_update(std::size_t k) {
   const KktLink& l = links_[k];
   const std::size_t p = at(l.parent);
   const int d = dofs_[p];
@@ -161,8 +162,11 @@ void TreeKkt::link_parent_update(std::size_t k) {
 }
 
 bool TreeKkt::factor() {
-  for (std::size_t b = 0; b < M_.size(); ++b)
-    if (!leaf_[b]) D_body_[b] = M_[b];
+  for (std::size_t b = 0; b < M_.size(); ++b) {
+    if (leaf_[b]) continue;
+    if (rigid_[b]) Mat<6>(D_body_[b].data()) = Mat<6>(M_[b].data());
+    else D_body_[b] = M_[b];
+  }
   for (int k = links() - 1; k >= 0; --k) {
     const KktLink& l = links_[at(k)];
     const std::size_t c = at(l.child), kk = at(k);
@@ -193,7 +197,7 @@ bool TreeKkt::factor() {
 // y_i = D_i^{-1} r_i; backward (parents first) x_i = y_i - J_i x_{parent(i)}, where
 // J_link x_P = -L_k^{-T} (W_k x_P) and J_body x_k = L_C^{-T} (V_k x_k).
 template <int D>
-void TreeKkt::solve_child_down(std::size_t k) {
+EIGEN_ALWAYS_INLINE void TreeKkt::solve_child_down(std::size_t k) {
   const KktLink& l = links_[k];
   const std::size_t c = at(l.child);
   const int d = dofs_[c], o = offset_[c];
@@ -212,7 +216,7 @@ void TreeKkt::solve_child_down(std::size_t k) {
 }
 
 template <int D>
-void TreeKkt::solve_parent_down(std::size_t k) {
+EIGEN_ALWAYS_INLINE void TreeKkt::solve_parent_down(std::size_t k) {
   const std::size_t p = at(links_[k].parent);
   const int d = dofs_[p];
   Vec<D>(r_body_.data() + offset_[p], d).noalias() -=
@@ -220,7 +224,7 @@ void TreeKkt::solve_parent_down(std::size_t k) {
 }
 
 template <int D>
-void TreeKkt::solve_base() {
+EIGEN_ALWAYS_INLINE void TreeKkt::solve_base() {
   const std::size_t b = at(base_);
   const int d = dofs_[b], o = offset_[b];
   Vec<D> x(y_body_.data() + o, d);
@@ -232,7 +236,7 @@ void TreeKkt::solve_base() {
 // Link k's multipliers from its parent's accelerations: y_k = y_link_k + L_k^{-T} (W_k nu_P)
 // (stored back into y_link_).
 template <int D>
-void TreeKkt::solve_parent_up(std::size_t k, const Eigen::Ref<const Eigen::VectorXd>& nu_dot) {
+EIGEN_ALWAYS_INLINE void TreeKkt::solve_parent_up(std::size_t k, const Eigen::Ref<const Eigen::VectorXd>& nu_dot) {
   const KktLink& l = links_[k];
   const std::size_t p = at(l.parent);
   const int d = dofs_[p];
@@ -245,7 +249,7 @@ void TreeKkt::solve_parent_up(std::size_t k, const Eigen::Ref<const Eigen::Vecto
 
 // The child's accelerations from its link's multipliers: nu_C = y_C - L_C^{-T} (V_k y_k).
 template <int D>
-void TreeKkt::solve_child_up(std::size_t k, Eigen::Ref<Eigen::VectorXd> nu_dot) {
+EIGEN_ALWAYS_INLINE void TreeKkt::solve_child_up(std::size_t k, Eigen::Ref<Eigen::VectorXd> nu_dot) {
   const std::size_t c = at(links_[k].child);
   const int d = dofs_[c], o = offset_[c];
   Vec<D> t(t_body_.data(), d);

@@ -92,7 +92,7 @@ class TreeKkt {
   std::vector<int> dofs_, offset_;
   int size_ = 0;
   int base_ = 0;
-  std::vector<bool> rigid_;  // dofs == 6: the compile-time-size kernels
+  std::vector<char> rigid_;  // dofs == 6: the compile-time-size kernels
   std::vector<Eigen::MatrixXd> M_, JP_, JC_;
   // Factors in square-root form: D_body = L_b L_b^T, -D_link = L_k L_k^T (lower triangles and
   // reciprocal diagonals), V_k = L_{C_k}^{-1} J_C^T (d_C x 6) and W_k = L_k^{-1} J_P (6 x d_P),
@@ -102,7 +102,7 @@ class TreeKkt {
   std::vector<Eigen::VectorXd> inv_diag_body_;
   std::vector<Matrix6d> L_link_;
   std::vector<Vector6d> inv_diag_link_;
-  std::vector<bool> leaf_;  // body with no child link: D_body = M, factor cached by set_mass()
+  std::vector<char> leaf_;  // body with no child link: D_body = M, factor cached by set_mass()
   // Solve scratch: stacked body vectors, one body's vector, per-link vectors.
   Eigen::VectorXd r_body_, y_body_, t_body_;
   std::vector<Vector6d> r_link_, y_link_;
