@@ -278,7 +278,7 @@ TEST_CASE("kane flex: Kane's equations F_r + F_r* = 0 hold particle by particle 
 
 TEST_CASE(
     "kane flex: the mass matrix is sum m_i V_r.V_s + W_r.J W_s over the nodes, symmetric "
-    "and positive definite; energy and momenta equal the node sums") {
+    "and positive definite, energy and momenta equal the node sums") {
   const System s = flex_tree(true);
   kane::KaneEngine e(s, {});
   const int nq = e.position_size(), nu = e.speed_size();
@@ -348,7 +348,7 @@ TEST_CASE("kane flex: the sparse L^T D L solve satisfies M u' = f and agrees wit
 }
 
 TEST_CASE(
-    "kane flex: accelerations() agree with differences of the body frames' motion; eta'' is "
+    "kane flex: accelerations() agree with differences of the body frames' motion, eta'' is "
     "the modal part of xdot") {
   const System s = flex_tree(true);
   kane::KaneEngine e(s, {});
@@ -478,7 +478,7 @@ System vibrating_body(double k) {
 }  // namespace
 
 TEST_CASE(
-    "kane flex: a momentum-free mode of a free body vibrates at sqrt(K / M_modal); the rigid "
+    "kane flex: a momentum-free mode of a free body vibrates at sqrt(K / M_modal), the rigid "
     "motion stays zero") {
   const double k = 37.0, M_modal = 2.0 + 4.0 + 2.0;  // sum m_i |Phi_i|^2
   const double omega = std::sqrt(k / M_modal), period = 2 * M_PI / omega;
@@ -757,7 +757,7 @@ TEST_CASE("kane flex: pack makes the total linear momentum zero, modal rates inc
 }
 
 TEST_CASE(
-    "kane flex: state labels name the modal states; output rows carry eta, eta' and E with "
+    "kane flex: state labels name the modal states, output rows carry eta, eta' and E with "
     "the strain energy") {
   const System s = vibrating_body(20.0);
   kane::KaneEngine e(s, {});
