@@ -7,7 +7,7 @@
 #include "core/engine.hpp"
 #include "harness/engines.hpp"
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 
 #include <iostream>
 #include <memory>

@@ -75,7 +75,8 @@ class Engine {
 
   // TreeState => x (size state_size()).
   virtual void pack(const TreeState& s, double* x) = 0;
-  // (t, x) => xdot. Must not allocate. Must not throw except RunFailure.
+  // (t, x) => xdot. Must not allocate. Must not throw except RunFailure and cancel::Cancelled
+  // (long loops call cancel::poll(), core/cancel.hpp; so may the constructor).
   virtual void rhs(double t, const double* x, double* xdot) = 0;
   // Called after every accepted step. May change x (renormalise quaternions, project onto the
   // constraint manifold, switch Euler-angle charts); returns true when it did, so the integrator

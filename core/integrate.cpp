@@ -8,6 +8,7 @@
 //   bulirsch-stoer  bulirsch_stoer                                      (Hairer et al. I, Sec. II.9)
 #include "core/integrate.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 
 #include <boost/numeric/odeint.hpp>
@@ -26,8 +27,6 @@ using State = std::vector<double>;
 
 namespace {
 
-std::atomic<bool> g_interrupt{false};
-
 // Largest magnitude we accept in a state or derivative before calling the run diverged.
 constexpr double kDiverged = 1e100;
 
@@ -37,13 +36,25 @@ std::string fmt(double v) {
   return b;
 }
 
+// A stage of an adaptive trial step produced a non-finite or diverged derivative: the trial is
+// rejected (integrate.hpp), not the run.
+struct TrialRejected {
+  std::string quantity, reason;  // "d/dt main.wx", "non-finite derivative"
+};
+
 // The Odeint system: (x, t) => dxdt through the engine, counted and checked.
 // Loads are right-continuous (value(t) switches at t = breakpoint), but a step that ends on a
 // breakpoint must see the load of the interval it integrates: stage times at or past the end of the
 // current load interval are evaluated just before it.
+// A bad derivative ends the run when the method has no trial steps (rk4) or when it is the
+// derivative at the accepted state itself (no shorter step can avoid it); otherwise it rejects
+// the trial step.
 struct OdeSystem {
   Engine* engine;
   RunStats* stats;
+  bool trial_steps = false;      // adaptive method
+  double start_t = 0;            // the accepted state the current step starts from
+  const State* start_x = nullptr;
   double interval_end = std::numeric_limits<double>::infinity();
   void operator()(const State& x, State& dxdt, double t_stage) const {
     ++stats->rhs_calls;
@@ -52,12 +63,19 @@ struct OdeSystem {
                          : t_stage;
     engine->rhs(t, x.data(), dxdt.data());
     for (std::size_t i = 0; i < dxdt.size(); ++i)
-      if (!std::isfinite(dxdt[i]) || std::abs(dxdt[i]) > kDiverged)
-        throw RunFailure(engine->name(), t, "d/dt " + engine->state_label(static_cast<int>(i)),
-                         std::isfinite(dxdt[i]) ? "derivative diverged (" + fmt(dxdt[i]) + ")"
-                                                : "non-finite derivative");
+      if (!std::isfinite(dxdt[i]) || std::abs(dxdt[i]) > kDiverged) {
+        std::string quantity = "d/dt " + engine->state_label(static_cast<int>(i));
+        std::string reason = std::isfinite(dxdt[i]) ? "derivative diverged (" + fmt(dxdt[i]) + ")"
+                                                    : "non-finite derivative";
+        const bool at_start = t_stage == start_t && start_x != nullptr && x == *start_x;
+        if (trial_steps && !at_start) throw TrialRejected{std::move(quantity), std::move(reason)};
+        throw RunFailure(engine->name(), t, quantity, reason);
+      }
   }
 };
+
+// A trial step that blew up is retried this much shorter.
+constexpr double kBlowUpShrink = 0.25;
 
 void check_state(const Engine& engine, double t, const State& x) {
   for (std::size_t i = 0; i < x.size(); ++i)
@@ -79,14 +97,18 @@ std::vector<double> output_times(double duration, double step) {
 class Runner {
  public:
   Runner(Engine& engine, const System& system, const IntegratorSettings& s, RunResult& result,
-         const RowCallback& on_row)
-      : engine_(engine), s_(s), result_(result), on_row_(on_row),
+         const RowCallback& on_row, const StepCallback& on_step, RowStore* rows)
+      : engine_(engine), s_(s), result_(result), on_row_(on_row), on_step_(on_step), rows_(rows),
         sys_{&engine, &result.stats}, outputs_(output_times(s.duration, s.output_step)),
-        breaks_(system.breakpoints()), row_(engine.columns().size()) {}
+        breaks_(system.breakpoints()), row_(engine.columns().size()) {
+    sys_.trial_steps = s.method != "rk4";
+    sys_.start_x = &start_x_;
+  }
 
   void run(State& x) {
     check_state(engine_, 0.0, x);
     emit(0.0, x);
+    if (on_step_) on_step_(0.0, result_.stats);
     if (s_.method == "rk4") fixed_rk4(x);
     else if (s_.method == "dopri5") dense_dopri5(x);
     else if (s_.method == "rkf78") {
@@ -104,19 +126,37 @@ class Runner {
     for (std::size_t i = 0; i < row_.size(); ++i)
       if (!std::isfinite(row_[i]))
         throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
-    if (s_.keep_rows) result_.data.insert(result_.data.end(), row_.begin(), row_.end());
+    if (rows_) {
+      try {
+        rows_->append(row_.data());
+      } catch (const RowStorageError& e) {
+        throw RunFailure(engine_.name(), t, "", e.what());
+      }
+    }
     if (on_row_) on_row_(row_.data());
   }
 
-  // Called before every step attempt: interrupt and step limit.
-  void guard(double t) {
+  // Called before every step attempt from the accepted state (t, x): cancellation, step limit.
+  void guard(double t, const State& x) {
     last_t_ = t;
     sys_.interval_end = next_break(t);
-    if (g_interrupt.load(std::memory_order_relaxed))
-      throw RunFailure(engine_.name(), t, "", "interrupted");
+    sys_.start_t = t;
+    start_x_ = x;
+    cancel::poll();
     if (result_.stats.steps + result_.stats.rejected >= s_.max_steps)
       throw RunFailure(engine_.name(), t, "",
                        "step limit reached (" + std::to_string(s_.max_steps) + " steps)");
+  }
+
+  // An adaptive step below min_step ends the run. When the last rejection was a blow-up, the
+  // failure names its quantity and reason: no step, however short, got past it.
+  void underflow(double t, double dt) const {
+    if (dt >= s_.min_step) return;
+    const std::string what = "step-size underflow (step " + fmt(dt) + " s below " + fmt(s_.min_step) + " s)";
+    if (blow_up_)
+      throw RunFailure(engine_.name(), t, blow_up_->quantity,
+                       blow_up_->reason + " in every trial step down to the minimum step; " + what);
+    throw RunFailure(engine_.name(), t, "", what);
   }
 
   // The next time a step must land on: the target output time or an earlier load breakpoint.
@@ -134,12 +174,14 @@ class Runner {
   bool accepted(double t, State& x) {
     ++result_.stats.steps;
     check_state(engine_, t, x);
+    bool changed = false;
     if (engine_.after_step(t, x.data())) {
       ++result_.stats.restarts;
       check_state(engine_, t, x);
-      return true;
+      changed = true;
     }
-    return false;
+    if (on_step_) on_step_(t, result_.stats);
+    return changed;
   }
 
   void fixed_rk4(State& x) {
@@ -147,7 +189,7 @@ class Runner {
     double t = 0;
     for (std::size_t k = 1; k < outputs_.size(); ++k) {
       while (t < outputs_[k]) {
-        guard(t);
+        guard(t, x);
         const double stop = next_stop(t, outputs_[k]);
         const bool last = stop - t <= s_.dt * (1 + 1e-9);
         const double h = last ? stop - t : s_.dt;
@@ -164,12 +206,24 @@ class Runner {
     double t = 0, dt = s_.dt;
     for (std::size_t k = 1; k < outputs_.size(); ++k) {
       while (t < outputs_[k]) {
-        guard(t);
+        guard(t, x);
         const double stop = next_stop(t, outputs_[k]);
         const bool clipped = dt >= stop - t;
         double h = clipped ? stop - t : dt;
-        const double t_before = t;
-        if (stepper.try_step(sys_, x, t, h) == odeint::success) {
+        const double t_before = t, attempted = h;
+        odeint::controlled_step_result result = odeint::fail;
+        bool blew_up = false;
+        try {
+          result = stepper.try_step(sys_, x, t, h);  // x, t unchanged unless it succeeds
+        } catch (TrialRejected& blow_up) {
+          blow_up_ = std::move(blow_up);
+          blew_up = true;
+          h = attempted * kBlowUpShrink;
+          t = t_before;
+          if constexpr (requires { stepper.reset(); }) stepper.reset();  // Bulirsch-Stoer tables
+        }
+        if (result == odeint::success) {
+          blow_up_.reset();
           // A clipped step's suggestion reflects the short step; keep the longer accepted one.
           dt = clipped ? std::max(dt, h) : h;
           if (clipped) t = stop;  // land exactly, free of rounding
@@ -177,12 +231,10 @@ class Runner {
             if constexpr (requires { stepper.reset(); }) stepper.reset();  // Bulirsch-Stoer state
           }
         } else {
+          if (!blew_up) blow_up_.reset();
           ++result_.stats.rejected;
           dt = h;
-          if (dt < s_.min_step)
-            throw RunFailure(engine_.name(), t_before, "",
-                             "step-size underflow (step " + fmt(dt) + " s below " +
-                                 fmt(s_.min_step) + " s)");
+          underflow(t_before, dt);
         }
       }
       emit(outputs_[k], x);
@@ -196,14 +248,25 @@ class Runner {
     State xo(x.size());
     while (k < outputs_.size()) {
       const double t = stepper.current_time();
-      guard(t);
+      guard(t, stepper.current_state());
       // Do not straddle a load breakpoint: restart with a step that ends on it.
       const double stop = next_break(t);
       if (stop < outputs_.back() && t + stepper.current_time_step() > stop)
-        stepper.initialize(stepper.current_state(), t, stop - t);
+        stepper.initialize(State(stepper.current_state()), t, stop - t);
       const long rhs_before = result_.stats.rhs_calls;
-      const auto [t0, t1] = stepper.do_step(sys_);
-      (void)t0;
+      std::pair<double, double> step;
+      try {
+        step = stepper.do_step(sys_);  // the current state is unchanged unless it succeeds
+      } catch (TrialRejected& blow_up) {
+        blow_up_ = std::move(blow_up);
+        ++result_.stats.rejected;
+        const double h = stepper.current_time_step() * kBlowUpShrink;
+        underflow(t, h);
+        stepper.initialize(State(stepper.current_state()), t, h);
+        continue;
+      }
+      const double t1 = step.second;
+      blow_up_.reset();
       // Each rejected trial step of dopri5 costs 6 new stages (FSAL reuses the seventh).
       result_.stats.rejected += std::max(0L, (result_.stats.rhs_calls - rhs_before) / 6 - 1);
       if (stepper.current_time_step() < s_.min_step)
@@ -221,6 +284,8 @@ class Runner {
   }
 
   double last_t_ = 0;
+  State start_x_;
+  std::optional<TrialRejected> blow_up_;  // the last rejection, when it was a blow-up
 
  public:
   double last_time() const { return last_t_; }
@@ -230,6 +295,8 @@ class Runner {
   const IntegratorSettings& s_;
   RunResult& result_;
   const RowCallback& on_row_;
+  const StepCallback& on_step_;
+  RowStore* rows_;
   OdeSystem sys_;
   std::vector<double> outputs_;
   std::vector<double> breaks_;
@@ -249,17 +316,43 @@ IntegratorSettings IntegratorSettings::from(const RunSpec& run) {
   return s;
 }
 
-std::vector<std::string> integrator_names() { return {"rk4", "dopri5", "rkf78", "bulirsch-stoer"}; }
+// integrator_names() is defined in core/run_limits.cpp, with the other limits on run settings.
 
 int RunResult::column(const std::string& name) const {
   const auto it = std::find(columns.begin(), columns.end(), name);
   return it == columns.end() ? -1 : static_cast<int>(it - columns.begin());
 }
 
-void request_interrupt() { g_interrupt.store(true, std::memory_order_relaxed); }
+std::size_t RunResult::rows() const {
+  if (spill) return spill->rows();
+  return columns.empty() ? 0 : data.size() / columns.size();
+}
+
+double RunResult::at(std::size_t row, std::size_t col) const {
+  if (!spill) return data[row * columns.size() + col];
+  std::vector<double> buffer(columns.size());
+  spill->read(row, 1, buffer.data());
+  return buffer[col];
+}
+
+void RunResult::for_each_row(const std::function<void(const double* row)>& f) const {
+  RowReader r = reader();
+  while (const double* row = r.next()) f(row);
+}
+
+void RunResult::store(RowStore::Rows rows) {
+  data = std::move(rows.data);
+  spill = std::move(rows.file);
+  reservation = std::move(rows.reservation);
+}
+
+void request_interrupt() { cancel::request_interrupt(); }
+bool interrupt_requested() { return cancel::interrupted(); }
+void clear_interrupt() { cancel::detail::reset_interrupt_for_tests(); }
 
 RunResult simulate(Engine& engine, const System& system, const TreeState& initial,
-                   const IntegratorSettings& s, const RowCallback& on_row) {
+                   const IntegratorSettings& s, const RowCallback& on_row,
+                   const StepCallback& on_step) {
   const auto names = integrator_names();
   if (std::find(names.begin(), names.end(), s.method) == names.end())
     throw InputError("unknown integrator '" + s.method +
@@ -281,15 +374,26 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
   result.columns = engine.columns();
   State x(static_cast<std::size_t>(engine.state_size()));
   const auto start = std::chrono::steady_clock::now();
-  Runner runner(engine, system, s, result, on_row);
+  std::optional<RowStore> rows;
+  if (s.keep_rows) rows.emplace(result.columns.size());
+  Runner runner(engine, system, s, result, on_row, on_step, rows ? &*rows : nullptr);
   try {
     engine.pack(initial, x.data());
     runner.run(x);
   } catch (const RunFailure& f) {
     result.failure = f;
+  } catch (const cancel::Cancelled& c) {
+    result.failure = RunFailure(engine.name(), runner.last_time(), "", c.what());
   } catch (const odeint::odeint_error& e) {  // step adjustment or no progress inside Odeint
     result.failure = RunFailure(engine.name(), runner.last_time(), "",
                                 std::string("integrator gave up: ") + e.what());
+  }
+  if (rows) {
+    try {
+      result.store(rows->finish());
+    } catch (const RowStorageError& e) {
+      if (!result.failure) result.failure = RunFailure(engine.name(), runner.last_time(), "", e.what());
+    }
   }
   result.stats.wall_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -9,12 +9,24 @@
 // Adaptive steps are also clipped at the scene's load breakpoints (System::breakpoints()).
 // After every accepted step the engine's after_step() runs; when it changes the state the stepper
 // is restarted. Every right-hand-side call is counted and its result checked for non-finite values.
+//
+// What ends a run (RunResult::failure), and what does not:
+//   * A trial step of an adaptive method (dopri5, rkf78, bulirsch-stoer) in which any stage's
+//     derivative is non-finite or diverged (|value| > 1e100) is a rejected step, like one whose
+//     error estimate is too large: the step is retried 4 times shorter. Only these end the run:
+//     a non-finite or diverged derivative at an accepted state, a non-finite or diverged accepted
+//     state or output, a step-size underflow (below min_step), the step limit (max_steps), an
+//     engine's own RunFailure, and cancellation (core/cancel.hpp: "interrupted", or
+//     "timed out after N s" when a cancel::Deadline of the calling thread passed).
+//   * rk4 (fixed step) has no trial steps: a non-finite or diverged derivative ends the run.
 #pragma once
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
+#include "core/rows.hpp"
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,7 +42,8 @@ struct IntegratorSettings {
   double output_step = 0;        // s
   long max_steps = 20'000'000;   // accepted + rejected steps before the run is declared failed
   double min_step = 1e-13;       // s; an adaptive step below this is a step-size underflow
-  bool keep_rows = true;         // false: rows go only to the RowCallback (long streamed runs)
+  bool keep_rows = true;         // false: rows go only to the RowCallback (long streamed runs);
+                                 // true: kept in RunResult, in memory or a temporary file (rows.hpp)
   // From a scene's run block (duration, output step, method, tolerances, dt).
   static IntegratorSettings from(const RunSpec& run);
 };
@@ -45,29 +58,48 @@ struct RunStats {
   double wall_seconds = 0;
 };
 
+// A run's output rows and how it went. The rows are in `data` (row-major, in memory) or, when
+// they did not fit the program's row memory budget (core/rows.hpp), in the temporary file
+// `spill` (data then empty). Read them in order with reader() or for_each_row(), which work for
+// both; at() reads one value from either (from the file: one read per call).
 struct RunResult {
   std::string engine;
   std::vector<std::string> columns;
-  std::vector<double> data;   // row-major, rows() x columns.size()
+  std::vector<double> data;             // row-major, rows() x columns.size(), when in memory
+  std::shared_ptr<const RowFile> spill;  // the rows, when moved to a temporary file
+  std::shared_ptr<const void> reservation;  // data's share of the row memory budget
   RunStats stats;
   std::optional<RunFailure> failure;  // set when the run ended early; rows before it are valid
 
-  std::size_t rows() const { return columns.empty() ? 0 : data.size() / columns.size(); }
-  double at(std::size_t row, std::size_t col) const { return data[row * columns.size() + col]; }
+  std::size_t rows() const;
+  double at(std::size_t row, std::size_t col) const;
   int column(const std::string& name) const;  // index, or -1
+  RowReader reader() const { return RowReader(&data, spill, columns.size()); }
+  void for_each_row(const std::function<void(const double* row)>& f) const;
+  // Takes the rows of a finished writer (replacing any rows held).
+  void store(RowStore::Rows rows);
 };
 
 // Called with each finished row (columns.size() values) as soon as it is computed.
 using RowCallback = std::function<void(const double* row)>;
 
+// Called after every accepted step with the time reached and the counts so far (progress).
+using StepCallback = std::function<void(double t, const RunStats& stats)>;
+
 // Runs `engine` from `initial`. Throws InputError for bad settings (unknown method, non-positive
 // step or tolerance). A failing run (RunFailure from the engine or the plumbing: non-finite
-// derivative or state, step-size underflow, step limit, interrupt) is returned in
-// RunResult::failure, not thrown.
+// derivative or state, step-size underflow, step limit, interrupt, timeout, rows that cannot be
+// stored) is returned in RunResult::failure, not thrown. cancel::poll() is called before every
+// step attempt (engines poll inside long right-hand sides).
 RunResult simulate(Engine& engine, const System& system, const TreeState& initial,
-                   const IntegratorSettings& settings, const RowCallback& on_row = {});
+                   const IntegratorSettings& settings, const RowCallback& on_row = {},
+                   const StepCallback& on_step = {});
 
-// Async-signal-safe: asks every running simulate() to stop at its next step (Ctrl-C).
+// Async-signal-safe: asks every running simulate() to stop (cancel::request_interrupt()).
 void request_interrupt();
+// Whether an interrupt was requested (long waits outside simulate() poll it), and clearing it
+// (an in-process caller that runs several commands: the fuzz target, tests).
+bool interrupt_requested();
+void clear_interrupt();
 
 }  // namespace crossdyn

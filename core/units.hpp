@@ -1,4 +1,4 @@
-// Units accepted in scene files and their factors to SI (README "Writing a scene", "Units").
+// Units accepted in scene files and their factors to SI (docs/scene-format.md "Units").
 //
 // A scene quantity is a number in SI, or a string "<number> <unit>" ("10 deg/s", "300 kg"), or for
 // vectors {value: [...], unit: ...}. find_unit() looks a unit up after normalising its spelling:
@@ -26,6 +26,13 @@ enum class Dimension {
   Stiffness,    // N m/rad
   Damping,      // N m s/rad
   Velocity,     // m/s
+};
+
+// Every dimension with a unit, in the order the documentation lists them.
+inline constexpr Dimension kDimensions[] = {
+    Dimension::Angle,  Dimension::AngularRate, Dimension::Length,    Dimension::Mass,
+    Dimension::Time,   Dimension::Inertia,     Dimension::Torque,    Dimension::Stiffness,
+    Dimension::Damping, Dimension::Velocity,
 };
 
 struct Unit {

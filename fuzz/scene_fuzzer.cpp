@@ -7,7 +7,7 @@
 //      error, and the two Systems are equal field by field (the round trip the tests assert for
 //      the committed scenes, here for every accepted input).
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/scene/system_equal.hpp"
 
 #include <cstdint>

@@ -4,8 +4,10 @@
 #include "harness/engines.hpp"
 
 #include "analytic/torque_free.hpp"
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/output_layout.hpp"
+#include "core/progress.hpp"
 #include "core/rotation.hpp"
 
 #include <algorithm>
@@ -13,6 +15,7 @@
 #include <cstdio>
 #include <exception>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -114,9 +117,109 @@ void finish(Check& c) {
   if (std::isnan(c.error)) c.normalised = kNaN;
 }
 
-// Pairwise check of one quantity: a = runs[ia] against the reference b = runs[ib].
+// The streaming comparison. Every check that needs the rows is an Accumulator; compare_runs reads
+// the runs' rows in lockstep (row k of every run at once) and feeds each accumulator, so memory
+// does not grow with the number of rows. Pass 1 finds the largest error, its time and the scale;
+// pass 2 (only for checks that failed) finds the first time the error exceeded the bound, which
+// needs the bound and therefore the whole of pass 1.
+struct Accumulator {
+  enum class Kind { Pair, Drift, Time };
+  Kind kind = Kind::Pair;
+  Check* check = nullptr;
+  std::size_t a = 0, b = 0;   // runs (indices into the lockstep rows); b unused for Drift
+  std::vector<int> ca, cb;    // the quantity's columns in a and b
+  int ta = -1, tb = -1;       // time column of a (and b for Time)
+  bool attitude = false;
+  std::size_t n = 0;          // rows compared: min of the two runs' rows
+  double tol = 0;             // Time: allowed difference of output times
+  double x0 = 0;              // Drift: the value at row 0
+  bool stopped = false;       // a NaN error was found: error and time stay as they are
+  bool found = false;         // pass 2: first_exceeded is set
+
+  // Error at one row (pass 1 also widens the scale).
+  double error(const double* A, const double* B, std::size_t k, bool widen_scale) {
+    switch (kind) {
+      case Kind::Pair: {
+        if (attitude) {
+          const Eigen::Quaterniond qa(A[ca[0]], A[ca[1]], A[ca[2]], A[ca[3]]);
+          const Eigen::Quaterniond qb(B[cb[0]], B[cb[1]], B[cb[2]], B[cb[3]]);
+          return rot::angle_between(qa.normalized(), qb.normalized());
+        }
+        const double va = A[ca[0]], vb = B[cb[0]];
+        if (widen_scale) check->scale = std::max(check->scale, std::abs(vb));
+        if (!std::isfinite(va) || !std::isfinite(vb)) return kNaN;
+        return std::abs(va - vb);
+      }
+      case Kind::Drift:
+        if (k == 0) {
+          x0 = A[ca[0]];
+          if (widen_scale) check->scale = std::abs(x0);
+        }
+        return std::abs(A[ca[0]] - x0);
+      case Kind::Time:
+        return std::abs(A[ta] - B[tb]);
+    }
+    return kNaN;
+  }
+
+  void pass1(const double* A, const double* B, std::size_t k) {
+    Check& c = *check;
+    const double e = error(A, B, k, true);
+    if (kind == Kind::Time) {
+      if (!(e <= tol) && (std::isnan(e) || e > c.error)) {
+        c.error = e;
+        c.time = A[ta];
+      }
+      return;
+    }
+    if (stopped) return;
+    if (std::isnan(e) || e > c.error) {
+      c.error = e;
+      c.time = ta >= 0 ? A[ta] : kNaN;
+      if (std::isnan(e)) stopped = true;
+    }
+  }
+
+  void pass2(const double* A, const double* B, std::size_t k) {
+    if (found) return;
+    if (!(error(A, B, k, false) <= check->bound)) {
+      check->first_exceeded = ta >= 0 ? A[ta] : kNaN;
+      found = true;
+    }
+  }
+};
+
+// Feeds rows 0 .. n-1 of every run to the accumulators, in lockstep; `second` selects pass 2.
+void feed(const std::vector<const EngineRun*>& runs, std::vector<Accumulator*>& accs, bool second) {
+  if (accs.empty()) return;
+  std::vector<RowReader> readers;
+  for (const EngineRun* r : runs) readers.push_back(r->result.reader());
+  std::size_t needed = 0;
+  for (const Accumulator* acc : accs) needed = std::max(needed, acc->n);
+  std::vector<const double*> row(runs.size(), nullptr);
+  for (std::size_t k = 0; k < needed; ++k) {
+    if ((k & 1023) == 0) cancel::poll();
+    for (std::size_t i = 0; i < runs.size(); ++i) row[i] = k < readers[i].rows() ? readers[i].next() : nullptr;
+    bool pending = false;
+    for (Accumulator* acc : accs) {
+      if (k >= acc->n) continue;
+      const double* B = acc->kind == Accumulator::Kind::Drift ? nullptr : row[acc->b];
+      if (second) {
+        acc->pass2(row[acc->a], B, k);
+        pending = pending || !acc->found;
+      } else {
+        acc->pass1(row[acc->a], B, k);
+      }
+    }
+    if (second && !pending) break;
+  }
+}
+
+// Pairwise check of one quantity: a = runs[ia] against the reference b = runs[ib]. Returns the
+// check, and in `acc` what pass 1 needs, unless the check is settled without the rows (excluded,
+// a column missing).
 Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, const Lookup& look,
-                 const Tolerance& fallback) {
+                 const Tolerance& fallback, std::optional<Accumulator>& acc) {
   Check c;
   c.quantity = q.name;
   c.group = q.group;
@@ -141,43 +244,21 @@ Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, cons
     c.error = c.normalised = kNaN;
     return c;
   }
-  const std::size_t n = std::min(A.result.rows(), B.result.rows());
-  const int ta = column_index(A.result, "t");
   c.scale = q.attitude ? 1.0 : 0.0;
-  std::vector<double> err(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    if (q.attitude) {
-      const Eigen::Quaterniond qa(A.result.at(k, ca[0]), A.result.at(k, ca[1]), A.result.at(k, ca[2]),
-                                  A.result.at(k, ca[3]));
-      const Eigen::Quaterniond qb(B.result.at(k, cb[0]), B.result.at(k, cb[1]), B.result.at(k, cb[2]),
-                                  B.result.at(k, cb[3]));
-      err[k] = rot::angle_between(qa.normalized(), qb.normalized());
-    } else {
-      const double a = A.result.at(k, ca[0]), b = B.result.at(k, cb[0]);
-      err[k] = std::abs(a - b);
-      c.scale = std::max(c.scale, std::abs(b));
-      if (!std::isfinite(a) || !std::isfinite(b)) err[k] = kNaN;
-    }
-  }
   c.error = 0;
-  for (std::size_t k = 0; k < n; ++k)
-    if (std::isnan(err[k]) || err[k] > c.error) {
-      c.error = err[k];
-      c.time = ta >= 0 ? A.result.at(k, ta) : kNaN;
-      if (std::isnan(err[k])) break;
-    }
-  finish(c);
-  for (std::size_t k = 0; k < n; ++k)
-    if (!(err[k] <= c.bound)) {
-      c.first_exceeded = ta >= 0 ? A.result.at(k, ta) : kNaN;
-      break;
-    }
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Pair;
+  acc->ca = std::move(ca);
+  acc->cb = std::move(cb);
+  acc->ta = column_index(A.result, "t");
+  acc->attitude = q.attitude;
+  acc->n = std::min(A.result.rows(), B.result.rows());
   return c;
 }
 
 // Drift of H or E of one engine from its initial value.
 Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
-                  const std::string& not_conserved) {
+                  const std::string& not_conserved, std::optional<Accumulator>& acc) {
   Check c;
   c.quantity = x + ".drift";
   c.group = c.quantity;
@@ -201,28 +282,17 @@ Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
     c.note = "column '" + x + "' missing from " + R.label + "'s output";
     return c;
   }
-  const double x0 = R.result.at(0, ix);
-  c.scale = std::abs(x0);
-  std::vector<double> err(R.result.rows());
-  for (std::size_t k = 0; k < err.size(); ++k) {
-    err[k] = std::abs(R.result.at(k, ix) - x0);
-    if (std::isnan(err[k]) || err[k] > c.error) {
-      c.error = err[k];
-      c.time = it >= 0 ? R.result.at(k, it) : kNaN;
-      if (std::isnan(err[k])) break;
-    }
-  }
-  finish(c);
-  for (std::size_t k = 0; k < err.size(); ++k)
-    if (!(err[k] <= c.bound)) {
-      c.first_exceeded = it >= 0 ? R.result.at(k, it) : kNaN;
-      break;
-    }
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Drift;
+  acc->ca = {ix};
+  acc->ta = it;
+  acc->n = R.result.rows();
   return c;
 }
 
-// Output times of two runs agree (row by row, to 1e-9 of the output step)?
-std::optional<Check> time_check(const EngineRun& A, const EngineRun& B, double tol) {
+// Output times of two runs agree (row by row, to 1e-9 of the output step)? The check is kept
+// only when they do not (finish_time_check).
+Check time_check(const EngineRun& A, const EngineRun& B, double tol, std::optional<Accumulator>& acc) {
   const int ta = column_index(A.result, "t"), tb = column_index(B.result, "t");
   Check c;
   c.quantity = c.group = "t";
@@ -236,23 +306,27 @@ std::optional<Check> time_check(const EngineRun& A, const EngineRun& B, double t
     c.note = "column 't' missing";
     return c;
   }
-  const std::size_t n = std::min(A.result.rows(), B.result.rows());
-  for (std::size_t k = 0; k < n; ++k) {
-    const double d = std::abs(A.result.at(k, ta) - B.result.at(k, tb));
-    if (!(d <= tol) && (std::isnan(d) || d > c.error)) {
-      c.error = d;
-      c.time = A.result.at(k, ta);
-    }
-  }
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Time;
+  acc->ta = ta;
+  acc->tb = tb;
+  acc->tol = tol;
+  acc->n = std::min(A.result.rows(), B.result.rows());
+  return c;
+}
+
+// After pass 1: false when the output times agree (the check is dropped).
+bool finish_time_check(Check& c, const EngineRun& A, const EngineRun& B, bool streamed) {
+  if (!streamed) return true;  // settled without rows (a 't' column missing)
   if (A.result.rows() != B.result.rows()) {
     c.note = A.label + " has " + std::to_string(A.result.rows()) + " rows, " + B.label + " " +
              std::to_string(B.result.rows());
     c.error = std::max(c.error, std::numeric_limits<double>::infinity());
   }
-  if (c.error == 0) return std::nullopt;
+  if (c.error == 0) return false;
   finish(c);
   if (c.note.empty()) c.note = "the two runs were sampled at different output times";
-  return c;
+  return true;
 }
 
 bool has_dampers(const System& s) {
@@ -330,15 +404,19 @@ RunResult analytic_run(const System& system, const std::vector<double>& times) {
   RunResult r;
   r.engine = "analytic";
   r.columns = pinned_columns(system);
-  r.data.reserve(times.size() * r.columns.size());
+  RowStore rows(r.columns.size());
   for (double t : times) {
+    if ((rows.rows() & 1023) == 0) cancel::poll();
     const analytic::TorqueFreeState x = reference.at(t);
     const Eigen::Quaterniond q = rot::canonical(x.q_NB);
     const Eigen::Vector3d H_B = body.I_BBo_B * x.w_NB_B;
     const double row[] = {t, x.w_NB_B.x(), x.w_NB_B.y(), x.w_NB_B.z(), q.w(), q.x(), q.y(), q.z(),
                           H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation};
-    r.data.insert(r.data.end(), std::begin(row), std::end(row));
+    if (r.columns.size() != std::size(row))
+      throw std::logic_error("analytic_run: the pinned columns of a single body changed");
+    rows.append(row);
   }
+  r.store(rows.finish());
   return r;
 }
 
@@ -389,9 +467,22 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
     out.notes.push_back(ok.empty() ? "no run finished: nothing to compare"
                                    : "only " + ok[0]->label + " finished: no pairwise comparison");
 
+  // Every check is made first (in table order), with an accumulator when it needs the rows; then
+  // the rows are read once in lockstep (pass 1), and again for the checks that failed (pass 2).
+  auto index_of = [&ok](const EngineRun* r) {
+    return static_cast<std::size_t>(std::find(ok.begin(), ok.end(), r) - ok.begin());
+  };
+  std::vector<Check> time_checks, checks;
+  std::vector<std::optional<Accumulator>> time_accs, accs;
   const double t_tol = 1e-9 * std::max(1.0, system.run.output_step);
-  for (const auto& [A, B] : pairs)
-    if (auto c = time_check(*A, *B, t_tol)) out.checks.push_back(*c);
+  for (const auto& [A, B] : pairs) {
+    time_accs.emplace_back();
+    time_checks.push_back(time_check(*A, *B, t_tol, time_accs.back()));
+    if (time_accs.back()) {
+      time_accs.back()->a = index_of(A);
+      time_accs.back()->b = index_of(B);
+    }
+  }
 
   // Pinned quantities, then extra columns the scene's tolerances name.
   std::vector<Quantity> quantities = pinned_quantities(system);
@@ -414,15 +505,52 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
     }
   }
   for (const Quantity& q : quantities)
-    for (const auto& [A, B] : pairs) out.checks.push_back(pair_check(q, *A, *B, look, fallback));
+    for (const auto& [A, B] : pairs) {
+      accs.emplace_back();
+      checks.push_back(pair_check(q, *A, *B, look, fallback, accs.back()));
+      if (accs.back()) {
+        accs.back()->a = index_of(A);
+        accs.back()->b = index_of(B);
+      }
+    }
 
   // Drift of each engine (not of the analytic solution).
   const std::string no_E = energy_not_conserved_reason(system);
   const std::string no_H = momentum_not_conserved_reason(system);
   for (const char* x : {"H", "E"})
     for (const EngineRun* r : ok)
-      if (r->engine != "analytic")
-        out.checks.push_back(drift_check(x, *r, look, std::string(x) == "E" ? no_E : no_H));
+      if (r->engine != "analytic") {
+        accs.emplace_back();
+        checks.push_back(drift_check(x, *r, look, std::string(x) == "E" ? no_E : no_H, accs.back()));
+        if (accs.back()) accs.back()->a = index_of(r);
+      }
+
+  // Pass 1: largest errors, their times, the scales.
+  std::vector<Accumulator*> live;
+  for (std::size_t i = 0; i < time_accs.size(); ++i)
+    if (time_accs[i]) {
+      time_accs[i]->check = &time_checks[i];
+      live.push_back(&*time_accs[i]);
+    }
+  for (std::size_t i = 0; i < accs.size(); ++i)
+    if (accs[i]) {
+      accs[i]->check = &checks[i];
+      live.push_back(&*accs[i]);
+    }
+  feed(ok, live, false);
+  // Pass 2: where each failed check first exceeded its bound.
+  std::vector<Accumulator*> failed;
+  for (std::size_t i = 0; i < accs.size(); ++i)
+    if (accs[i]) {
+      finish(checks[i]);
+      if (checks[i].status == CheckStatus::Fail) failed.push_back(&*accs[i]);
+    }
+  feed(ok, failed, true);
+
+  for (std::size_t i = 0; i < pairs.size(); ++i)
+    if (finish_time_check(time_checks[i], *pairs[i].first, *pairs[i].second, time_accs[i].has_value()))
+      out.checks.push_back(time_checks[i]);
+  out.checks.insert(out.checks.end(), checks.begin(), checks.end());
   if (!no_E.empty()) out.notes.push_back("E drift not checked: not conserved: " + no_E);
   if (!no_H.empty()) out.notes.push_back("H drift not checked: not conserved: " + no_H);
 
@@ -442,16 +570,24 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   if (options.rtol) settings.rtol = *options.rtol;
   if (options.atol) settings.atol = *options.atol;
   if (options.dt) settings.dt = *options.dt;
+  if (options.max_steps) settings.max_steps = *options.max_steps;
 
   std::vector<EngineSpec> specs = options.engines;
   if (specs.empty())
     for (const std::string& name : engine_names()) specs.push_back({name, name, {}});
 
+  ProgressLine progress(options.progress);
   std::vector<EngineRun> runs;
   for (const EngineSpec& spec : specs) {
+    cancel::poll();
     EngineRun run;
     run.label = spec.label;
     run.engine = spec.engine;
+    progress.start(system.name + " " + spec.label, settings.duration);
+    progress.phase("setting up the engine");
+    // The time limit covers the engine's set-up and its run; an interrupt ends everything.
+    std::optional<cancel::Deadline> deadline;
+    if (options.timeout) deadline.emplace(*options.timeout);
     std::unique_ptr<Engine> engine;
     try {
       engine = make_engine(spec.engine, system, spec.options);
@@ -462,19 +598,31 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
       run.note = what;
       runs.push_back(std::move(run));
       continue;
+    } catch (const cancel::Cancelled& c) {
+      if (c.reason() == cancel::Reason::Interrupt) throw;
+      run.result.failure = RunFailure(spec.label, 0.0, "", std::string(c.what()) + " while setting up the engine");
     }
-    try {
-      run.result = simulate(*engine, system, TreeState::initial(system), settings);
-    } catch (const InputError&) {
-      throw;
-    } catch (const RunFailure& f) {
-      run.result.failure = f;
-    } catch (const std::exception& e) {
-      run.result.failure = RunFailure(spec.label, 0.0, "", std::string("unexpected error: ") + e.what());
+    if (engine) {
+      try {
+        run.result = simulate(*engine, system, TreeState::initial(system), settings, {},
+                              [&progress](double t, const RunStats& s) { progress.update(t, s.steps); });
+      } catch (const InputError&) {
+        throw;
+      } catch (const RunFailure& f) {
+        run.result.failure = f;
+      } catch (const cancel::Cancelled& c) {  // from pack() or output_row() outside simulate's care
+        if (c.reason() == cancel::Reason::Interrupt) throw;
+        run.result.failure = RunFailure(spec.label, 0.0, "", c.what());
+      } catch (const std::exception& e) {
+        run.result.failure = RunFailure(spec.label, 0.0, "", std::string("unexpected error: ") + e.what());
+      }
+      engine.reset();  // a large engine's memory goes back before the next one is built
     }
+    deadline.reset();
+    progress.clear();
     run.result.engine = spec.label;
     if (run.result.failure) {
-      if (run.result.failure->reason() == "interrupted") throw *run.result.failure;
+      if (cancel::interrupted()) throw cancel::Cancelled(cancel::Reason::Interrupt, 0);
       run.state = EngineRun::State::Failed;
       run.note = run.result.failure->what();
     }
@@ -487,7 +635,8 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
     for (const EngineRun& r : runs)
       if (r.state == EngineRun::State::Ok && column_index(r.result, "t") == 0 &&
           r.result.rows() == times.size()) {
-        for (std::size_t k = 0; k < times.size(); ++k) times[k] = r.result.at(k, 0);
+        RowReader reader = r.result.reader();
+        for (std::size_t k = 0; k < times.size(); ++k) times[k] = reader.next()[0];
         break;
       }
     EngineRun a;
@@ -533,19 +682,106 @@ std::string text_table(const std::vector<std::vector<std::string>>& rows) {
   return out.str();
 }
 
-std::string format_comparison(const SceneComparison& c, bool failures_only) {
-  std::ostringstream out;
-  const int failed = c.count(CheckStatus::Fail);
-  out << "scene " << c.scene << (c.file.empty() ? "" : " (" + c.file + ")") << ": "
-      << (failed ? "FAIL, " + std::to_string(failed) + " of " + std::to_string(c.checks.size()) +
-                       " checks failed"
-                 : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) + " checks passed")
-      << '\n';
-  out << "integrator " << c.settings.method << ", rtol " << fmt_g(c.settings.rtol) << ", atol "
-      << fmt_g(c.settings.atol) << "; output every " << fmt_g(c.settings.output_step)
-      << " s to " << fmt_g(c.settings.duration) << " s\n\n";
+namespace {
 
-  std::vector<std::vector<std::string>> runs{{"run", "status", "rows", "rhs calls", "steps", "wall (s)", "note"}};
+// ---- compare's text output (format_comparison): at most kTextWidth characters a line ----
+constexpr std::size_t kTextWidth = 100;
+
+// `text` wrapped at kTextWidth, every line starting with `indent` (the first with `first`).
+std::string wrap(const std::string& text, const std::string& first, const std::string& indent) {
+  std::string out, line = first;
+  std::size_t pos = 0;
+  bool line_empty = true;
+  while (pos < text.size()) {
+    while (pos < text.size() && text[pos] == ' ') ++pos;
+    std::size_t end = text.find(' ', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string word = text.substr(pos, end - pos);
+    pos = end;
+    if (word.empty()) continue;
+    if (!line_empty && line.size() + 1 + word.size() > kTextWidth) {
+      out += line + "\n";
+      line = indent;
+      line_empty = true;
+    }
+    while (line.size() + (line_empty ? 0 : 1) + word.size() > kTextWidth) {  // a very long word
+      const std::size_t room = kTextWidth - line.size() - (line_empty ? 0 : 1);
+      line += (line_empty ? "" : " ") + word.substr(0, room);
+      word = word.substr(room);
+      out += line + "\n";
+      line = indent;
+      line_empty = true;
+    }
+    line += (line_empty ? "" : " ") + word;
+    line_empty = false;
+  }
+  if (!line_empty) out += line + "\n";
+  return out;
+}
+
+// A table that fits kTextWidth: columns in `shrinkable` give up width (widest first, down to 8
+// characters), their cut cells ending in '~'. Row 0 is the header, underlined.
+std::string fitted_table(std::vector<std::vector<std::string>> rows,
+                         const std::vector<std::size_t>& shrinkable) {
+  std::vector<std::size_t> width;
+  for (const auto& r : rows)
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      if (width.size() <= i) width.push_back(0);
+      width[i] = std::max(width[i], r[i].size());
+    }
+  auto total = [&width] {
+    std::size_t t = 0;
+    for (std::size_t w : width) t += w;
+    return t + 2 * (width.empty() ? 0 : width.size() - 1);
+  };
+  while (total() > kTextWidth) {
+    std::size_t widest = width.size();
+    for (std::size_t i : shrinkable)
+      if (i < width.size() && width[i] > 8 && (widest == width.size() || width[i] > width[widest]))
+        widest = i;
+    if (widest == width.size()) break;
+    --width[widest];
+  }
+  for (auto& r : rows)
+    for (std::size_t i = 0; i < r.size(); ++i)
+      if (r[i].size() > width[i]) r[i] = r[i].substr(0, width[i] - 1) + "~";
+  std::string out;
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    std::string line;
+    for (std::size_t i = 0; i < rows[k].size(); ++i) {
+      line += rows[k][i];
+      if (i + 1 < rows[k].size()) line += std::string(width[i] - rows[k][i].size() + 2, ' ');
+    }
+    out += line + "\n";
+    if (k == 0) out += std::string(std::min(total(), kTextWidth), '-') + "\n";
+  }
+  return out;
+}
+
+std::string who(const Check& k) { return k.b.empty() ? k.a : k.a + " vs " + k.b; }
+
+}  // namespace
+
+// Layout (every line at most 100 characters): the verdict, the settings, the runs, the pass rule,
+// then one table of checks with the failures first (worst error/bound first), then the passes in
+// table order, then what was excluded or skipped and why, the tolerances used, and the notes.
+std::string format_comparison(const SceneComparison& c, bool failures_only) {
+  std::string out;
+  const int failed = c.count(CheckStatus::Fail);
+  out += wrap("scene " + c.scene + (c.file.empty() ? "" : " (" + c.file + ")") + ": " +
+                  (failed ? "FAIL, " + std::to_string(failed) + " of " +
+                                std::to_string(c.checks.size()) + " checks failed"
+                          : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) +
+                                " checks passed"),
+              "", "  ");
+  out += wrap("integrator " + c.settings.method + ", rtol " + fmt_g(c.settings.rtol) + ", atol " +
+                  fmt_g(c.settings.atol) + "; output every " + fmt_g(c.settings.output_step) +
+                  " s to " + fmt_g(c.settings.duration) + " s",
+              "", "  ");
+  out += "\n";
+
+  std::vector<std::vector<std::string>> runs{{"run", "status", "rows", "rhs calls", "steps", "wall (s)"}};
+  std::string run_notes;
   for (const EngineRun& r : c.runs) {
     const char* st = r.state == EngineRun::State::Ok ? "ok"
                      : r.state == EngineRun::State::Failed ? "FAILED" : "skipped";
@@ -553,42 +789,103 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
     runs.push_back({r.label, st, std::to_string(r.result.rows()),
                     ran ? std::to_string(r.result.stats.rhs_calls) : "-",
                     ran ? std::to_string(r.result.stats.steps) : "-",
-                    ran ? fmt_g(r.result.stats.wall_seconds, 3) : "-",
-                    r.engine == "analytic" ? "closed-form torque-free solution" : r.note});
+                    ran ? fmt_g(r.result.stats.wall_seconds, 3) : "-"});
+    const std::string note = r.engine == "analytic" ? "closed-form torque-free solution" : r.note;
+    if (!note.empty()) run_notes += wrap(note, "  " + r.label + ": ", "    ");
   }
-  out << text_table(runs) << '\n';
+  out += fitted_table(runs, {0}) + run_notes + "\n";
 
-  out << "pass rule: pair   max_t |a - b| <= atol + rtol * max_t |b|   (b = the reference, named "
-         "second)\n"
-         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n"
-         "           attitude error = rotation angle between the attitudes (rad), max|b| = 1\n\n";
-  std::vector<std::vector<std::string>> rows{{"quantity", "a vs b", "max error", "at t (s)",
-                                              "first over (s)", "atol", "rtol", "scale", "bound",
-                                              "error/bound", "result", "note"}};
-  for (const Check& k : c.checks) {
-    if (failures_only && k.status != CheckStatus::Fail) continue;
-    const bool numbers = k.status == CheckStatus::Pass || k.status == CheckStatus::Fail;
+  out += "pass rule: pair   max_t |a - b| <= bound = atol + rtol * max_t |b|  (b: the reference,\n"
+         "                  named second); attitude error = rotation angle between the attitudes\n"
+         "                  (rad), with max|b| = 1\n"
+         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n\n";
+
+  // Checks: failures (worst first), then passes in table order; exclusions and skips listed apart.
+  std::vector<const Check*> fails, passes, others;
+  for (const Check& k : c.checks)
+    (k.status == CheckStatus::Fail ? fails : k.status == CheckStatus::Pass ? passes : others)
+        .push_back(&k);
+  std::stable_sort(fails.begin(), fails.end(), [](const Check* x, const Check* y) {
+    const double a = std::isnan(x->normalised) ? std::numeric_limits<double>::infinity() : x->normalised;
+    const double b = std::isnan(y->normalised) ? std::numeric_limits<double>::infinity() : y->normalised;
+    return a > b;
+  });
+  std::vector<std::vector<std::string>> rows{
+      {"quantity", "a vs b", "max error", "at t (s)", "1st over", "err/bound", "result"}};
+  auto add = [&rows](const Check& k) {
     const bool run = k.group == "run";
-    rows.push_back({k.quantity, k.b.empty() ? k.a : k.a + " vs " + k.b,
-                    numbers && !run ? sci(k.error) : "-",
-                    numbers && (!run || k.status == CheckStatus::Fail) ? fmt_g(k.time) : "-",
-                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-",
-                    numbers && !run ? sci(k.tolerance.atol, 2) : "-",
-                    numbers && !run ? sci(k.tolerance.rtol, 2) : "-",
-                    numbers && !run ? sci(k.scale) : "-",
-                    numbers && !run ? sci(k.bound) : "-",
-                    numbers && !run ? sci(k.normalised) : "-", to_string(k.status),
-                    k.note.empty() && k.tolerance_key != "default" && k.tolerance_key != "-"
-                        ? "tolerance '" + k.tolerance_key + "'"
-                        : k.note});
+    rows.push_back({k.quantity, who(k), run ? "-" : sci(k.error),
+                    !run || k.status == CheckStatus::Fail ? fmt_g(k.time) : "-",
+                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-", run ? "-" : sci(k.normalised),
+                    to_string(k.status)});
+  };
+  for (const Check* k : fails) add(*k);
+  if (!failures_only)
+    for (const Check* k : passes) add(*k);
+  if (rows.size() > 1) out += fitted_table(rows, {0, 1});
+  else out += "(no failed checks)\n";
+
+  // What the failures say beyond their numbers (a missing column, a failed run, nothing compared).
+  std::string fail_notes;
+  for (const Check* k : fails)
+    if (!k->note.empty()) fail_notes += wrap(k->note, "  " + k->quantity + ", " + who(*k) + ": ", "    ");
+  if (!fail_notes.empty()) out += "\nfailed checks, why:\n" + fail_notes;
+
+  // Excluded and skipped, one line per quantity and reason.
+  if (!failures_only && !others.empty()) {
+    std::vector<std::pair<std::string, std::vector<std::string>>> groups;  // "EXCLUDED E: reason"
+    for (const Check* k : others) {
+      const std::string key = std::string(to_string(k->status)) + " " + k->quantity + ": " + k->note;
+      auto it = std::find_if(groups.begin(), groups.end(), [&key](const auto& g) { return g.first == key; });
+      if (it == groups.end()) it = groups.insert(groups.end(), {key, {}});
+      it->second.push_back(who(*k));
+    }
+    out += "\nexcluded or skipped:\n";
+    for (const auto& [key, pairs] : groups) {
+      const auto colon = key.find(": ");
+      std::string line = key.substr(0, colon) + " (" + std::to_string(pairs.size()) +
+                         (pairs.size() == 1 ? " check" : " checks") + ")" + key.substr(colon);
+      out += wrap(line, "  ", "    ");
+    }
   }
-  if (rows.size() > 1) out << text_table(rows);
-  else out << "(no failed checks)\n";
+
+  // The tolerances used: per tolerance key, which quantities and the numbers.
+  if (!failures_only) {
+    std::vector<std::pair<std::string, std::set<std::string>>> keys;
+    std::map<std::string, Tolerance> tol;
+    for (const Check& k : c.checks) {
+      if (k.tolerance_key == "-" || k.status == CheckStatus::Excluded) continue;
+      const std::string key = k.group.size() > 6 && k.group.substr(k.group.size() - 6) == ".drift"
+                                  ? (k.tolerance_key == "default" ? "drift default" : k.tolerance_key)
+                                  : k.tolerance_key;
+      auto it = std::find_if(keys.begin(), keys.end(), [&key](const auto& x) { return x.first == key; });
+      if (it == keys.end()) it = keys.insert(keys.end(), {key, {}});
+      it->second.insert(k.quantity);
+      tol[key] = k.tolerance;
+    }
+    if (!keys.empty()) {
+      out += "\ntolerances (atol, rtol) and the quantities they apply to:\n";
+      for (const auto& [key, quantities] : keys) {
+        std::string list;
+        std::size_t n = 0;
+        for (const std::string& q : quantities) {
+          if (++n > 8) {
+            list += ", ... (" + std::to_string(quantities.size()) + " quantities)";
+            break;
+          }
+          list += (list.empty() ? "" : ", ") + q;
+        }
+        const std::string name = key == "default" || key == "drift default" ? key : "'" + key + "'";
+        out += wrap(name + ": " + sci(tol[key].atol, 2) + ", " + sci(tol[key].rtol, 2) + " for " + list,
+                    "  ", "    ");
+      }
+    }
+  }
   if (!c.notes.empty()) {
-    out << "\nnotes:\n";
-    for (const std::string& n : c.notes) out << "  - " << n << '\n';
+    out += "\nnotes:\n";
+    for (const std::string& n : c.notes) out += wrap(n, "  - ", "    ");
   }
-  return out.str();
+  return out;
 }
 
 }  // namespace crossdyn::harness

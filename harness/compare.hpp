@@ -32,6 +32,23 @@
 // H drift is not checked when it has external torques. Engine runs that fail are recorded as a
 // failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
 // that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
+//
+// Bounding runs (README "Stopping and bounding runs"): CompareOptions::max_steps and ::timeout
+// limit each engine run (its set-up included, for the timeout). A run that hits either is a
+// failed "run" check ("engine kane failed at t = 1.23 s: timed out after 30 s", or "step limit
+// reached"), and the other engines still run. An interrupt (Ctrl-C, SIGTERM) ends the whole
+// comparison: compare_scene throws cancel::Cancelled (core/cancel.hpp).
+//
+// Memory: rows are not held per quantity. Each run keeps its rows in memory while the program's
+// row budget allows and in an unlinked temporary file beyond it (core/rows.hpp); compare_runs then
+// reads the runs' rows once in lockstep (row k of every run together) to find each check's largest
+// error, its time and the scale, and once more, only for the checks that failed, to find where the
+// error first exceeded the bound. The numbers are the same as comparing whole columns in memory.
+//
+// Reading a run's rows (the report, verify): EngineRun::result.reader() or
+// result.for_each_row(f) give the rows in order, one at a time, wherever they are stored, so a
+// run's CSV can be written without holding all its rows; result.rows() counts them. Do not index
+// result.data directly: it is empty when the rows were moved to a temporary file.
 #pragma once
 
 #include "core/engine.hpp"
@@ -60,6 +77,9 @@ struct CompareOptions {
   std::optional<std::string> integrator;    // overrides of the scene's run block
   std::optional<double> rtol, atol, dt;
   bool analytic = true;                     // add "analytic" where System::analytic is set
+  std::optional<long> max_steps;            // per run: IntegratorSettings::max_steps
+  std::optional<double> timeout;            // per run, s of wall-clock time (set-up included)
+  bool progress = false;                    // progress line on stderr (when it is a terminal)
 };
 
 // The command-line options compare and verify share (harness/compare_command.cpp).
@@ -68,6 +88,9 @@ struct CompareCliOptions {
   std::optional<std::string> integrator;
   std::optional<double> rtol, atol, dt;
   bool no_analytic = false;
+  std::optional<long> max_steps;            // --max-steps N
+  std::optional<double> timeout;            // --timeout SECONDS
+  bool quiet = false;                       // --quiet: no progress line
   std::vector<std::string> test_inertia_scale;  // hidden: "ENGINE=FACTOR"
 };
 void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o);
@@ -122,8 +145,9 @@ struct SceneComparison {
 // RunResults): pairwise checks, drift checks, run-failure checks, exclusions, notes.
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs);
 
-// Runs the engines (and the analytic solution) on `system`, then compare_runs. Throws InputError
-// for bad options or an engine's complaint about the scene (other than "not built yet").
+// Runs the engines (and the analytic solution) on `system`, one after the other, then
+// compare_runs. Throws InputError for bad options or an engine's complaint about the scene (other
+// than "not built yet"), and cancel::Cancelled when the program is interrupted.
 SceneComparison compare_scene(const System& system, const CompareOptions& options);
 
 // The analytic torque-free solution as a run: pinned columns (t, w, q, H, E) at `times`.

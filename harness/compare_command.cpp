@@ -3,13 +3,20 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
-#include "harness/engines.hpp"
-#include "core/scene_reader.hpp"
+#include "core/output.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
+#include "harness/engines.hpp"
+#include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/settings.hpp"
+#include "harness/verify.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -29,6 +36,12 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
   sub.add_option("--dt", o.dt, "rk4 step, or first trial step of adaptive integrators, s");
   sub.add_flag("--no-analytic", o.no_analytic,
                "Leave out the analytic solution even where the scene has one");
+  sub.add_option("--max-steps", o.max_steps,
+                 "Per engine run: fail the run after N steps (accepted and rejected); the other "
+                 "engines and scenes go on (default 20000000)");
+  sub.add_option("--timeout", o.timeout,
+                 "Per engine run: fail the run after SECONDS of wall-clock time, set-up included; "
+                 "the other engines and scenes go on (default: none)");
   // Test hook (hidden): a deliberately wrong copy of an engine, to show the checks catch it.
   sub.add_option("--test-inertia-scale", o.test_inertia_scale,
                  "Add a copy of ENGINE whose inertias are scaled by FACTOR (ENGINE=FACTOR), "
@@ -37,12 +50,30 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
 }
 
 CompareOptions to_compare_options(const CompareCliOptions& o) {
+  // The run limits on each override alone (core/run_limits.hpp); with a scene, settings_for.
+  RunOverrides overrides;
+  overrides.integrator = o.integrator;
+  overrides.rtol = o.rtol;
+  overrides.atol = o.atol;
+  overrides.dt = o.dt;
+  check_overrides(overrides);
   CompareOptions c;
   c.integrator = o.integrator;
   c.rtol = o.rtol;
   c.atol = o.atol;
   c.dt = o.dt;
   c.analytic = !o.no_analytic;
+  if (o.max_steps && *o.max_steps <= 0)
+    throw InputError("--max-steps: must be a positive number of steps, got " +
+                     std::to_string(*o.max_steps));
+  if (o.timeout && !(*o.timeout > 0 && std::isfinite(*o.timeout))) {
+    char b[64];
+    std::snprintf(b, sizeof b, "%g", *o.timeout);
+    throw InputError(std::string("--timeout: must be a positive, finite number of seconds, got ") + b);
+  }
+  c.max_steps = o.max_steps;
+  c.timeout = o.timeout;
+  c.progress = !o.quiet;
   const std::vector<std::string> known = engine_names();
   auto check_name = [&known](const std::string& name, const std::string& option) {
     if (std::find(known.begin(), known.end(), name) == known.end()) {
@@ -95,14 +126,34 @@ struct CompareCommandOptions {
   harness::CompareCliOptions common;
   std::string json;
   bool failures_only = false;
+  bool allow_no_comparison = false;
 };
 
 int compare(const CompareCommandOptions& o) {
-  const System system = read_scene(o.scene);
+  // Everything that can be refused is refused before the engines run (exit 2).
   const harness::CompareOptions options = harness::to_compare_options(o.common);
-  const harness::SceneComparison c = harness::compare_scene(system, options);
+  const std::string scene = harness::resolve_scene(o.scene);
+  std::vector<NamedPath> outputs{{"standard output", "-"}};
+  if (!o.json.empty()) outputs.push_back({"--json", o.json});
+  check_outputs_are_not_inputs(outputs, {{"the scene file", scene}});
+  std::vector<SceneWarning> warnings;
+  const System system = read_scene(scene, &warnings);
+  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  harness::settings_for(system, harness::run_overrides(options));
+  std::optional<AtomicFile> json;
+  if (!o.json.empty()) {
+    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
+    json.emplace(o.json, "--json");
+  }
+
+  harness::SceneComparison c = harness::compare_scene(system, options);
+  harness::require_comparison(c, o.allow_no_comparison);
   std::cout << harness::format_comparison(c, o.failures_only);
-  if (!o.json.empty()) harness::write_json_summary(o.json, {harness::SceneOutcome{o.scene, system, c, ""}});
+  check_written(std::cout);
+  if (json) {
+    json->stream() << harness::json_summary({harness::SceneOutcome{scene, system, c, ""}});
+    json->commit();
+  }
   return c.passed() ? kExitOk : kExitCheckFailed;
 }
 
@@ -115,12 +166,19 @@ void add_compare_command(CLI::App& app, int& exit_code) {
       "Run every engine on one scene (and the analytic solution where it has one) and compare\n"
       "them at the output times: per quantity and engine pair the largest difference, when it\n"
       "happened and the tolerance (pass when max|a - b| <= atol + rtol * max|b|), and each\n"
-      "engine's drift of H and E. Exit status 0 all pass, 1 a check failed, 2 bad input.");
-  sub->add_option("scene", o->scene, "Scene file (YAML), e.g. scenarios/spear1_case1.yaml")
+      "engine's drift of H and E. Failures come first. Exit status 0 all pass, 1 a check failed\n"
+      "or nothing was compared, 2 bad input, 3 a write failed, 130 interrupted.");
+  sub->add_option("scene", o->scene,
+                  "Scene file (YAML), e.g. scenarios/spear1_case1.yaml, or a scene name (see "
+                  "`crossdyn list`)")
       ->required();
   harness::add_compare_cli_options(*sub, o->common);
+  sub->add_flag("--allow-no-comparison", o->allow_no_comparison,
+                "Accept a run where nothing is compared (one engine, every quantity excluded); "
+                "by default that fails with exit status 1");
   sub->add_option("--json", o->json, "Also write the comparison as JSON to FILE (atomically)");
   sub->add_flag("--failures", o->failures_only, "List only the failed checks");
+  sub->add_flag("--quiet,-q", o->common.quiet, "No progress line on stderr");
   sub->callback([o, &exit_code] { exit_code = compare(*o); });
 }
 

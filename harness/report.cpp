@@ -2,20 +2,33 @@
 #include "harness/report.hpp"
 
 #include "core/errors.hpp"
+#include "core/integrate.hpp"
 #include "core/output.hpp"
+#include "harness/locations.hpp"
+#include "harness/scene_geometry.hpp"
 
 #include <nlohmann/json.hpp>
 
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
 #include <spawn.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
+#include <random>
 #include <set>
 #include <sstream>
 
@@ -185,7 +198,8 @@ std::vector<std::string> scene_ids(const std::vector<SceneOutcome>& scenes) {
 }
 
 json summary_document(const std::vector<SceneOutcome>& scenes,
-                      const std::vector<std::vector<std::string>>& data_files) {
+                      const std::vector<std::vector<std::string>>& data_files,
+                      const std::vector<std::string>& geometry_files = {}) {
   const std::vector<std::string> ids = scene_ids(scenes);
   json out_scenes = json::array();
   int n_checks = 0, n_failed = 0, n_scenes_failed = 0, n_bad = 0;
@@ -211,6 +225,7 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
                      {"duration_s", c.settings.duration},
                      {"output_step_s", c.settings.output_step}};
     if (s.system) j["system"] = system_json(*s.system);
+    if (i < geometry_files.size() && !geometry_files[i].empty()) j["geometry"] = geometry_files[i];
     json runs = json::array();
     for (std::size_t r = 0; r < c.runs.size(); ++r) {
       const EngineRun& run = c.runs[r];
@@ -292,6 +307,7 @@ std::string fmt_g(double v) {
 }  // namespace
 
 std::string describe_failure(const Check& c) {
+  if (c.quantity == "comparison") return c.note;  // nothing compared (harness/verify.hpp)
   std::string who = c.b.empty() ? c.a : c.a + " vs " + c.b;
   if (c.group == "run")
     return who + ": run failed at t = " + fmt_g(c.time) + " s: " + c.note;
@@ -452,57 +468,280 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
   return out.str();
 }
 
-namespace {
 
-// The report script: as given, else reports/make_report.py next to the scenes' folder, else in
-// the current folder.
-std::string find_script(const std::vector<SceneOutcome>& scenes, const std::string& given) {
-  if (!given.empty()) {
-    if (!fs::exists(given)) throw InputError("--report-script: '" + given + "' does not exist");
-    return given;
-  }
-  std::vector<fs::path> candidates;
-  for (const SceneOutcome& s : scenes)
-    candidates.push_back(fs::absolute(s.path).parent_path().parent_path() / "reports" / "make_report.py");
-  candidates.push_back(fs::path("reports") / "make_report.py");
-  for (const fs::path& p : candidates)
-    if (fs::exists(p)) return p.string();
-  throw InputError("cannot find the report script reports/make_report.py (looked next to the "
-                   "scenes' folder and in the current folder); give it with --report-script");
-}
 
-void run_script(const std::string& python, const std::vector<std::string>& args) {
+void run_python(const std::string& python, const std::vector<std::string>& args) {
+  std::vector<std::string> all{python};
+  all.insert(all.end(), args.begin(), args.end());
   std::vector<char*> argv;
-  argv.push_back(const_cast<char*>(python.c_str()));
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  for (std::string& a : all) argv.push_back(a.data());
   argv.push_back(nullptr);
+  // PYTHONDONTWRITEBYTECODE: no __pycache__ in the installed scripts' folder (the source tree).
+  std::string no_bytecode = "PYTHONDONTWRITEBYTECODE=1";
+  std::vector<char*> envp;
+  for (char** e = environ; *e != nullptr; ++e)
+    if (std::strncmp(*e, "PYTHONDONTWRITEBYTECODE=", 24) != 0) envp.push_back(*e);
+  envp.push_back(no_bytecode.data());
+  envp.push_back(nullptr);
   pid_t pid = 0;
-  const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), environ);
+  const int rc = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv.data(), envp.data());
   if (rc != 0)
-    throw InputError("cannot run '" + python + "' for the report: " + std::strerror(rc));
+    throw InputError("cannot run '" + python + "' for '" + args.at(0) + "': " + std::strerror(rc));
+  // Wait, polling the interrupt flag: Ctrl-C ends the script and the command (exit 130).
   int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR) throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+  for (;;) {
+    const pid_t done = waitpid(pid, &status, WNOHANG);
+    if (done == pid) break;
+    if (done < 0 && errno != EINTR)
+      throw InputError("waiting for the report script failed: " + std::string(std::strerror(errno)));
+    if (interrupt_requested()) {
+      ::kill(pid, SIGTERM);
+      while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+      }
+      throw RunFailure("report", 0.0, "", "interrupted");
+    }
+    ::poll(nullptr, 0, 20);
+  }
   if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    throw InputError("the report script '" + args[0] + "' failed (" +
+    throw InputError("'" + args.at(0) + "' failed (" +
                      (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
                                         : std::string("killed by a signal")) +
                      "); see its messages above");
 }
 
+namespace {
+
+// The report script: as given, else the installed one (never one found next to the scenes).
+std::string find_script(const std::string& given) {
+  if (!given.empty()) {
+    if (!fs::is_regular_file(given)) throw InputError("--report-script: '" + given + "' is not a file");
+    return given;
+  }
+  const fs::path p = fs::path(installed_reports_dir()) / "make_report.py";
+  if (!fs::is_regular_file(p))
+    throw InputError("the report script '" + p.string() + "' is missing (it is part of the crossdyn "
+                     "source tree this program was built from)");
+  return p.string();
+}
+
+// The files a report owns at the top of its folder: replaced as a whole by the next report.
+// Everything else in the folder (a junit.xml written there, a user's notes) is carried over.
+bool report_owned(const fs::path& name) {
+  const std::string n = name.string();
+  const std::string ext = name.extension().string();
+  return n == "summary.json" || n == "data" || ext == ".html" || ext == ".png" ||
+         n.find(".tmp.") != std::string::npos;
+}
+
+bool is_crossdyn_report(const fs::path& dir) {
+  std::ifstream in(dir / "summary.json");
+  if (!in) return false;
+  try {
+    const json j = json::parse(in);
+    return j.is_object() && j.value("tool", "") == "crossdyn";
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+// True when `p` is `dir` or inside it (both made absolute and free of symbolic links).
+bool inside(const fs::path& p, const fs::path& dir) {
+  std::error_code ec;
+  const fs::path a = fs::weakly_canonical(fs::absolute(p), ec);
+  if (ec) return false;
+  const fs::path rel = a.lexically_relative(dir);
+  return !rel.empty() && *rel.begin() != "..";
+}
+
+// The report folder, absolute, with a symbolic link to a folder followed. Refuses what a report
+// must not replace (see write_report in report.hpp).
+fs::path report_folder(const std::string& given, const std::vector<SceneOutcome>& scenes,
+                       const std::string& script) {
+  if (given.empty()) throw InputError("--report: the folder name is empty");
+  fs::path dir = fs::absolute(given).lexically_normal();
+  if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
+  std::error_code ec;
+  dir = fs::weakly_canonical(dir, ec);  // a symbolic link to a folder: the folder it names
+  if (ec) throw InputError("--report: cannot resolve '" + given + "': " + ec.message());
+  if (dir == dir.root_path()) throw InputError("--report: '" + given + "' is the root folder");
+  const fs::file_status st = fs::status(dir, ec);
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st))
+      throw InputError("--report: '" + given + "' is a file, not a folder");
+    if (!is_crossdyn_report(dir))
+      for (const fs::directory_entry& e : fs::directory_iterator(dir, ec))
+        if (report_owned(e.path().filename()))
+          throw InputError("--report: '" + given + "' is not a crossdyn report folder (it has no "
+                           "summary.json written by crossdyn) but holds '" +
+                           e.path().filename().string() + "', which the report would replace; "
+                           "give a new folder, an empty one or an earlier report");
+  }
+  if (inside(fs::current_path(), dir))
+    throw InputError("--report: '" + given + "' holds the current folder; the report replaces its "
+                     "folder as a whole");
+  for (const SceneOutcome& s : scenes)
+    if (inside(s.path, dir))
+      throw InputError("--report: '" + given + "' holds the scene file '" + s.path +
+                       "'; the report replaces its folder as a whole");
+  if (inside(script, dir))
+    throw InputError("--report: '" + given + "' holds the report script '" + script + "'");
+  return dir;
+}
+
+bool process_alive(long pid) { return pid > 0 && (::kill(static_cast<pid_t>(pid), 0) == 0 || errno == EPERM); }
+
+// Removes DIR.partial-<pid>-* folders of processes that are gone (a run killed while writing).
+void remove_stale_partials(const fs::path& dir) {
+  const std::string prefix = dir.filename().string() + ".partial-";
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(dir.parent_path(), ec)) {
+    const std::string n = e.path().filename().string();
+    if (n.compare(0, prefix.size(), prefix) != 0) continue;
+    const long pid = std::strtol(n.c_str() + prefix.size(), nullptr, 10);
+    if (!process_alive(pid)) fs::remove_all(e.path(), ec);
+  }
+}
+
+// A new folder next to the report folder, removed again unless released.
+class PartialFolder {
+ public:
+  explicit PartialFolder(const fs::path& dir) {
+    std::random_device random;
+    for (int attempt = 0; attempt < 100; ++attempt) {
+      char suffix[16];
+      std::snprintf(suffix, sizeof suffix, "%08x", random());
+      path_ = dir.parent_path() /
+              (dir.filename().string() + ".partial-" + std::to_string(::getpid()) + "-" + suffix);
+      if (::mkdir(path_.c_str(), 0777) == 0) return;  // 0777 & ~umask, as any new folder
+      if (errno != EEXIST)
+        throw InputError("cannot create folder '" + path_.string() + "': " + std::strerror(errno));
+    }
+    throw InputError("cannot create a new folder next to '" + dir.string() + "'");
+  }
+  ~PartialFolder() {
+    std::error_code ec;
+    if (!path_.empty()) fs::remove_all(path_, ec);
+  }
+  PartialFolder(const PartialFolder&) = delete;
+  PartialFolder& operator=(const PartialFolder&) = delete;
+  const fs::path& path() const { return path_; }
+  void release() { path_.clear(); }
+
+ private:
+  fs::path path_;
+};
+
+// An exclusive flock(2) on a folder, released when destroyed (and by the kernel if killed).
+class FolderLock {
+ public:
+  explicit FolderLock(const fs::path& dir) : fd_(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
+    if (fd_ < 0) throw InputError("cannot open folder '" + dir.string() + "': " + std::strerror(errno));
+    while (::flock(fd_, LOCK_EX) != 0)
+      if (errno != EINTR) {
+        const std::string why = std::strerror(errno);
+        ::close(fd_);
+        throw InputError("cannot lock folder '" + dir.string() + "': " + why);
+      }
+  }
+  ~FolderLock() { ::close(fd_); }
+  FolderLock(const FolderLock&) = delete;
+  FolderLock& operator=(const FolderLock&) = delete;
+
+ private:
+  int fd_;
+};
+
+// Copies into `to` what the current report folder holds that the report does not own.
+void carry_over(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  if (!fs::is_directory(from, ec)) return;
+  for (const fs::directory_entry& e : fs::directory_iterator(from)) {
+    const fs::path name = e.path().filename();
+    if (report_owned(name) || fs::exists(fs::symlink_status(to / name))) continue;
+    if (e.is_symlink()) fs::copy_symlink(e.path(), to / name);
+    else if (e.is_regular_file()) {
+      fs::create_hard_link(e.path(), to / name, ec);  // the old folder is removed next
+      if (ec) fs::copy_file(e.path(), to / name);
+    } else if (e.is_directory()) fs::copy(e.path(), to / name, fs::copy_options::recursive);
+  }
+}
+
+// Swaps the finished folder in for the report folder (see write_report).
+void swap_in(PartialFolder& partial, const fs::path& dir) {
+  const FolderLock lock(dir.parent_path());
+  try {
+    carry_over(dir, partial.path());
+  } catch (const fs::filesystem_error& e) {
+    throw InputError("cannot keep the files of '" + dir.string() + "' that are not part of the report: " + e.what());
+  }
+  if (::rename(partial.path().c_str(), dir.c_str()) == 0) {  // no folder there, or an empty one
+    partial.release();
+    return;
+  }
+  if (errno != EEXIST && errno != ENOTEMPTY)
+    throw InputError("cannot write the report folder '" + dir.string() + "': " + std::strerror(errno));
+  // One rename exchanges the two folders: DIR is never missing or half-written.
+  if (::renameat2(AT_FDCWD, partial.path().c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) == 0)
+    return;  // partial.path() now holds the previous report, removed by ~PartialFolder
+  if (errno != EINVAL && errno != ENOSYS)
+    throw InputError("cannot replace the report folder '" + dir.string() + "': " + std::strerror(errno));
+  // A file system without RENAME_EXCHANGE: two renames (DIR is briefly missing, never mixed).
+  const fs::path old = partial.path().string() + ".old";
+  if (::rename(dir.c_str(), old.c_str()) != 0 || ::rename(partial.path().c_str(), dir.c_str()) != 0)
+    throw InputError("cannot replace the report folder '" + dir.string() + "': " + std::strerror(errno));
+  partial.release();
+  std::error_code ec;
+  fs::remove_all(old, ec);
+}
+
+// The drawing geometry of a scene: t = 0 from the scene, later pictures from the kane run (or the
+// first run that has output), see harness/scene_geometry.hpp.
+std::string scene_geometry(const System& system, const SceneComparison& c) {
+  namespace g = geometry;
+  g::MotionSource source;
+  source.duration = c.settings.duration;
+  const EngineRun* run = nullptr;
+  for (int pass = 0; pass < 3 && !run; ++pass)
+    for (const EngineRun& r : c.runs)
+      if (!r.result.columns.empty() &&
+          (pass == 0 ? r.engine == "kane" : pass == 1 ? r.engine != "analytic" : true)) {
+        run = &r;
+        break;
+      }
+  std::vector<g::Configuration> frames;
+  if (!run) {
+    source.state = "not run";
+    source.note = "no run produced output";
+  } else {
+    source.engine = run->label;
+    source.state = run->result.failure ? "failed" : "ok";
+    if (run->result.failure) source.note = run->result.failure->what();
+    try {
+      frames = g::motion_frames(system, run->result.columns, run->result.data, c.settings.duration);
+    } catch (const InputError& e) {
+      source.note += std::string(source.note.empty() ? "" : "; ") + e.what();
+    }
+  }
+  return g::geometry_json(system, g::initial_configuration(system), frames, source);
+}
+
 }  // namespace
 
 void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options) {
-  const std::string script = find_script(scenes, options.script);
-  const fs::path dir(options.dir);
-  make_directories(dir.string());
+  const std::string script = find_script(options.script);
+  const fs::path dir = report_folder(options.dir, scenes, script);
+  make_directories(dir.parent_path().string());
+  remove_stale_partials(dir);
+  PartialFolder partial(dir);
+  const fs::path& out = partial.path();
   const std::vector<std::string> ids = scene_ids(scenes);
   std::vector<std::vector<std::string>> data_files(scenes.size());
+  std::vector<std::string> geometry_files(scenes.size());
   for (std::size_t i = 0; i < scenes.size(); ++i) {
     if (!scenes[i].comparison) continue;
-    const fs::path data_dir = dir / "data" / ids[i];
+    const fs::path data_dir = out / "data" / ids[i];
     make_directories(data_dir.string());
-    std::set<std::string> used;
+    std::set<std::string> used{"geometry"};
     for (const EngineRun& r : scenes[i].comparison->runs) {
       if (r.result.columns.empty()) {
         data_files[i].push_back("");
@@ -512,17 +751,23 @@ void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& 
       while (used.count(name)) name += "_";
       used.insert(name);
       const fs::path rel = fs::path("data") / ids[i] / (name + ".csv");
-      AtomicFile f((dir / rel).string());
+      AtomicFile f((out / rel).string());
       write_csv_header(f.stream(), r.result.columns);
       for (std::size_t k = 0; k < r.result.rows(); ++k)
         write_csv_row(f.stream(), r.result.data.data() + k * r.result.columns.size(), r.result.columns.size());
       f.commit();
       data_files[i].push_back(rel.generic_string());
     }
+    if (scenes[i].system) {
+      const fs::path rel = fs::path("data") / ids[i] / "geometry.json";
+      write_file_atomic((out / rel).string(), scene_geometry(*scenes[i].system, *scenes[i].comparison));
+      geometry_files[i] = rel.generic_string();
+    }
   }
-  const std::string summary = (dir / "summary.json").string();
-  write_file_atomic(summary, json_summary(scenes, data_files));
-  run_script(options.python, {script, summary, dir.string()});
+  const std::string summary = (out / "summary.json").string();
+  write_file_atomic(summary, summary_document(scenes, data_files, geometry_files).dump(1) + "\n");
+  run_python(options.python, {script, summary, out.string()});
+  swap_in(partial, dir);
 }
 
 }  // namespace crossdyn::harness

@@ -17,6 +17,7 @@ struct SceneOutcome {
   std::optional<System> system;               // empty when the file could not be read
   std::optional<SceneComparison> comparison;  // empty when the file could not be read
   std::string input_error;                    // InputError message when it could not
+  bool internal_error = false;                // input_error is another error (verify: exit 3)
 };
 
 // The scene x check-group summary cell (verify's table, the report index, JSON "groups").
@@ -54,13 +55,25 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes);
 struct ReportOptions {
   std::string dir = "reports/latest";
   std::string python = "/usr/bin/python3";  // Debian's, which has matplotlib
-  std::string script;                        // "" : found next to the scenes or in ./reports
+  std::string script;                        // "" : the installed reports/make_report.py
 };
 
-// Writes DIR/summary.json and DIR/data/<scene>/<run>.csv, then runs the report script, which
-// writes DIR/index.html, DIR/<scene>.html and the PNG charts next to them. Throws InputError when
-// the folder cannot be written or the script cannot be found or fails.
+// Writes the report into a new sibling folder of DIR (DIR.partial-<pid>-<random>): the runs' CSV
+// files DIR/data/<scene>/<run>.csv, each scene's drawing geometry DIR/data/<scene>/geometry.json
+// (harness/scene_geometry.hpp; the later pictures from the kane run), DIR/summary.json; then runs
+// the report script, which writes index.html, <scene>.html and the PNG charts there. Then, holding
+// an exclusive lock on DIR's parent folder, swaps the new folder in for DIR in one rename and
+// removes the old one: a reader, and a second verify writing the same DIR, always see one whole
+// report, never a mixture. Refuses (InputError, before any work) a DIR that is a file, a folder
+// that is neither empty nor a crossdyn report (no summary.json with "tool": "crossdyn"), or one
+// that holds a scene file or the current folder. Throws InputError when the folder cannot be
+// written or the script fails; the partial folder is removed (and so are partial folders left
+// by killed runs whose process is gone).
 void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options);
+
+// Runs `python ARGS...` (with PYTHONDONTWRITEBYTECODE=1) and waits; Ctrl-C ends it (RunFailure
+// "interrupted"); InputError naming args[0] when it cannot start or fails.
+void run_python(const std::string& python, const std::vector<std::string>& args);
 
 // Creates a folder and its parents; InputError naming it when that fails.
 void make_directories(const std::string& dir);

@@ -5,8 +5,11 @@
 #include "harness/engines.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
-#include "core/scene_reader.hpp"
+#include "core/progress.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
+#include "harness/locations.hpp"
+#include "harness/settings.hpp"
 
 #include <iostream>
 #include <memory>
@@ -19,56 +22,66 @@ namespace {
 struct RunOptions {
   std::string scene;
   std::string engine = "kane";
-  std::optional<std::string> integrator;
-  std::optional<double> rtol, atol, dt, duration, output_step;
-  long max_steps = IntegratorSettings{}.max_steps;
+  harness::RunOverrides overrides;
   std::string output;
   bool stats = false;
+  bool quiet = false;
   EngineOptions engine_options;
   bool no_rechart = false;
 };
 
 int run(const RunOptions& o) {
-  const System system = read_scene(o.scene);
-  IntegratorSettings s = IntegratorSettings::from(system.run);
-  if (o.integrator) s.method = *o.integrator;
-  if (o.rtol) s.rtol = *o.rtol;
-  if (o.atol) s.atol = *o.atol;
-  if (o.dt) s.dt = *o.dt;
-  if (o.duration) s.duration = *o.duration;
-  if (o.output_step) s.output_step = *o.output_step;
-  s.max_steps = o.max_steps;
+  // Everything that can be refused is refused before anything is written (exit 2).
+  harness::check_overrides(o.overrides);
+  const std::string scene = harness::resolve_scene(o.scene);
+  const bool to_stdout = o.output.empty() || o.output == "-";
+  check_outputs_are_not_inputs({to_stdout ? NamedPath{"standard output", "-"}
+                                          : NamedPath{"--output", o.output}},
+                               {{"the scene file", scene}});
+  std::vector<SceneWarning> warnings;
+  const System system = read_scene(scene, &warnings);
+  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  IntegratorSettings s = harness::settings_for(system, o.overrides);
   s.keep_rows = false;  // rows stream to the CSV as they are computed; memory stays flat
   EngineOptions eo = o.engine_options;
   eo.rechart = !o.no_rechart;
+  // On a terminal only (and not when the rows themselves go to it); erased before any message.
+  ProgressLine progress(!o.quiet && (!o.output.empty() || !ProgressLine::stdout_is_terminal()));
+  progress.start(system.name + " " + o.engine, s.duration);
+  progress.phase("setting up the engine");
   std::unique_ptr<Engine> engine = make_engine(o.engine, system, eo);
   const std::size_t n = engine->columns().size();
 
   // stdout: rows stream out as they are computed (a failed run leaves its complete earlier rows
-  // and the message on stderr). A file: written whole or not at all.
+  // and the message on stderr). A file: written whole or not at all. Every write is checked: a
+  // failed one (disk full, closed pipe) stops the run at once (OutputError, exit 3).
   std::optional<AtomicFile> file;
-  if (!o.output.empty()) file.emplace(o.output);
+  if (!to_stdout) file.emplace(o.output, "--output");
   std::ostream& out = file ? file->stream() : std::cout;
   write_csv_header(out, engine->columns());
   std::size_t rows = 0;
   const RunResult r = simulate(*engine, system, TreeState::initial(system), s,
                                [&out, &rows, n](const double* row) {
                                  write_csv_row(out, row, n);
+                                 if (!out) check_written(out);
                                  ++rows;
-                               });
+                               },
+                               [&progress](double t, const RunStats& st) { progress.update(t, st.steps); });
+  progress.clear();
   if (o.stats)
     std::cerr << "engine " << r.engine << ", integrator " << s.method << ": " << rows
               << " rows, " << r.stats.steps << " steps, " << r.stats.rejected << " rejected, "
               << r.stats.restarts << " restarts, " << r.stats.rhs_calls << " rhs calls, "
               << r.stats.wall_seconds << " s\n";
   if (r.failure) {
-    out.flush();
+    if (!file) check_written(out);
     if (file)
       std::cerr << "crossdyn: no output written to '" << o.output << "' (" << rows
                 << " rows were complete before the failure)\n";
     throw *r.failure;
   }
   if (file) file->commit();
+  else check_written(out);
   return kExitOk;
 }
 
@@ -78,20 +91,26 @@ void add_run_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<RunOptions>();
   CLI::App* sub = app.add_subcommand(
       "run", "Run one engine on one scene and write its time history as CSV (stdout by default).");
-  sub->add_option("scene", o->scene, "Scene file (YAML), e.g. scenarios/spear1_case1.yaml")
+  sub->add_option("scene", o->scene,
+                  "Scene file (YAML), e.g. scenarios/spear1_case1.yaml, or a scene name such as "
+                  "gimbal_lock (looked up in scenarios/; `crossdyn list` shows them)")
       ->required();
   sub->add_option("--engine", o->engine, "Engine: kane, lagrange or newton-euler (default kane)");
-  sub->add_option("--integrator", o->integrator,
+  sub->add_option("--integrator", o->overrides.integrator,
                   "rk4 (fixed step --dt), dopri5, rkf78 or bulirsch-stoer (default: the scene's)");
-  sub->add_option("--rtol", o->rtol, "Relative tolerance of adaptive integrators");
-  sub->add_option("--atol", o->atol, "Absolute tolerance of adaptive integrators");
-  sub->add_option("--dt", o->dt, "rk4 step, or first trial step of adaptive integrators, s");
-  sub->add_option("--duration", o->duration, "Override the scene's run length, s");
-  sub->add_option("--output-step", o->output_step, "Override the scene's output step, s");
-  sub->add_option("--max-steps", o->max_steps, "Fail the run after this many steps");
+  sub->add_option("--rtol", o->overrides.rtol, "Relative tolerance of adaptive integrators (> 0)");
+  sub->add_option("--atol", o->overrides.atol, "Absolute tolerance of adaptive integrators (> 0)");
+  sub->add_option("--dt", o->overrides.dt, "rk4 step, or first trial step of adaptive integrators, s");
+  sub->add_option("--duration", o->overrides.duration, "Override the scene's run length, s");
+  sub->add_option("--output-step", o->overrides.output_step,
+                  "Override the scene's output step, s (at most 1e7 output rows)");
+  sub->add_option("--max-steps", o->overrides.max_steps,
+                  "Fail the run after this many steps (at least 1; default 20000000)");
   sub->add_option("--output,-o", o->output,
-                  "Write the CSV to FILE (atomically: complete file or none)");
+                  "Write the CSV to FILE (atomically: complete file or none; '-' is stdout; see "
+                  "README for devices, FIFOs, symbolic links and read-only files)");
   sub->add_flag("--stats", o->stats, "Print step and right-hand-side counts to stderr");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
   sub->add_option("--stabilization", o->engine_options.stabilization,
                   "newton-euler: projection (default), baumgarte or none")
       ->check(CLI::IsMember({"projection", "baumgarte", "none"}));

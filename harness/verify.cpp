@@ -1,76 +1,158 @@
 // crossdyn verify (see verify.hpp).
 #include "harness/verify.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/output.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/locations.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <iostream>
+#include <limits>
 #include <map>
+#include <new>
 
 namespace crossdyn::harness {
 
-namespace fs = std::filesystem;
-
 int VerifyResult::exit_code() const {
-  bool failed = false;
+  bool failed = false, error = false;
   for (const SceneOutcome& s : scenes) {
-    if (!s.comparison) return kExitBadInput;
-    failed = failed || !s.comparison->passed();
+    if (!s.comparison && !s.internal_error) return kExitBadInput;
+    error = error || s.internal_error;
+    failed = failed || (s.comparison && !s.comparison->passed());
   }
-  return failed ? kExitCheckFailed : kExitOk;
+  return error ? kExitRunFailed : failed ? kExitCheckFailed : kExitOk;
 }
 
 std::vector<std::string> scene_files(const VerifyOptions& o) {
-  if (!o.scenes.empty()) return o.scenes;
-  std::error_code ec;
-  if (!fs::is_directory(o.scenarios_dir, ec))
-    throw InputError("no scenes named and the scenes folder '" + o.scenarios_dir +
-                     "' does not exist (run from the project folder or give --scenarios DIR)");
-  std::vector<std::string> files;
-  for (const fs::directory_entry& e : fs::directory_iterator(o.scenarios_dir, ec))
-    if (e.is_regular_file() && e.path().extension() == ".yaml") files.push_back(e.path().string());
-  if (ec) throw InputError("cannot list '" + o.scenarios_dir + "': " + ec.message());
-  std::sort(files.begin(), files.end());
-  if (files.empty()) throw InputError("no *.yaml scenes in '" + o.scenarios_dir + "'");
+  if (!o.scenes.empty()) {
+    std::vector<std::string> files;
+    for (const std::string& s : o.scenes) files.push_back(resolve_scene(s));
+    return files;
+  }
+  std::string dir = o.scenarios_dir;
+  if (dir.empty()) {
+    const std::vector<std::string> folders = scene_folders();
+    if (folders.empty())
+      throw InputError("no scenes named, and no scenes folder: neither ./scenarios nor " +
+                       source_tree() + "/scenarios exists (name scenes or give --scenarios DIR)");
+    dir = folders.front();
+  }
+  std::vector<std::string> files = scene_files_in(dir);
+  if (files.empty()) throw InputError("no *.yaml or *.yml scenes in '" + dir + "'");
   return files;
 }
 
-VerifyResult run_verify(const VerifyOptions& o) {
+RunOverrides run_overrides(const CompareOptions& c) {
+  RunOverrides o;
+  o.integrator = c.integrator;
+  o.rtol = c.rtol;
+  o.atol = c.atol;
+  o.dt = c.dt;
+  return o;
+}
+
+std::string nothing_compared(const SceneComparison& c) {
+  int ok = 0, pairs = 0, excluded = 0;
+  for (const EngineRun& r : c.runs) ok += r.state == EngineRun::State::Ok ? 1 : 0;
+  for (const Check& k : c.checks) {
+    if (k.b.empty()) continue;  // runs and drifts concern one engine
+    ++pairs;
+    if (k.status == CheckStatus::Pass || k.status == CheckStatus::Fail) return "";
+    if (k.status == CheckStatus::Excluded) ++excluded;
+  }
+  if (ok < 2) {
+    std::string names;
+    for (const EngineRun& r : c.runs)
+      if (r.state == EngineRun::State::Ok) names += (names.empty() ? "" : ", ") + r.label;
+    return ok == 0 ? "no run finished"
+                   : "only " + names + " finished, and there is no second engine or analytic "
+                     "solution to compare it with";
+  }
+  if (pairs > 0 && excluded == pairs) return "the scene excludes every compared quantity";
+  return "no pairwise check was made";
+}
+
+void require_comparison(SceneComparison& c, bool allow) {
+  const std::string why = nothing_compared(c);
+  if (why.empty()) return;
+  if (allow) {
+    c.notes.push_back("nothing was compared (" + why + "); accepted by --allow-no-comparison");
+    return;
+  }
+  Check k;
+  k.quantity = "comparison";
+  k.group = "run";
+  k.a = "all runs";
+  k.tolerance_key = "-";
+  k.status = CheckStatus::Fail;
+  k.error = k.normalised = std::numeric_limits<double>::infinity();
+  k.note = "nothing was compared: " + why +
+           " (run more engines, or pass --allow-no-comparison to accept this)";
+  c.checks.push_back(k);
+}
+
+VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& files) {
   VerifyResult result;
-  for (const std::string& path : scene_files(o)) {
+  const RunOverrides overrides = run_overrides(o.compare);
+  for (const std::string& path : files) {
     SceneOutcome s;
     s.path = path;
     const auto start = std::chrono::steady_clock::now();
     try {
-      s.system = read_scene(path);
-      s.comparison = compare_scene(*s.system, o.compare);
+      std::vector<SceneWarning> warnings;
+      s.system = read_scene(path, &warnings);
+      for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+      settings_for(*s.system, overrides);  // the run limits on the scene with the overrides
+      s.comparison = o.compare_fn ? o.compare_fn(*s.system, o.compare)
+                                  : compare_scene(*s.system, o.compare);
+      require_comparison(*s.comparison, o.allow_no_comparison);
+    } catch (const cancel::Cancelled& c) {
+      if (c.reason() == cancel::Reason::Interrupt) throw;  // Ctrl-C ends verify (exit 130)
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = std::string("error: ") + c.what();
     } catch (const InputError& e) {
+      if (cancel::interrupted()) throw;  // an interrupted read is not bad input
       s.comparison.reset();
       s.input_error = e.what();
+    } catch (const RunFailure& f) {
+      if (f.reason() == "interrupted" || cancel::interrupted()) throw;
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = std::string("error: ") + f.what();
+    } catch (const std::bad_alloc&) {
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = "error: out of memory";
+    } catch (const std::exception& e) {
+      if (cancel::interrupted()) throw;
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = std::string("internal error: ") + e.what();
+    } catch (...) {
+      s.comparison.reset();
+      s.internal_error = true;
+      s.input_error = "internal error: unknown exception";
     }
     if (!o.quiet) {
       const double secs =
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       char line[512];
       std::snprintf(line, sizeof line, "verify: %-44s %s (%.1f s)\n", path.c_str(),
-                    !s.comparison ? "BAD INPUT" : s.comparison->passed() ? "PASS" : "FAIL", secs);
+                    s.internal_error ? "ERROR"
+                    : !s.comparison  ? "BAD INPUT"
+                    : s.comparison->passed() ? "PASS" : "FAIL",
+                    secs);
       std::cerr << line;
       if (!s.comparison) std::cerr << "  " << s.input_error << '\n';
     }
     result.scenes.push_back(std::move(s));
   }
-  if (!o.json.empty()) write_json_summary(o.json, result.scenes);
-  if (!o.junit.empty()) {
-    make_directories(fs::path(o.junit).parent_path().string());
-    write_file_atomic(o.junit, junit_xml(result.scenes));
-  }
-  if (o.report) write_report(result.scenes, *o.report);
   return result;
 }
 
@@ -96,7 +178,7 @@ std::string format_verify_table(const VerifyResult& r) {
     std::vector<std::string> row{s.comparison ? s.comparison->scene : s.path};
     if (!s.comparison) {
       for (std::size_t k = 0; k < groups.size(); ++k) row.push_back("-");
-      row.push_back("BAD INPUT");
+      row.push_back(s.internal_error ? "ERROR" : "BAD INPUT");
       rows.push_back(row);
       continue;
     }
@@ -137,7 +219,7 @@ std::string format_verify_table(const VerifyResult& r) {
   int lines = 0, left_out = 0;
   for (const SceneOutcome& s : r.scenes) {
     if (!s.comparison) {
-      failures += "  " + s.path + ": bad input: " + s.input_error + "\n";
+      failures += "  " + s.path + (s.internal_error ? ": " : ": bad input: ") + s.input_error + "\n";
       ++lines;
       continue;
     }

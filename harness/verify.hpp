@@ -1,11 +1,18 @@
 // crossdyn verify: compare on every scene, one summary table, a JSON summary, JUnit XML and the
-// HTML report (README "Verifying"). A scene that cannot be read is reported (exit 2 at the end)
-// and the others still run; a failing engine run is a failed check of that scene.
+// HTML report (README "Verifying").
+//
+// Order, so that the verdict never depends on the report: every scene is compared (a scene that
+// cannot be read, or whose comparison throws anything, is recorded for that scene and the others
+// still run), then the table is printed, then the JSON summary and the JUnit XML are written,
+// then the report. A report that cannot be made (no matplotlib, --report naming a file, the script
+// failing) is a message on stderr and a line under the table; the exit status stays the verdict.
 #pragma once
 
 #include "harness/compare.hpp"
 #include "harness/report.hpp"
+#include "harness/settings.hpp"
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,27 +20,39 @@
 namespace crossdyn::harness {
 
 struct VerifyOptions {
-  std::vector<std::string> scenes;          // empty: every *.yaml in scenarios_dir, sorted
-  std::string scenarios_dir = "scenarios";
+  std::vector<std::string> scenes;          // empty: every scene of scenarios_dir
+  std::string scenarios_dir;                // "": the first of scene_folders() (locations.hpp)
   CompareOptions compare;
-  std::string json = "reports/latest/summary.json";  // "" : none
-  std::string junit;                        // "" : none
-  std::optional<ReportOptions> report;      // empty: no HTML report
+  bool allow_no_comparison = false;         // a scene that compares nothing passes (with a note)
   bool quiet = false;                       // no per-scene progress lines on stderr
+  // The comparison of one scene; compare_scene unless a test replaces it.
+  std::function<SceneComparison(const System&, const CompareOptions&)> compare_fn;
 };
 
 struct VerifyResult {
   std::vector<SceneOutcome> scenes;
-  // 0 every check passed, 1 a check failed, 2 a scene could not be read.
+  // 2 a scene could not be read, else 3 a scene's comparison ended with an error, else 1 a check
+  // failed (or a scene compared nothing), else 0.
   int exit_code() const;
 };
 
-// The scene files verify runs: the given ones, or every scenarios_dir/*.yaml (InputError when
-// there are none).
+// The scene files verify runs: the given ones (names resolved as `crossdyn run` does), or every
+// *.yaml and *.yml of the scenes folder. InputError when there are none or the folder cannot be
+// listed.
 std::vector<std::string> scene_files(const VerifyOptions& options);
 
-// Compares every scene and writes the JSON summary, JUnit XML and report that were asked for.
-VerifyResult run_verify(const VerifyOptions& options);
+// Compares every scene of `files`; writes nothing. Rethrows only an interrupt (Ctrl-C).
+VerifyResult run_verify(const VerifyOptions& options, const std::vector<std::string>& files);
+
+// The overrides compare and verify apply to every scene, for the run limits (settings.hpp).
+RunOverrides run_overrides(const CompareOptions& options);
+
+// "" when `c` compared at least one pair of runs (a pairwise check that passed or failed), else
+// why nothing was compared.
+std::string nothing_compared(const SceneComparison& c);
+// When nothing was compared: a failed check "comparison" (so every output shows it), or with
+// `allow` only a note.
+void require_comparison(SceneComparison& c, bool allow);
 
 // The scene x check-group table: per cell the worst normalised error and PASS/FAIL; failed checks
 // listed under it with their numbers.

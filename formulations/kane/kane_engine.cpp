@@ -1,8 +1,11 @@
 // Kane's method for a tree of rigid bodies: the passes declared in kane_engine.hpp.
 #include "formulations/kane/kane_engine.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
+
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <string>
@@ -36,6 +39,198 @@ Matrix3d shifted_inertia(const Matrix3d& I, double m, const Vector3d& d) {
   return J;
 }
 
+// The first moment s about O of a mass m moved to the point O' = O - e:  s' = s + m e, and its
+// inertia J_O' = J_O + (2 s.e + m |e|^2) 1 - s e^T - e s^T - m e e^T (the transfer theorem for
+// a mass distribution whose centre is not at O; [KLL] Sec. 3.4).
+Matrix3d moved_inertia(const Matrix3d& J, double m, const Vector3d& s, const Vector3d& e) {
+  Matrix3d Jm = J - s * e.transpose() - e * s.transpose() - m * e * e.transpose();
+  Jm.diagonal().array() += 2.0 * s.dot(e) + m * e.squaredNorm();
+  return Jm;
+}
+
+// sum_l A.col(l) c[l] for a 3 x n matrix and n coefficients (explicit loop: no temporaries).
+Vector3d combine(const Eigen::Matrix3Xd& A, const double* c) {
+  Vector3d v = Vector3d::Zero();
+  for (Eigen::Index l = 0; l < A.cols(); ++l) v += A.col(l) * c[l];
+  return v;
+}
+
+// 1 / k! for k = 0..27 (power series of NodeRotation).
+struct InverseFactorials {
+  double v[28];
+  InverseFactorials() {
+    v[0] = 1;
+    for (int k = 1; k < 28; ++k) v[k] = v[k - 1] / k;
+  }
+};
+const InverseFactorials kInvFact;
+
+bool all_zero(const Eigen::Matrix3Xd& A) { return A.size() == 0 || A.cwiseAbs().maxCoeff() == 0; }
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------
+// exp([psi x]) and the left Jacobian (kane_engine.hpp, NodeRotation; [Barfoot] Sec. 7.1.5).
+//   a(t) = (1 - cos t)/t^2 = sum_k (-1)^k t^2k / (2k+2)!,  b(t) = (t - sin t)/t^3 = sum_k (-1)^k
+//   t^2k / (2k+3)!,  a1 = a'(t)/t = (t sin t - 2 (1 - cos t))/t^4,  b1 = b'(t)/t =
+//   (t (1 - cos t) - 3 (t - sin t))/t^5;  the series (t < 1, twelve terms: the next is below
+//   1e-24) avoid the cancellation of the closed forms at small t.
+
+void NodeRotation::set(const Vector3d& rotation_vector) {
+  psi = rotation_vector;
+  const double x = psi.squaredNorm();
+  if (x < 1.0) {
+    a = b = a1 = b1 = 0;
+    double p = 1.0;  // (-x)^k
+    for (int k = 0; k < 12; ++k) {
+      a += p * kInvFact.v[2 * k + 2];
+      b += p * kInvFact.v[2 * k + 3];
+      // a1, b1: sum_{k>=1} -2k (-x)^(k-1) / (2k+2)!, / (2k+3)!
+      a1 -= 2.0 * (k + 1) * p * kInvFact.v[2 * k + 4];
+      b1 -= 2.0 * (k + 1) * p * kInvFact.v[2 * k + 5];
+      p *= -x;
+    }
+  } else {
+    const double t = std::sqrt(x), c = std::cos(t), sn = std::sin(t);
+    a = (1.0 - c) / x;
+    b = (t - sn) / (x * t);
+    a1 = (t * sn - 2.0 * (1.0 - c)) / (x * x);
+    b1 = (t * (1.0 - c) - 3.0 * (t - sn)) / (x * x * t);
+  }
+}
+
+Matrix3d NodeRotation::R() const {
+  const Matrix3d S = rot::skew(psi);
+  Matrix3d R = (1.0 - psi.squaredNorm() * b) * S + a * S * S;  // sin t / t = 1 - t^2 b
+  R.diagonal().array() += 1.0;
+  return R;
+}
+
+Matrix3d NodeRotation::Jl() const {
+  const Matrix3d S = rot::skew(psi);
+  Matrix3d J = a * S + b * S * S;
+  J.diagonal().array() += 1.0;
+  return J;
+}
+
+// d/dt [a [psi x] + b [psi x]^2] psi' with a' = a1 (psi . psi'), b' = b1 (psi . psi') and
+// psi' x psi' = 0:  a1 s (psi x psi') + b1 s psi x (psi x psi') + b psi' x (psi x psi').
+Vector3d NodeRotation::Jl_dot_times(const Vector3d& psi_rate) const {
+  const double s = psi.dot(psi_rate);
+  const Vector3d c = psi.cross(psi_rate);
+  return (a1 * s) * c + (b1 * s) * psi.cross(c) + b * psi_rate.cross(c);
+}
+
+namespace {
+
+// Validates one flexible body and builds its modal integrals (kane_engine.hpp, FlexModel).
+FlexModel build_flex_model(const Body& B, const std::string& file, double inertia_scale) {
+  const FlexBody& fb = *B.flex;
+  const std::string where_b = file + ": body '" + B.name + "'";
+  const int n = fb.modes();
+  const Eigen::Index ni = n;
+  if (fb.nodes.empty()) throw InputError(where_b + ": a flexible body needs at least one node");
+  auto check_matrix = [&](const Eigen::MatrixXd& M, const char* key, bool may_be_empty) {
+    if (may_be_empty && M.size() == 0) return;
+    if (M.rows() != ni || M.cols() != ni)
+      throw InputError(where_b + ": " + key + " is " + std::to_string(M.rows()) + " x " +
+                       std::to_string(M.cols()) + ", the body has " + std::to_string(n) + " modes");
+    if (!M.allFinite()) throw InputError(where_b + ": " + key + " has a non-finite entry");
+    if ((M - M.transpose()).cwiseAbs().maxCoeff() > 1e-12 * M.cwiseAbs().maxCoeff())
+      throw InputError(where_b + ": " + key + " is not symmetric");
+  };
+  check_matrix(fb.K, "K (modal stiffness)", n == 0);
+  check_matrix(fb.D, "D (modal damping)", true);
+
+  FlexModel F;
+  F.n = n;
+  F.c0.setZero();
+  F.I0.setZero();
+  F.S = Eigen::Matrix3Xd::Zero(3, ni);
+  F.Hs = Eigen::Matrix3Xd::Zero(3, ni);
+  F.G.assign(static_cast<std::size_t>(n), Matrix3d::Zero());
+  F.Q.assign(static_cast<std::size_t>(n * n), Matrix3d::Zero());
+  F.C.assign(static_cast<std::size_t>(n * n), Vector3d::Zero());
+  F.Mm = Eigen::MatrixXd::Zero(ni, ni);
+  F.K = fb.K.size() ? Eigen::MatrixXd(0.5 * (fb.K + fb.K.transpose()))
+                    : Eigen::MatrixXd::Zero(ni, ni);
+  F.D = fb.D.size() ? Eigen::MatrixXd(0.5 * (fb.D + fb.D.transpose()))
+                    : Eigen::MatrixXd::Zero(ni, ni);
+  // The body's mass matrix at eta = 0 in body-frame speeds (v_Bo, w, eta'): every node moves
+  // with v - [r_i x] w + Phi_i eta' (the singularity check below).
+  Eigen::MatrixXd Mb = Eigen::MatrixXd::Zero(6 + ni, 6 + ni);
+  Matrix3d Jsum = Matrix3d::Zero();
+  for (const FlexNode& nd : fb.nodes) {
+    const std::string where_n = where_b + ", node '" + nd.name + "'";
+    if (!std::isfinite(nd.mass) || nd.mass < 0)
+      throw InputError(where_n + ": mass must be finite and not negative");
+    if (!nd.p_BoNi_B.allFinite() || !nd.J_Ni_B.allFinite())
+      throw InputError(where_n + ": position and inertia must be finite");
+    if ((nd.J_Ni_B - nd.J_Ni_B.transpose()).cwiseAbs().maxCoeff() >
+        1e-12 * (1.0 + nd.J_Ni_B.cwiseAbs().maxCoeff()))
+      throw InputError(where_n + ": its rotational inertia is not symmetric");
+    for (const Eigen::Matrix3Xd* M : {&nd.Phi_B, &nd.Psi_B}) {
+      const char* what = M == &nd.Phi_B ? "mode shapes" : "mode slopes";
+      if (M->cols() != ni && !(M->cols() == 0))
+        throw InputError(where_n + ": " + what + " have " + std::to_string(M->cols()) +
+                         " columns, the body has " + std::to_string(n) + " modes");
+      if (!M->allFinite()) throw InputError(where_n + ": " + what + " must be finite");
+    }
+    const double m = nd.mass;
+    const Vector3d& p = nd.p_BoNi_B;
+    const Eigen::Matrix3Xd Phi = nd.Phi_B.cols() ? nd.Phi_B : Eigen::Matrix3Xd::Zero(3, ni);
+    F.mass += m;
+    F.c0 += m * p;
+    Jsum += 0.5 * (nd.J_Ni_B + nd.J_Ni_B.transpose());
+    F.I0 += m * (p.squaredNorm() * Matrix3d::Identity() - p * p.transpose());
+    F.S += m * Phi;
+    for (int k = 0; k < n; ++k) {
+      F.Hs.col(k) += m * p.cross(Phi.col(k));
+      F.G[static_cast<std::size_t>(k)] += m * p * Phi.col(k).transpose();
+      for (int l = 0; l < n; ++l) {
+        F.Q[static_cast<std::size_t>(k * n + l)] += m * Phi.col(k) * Phi.col(l).transpose();
+        F.C[static_cast<std::size_t>(k * n + l)] += m * Phi.col(k).cross(Phi.col(l));
+        F.Mm(k, l) += m * Phi.col(k).dot(Phi.col(l));
+      }
+    }
+    Eigen::Matrix<double, 3, Eigen::Dynamic> V(3, 6 + ni);
+    V.leftCols<3>().setIdentity();
+    V.middleCols<3>(3) = -rot::skew(p);
+    V.rightCols(ni) = Phi;
+    Mb.noalias() += m * V.transpose() * V;
+  }
+  Mb.block<3, 3>(3, 3) += Jsum;
+  if (!(F.mass > 0)) throw InputError(where_b + ": the node masses sum to zero");
+  // The model's rigid mass and inertia are the node sums (docs/flexible-bodies.md); the System's
+  // Body::mass and I_BBo_B must say the same.
+  const Matrix3d I_nodes = Jsum + F.I0;
+  if (std::abs(B.mass - F.mass) > 1e-9 * F.mass)
+    throw InputError(where_b + ": mass " + std::to_string(B.mass) +
+                     " kg differs from the sum of its node masses " + std::to_string(F.mass) +
+                     " kg");
+  if ((B.I_BBo_B - I_nodes).cwiseAbs().maxCoeff() > 1e-9 * I_nodes.cwiseAbs().maxCoeff())
+    throw InputError(
+        where_b + ": inertia differs from the node sum sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))");
+  F.I0 = inertia_scale * I_nodes;
+  for (int k = 0; k < n; ++k)
+    if (!(F.Mm(k, k) > 0))
+      throw InputError(where_b + ": mode '" + fb.mode_names[static_cast<std::size_t>(k)] +
+                       "' moves no mass (sum_i m_i |Phi_ik|^2 = 0): its modal mass is zero");
+  // Positive definite with the diagonal scaled to one: otherwise some mode is a rigid-body motion
+  // or a combination of other modes, or the rigid inertia is singular, and Kane's mass matrix is
+  // singular.
+  const Eigen::VectorXd d = Mb.diagonal().cwiseMax(1e-300).cwiseSqrt().cwiseInverse();
+  const Eigen::MatrixXd Ms = d.asDiagonal() * Mb * d.asDiagonal();
+  const double lmin = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Ms).eigenvalues().minCoeff();
+  if (!(lmin > 1e-12))
+    throw InputError(
+        where_b +
+        ": the node masses cannot tell the modes and the rigid motions apart (the "
+        "body's mass matrix at eta = 0 is singular: a mode is a rigid-body motion or a "
+        "combination of other modes, or the rigid inertia is singular)");
+  return F;
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------
@@ -44,30 +239,35 @@ Matrix3d shifted_inertia(const Matrix3d& I, double m, const Vector3d& d) {
 KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     : system_(system), layout_(system_) {
   const std::string file = where(system_);
-  const std::size_t nj = system_.joints.size();
+  const std::size_t nj = system_.joints.size(), nb = system_.bodies.size();
   if (nj == 0) throw InputError(file + ": no joints: the kane engine needs a free base joint");
-  if (nj != system_.bodies.size())
-    throw InputError(file + ": " + std::to_string(system_.bodies.size()) + " bodies but " +
-                     std::to_string(nj) + " joints (exactly one joint per body is required)");
+  if (nj != nb)
+    throw InputError(file + ": " + std::to_string(nb) + " bodies but " + std::to_string(nj) +
+                     " joints (exactly one joint per body is required)");
   if (!(options.test_inertia_scale > 0) || !std::isfinite(options.test_inertia_scale))
     throw InputError("engine option test_inertia_scale must be positive and finite");
 
-  for (const Body& b : system_.bodies)
-    if (b.flex)
-      throw InputError(file + ": body '" + b.name +
-                       "': flexible bodies are not supported by the kane engine yet");
+  // Flexible bodies: validated, modal integrals built once.
+  std::vector<int> flex_of_body(nb, -1);
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Body& B = system_.bodies[b];
+    if (!B.flex) continue;
+    flex_of_body[b] = static_cast<int>(flex_.size());
+    flex_.push_back(build_flex_model(B, file, options.test_inertia_scale));
+  }
 
   nodes_.resize(nj);
-  std::vector<int> node_of_body(system_.bodies.size(), -1);
+  std::vector<int> node_of_body(nb, -1);
   int nq = 0, nu = 0;
   for (std::size_t k = 0; k < nj; ++k) {
+    cancel::poll();
     const Joint& J = system_.joints[k];
     Node& n = nodes_[k];
     const std::string jname = file + ": joint '" + J.name + "'";
     n.type = J.type;
     n.joint = static_cast<int>(k);
     n.body = J.child;
-    if (J.child < 0 || J.child >= static_cast<int>(system_.bodies.size()))
+    if (J.child < 0 || J.child >= static_cast<int>(nb))
       throw InputError(jname + ": child body index out of range");
     if (k == 0) {
       if (J.type != JointType::Free || J.parent != -1)
@@ -75,7 +275,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     } else {
       if (J.type == JointType::Free)
         throw InputError(jname + ": only the first joint may be free (one free base)");
-      if (J.parent < 0 || J.parent >= static_cast<int>(system_.bodies.size()) ||
+      if (J.parent < 0 || J.parent >= static_cast<int>(nb) ||
           node_of_body[static_cast<std::size_t>(J.parent)] < 0)
         throw InputError(jname + ": parent body must be the child of an earlier joint");
       n.parent = node_of_body[static_cast<std::size_t>(J.parent)];
@@ -87,7 +287,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     const Body& B = system_.bodies[static_cast<std::size_t>(J.child)];
     if (!(B.mass > 0) || !std::isfinite(B.mass))
       throw InputError(file + ": body '" + B.name + "': mass must be positive");
-    n.mass = B.mass;
+    n.flex = flex_of_body[static_cast<std::size_t>(J.child)];
+    n.mass = n.flex >= 0 ? flex_[static_cast<std::size_t>(n.flex)].mass : B.mass;
     n.I_BBo_B = options.test_inertia_scale * 0.5 * (B.I_BBo_B + B.I_BBo_B.transpose());
     n.q_PJ0 = J.q_PJ0.normalized();
     n.R_PJ0 = n.q_PJ0.toRotationMatrix();
@@ -99,30 +300,75 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
       n.axis_P = J.axis_P.normalized();
       n.axis_J = n.R_PJ0.transpose() * n.axis_P;
     }
-    n.q0 = nq;
-    n.u0 = nu;
+
+    // Attachment at nodes of flexible bodies (docs/flexible-bodies.md "Joints at nodes").
+    auto attach = [&](int body, int node, const Eigen::Vector3d& point, const char* side,
+                      Eigen::Matrix3Xd& Phi, Eigen::Matrix3Xd& Psi) -> bool {
+      const Body& A = system_.bodies[static_cast<std::size_t>(body)];
+      if (node < 0) {
+        if (A.flex) {  // attached to the body frame itself: no shape, no slope
+          Phi = Eigen::Matrix3Xd::Zero(3, A.flex->modes());
+          Psi = Phi;
+        }
+        return false;
+      }
+      if (!A.flex)
+        throw InputError(jname + ": " + side + "_node is set but body '" + A.name + "' is rigid");
+      if (node >= static_cast<int>(A.flex->nodes.size()))
+        throw InputError(jname + ": " + side + "_node " + std::to_string(node) + " of body '" +
+                         A.name + "' does not exist (it has " +
+                         std::to_string(A.flex->nodes.size()) + " nodes)");
+      const FlexNode& fn = A.flex->nodes[static_cast<std::size_t>(node)];
+      if ((point - fn.p_BoNi_B).norm() > 1e-9 * (1.0 + fn.p_BoNi_B.norm()))
+        throw InputError(jname + ": " + side + "_point differs from the position of node '" +
+                         fn.name + "' of body '" + A.name + "'");
+      const Eigen::Index m = A.flex->modes();
+      Phi = fn.Phi_B.cols() ? fn.Phi_B : Eigen::Matrix3Xd::Zero(3, m);
+      Psi = fn.Psi_B.cols() ? fn.Psi_B : Eigen::Matrix3Xd::Zero(3, m);
+      return !(all_zero(Phi) && all_zero(Psi));  // a node that never moves: rigid attachment
+    };
+    if (k > 0) {
+      n.parent_attach = attach(J.parent, J.parent_node, J.p_PoJ_P, "parent", n.Phi_Pj, n.Psi_Pj);
+      n.pm = static_cast<int>(n.Phi_Pj.cols());
+    } else if (J.parent_node >= 0) {
+      throw InputError(jname + ": the free joint has no parent body, so no parent_node");
+    }
+    n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj);
+    if (k == 0 && J.child_node >= 0)
+      throw InputError(jname +
+                       ": the free joint moves the base's body frame; child_node must "
+                       "not be set");
+    if (n.parent_attach)
+      nodes_[static_cast<std::size_t>(n.parent)].attached_children.push_back(static_cast<int>(k));
+
     switch (J.type) {
       case JointType::Free:
-        n.nq = 7;
-        n.nu = 6;
+        n.nqj = 7;
+        n.nuj = 6;
         break;
       case JointType::Revolute:
-        n.nq = 1;
-        n.nu = 1;
+        n.nqj = 1;
+        n.nuj = 1;
         break;
       case JointType::Spherical:
-        n.nq = 4;
-        n.nu = 3;
+        n.nqj = 4;
+        n.nuj = 3;
         break;
       case JointType::Fixed:
-        n.nq = 0;
-        n.nu = 0;
+        n.nqj = 0;
+        n.nuj = 0;
         break;
     }
+    n.nm = n.flex >= 0 ? flex_[static_cast<std::size_t>(n.flex)].n : 0;
+    n.q0 = nq;
+    n.u0 = nu;
+    n.nq = n.nqj + n.nm;
+    n.nu = n.nuj + n.nm;
     nq += n.nq;
     nu += n.nu;
-    for (int a = n.parent; a >= 0; a = nodes_[static_cast<std::size_t>(a)].parent)
-      if (nodes_[static_cast<std::size_t>(a)].nu > 0) n.speed_ancestors.push_back(a);
+    for (int a = n.parent, via = static_cast<int>(k); a >= 0;
+         via = a, a = nodes_[static_cast<std::size_t>(a)].parent)
+      if (nodes_[static_cast<std::size_t>(a)].nu > 0) n.speed_ancestors.push_back({a, via});
     total_mass_ += n.mass;
   }
   n_q_ = nq;
@@ -131,7 +377,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
   // State labels.
   labels_.assign(static_cast<std::size_t>(n_q_ + n_u_), "");
   for (const Node& n : nodes_) {
-    const std::string& b = system_.bodies[static_cast<std::size_t>(n.body)].name;
+    const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
+    const std::string& b = body.name;
     const std::string& j = system_.joints[static_cast<std::size_t>(n.joint)].name;
     auto put = [this](int i, const std::string& s) { labels_[static_cast<std::size_t>(i)] = s; };
     switch (n.type) {
@@ -152,6 +399,11 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
       case JointType::Fixed:
         break;
     }
+    for (int l = 0; l < n.nm; ++l) {
+      const std::string mode = b + "." + body.flex->mode_names[static_cast<std::size_t>(l)];
+      put(n.q0 + n.nqj + l, mode);
+      put(n_q_ + n.u0 + n.nuj + l, mode + "_rate");
+    }
   }
 
   // Output columns: the pinned ones, then this engine's extras.
@@ -163,7 +415,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
 
   // Workspace.
   work_.resize(nj);
-  for (NodeWork& w : work_) {
+  for (std::size_t k = 0; k < nj; ++k) {
+    const Node& n = nodes_[k];
+    NodeWork& w = work_[k];
     w.R_NB.setIdentity();
     w.I_BBo_N.setZero();
     w.W_N.setZero();
@@ -172,6 +426,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     w.w_NB_N.setZero();
     w.v_NBo_N.setZero();
     w.w_PC_N.setZero();
+    w.w_NJp_N.setZero();
     w.alpha_t_N.setZero();
     w.a_t_N.setZero();
     w.alpha_N.setZero();
@@ -181,6 +436,29 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     w.J_sub_N.setZero();
     w.F_sub_N.setZero();
     w.M_sub_N.setZero();
+    const Eigen::Index pm = n.parent_attach ? n.pm : 0, nm = n.child_attach ? n.nm : 0;
+    w.Wp_N = Eigen::Matrix3Xd::Zero(3, pm);
+    w.Vp_N = Eigen::Matrix3Xd::Zero(3, pm);
+    w.pp_N = Eigen::Matrix3Xd::Zero(3, pm);
+    w.hp_N = Eigen::Matrix3Xd::Zero(3, pm);
+    w.Wm_N = Eigen::Matrix3Xd::Zero(3, nm);
+    w.Vm_N = Eigen::Matrix3Xd::Zero(3, nm);
+    for (Vector3d* v : {&w.w_att_N, &w.v_att_N, &w.jdot_att_N, &w.w_m_N, &w.v_m_N, &w.jdot_m_N})
+      v->setZero();
+  }
+  flex_work_.resize(flex_.size());
+  for (std::size_t f = 0; f < flex_.size(); ++f) {
+    const Eigen::Index m = flex_[f].n;
+    FlexWork& fw = flex_work_[f];
+    fw.c_B.setZero();
+    fw.c_N.setZero();
+    fw.I_B.setZero();
+    for (Eigen::Matrix3Xd* M : {&fw.A_B, &fw.S_N, &fw.A_N, &fw.Ce_B, &fw.pm_N, &fw.hm_N})
+      *M = Eigen::Matrix3Xd::Zero(3, m);
+    fw.N_B.assign(static_cast<std::size_t>(m), Matrix3d::Zero());
+    fw.cdot_N.setZero();
+    fw.hdef_N.setZero();
+    fw.L_B.setZero();
   }
   M_ = Eigen::MatrixXd::Zero(n_u_, n_u_);
   f_ = Eigen::VectorXd::Zero(n_u_);
@@ -190,7 +468,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     if (n.nu == 0) continue;
     int parent_speed = -1;
     if (!n.speed_ancestors.empty()) {
-      const Node& a = nodes_[static_cast<std::size_t>(n.speed_ancestors.front())];
+      const Node& a = nodes_[static_cast<std::size_t>(n.speed_ancestors.front().node)];
       parent_speed = a.u0 + a.nu - 1;
     }
     for (int i = 0; i < n.nu; ++i)
@@ -209,9 +487,15 @@ Quaterniond KaneEngine::read_quat(const double* x, int i) const {
 }
 
 // ------------------------------------------------------------------------------------------------
-// Pass 1. q => R_NB, I_BBo_N, W_N (partial angular velocities), p_B0oBo_N, p_B0oOk_N.
-// Joint kinematics of core/system.hpp: R_NC = R_NP R_PJ0 R_J; the joint point is common to P and
-// C: p_J = p_Po + R_NP p_PoJ_P = p_Co + R_NC p_CoJ_C.
+// Pass 1. q => R_NB, I_BBo_N, W_N (partial angular velocities), p_B0oBo_N, p_B0oOk_N, and
+// at nodes of flexible bodies the twists of the modal speeds.
+// Joint kinematics of core/system.hpp and docs/flexible-bodies.md "Joints at nodes":
+//   R_NJp = R_NP E_Pj,  R_NJc = R_NJp R_PJ0 R_J,  R_NC = R_NJc E_Cj^T  (E = exp([psi x]));
+//   the joint point is common to P and C: p_Ok = p_Po + R_NP r_Pj = p_Co + R_NC r_Cj, r = p + u.
+//   Parent side (w_Jp = w_P + Wp eta_P', v_Ok = v_Po + w_P x (p_Ok - p_Po) + Vp eta_P'):
+//     Wp = R_NP Jl(psi_Pj) Psi_Pj,  Vp = R_NP Phi_Pj.
+//   Child side (w_C = w_Jc + Wm eta_C', v_Co = v_Ok + w_C x (p_Co - p_Ok) + Vm eta_C'):
+//     Wm = -R_NC Jl(psi_Cj) Psi_Cj,  Vm = -R_NC Phi_Cj   (kane_engine.hpp, partial velocities).
 
 void KaneEngine::position_pass(const double* x) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -224,32 +508,107 @@ void KaneEngine::position_pass(const double* x) {
       w.W_N = w.R_NB;  // W_r = b_r for u_r = w_NB_B,r (r = 1..3)
     } else {
       const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
-      Matrix3d R_NJ0 = n.has_offset ? Matrix3d(P.R_NB * n.R_PJ0) : P.R_NB;
+      Vector3d r_Pj = n.p_PoJ_P;
+      // Frames by pointer so that a rigid attachment copies no matrix: R_NJp is R_NP, and R_NJc
+      // is written straight into R_NB.
+      const Matrix3d* R_NJp = &P.R_NB;
+      Matrix3d R_NJp_node;
+      if (n.parent_attach) {
+        const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
+        const double* eta_P = x + pn.q0 + pn.nqj;
+        w.rot_P.set(combine(n.Psi_Pj, eta_P));
+        r_Pj += combine(n.Phi_Pj, eta_P);
+        R_NJp_node.noalias() = P.R_NB * w.rot_P.R();
+        R_NJp = &R_NJp_node;
+        const Matrix3d RJl = P.R_NB * w.rot_P.Jl();
+        for (int l = 0; l < n.pm; ++l) {
+          w.Wp_N.col(l).noalias() = RJl * n.Psi_Pj.col(l);
+          w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
+        }
+      }
+      const Matrix3d* R_NJ0 = R_NJp;
+      Matrix3d R_NJ0_offset;
+      if (n.has_offset) {
+        R_NJ0_offset.noalias() = *R_NJp * n.R_PJ0;
+        R_NJ0 = &R_NJ0_offset;
+      }
+      Matrix3d R_NJc_node;
+      Matrix3d& R_NJc = n.child_attach ? R_NJc_node : w.R_NB;
       switch (n.type) {
         case JointType::Revolute:
-          w.R_NB.noalias() = R_NJ0 * axis_angle_matrix(n.axis_J, x[n.q0]);
-          w.W_N.col(0).noalias() = P.R_NB * n.axis_P;  // W_r = axis (fixed in P and in C)
+          R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, x[n.q0]);
+          w.W_N.col(0).noalias() = *R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
           break;
         case JointType::Spherical:
-          w.R_NB.noalias() = R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
-          w.W_N = w.R_NB;  // W_r = c_r for u_r = w_PC_C,r
+          R_NJc.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
+          w.W_N = R_NJc;  // W_r = j_r for u_r = w_PC,r in Jc components
           break;
         default:
-          w.R_NB = R_NJ0;
+          R_NJc = *R_NJ0;
           break;
       }
-      w.p_B0oOk_N.noalias() = P.p_B0oBo_N + P.R_NB * n.p_PoJ_P;
-      w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * n.p_CoJ_C;
+      w.p_B0oOk_N.noalias() = P.p_B0oBo_N + P.R_NB * r_Pj;
+      Vector3d r_Cj = n.p_CoJ_C;
+      if (n.child_attach) {
+        const double* eta = x + n.q0 + n.nqj;
+        w.rot_C.set(combine(n.Psi_Cj, eta));
+        r_Cj += combine(n.Phi_Cj, eta);
+        w.R_NB.noalias() = R_NJc * w.rot_C.R().transpose();
+        const Matrix3d RJl = -(w.R_NB * w.rot_C.Jl());
+        for (int l = 0; l < n.nm; ++l) {
+          w.Wm_N.col(l).noalias() = RJl * n.Psi_Cj.col(l);
+          w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
+        }
+      }
+      w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * r_Cj;
     }
-    w.I_BBo_N.noalias() = w.R_NB * n.I_BBo_B * w.R_NB.transpose();
+    if (n.flex >= 0)
+      flex_position(n, w, x + n.q0 + n.nqj);
+    else
+      w.I_BBo_N.noalias() = w.R_NB * n.I_BBo_B * w.R_NB.transpose();
+  }
+}
+
+// Flexible body at eta => FlexWork (body frame, then N), I_BBo_N (kane_engine.hpp):
+//   c = c0 + S eta;  N_k = G_k^T + sum_l eta_l Q_kl;  A_k = Hs_k + sum_l eta_l C_lk;
+//   dS = sum_k eta_k (G_k + N_k) = sum m_i (r_i r_i^T - p_i p_i^T);  I = I0 + tr(dS) 1 - dS.
+void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
+  const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+  FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+  const int m = F.n;
+  fw.c_B = F.c0;
+  Matrix3d dS = Matrix3d::Zero();
+  for (int k = 0; k < m; ++k) {
+    const std::size_t ks = static_cast<std::size_t>(k);
+    fw.c_B += F.S.col(k) * eta[k];
+    Matrix3d N = F.G[ks].transpose();
+    Vector3d A = F.Hs.col(k);
+    for (int l = 0; l < m; ++l) {
+      N += eta[l] * F.Q[ks * static_cast<std::size_t>(m) + static_cast<std::size_t>(l)];
+      A += eta[l] * F.C[static_cast<std::size_t>(l * m + k)];
+    }
+    dS += eta[k] * (F.G[ks] + N);
+    fw.N_B[ks] = N;
+    fw.A_B.col(k) = A;
+  }
+  fw.I_B = F.I0 - dS;
+  fw.I_B.diagonal().array() += dS.trace();
+  const Matrix3d& R = w.R_NB;
+  fw.c_N.noalias() = R * fw.c_B;
+  w.I_BBo_N.noalias() = R * fw.I_B * R.transpose();
+  for (int k = 0; k < m; ++k) {
+    fw.S_N.col(k).noalias() = R * F.S.col(k);
+    fw.A_N.col(k).noalias() = R * fw.A_B.col(k);
   }
 }
 
 // ------------------------------------------------------------------------------------------------
-// Pass 2. (q, u) => w_NB_N, v_NBo_N, w_PC_N (velocities as sums of partial velocities times u).
-//   w_C = w_P + w_PC (addition theorem for angular velocities);  v_J = v_Po + w_P x p_PoJ;
-//   v_Co = v_J + w_C x p_JCo (two points fixed on a rigid body, applied to P and to C; [KLL] Ch.
-//   1).
+// Pass 2. (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N (velocities as sums of partial velocities
+// times u), the attachment terms and the flexible bodies' rate terms.
+//   w_Jp = w_P + Wp eta_P';  w_C = w_Jp + w_PC + Wm eta_C' (addition theorem, [KLL] Sec. 1.16);
+//   v_Ok = v_Po + w_P x p_PoOk + Vp eta_P';  v_Co = v_Ok + w_C x p_OkCo + Vm eta_C'
+//   (a point fixed on, or moving in, a rigid frame, [KLL] Secs. 1.17-1.18).
+//   Node-frame rates: psi' = Psi eta', and (d/dt Jl) psi' for the remainder pass.
 
 void KaneEngine::velocity_pass(const double* u) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -260,62 +619,146 @@ void KaneEngine::velocity_pass(const double* u) {
       w.w_NB_N.noalias() = w.R_NB * w_NB_B;
       w.v_NBo_N = v_NBo_N;
       w.w_PC_N = w.w_NB_N;
-      continue;
+    } else {
+      const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+      const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
+      const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
+      Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(p_PoOk_N);
+      w.w_NJp_N = P.w_NB_N;
+      if (n.parent_attach) {
+        const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
+        const double* eta_rate = u + pn.u0 + pn.nuj;
+        w.w_att_N = combine(w.Wp_N, eta_rate);
+        w.v_att_N = combine(w.Vp_N, eta_rate);
+        w.jdot_att_N.noalias() = P.R_NB * w.rot_P.Jl_dot_times(combine(n.Psi_Pj, eta_rate));
+        w.w_NJp_N += w.w_att_N;
+        v_Ok += w.v_att_N;
+      }
+      switch (n.type) {
+        case JointType::Revolute:
+          w.w_PC_N = w.W_N.col(0) * u[n.u0];
+          break;
+        case JointType::Spherical:
+          w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
+          break;
+        default:
+          w.w_PC_N.setZero();
+          break;
+      }
+      w.w_NB_N = w.w_NJp_N + w.w_PC_N;
+      if (n.child_attach) {
+        const double* eta_rate = u + n.u0 + n.nuj;
+        w.w_m_N = combine(w.Wm_N, eta_rate);
+        w.v_m_N = combine(w.Vm_N, eta_rate);
+        w.jdot_m_N.noalias() = w.R_NB * w.rot_C.Jl_dot_times(combine(n.Psi_Cj, eta_rate));
+        w.w_NB_N += w.w_m_N;
+      }
+      w.v_NBo_N = v_Ok + w.w_NB_N.cross(p_OkCo_N);
+      if (n.child_attach) w.v_NBo_N += w.v_m_N;
     }
-    const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
-    switch (n.type) {
-      case JointType::Revolute:
-        w.w_PC_N = w.W_N.col(0) * u[n.u0];
-        break;
-      case JointType::Spherical:
-        w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
-        break;
-      default:
-        w.w_PC_N.setZero();
-        break;
-    }
-    w.w_NB_N = P.w_NB_N + w.w_PC_N;
-    const Vector3d p_PoJ_N = w.p_B0oOk_N - P.p_B0oBo_N;
-    const Vector3d p_JCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
-    w.v_NBo_N = P.v_NBo_N + P.w_NB_N.cross(p_PoJ_N) + w.w_NB_N.cross(p_JCo_N);
+    if (n.flex >= 0) flex_velocity(n, w, u + n.u0 + n.nuj);
+  }
+}
+
+// Flexible body's rate terms => FlexWork:  cdot_N = R S eta',  hdef_N = R A eta',
+//   L = sum_k eta_k' N_k^T = sum m_i r_i (Phi_i eta')^T,  Ce_k = sum_l eta_l' C_lk.
+void KaneEngine::flex_velocity(const Node& n, NodeWork& w, const double* eta_rate) {
+  (void)w;
+  const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+  FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+  const int m = F.n;
+  fw.cdot_N = combine(fw.S_N, eta_rate);
+  fw.hdef_N = combine(fw.A_N, eta_rate);
+  fw.L_B.setZero();
+  for (int k = 0; k < m; ++k) {
+    fw.L_B.noalias() += eta_rate[k] * fw.N_B[static_cast<std::size_t>(k)].transpose();
+    Vector3d c = Vector3d::Zero();
+    for (int l = 0; l < m; ++l) c += eta_rate[l] * F.C[static_cast<std::size_t>(l * m + k)];
+    fw.Ce_B.col(k) = c;
   }
 }
 
 // ------------------------------------------------------------------------------------------------
 // Pass 3. (q, u) => alpha_t_N, a_t_N: the accelerations with every u' = 0 (the remainder terms of
-// alpha_B = sum W_r u_r' + alpha_t, a_Bo = sum V_r u_r' + a_t).
-//   Base: w_NB_N = R_NB w_NB_B, so alpha = R_NB w_NB_B' (w x w = 0) and a = v_NBo_N':  both zero.
-//   Child: the joint's partial angular velocities are fixed in P (revolute axis) or in C (c_i);
-//   either way d/dt(W_r) u_r sums to w_P x w_PC, so alpha_t,C = alpha_t,P + w_P x w_PC.
-//   a_J = a_Po + alpha_P x p_PoJ + w_P x (w_P x p_PoJ), a_Co = a_J + alpha_C x p_JCo +
-//   w_C x (w_C x p_JCo)  (two points fixed on a rigid body, [KLL] Ch. 1), with remainder values.
+// alpha_B = sum W_r u_r' + alpha_t, a_Bo = sum V_r u_r' + a_t); with u' given (accelerations()),
+// the full alpha_N, a_N.  Time derivatives of the velocity-pass sums ([KLL] Secs. 1.17-1.18,
+// Eqs. (37)-(38) of the paper):
+//   a_Ok = a_Po + alpha_P x p_PoOk + w_P x (w_P x p_PoOk) + 2 w_P x v_att + Vp eta_P''
+//   alpha_Jp = alpha_P + w_P x w_att + R_NP (d/dt Jl) psi_Pj' + Wp eta_P''
+//     (d/dt (R_NP Jl Psi eta') with R_NP' = [w_P x] R_NP);
+//   alpha_Jc = alpha_Jp + w_Jp x w_PC + sum W_r u_r'  (W_r fixed in Jp (revolute axis) or in Jc
+//     (spherical); either way d/dt(W_r) u_r sums to w_Jp x w_PC);
+//   alpha_C = alpha_Jc + w_C x w_m - R_NC (d/dt Jl) psi_Cj' + Wm eta_C''
+//     (w_m = -R_NC Jl Psi eta' with R_NC' = [w_C x] R_NC);
+//   a_Co = a_Ok + alpha_C x p_OkCo + w_C x (w_C x p_OkCo) + 2 w_C x v_m + Vm eta_C''.
+//   Base: alpha = R_NB w_NB_B' (w x w = 0), a = v_NBo_N'; the remainder values are zero.
 
-void KaneEngine::remainder_pass() {
+void KaneEngine::propagate_accelerations(const double* udot) {
+  const bool full = udot != nullptr;
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
+    Vector3d& alpha = full ? w.alpha_N : w.alpha_t_N;
+    Vector3d& acc = full ? w.a_N : w.a_t_N;
     if (n.type == JointType::Free) {
-      w.alpha_t_N.setZero();
-      w.a_t_N.setZero();
+      if (full) {
+        alpha.noalias() = w.R_NB * Eigen::Map<const Vector3d>(udot + n.u0);
+        acc = Eigen::Map<const Vector3d>(udot + n.u0 + 3);
+      } else {
+        alpha.setZero();
+        acc.setZero();
+      }
       continue;
     }
     const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
-    w.alpha_t_N = P.alpha_t_N + P.w_NB_N.cross(w.w_PC_N);
-    const Vector3d p_PoJ_N = w.p_B0oOk_N - P.p_B0oBo_N;
-    const Vector3d p_JCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
-    w.a_t_N = P.a_t_N + P.alpha_t_N.cross(p_PoJ_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoJ_N)) +
-              w.alpha_t_N.cross(p_JCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_JCo_N));
+    const Vector3d& alpha_P = full ? P.alpha_N : P.alpha_t_N;
+    const Vector3d& a_P = full ? P.a_N : P.a_t_N;
+    const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
+    const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
+    Vector3d a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+    Vector3d alpha_C = alpha_P;
+    if (n.parent_attach) {
+      a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N);
+      alpha_C += P.w_NB_N.cross(w.w_att_N) + w.jdot_att_N;
+      if (full) {
+        const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
+        const double* eta_dd = udot + pn.u0 + pn.nuj;
+        a_Ok += combine(w.Vp_N, eta_dd);
+        alpha_C += combine(w.Wp_N, eta_dd);
+      }
+    }
+    alpha_C += w.w_NJp_N.cross(w.w_PC_N);
+    if (full)
+      for (int i = 0; i < n.nuj; ++i) alpha_C += w.W_N.col(i) * udot[n.u0 + i];
+    if (n.child_attach) {
+      alpha_C += w.w_NB_N.cross(w.w_m_N) - w.jdot_m_N;
+      if (full) alpha_C += combine(w.Wm_N, udot + n.u0 + n.nuj);
+    }
+    acc = a_Ok + alpha_C.cross(p_OkCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_OkCo_N));
+    if (n.child_attach) {
+      acc += 2.0 * w.w_NB_N.cross(w.v_m_N);
+      if (full) acc += combine(w.Vm_N, udot + n.u0 + n.nuj);
+    }
+    alpha = alpha_C;
   }
 }
 
+void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
+
 // ------------------------------------------------------------------------------------------------
 // Pass 4 (backward, leaves first). => per node k the sums over its subtree S(k), about Ok:
-//   m_sub, s_sub = sum m (p_Bo - p_Ok), J_sub = sum I_B + m (|d|^2 1 - d d^T)  (mass properties
-//   for M), and the residual loads of Eq. (36) at u' = 0 plus the external torques of Eq. (35):
-//   R_B = -m a_t at Bo,  T_B = T_ext - I alpha_t - w x I w;  F_sub = sum R_B,
-//   M_sub = sum T_B + (p_Bo - p_Ok) x R_B.
-// A child's sums move to its parent's point Op with e = p_Ok - p_Op:
-//   s' = s + m e;  J' = J + (2 s.e + m |e|^2) 1 - s e^T - e s^T - m e e^T;  M' = M + e x F.
+//   m_sub, s_sub = sum m (p - p_Ok), J_sub = inertia about Ok (mass properties for M), and the
+//   residual loads of Eq. (36) at u' = 0 plus the external torques of Eq. (35):
+//   rigid body:  R_B = -m a_t at Bo,  T_B = T_ext - I alpha_t - w x I w;
+//   flexible body, summed over its nodes with a_t,i = a_t + alpha_t x R r_i + w x (w x R r_i)
+//   + 2 w x R Phi_i eta' (the remainder acceleration of node i, [KLL] Sec. 1.18) and the modal
+//   integrals (c, I, L of FlexWork; identities sum m r x (a x r) = I_m a, sum m r x (w x (w x r))
+//   = w x I_m w, sum m r x (w x v) = w tr(L) - L^T w):
+//     R_B = -(m a_t + alpha_t x c + w x (w x c) + 2 w x cdot),
+//     T_B = T_ext - c x a_t - I alpha_t - w x I w - 2 R (w_B tr L - L^T w_B)   (about Bo);
+//   F_sub = sum R_B,  M_sub = sum T_B + (p_Bo - p_Ok) x R_B.
+// A child's sums move to its parent's point Op with e = p_Ok - p_Op (moved_inertia); M' = M + e x
+// F.
 
 void KaneEngine::subtree_pass(double t) {
   for (NodeWork& w : work_) {
@@ -333,10 +776,25 @@ void KaneEngine::subtree_pass(double t) {
     // This node's own body.
     const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
     w.m_sub += n.mass;
-    w.s_sub_N += n.mass * d;
-    w.J_sub_N += shifted_inertia(w.I_BBo_N, n.mass, d);
-    const Vector3d R_B = -n.mass * w.a_t_N;
-    Vector3d T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+    Vector3d R_B, T_B;
+    if (n.flex < 0) {
+      w.s_sub_N += n.mass * d;
+      w.J_sub_N += shifted_inertia(w.I_BBo_N, n.mass, d);
+      R_B = -n.mass * w.a_t_N;
+      T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+    } else {
+      const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+      const Vector3d& c = fw.c_N;
+      const Vector3d& wN = w.w_NB_N;
+      w.s_sub_N += n.mass * d + c;
+      w.J_sub_N += moved_inertia(w.I_BBo_N, n.mass, c, d);
+      R_B = -(n.mass * w.a_t_N + w.alpha_t_N.cross(c) + wN.cross(wN.cross(c)) +
+              2.0 * wN.cross(fw.cdot_N));
+      const Vector3d w_B = w.R_NB.transpose() * wN;
+      const Vector3d cor_B = w_B * fw.L_B.trace() - fw.L_B.transpose() * w_B;
+      T_B = -c.cross(w.a_t_N) - w.I_BBo_N * w.alpha_t_N - wN.cross(w.I_BBo_N * wN) -
+            2.0 * (w.R_NB * cor_B);
+    }
     if (!body.torque.empty()) {
       const Vector3d T = body.torque.value(t);
       if (body.torque_frame == Body::Frame::Body)
@@ -353,59 +811,156 @@ void KaneEngine::subtree_pass(double t) {
     const Vector3d e = w.p_B0oOk_N - P.p_B0oOk_N;
     P.m_sub += w.m_sub;
     P.s_sub_N += w.s_sub_N + w.m_sub * e;
-    Matrix3d J = w.J_sub_N - w.s_sub_N * e.transpose() - e * w.s_sub_N.transpose() -
-                 w.m_sub * e * e.transpose();
-    J.diagonal().array() += 2.0 * w.s_sub_N.dot(e) + w.m_sub * e.squaredNorm();
-    P.J_sub_N += J;
+    P.J_sub_N += moved_inertia(w.J_sub_N, w.m_sub, w.s_sub_N, e);
     P.F_sub_N += w.F_sub_N;
     P.M_sub_N += w.M_sub_N + e.cross(w.F_sub_N);
   }
 }
 
 // ------------------------------------------------------------------------------------------------
-// Pass 5. subtree sums => M (lower triangle).
-//   Speed r of node k (rotational, W_r): p_r = W_r x s_k, h_r = J_k W_r (momenta of S(k) in the
-//   partial motion r);  M_rs = W_s . h_r within node k;  M_rs = W_s . (h_r + (p_Ok - p_Oa) x p_r)
-//   for a rotational speed s of an ancestor a;  M_rs = n_i . p_r for the base translations.
-//   Base block: M(w, w) = R_NB^T J_0 R_NB;  M(v_i, w_j) = n_i . (b_j x s_0);  M(v, v) = m 1.
+// Pass 5. subtree sums => M (lower triangle).  M_rs = sum over the particles of S(k) of m V_r.V_s
+// plus sum over frames W_r . J W_s ([KLL] Sec. 5.x generalised inertia forces, linear in u').
+//   Speed r of node k moves S(k) with its twist (W_r, V_r) about Ok (plus, for a modal speed, the
+//   elastic part); p_r and h_r (about Ok) are the linear and angular momentum of S(k) in that
+//   partial motion.  Twist part: p = m_k V_r + W_r x s_k, h = s_k x V_r + J_k W_r.
+//   M_rs = W_s . h_r + V_s . p_r for every twist s that moves all of S(k) (speeds of k and of
+//   its ancestors a, with h moved to Oa: h + (p_Ok - p_Oa) x p), plus, for a modal speed s, its
+//   elastic part's work against the motion r:
+//     on C's nodes:  sum m_i R Phi_is . V_r(node i) = S_s . V_r + W_r . h^C_s + Mm_sr
+//                    (h^C_s = (p_Co - p_Ok) x R S_s + R A_s, V_r(node i) = V_r + W_r x (x_i -
+//                    p_Ok) + R Phi_ir);
+//     on an attached child c's subtree:  Wp_c,s . h_c + Vp_c,s . p_c, (p_c, h_c) the momenta of
+//                    S(c) about Oc in the motion r.
+//   Base block: M(w, w) = R^T J_0 R;  M(v_i, w_j) = n_i . (b_j x s_0);  M(v, v) = m 1.
+
+void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, const Vector3d& h) {
+  const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+  for (const Node::Ancestor& an : n.speed_ancestors) {
+    const Node& A = nodes_[static_cast<std::size_t>(an.node)];
+    const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
+    const Vector3d h_a = h + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p);
+    if (A.type == JointType::Free) {
+      M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
+      M_.block<1, 3>(r, A.u0 + 3) = p.transpose();
+    } else {
+      for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
+    }
+    if (A.nm == 0) continue;
+    // The ancestor's modal speeds: their twist (if A hangs at one of its nodes) and their elastic
+    // twist at the node where the path to k leaves A (node `via`).
+    const Node& V = nodes_[static_cast<std::size_t>(an.via)];
+    const NodeWork& wv = work_[static_cast<std::size_t>(an.via)];
+    const Vector3d h_v = h + (w.p_B0oOk_N - wv.p_B0oOk_N).cross(p);
+    for (int s = 0; s < A.nm; ++s) {
+      double m = 0;
+      if (A.child_attach) m += wa.Wm_N.col(s).dot(h_a) + wa.Vm_N.col(s).dot(p);
+      if (V.parent_attach) m += wv.Wp_N.col(s).dot(h_v) + wv.Vp_N.col(s).dot(p);
+      M_(r, A.u0 + A.nuj + s) = m;
+    }
+  }
+}
 
 void KaneEngine::mass_matrix_pass() {
-  const NodeWork& base = work_[0];
-  const Node& base_node = nodes_[0];
   {
-    const int r0 = base_node.u0;
+    const NodeWork& base = work_[0];
+    const int r0 = nodes_[0].u0;
     M_.block<3, 3>(r0, r0).noalias() = base.R_NB.transpose() * base.J_sub_N * base.R_NB;
     M_.block<3, 3>(r0 + 3, r0).noalias() = -rot::skew(base.s_sub_N) * base.R_NB;
     M_.block<3, 3>(r0 + 3, r0 + 3) = Matrix3d::Identity() * base.m_sub;
   }
-  for (std::size_t k = 1; k < nodes_.size(); ++k) {
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    cancel::poll();
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
-    for (int i = 0; i < n.nu; ++i) {
-      const int r = n.u0 + i;
-      const Vector3d W_r = w.W_N.col(i);
-      const Vector3d p_r = W_r.cross(w.s_sub_N);
-      const Vector3d h_r = w.J_sub_N * W_r;
-      for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
-      for (int a : n.speed_ancestors) {
-        const Node& A = nodes_[static_cast<std::size_t>(a)];
-        const NodeWork& wa = work_[static_cast<std::size_t>(a)];
-        const Vector3d h_ra = h_r + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p_r);
-        if (A.type == JointType::Free) {
-          M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_ra).transpose();
-          M_.block<1, 3>(r, A.u0 + 3) = p_r.transpose();
-        } else {
-          for (int j = 0; j < A.nu; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_ra);
-        }
+    if (k > 0)
+      for (int i = 0; i < n.nuj; ++i) {
+        const int r = n.u0 + i;
+        const Vector3d W_r = w.W_N.col(i);
+        const Vector3d p_r = W_r.cross(w.s_sub_N);
+        const Vector3d h_r = w.J_sub_N * W_r;
+        for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
+        mass_matrix_ancestors(n, r, p_r, h_r);
       }
+    if (n.nm == 0) continue;
+
+    // Modal speeds of this node's flexible body.
+    const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+    FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+    const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    // Momenta of each attached child's subtree, about its Oc, in the elastic twists.
+    for (int c : n.attached_children) {
+      NodeWork& cw = work_[static_cast<std::size_t>(c)];
+      for (int l = 0; l < n.nm; ++l) {
+        cw.pp_N.col(l) = cw.m_sub * cw.Vp_N.col(l) + cw.Wp_N.col(l).cross(cw.s_sub_N);
+        cw.hp_N.col(l) = cw.s_sub_N.cross(cw.Vp_N.col(l)) + cw.J_sub_N * cw.Wp_N.col(l);
+      }
+    }
+    // Momenta of S(k) about Ok per modal speed: elastic part on C's nodes and on the attached
+    // subtrees, plus the twist part.
+    for (int l = 0; l < n.nm; ++l) {
+      Vector3d p = fw.S_N.col(l);
+      Vector3d h = d.cross(fw.S_N.col(l)) + fw.A_N.col(l);
+      if (n.child_attach) {
+        p += w.m_sub * w.Vm_N.col(l) + w.Wm_N.col(l).cross(w.s_sub_N);
+        h += w.s_sub_N.cross(w.Vm_N.col(l)) + w.J_sub_N * w.Wm_N.col(l);
+      }
+      for (int c : n.attached_children) {
+        const NodeWork& cw = work_[static_cast<std::size_t>(c)];
+        p += cw.pp_N.col(l);
+        h += cw.hp_N.col(l) + (cw.p_B0oOk_N - w.p_B0oOk_N).cross(cw.pp_N.col(l));
+      }
+      fw.pm_N.col(l) = p;
+      fw.hm_N.col(l) = h;
+    }
+    for (int l = 0; l < n.nm; ++l) {
+      const int r = n.u0 + n.nuj + l;
+      const Vector3d p = fw.pm_N.col(l), h = fw.hm_N.col(l);
+      // Against the joint's own speeds (pure twists).
+      if (n.type == JointType::Free) {
+        M_.block<1, 3>(r, n.u0).noalias() = (w.R_NB.transpose() * h).transpose();
+        M_.block<1, 3>(r, n.u0 + 3) = p.transpose();
+      } else {
+        for (int j = 0; j < n.nuj; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h);
+      }
+      // Against the modal speeds s <= l: twist part of s, and its elastic part on C's nodes.
+      for (int s = 0; s <= l; ++s) {
+        double m = F.Mm(s, l);
+        if (n.child_attach) {
+          const Vector3d hC_s = d.cross(fw.S_N.col(s)) + fw.A_N.col(s);
+          m += w.Wm_N.col(s).dot(h) + w.Vm_N.col(s).dot(p) + fw.S_N.col(s).dot(w.Vm_N.col(l)) +
+               w.Wm_N.col(l).dot(hC_s);
+        }
+        M_(r, n.u0 + n.nuj + s) = m;
+      }
+      // The elastic part of s on each attached subtree S(c), which moves in the motion r with
+      // the twist (W, V) about Oc: r's twist carried to Oc plus r's own elastic twist there.
+      for (int c : n.attached_children) {
+        const NodeWork& cw = work_[static_cast<std::size_t>(c)];
+        Vector3d p_c = cw.pp_N.col(l), h_c = cw.hp_N.col(l);
+        if (n.child_attach) {
+          const Vector3d W = w.Wm_N.col(l);
+          const Vector3d V = w.Vm_N.col(l) + W.cross(cw.p_B0oOk_N - w.p_B0oOk_N);
+          p_c += cw.m_sub * V + W.cross(cw.s_sub_N);
+          h_c += cw.s_sub_N.cross(V) + cw.J_sub_N * W;
+        }
+        for (int s = 0; s <= l; ++s)
+          M_(r, n.u0 + n.nuj + s) += cw.Wp_N.col(s).dot(h_c) + cw.Vp_N.col(s).dot(p_c);
+      }
+      mass_matrix_ancestors(n, r, p, h);
     }
   }
 }
 
 // ------------------------------------------------------------------------------------------------
-// Pass 6. subtree sums, hinge loads => f = F_r + F_r*|_{u'=0}.
-//   Base: f(w) = R_NB^T M_0 (W_r = b_r),  f(v) = F_0 (V_r = n_r).  Node k: f_r = W_r . M_k plus
-//   the hinge's own spring, damper and motor (the only speeds its action-reaction pair works on).
+// Pass 6. subtree sums, hinge loads, modal stiffness and damping => f = F_r + F_r*|_{u'=0}.
+//   Twist part of speed r: W_r . M_k + V_r . F_k.  Base: f(w) = R_NB^T M_0 (W_r = b_r),
+//   f(v) = F_0 (V_r = n_r).  Joint speeds: f_r = W_r . M_k plus the hinge's own spring, damper
+//   and motor (the only speeds its action-reaction pair works on, kane_engine.hpp).
+//   Modal speed l of C, elastic part (paper Eq. (40), [KRB]):
+//     g_l = sum_i R Phi_il . (-m_i a_t,i) = -(S_l . a_B + alpha_B . A_l + w_B^T N_l w_B
+//           - |w_B|^2 tr N_l + 2 w_B . Ce_l)   (body components of a_t, alpha_t, w)
+//     plus Wp_c,l . M_c + Vp_c,l . F_c for every attached child c, and -(K eta + D eta')_l
+//     (the generalised active forces of the strain energy and the modal damping, [KLL] Ch. 4).
 
 double KaneEngine::hinge_torque_revolute(const Node& n, double t, const double* x) const {
   const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
@@ -429,7 +984,7 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
   const NodeWork& base = work_[0];
   f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
   f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
-  for (std::size_t k = 1; k < nodes_.size(); ++k) {
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
     switch (n.type) {
@@ -442,6 +997,27 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
         break;
       default:
         break;
+    }
+    if (n.nm == 0) continue;
+    const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+    const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+    const double* eta = x + n.q0 + n.nqj;
+    const double* eta_rate = x + n_q_ + n.u0 + n.nuj;
+    const Vector3d a_B = w.R_NB.transpose() * w.a_t_N;
+    const Vector3d alpha_B = w.R_NB.transpose() * w.alpha_t_N;
+    const Vector3d w_B = w.R_NB.transpose() * w.w_NB_N;
+    const double w2 = w_B.squaredNorm();
+    for (int l = 0; l < n.nm; ++l) {
+      const Matrix3d& N = fw.N_B[static_cast<std::size_t>(l)];
+      double g = -(F.S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
+                   w2 * N.trace() + 2.0 * w_B.dot(fw.Ce_B.col(l)));
+      if (n.child_attach) g += w.Wm_N.col(l).dot(w.M_sub_N) + w.Vm_N.col(l).dot(w.F_sub_N);
+      for (int c : n.attached_children) {
+        const NodeWork& cw = work_[static_cast<std::size_t>(c)];
+        g += cw.Wp_N.col(l).dot(cw.M_sub_N) + cw.Vp_N.col(l).dot(cw.F_sub_N);
+      }
+      for (int m = 0; m < n.nm; ++m) g -= F.K(l, m) * eta[m] + F.D(l, m) * eta_rate[m];
+      f_(n.u0 + n.nuj + l) = g;
     }
   }
 }
@@ -460,6 +1036,7 @@ bool KaneEngine::solve() {
   auto h = [H, ld](int i, int j) -> double& { return H[i * ld + j]; };  // row major (row i, col j)
   const int* lambda = lambda_.data();
   for (int k = n_u_ - 1; k >= 0; --k) {
+    cancel::poll();
     const double d = h(k, k);
     if (!(d > 0)) return false;
     const double inv_d = 1.0 / d;
@@ -519,6 +1096,8 @@ void KaneEngine::rhs(double t, const double* x, double* xdot) {
       case JointType::Fixed:
         break;
     }
+    // eta' is the modal speed itself.
+    for (int l = 0; l < n.nm; ++l) xdot[n.q0 + n.nqj + l] = u[n.u0 + n.nuj + l];
   }
   for (int r = 0; r < n_u_; ++r) xdot[n_q_ + r] = udot_(r);
 }
@@ -544,9 +1123,9 @@ bool KaneEngine::after_step(double /*t*/, double* x) {
 }
 
 // ------------------------------------------------------------------------------------------------
-// TreeState => x. The base CM velocity for zero linear momentum: every body's CM velocity is
-// v_B0o + (terms in the other speeds) (partial velocity n_i of the base translations for every
-// body), so with P0 the momentum at v_B0o = 0, v_B0o = -P0 / m_total.
+// TreeState => x. The base velocity for zero linear momentum: every particle's velocity is
+// v_B0o + (terms in the other speeds, modal rates included) (partial velocity n_i of the base
+// translations for every particle), so with P0 the momentum at v_B0o = 0, v_B0o = -P0 / m_total.
 
 void KaneEngine::pack(const TreeState& s, double* x) {
   if (s.joints.size() != nodes_.size())
@@ -583,6 +1162,21 @@ void KaneEngine::pack(const TreeState& s, double* x) {
       case JointType::Fixed:
         break;
     }
+    if (n.nm > 0) {
+      const std::size_t b = static_cast<std::size_t>(n.body);
+      if (s.eta.size() <= b || s.eta_rate.size() <= b || s.eta[b].size() != n.nm ||
+          s.eta_rate[b].size() != n.nm)
+        throw InputError(where(system_) + ": tree state: body '" + system_.bodies[b].name +
+                         "' needs " + std::to_string(n.nm) +
+                         " modal coordinates and as many rates");
+      if (!s.eta[b].allFinite() || !s.eta_rate[b].allFinite())
+        throw InputError(where(system_) + ": tree state: body '" + system_.bodies[b].name +
+                         "': modal coordinates must be finite");
+      for (int l = 0; l < n.nm; ++l) {
+        x[n.q0 + n.nqj + l] = s.eta[b](l);
+        u[n.u0 + n.nuj + l] = s.eta_rate[b](l);
+      }
+    }
   }
   if (system_.zero_linear_momentum) {
     for (int i = 0; i < 3; ++i) u[nodes_[0].u0 + 3 + i] = 0.0;
@@ -595,26 +1189,9 @@ void KaneEngine::pack(const TreeState& s, double* x) {
 
 // ------------------------------------------------------------------------------------------------
 // u' => alpha_N, a_N (full accelerations, for accelerations()): the remainder-pass recursion
-// with the joint's sum W_r u_r' added to alpha and a_B0o = v_NBo_N'.
+// with the sums W_r u_r' and V_r u_r' added (propagate_accelerations).
 
-void KaneEngine::acceleration_pass(const double* udot) {
-  for (std::size_t k = 0; k < nodes_.size(); ++k) {
-    const Node& n = nodes_[k];
-    NodeWork& w = work_[k];
-    if (n.type == JointType::Free) {
-      w.alpha_N.noalias() = w.R_NB * Eigen::Map<const Vector3d>(udot + n.u0);
-      w.a_N = Eigen::Map<const Vector3d>(udot + n.u0 + 3);
-      continue;
-    }
-    const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
-    w.alpha_N = P.alpha_N + P.w_NB_N.cross(w.w_PC_N);
-    for (int i = 0; i < n.nu; ++i) w.alpha_N += w.W_N.col(i) * udot[n.u0 + i];
-    const Vector3d p_PoJ_N = w.p_B0oOk_N - P.p_B0oBo_N;
-    const Vector3d p_JCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
-    w.a_N = P.a_N + P.alpha_N.cross(p_PoJ_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoJ_N)) +
-            w.alpha_N.cross(p_JCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_JCo_N));
-  }
-}
+void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot); }
 
 void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   dynamics(t, x);
@@ -624,9 +1201,12 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.a_NBo_N.assign(nb, Vector3d::Zero());
   a.angle_ddot.assign(nj, 0.0);
   a.wdot_PC_C.assign(nj, Vector3d::Zero());
+  a.eta_ddot.assign(nb, Eigen::VectorXd());
   for (const Node& n : nodes_) {
+    if (n.nm > 0) a.eta_ddot[static_cast<std::size_t>(n.body)] = udot_.segment(n.u0 + n.nuj, n.nm);
     const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
     // d/dt of the body-frame components of w_NB: R_NB^T alpha (the w x w term vanishes).
+    // For a flexible body: its frame; a_NBo_N is the acceleration of the frame origin Bo.
     a.wdot_NB_B[static_cast<std::size_t>(n.body)] = w.R_NB.transpose() * w.alpha_N;
     a.a_NBo_N[static_cast<std::size_t>(n.body)] = w.a_N;
     if (n.type == JointType::Revolute)
@@ -639,31 +1219,60 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // ------------------------------------------------------------------------------------------------
 // Energies and momenta (after position_pass and velocity_pass).
 
-double KaneEngine::sum_kinetic_energy() const {
+// T = sum over rigid bodies 1/2 m v.v + 1/2 w.I w, and over flexible bodies, from the nodes'
+// velocities v_i = v_Bo + w x R r_i + R Phi_i eta' (docs/flexible-bodies.md "Energy") summed with
+// the modal integrals:  1/2 m v.v + v.(w x c + cdot) + 1/2 w.I w + w.hdef + 1/2 eta'^T Mm eta'.
+double KaneEngine::sum_kinetic_energy(const double* u) const {
   double T = 0;
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
-    T += 0.5 * nodes_[k].mass * w.v_NBo_N.squaredNorm() + 0.5 * w.w_NB_N.dot(w.I_BBo_N * w.w_NB_N);
+    T += 0.5 * n.mass * w.v_NBo_N.squaredNorm() + 0.5 * w.w_NB_N.dot(w.I_BBo_N * w.w_NB_N);
+    if (n.flex < 0) continue;
+    const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+    const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+    const Eigen::Map<const Eigen::VectorXd> eta_rate(u + n.u0 + n.nuj, n.nm);
+    T += w.v_NBo_N.dot(w.w_NB_N.cross(fw.c_N) + fw.cdot_N) + w.w_NB_N.dot(fw.hdef_N) +
+         0.5 * eta_rate.dot(F.Mm * eta_rate);
   }
   return T;
 }
 
+// Flexible body: sum m_i v_i = m v_Bo + w x c + cdot.
 Vector3d KaneEngine::sum_linear_momentum() const {
   Vector3d P = Vector3d::Zero();
-  for (std::size_t k = 0; k < nodes_.size(); ++k) P += nodes_[k].mass * work_[k].v_NBo_N;
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    const NodeWork& w = work_[k];
+    P += nodes_[k].mass * w.v_NBo_N;
+    if (nodes_[k].flex >= 0) {
+      const FlexWork& fw = flex_work_[static_cast<std::size_t>(nodes_[k].flex)];
+      P += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
+    }
+  }
   return P;
 }
 
-// H about the system CM c: sum I_B w_B + (p_Bo - c) x m_B v_Bo (central angular momentum of a
-// set of rigid bodies).
+// H about the system CM c: sum over bodies of h_Bo + (p_Bo - c) x P_B (sum m_i (x_i - c) =
+// 0 over the system), with h_Bo = I w for a rigid body and, for a flexible one,
+// sum m_i (x_i - p_Bo) x v_i + sum J_i w = c x v_Bo + I w + hdef (docs "Energy").
 Vector3d KaneEngine::sum_angular_momentum() const {
   Vector3d c = Vector3d::Zero();
-  for (std::size_t k = 0; k < nodes_.size(); ++k) c += nodes_[k].mass * work_[k].p_B0oBo_N;
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    c += nodes_[k].mass * work_[k].p_B0oBo_N;
+    if (nodes_[k].flex >= 0) c += flex_work_[static_cast<std::size_t>(nodes_[k].flex)].c_N;
+  }
   c /= total_mass_;
   Vector3d H = Vector3d::Zero();
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const NodeWork& w = work_[k];
-    H += w.I_BBo_N * w.w_NB_N + (w.p_B0oBo_N - c).cross(nodes_[k].mass * w.v_NBo_N);
+    Vector3d P = nodes_[k].mass * w.v_NBo_N;
+    H += w.I_BBo_N * w.w_NB_N;
+    if (nodes_[k].flex >= 0) {
+      const FlexWork& fw = flex_work_[static_cast<std::size_t>(nodes_[k].flex)];
+      H += fw.c_N.cross(w.v_NBo_N) + fw.hdef_N;
+      P += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
+    }
+    H += (w.p_B0oBo_N - c).cross(P);
   }
   return H;
 }
@@ -680,13 +1289,19 @@ double KaneEngine::potential_energy(const double* x) const {
       V += 0.5 * J.stiffness * rot::rotation_vector(read_quat(x, n.q0)).squaredNorm();
     }
   }
+  // Strain energy 1/2 eta^T K eta (docs/flexible-bodies.md "Energy").
+  for (const Node& n : nodes_) {
+    if (n.nm == 0) continue;
+    const Eigen::Map<const Eigen::VectorXd> eta(x + n.q0 + n.nqj, n.nm);
+    V += 0.5 * eta.dot(flex_[static_cast<std::size_t>(n.flex)].K * eta);
+  }
   return V;
 }
 
 double KaneEngine::kinetic_energy(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
-  return sum_kinetic_energy();
+  return sum_kinetic_energy(x + n_q_);
 }
 
 Vector3d KaneEngine::linear_momentum_N(const double* x) {
@@ -717,6 +1332,82 @@ std::vector<BodyMotion> KaneEngine::body_motion(const double* x) {
   return m;
 }
 
+// Node by node from the body frames and the System's own node data (no modal integrals, no
+// attachment tables): x_i = p_Bo + R r_i, v_i = v_Bo + w x R r_i + R Phi_i eta'.
+std::vector<MassPoint> KaneEngine::mass_points(const double* x) {
+  const std::vector<BodyMotion> bm = body_motion(x);
+  std::vector<MassPoint> pts;
+  for (const Node& n : nodes_) {
+    const BodyMotion& m = bm[static_cast<std::size_t>(n.body)];
+    const Body& B = system_.bodies[static_cast<std::size_t>(n.body)];
+    const Vector3d w_N = m.R_NB * m.w_NB_B;
+    if (!B.flex) {
+      MassPoint p;
+      p.body = n.body;
+      p.mass = B.mass;
+      p.J_N = m.R_NB * B.I_BBo_B * m.R_NB.transpose();
+      p.p_NoP_N = m.p_NoBo_N;
+      p.v_NP_N = m.v_NBo_N;
+      pts.push_back(p);
+      continue;
+    }
+    const Eigen::Map<const Eigen::VectorXd> eta(x + n.q0 + n.nqj, n.nm),
+        eta_rate(x + n_q_ + n.u0 + n.nuj, n.nm);
+    for (std::size_t i = 0; i < B.flex->nodes.size(); ++i) {
+      const FlexNode& nd = B.flex->nodes[i];
+      const Eigen::Matrix3Xd Phi = nd.Phi_B.cols() ? nd.Phi_B : Eigen::Matrix3Xd::Zero(3, n.nm);
+      MassPoint p;
+      p.body = n.body;
+      p.node = static_cast<int>(i);
+      p.mass = nd.mass;
+      p.J_N = m.R_NB * nd.J_Ni_B * m.R_NB.transpose();
+      const Vector3d r_N = m.R_NB * (nd.p_BoNi_B + Phi * eta);
+      p.p_NoP_N = m.p_NoBo_N + r_N;
+      p.v_NP_N = m.v_NBo_N + w_N.cross(r_N) + m.R_NB * (Phi * eta_rate);
+      pts.push_back(p);
+    }
+  }
+  return pts;
+}
+
+// Joint frames from both sides, from the body frames and the System's node data:
+// R_NJp = R_NP exp([psi_P x]) (then R_PJ0 R_J to Jc), R_NJc = R_NC exp([psi_C x]).
+std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
+  const std::vector<BodyMotion> bm = body_motion(x);
+  std::vector<JointFrames> jf(nodes_.size());
+  auto node_of = [&](int body, int node, const Eigen::Vector3d& point, Vector3d& r, Matrix3d& E) {
+    r = point;
+    E.setIdentity();
+    if (node < 0) return;
+    const Body& B = system_.bodies[static_cast<std::size_t>(body)];
+    const FlexNode& nd = B.flex->nodes[static_cast<std::size_t>(node)];
+    const Node& bn = nodes_[static_cast<std::size_t>(system_.joint_of_body(body))];
+    const Eigen::Map<const Eigen::VectorXd> eta(x + bn.q0 + bn.nqj, bn.nm);
+    if (nd.Phi_B.cols()) r += nd.Phi_B * eta;
+    if (nd.Psi_B.cols()) E = rot::from_rotation_vector(nd.Psi_B * eta).toRotationMatrix();
+  };
+  for (std::size_t k = 0; k < nodes_.size(); ++k) {
+    const Joint& J = system_.joints[k];
+    const BodyMotion& c = bm[static_cast<std::size_t>(J.child)];
+    JointFrames& f = jf[k];
+    Vector3d r;
+    Matrix3d E;
+    node_of(J.child, J.child_node, J.p_CoJ_C, r, E);
+    f.R_NJc = c.R_NB * E;
+    f.p_NoJ_N_child = c.p_NoBo_N + c.R_NB * r;
+    if (J.parent < 0) {
+      f.R_NJp.setIdentity();
+      f.p_NoJ_N_parent = f.p_NoJ_N_child;
+      continue;
+    }
+    const BodyMotion& p = bm[static_cast<std::size_t>(J.parent)];
+    node_of(J.parent, J.parent_node, J.p_PoJ_P, r, E);
+    f.R_NJp = p.R_NB * E;
+    f.p_NoJ_N_parent = p.p_NoBo_N + p.R_NB * r;
+  }
+  return jf;
+}
+
 Eigen::MatrixXd KaneEngine::mass_matrix(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
@@ -742,7 +1433,8 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
   velocity_pass(x + n_q_);
   const double* u = x + n_q_;
 
-  // Attitudes composed as quaternions (unit norm to rounding): q_NC = q_NP q_PJ0 q_J.
+  // Attitudes composed as quaternions (unit norm to rounding):
+  // q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^-1 (q(psi): the node rotations, identity if rigid).
   std::vector<Quaterniond>& q_N = q_N_;
   double quat_err = 0;
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -760,7 +1452,11 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
       q_J = q.normalized();
     }
-    q_N[k] = (q_N[static_cast<std::size_t>(n.parent)] * n.q_PJ0 * q_J).normalized();
+    Quaterniond q_NJp = q_N[static_cast<std::size_t>(n.parent)];
+    if (n.parent_attach) q_NJp = q_NJp * rot::from_rotation_vector(work_[k].rot_P.psi);
+    Quaterniond q = q_NJp * n.q_PJ0 * q_J;
+    if (n.child_attach) q = q * rot::from_rotation_vector(work_[k].rot_C.psi).conjugate();
+    q_N[k] = q.normalized();
   }
 
   RowWriter out(layout_, row);
@@ -773,9 +1469,12 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     if (n.type == JointType::Revolute) out.revolute(n.joint, x[n.q0], u[n.u0]);
     if (n.type == JointType::Spherical)
       out.spherical(n.joint, Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
+    if (n.nm > 0)
+      out.modal(n.body, Eigen::Map<const Eigen::VectorXd>(x + n.q0 + n.nqj, n.nm),
+                Eigen::Map<const Eigen::VectorXd>(u + n.u0 + n.nuj, n.nm));
   }
   const Vector3d H = sum_angular_momentum();
-  const double T = sum_kinetic_energy(), V = potential_energy(x);
+  const double T = sum_kinetic_energy(u), V = potential_energy(x);
   const Vector3d P = sum_linear_momentum();
   out.momentum(H.norm());
   out.energy(T + V);

@@ -1,4 +1,4 @@
-// Kane's method for a tree of rigid bodies (engine "kane").
+// Kane's method for a tree of rigid and flexible (modal) bodies (engine "kane").
 //
 // Notation (Drake's monogram notation, core/system.hpp): N the inertial frame, B a body, Bo its
 // centre of mass (CM), P and C a joint's parent and child, J the joint point, Ok the "reference
@@ -13,10 +13,12 @@
 //
 // State vector x = [ positions (n_q) | generalised speeds u (n_u) ]:
 //   positions  base: p_NoBo_N (3), q_NB (4, w x y z);  revolute: angle (1);
-//              spherical: q_J (4, w x y z; R_J = R(q_J), core/system.hpp);  fixed: none.
+//              spherical: q_J (4, w x y z; R_J = R(q_J), core/system.hpp);  fixed: none;
+//              then, for a flexible child body, its modal coordinates eta (n).
 //   speeds     base: u_1..3 = w_NB_B (base-frame components, Eq. (37)), u_4..6 = v_NBo_N (base CM
 //              velocity, N components, Eq. (38));  revolute: the joint rate;
-//              spherical: w_PC_C (relative angular velocity, child-frame components);  fixed: none.
+//              spherical: w_PC_C (relative angular velocity of the child-side joint frame,
+//              components in that frame);  fixed: none;  then a flexible child's eta' (n).
 // Quaternions are normalised where they are read; their kinematical equations
 // q' = 1/2 q (x) (0, w) keep |q| constant, and after_step() renormalises only a visible drift.
 //
@@ -54,15 +56,61 @@
 //   ([Feath] Sec. 6.5, Tables 6.3-6.4).  Eigen's LLT gives the same solution (tests/kane) but
 //   costs more for these small matrices.
 //
-// Flexible bodies (paper Eqs. 39-40): not supported yet; the constructor throws InputError. They
-// arrive as further per-body blocks of positions (eta) and speeds (eta'), with partial velocities
-// Phi_k of the body's elements (Eq. 40) alongside the rigid ones; the node tables below keep
-// position and speed offsets per block so that such blocks can be appended without changing the
-// rigid passes.
+// Flexible bodies (reference paper Eqs. (3)-(6), (39)-(40); docs/flexible-bodies.md pins the
+// model).  A flexible body's modal coordinates eta are further positions and its modal rates eta'
+// further generalised speeds of its tree node: node k's block is [joint coordinates | eta_C] and
+// [joint speeds | eta_C'] (C the node's child body).  Node i of C (a mass point) sits at
+// r_i = p_i + Phi_i eta from Co (the body-frame origin, the undeformed CM); a joint at node j
+// has its point at r_j and its frame turned by E_j = exp([psi_j x]), psi_j = Psi_j eta.
+//   Kinematics (docs "Joints at nodes"): with Jp, Jc the parent- and child-side joint frames,
+//     R_NJp = R_NP E_Pj,  R_NJc = R_NJp R_PJ0 R_J,  R_NC = R_NJc E_Cj^T,
+//     p_Ok = p_Po + R_NP r_Pj,  p_Co = p_Ok - R_NC r_Cj,
+//     w_Jp = w_P + R_NP Jl(psi_Pj) Psi_Pj eta_P',  w_Jc = w_Jp + (joint rate),
+//     w_C = w_Jc - R_NC Jl(psi_Cj) Psi_Cj eta_C'
+//   (R = exp([psi x]) has R' R^T = [(Jl(psi) psi') x], Jl the left Jacobian; Barfoot, State
+//   Estimation for Robotics, 2017, Sec. 7.1.5; for R^T the angular velocity is -R^T Jl psi').
+//   Partial velocities.  Every speed r of node k moves the subtree S(k) with a rigid "twist"
+//   (W_r, V_r) about Ok: V = V_r + W_r x (p - p_Ok) for every point of S(k), W_r for every frame
+//   in it ([KLL] Sec. 2.14 for rigid bodies).  Joint speeds: V_r = 0 (base translations: W_r = 0,
+//   V_r = n_r).  A modal speed eta_C,l' of a child attached at node j of C (the joint point is
+//   held, so the body frame moves): W_l = -R_NC Jl(psi_Cj) Psi_Cj,l, V_l = -R_NC Phi_Cj,l
+//   (Wm_N, Vm_N).  A modal speed also has an elastic part (paper Eq. (40); Kane, Ryan &
+//   Banerjee 1987, the modal partial velocities of a beam on a moving base): node i of C moves
+//   with R_NC Phi_i,l (C's node inertias J_i do not turn), and the subtree S(c) of every child c
+//   attached at node j' of C moves rigidly with the node frame: twist
+//   (R_NC Jl(psi_j') Psi_j',l, R_NC Phi_j',l) about Oc (Wp_N, Vp_N, stored on c).
+//   Generalised inertia forces F_r* = -sum_i V_r^i . m_i a_i - sum_B W_r^B . (J_B alpha_B +
+//   w_B x J_B w_B) (paper Eq. (36) with C's node masses as the particles) and active forces
+//   (Eq. (35)) are then grouped as in the rigid case: the twist part of speed r works on the
+//   subtree sums (s_k, J_k, F_k, M_k, which now hold C's deformed mass distribution and its
+//   residual loads), the elastic part on C's nodes and on the attached children's sums.
+//   The sums over C's nodes never run in rhs(): they are the modal integrals of FlexModel
+//   (body frame, built once), so the cost per flexible body is O(n^2) in its mode count n and
+//   independent of its number of nodes:
+//     S = sum m_i Phi_i,  Hs = sum m_i [p_i x] Phi_i,  G_k = sum m_i p_i Phi_ik^T,
+//     Q_kl = sum m_i Phi_ik Phi_il^T,  C_kl = sum m_i Phi_ik x Phi_il,  Mm = sum m_i Phi_i^T Phi_i,
+//   from which at a state (FlexWork)  c = sum m_i r_i = c0 + S eta,  I = I0 + tr(dS) 1 - dS with
+//   dS = sum m_i r_i r_i^T - sum m_i p_i p_i^T = sum_k eta_k (G_k + N_k),  N_k = sum m_i Phi_ik
+//   r_i^T = G_k^T + sum_l eta_l Q_kl,  A_k = sum m_i r_i x Phi_ik = Hs_k + sum_l eta_l C_lk,
+//   L = sum m_i r_i (Phi_i eta')^T = sum_k eta_k' N_k^T.
+//   Hinge loads: a hinge's torque acts on Jc and reacts on Jp; their relative angular velocity
+//   is the joint rate alone (R_NJc = R_NJp R_PJ0 R_J), so the pair contributes only to the
+//   joint's own speeds, exactly as for rigid bodies, wherever the frames are attached.  (In the
+//   split of docs "Loads at joints", the node-frame torques' generalised forces on eta,
+//   (Jl Psi)^T tau_B on the parent and on the child, are each cancelled by the same torque's
+//   work through the rigid motion the modal speed gives the other side.)  External body torques
+//   act on C's frame: their work through W_l is part of the twist term.  Modal stiffness and
+//   damping add -K eta - D eta' to the modal speeds' generalised active forces.
+//   Reading chosen where docs/flexible-bodies.md leaves room: TreeAccel::a_NBo_N of a flexible
+//   body is the acceleration of its frame origin Bo (the undeformed CM), as TreeState's velocities
+//   are; body torques given in the inertial frame act on the body frame likewise.
 //
 // Bibliography
 //   [KLL]  T. R. Kane, P. W. Likins, D. A. Levinson, Spacecraft Dynamics, McGraw-Hill, 1983.
 //   [Feath] R. Featherstone, Rigid Body Dynamics Algorithms, Springer, 2008.
+//   [KRB]  T. R. Kane, R. R. Ryan, A. K. Banerjee, "Dynamics of a cantilever beam attached to a
+//          moving base", J. Guidance, Control, and Dynamics 10(2), 1987, 139-151.
+//   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
 //   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
 //           using TREETOPS and model-specific computer codes", 1990 (../shared/reference).
 #pragma once
@@ -76,14 +124,45 @@
 
 namespace crossdyn::kane {
 
+// The modal integrals of one flexible body (body frame), built once from its nodes (see above).
+struct FlexModel {
+  int n = 0;               // modes
+  double mass = 0;         // sum m_i
+  Eigen::Vector3d c0;      // sum m_i p_i (zero when Bo is the undeformed CM)
+  Eigen::Matrix3d I0;      // sum J_i + m_i (|p_i|^2 1 - p_i p_i^T), times test_inertia_scale
+  Eigen::Matrix3Xd S, Hs;  // 3 x n: sum m_i Phi_i, sum m_i [p_i x] Phi_i
+  std::vector<Eigen::Matrix3d> G;  // n:     G_k  = sum m_i p_i Phi_ik^T
+  std::vector<Eigen::Matrix3d> Q;  // n * n: Q_kl = sum m_i Phi_ik Phi_il^T   (index k n + l)
+  std::vector<Eigen::Vector3d> C;  // n * n: C_kl = sum m_i Phi_ik x Phi_il   (index k n + l)
+  Eigen::MatrixXd Mm;              // n x n: sum m_i Phi_i^T Phi_i (modal mass)
+  Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping
+};
+
+// exp([psi x]) and its left Jacobian Jl(psi) for a node's rotation vector psi ([Barfoot] Sec.
+// 7.1.5): R = 1 + (sin t / t) [psi x] + a [psi x]^2,  Jl = 1 + a [psi x] + b [psi x]^2, t = |psi|,
+// a = (1 - cos t) / t^2, b = (t - sin t) / t^3 (power series below t = 1, no cancellation).
+struct NodeRotation {
+  Eigen::Vector3d psi = Eigen::Vector3d::Zero();
+  double a = 0.5, b = 1.0 / 6.0, a1 = -1.0 / 12.0, b1 = -1.0 / 60.0;  // a1 = a'(t)/t, b1 = b'(t)/t
+  void set(const Eigen::Vector3d& rotation_vector);
+  Eigen::Matrix3d R() const;
+  Eigen::Matrix3d Jl() const;
+  // (d/dt Jl(psi)) psi' for psi changing at the rate psi'.
+  Eigen::Vector3d Jl_dot_times(const Eigen::Vector3d& psi_rate) const;
+};
+
 // Immutable description of one tree node (joint k and its child body), built once.
 struct Node {
   JointType type = JointType::Fixed;
   int joint = -1;           // System::joints index (== node index)
   int body = -1;            // System::bodies index of the child
   int parent = -1;          // parent node index, -1 for the base
-  int q0 = 0, nq = 0;       // first position index in x, number of positions
+  int q0 = 0, nq = 0;       // first position index in x, number of positions (joint + modal)
   int u0 = 0, nu = 0;       // first speed index in u (x index n_q + u0), number of speeds
+  int nqj = 0, nuj = 0;     // the joint's own positions and speeds (the first of the block)
+  int nm = 0;               // modal coordinates of a flexible child: eta at x[q0 + nqj],
+                            // eta' at u[u0 + nuj]
+  int flex = -1;            // the child's FlexModel (flex_ index), -1 for a rigid body
   bool has_offset = false;  // R_PJ0 != identity
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
@@ -92,28 +171,81 @@ struct Node {
   Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute axis in P (unit)
   Eigen::Vector3d axis_J = Eigen::Vector3d::UnitZ();  // the same axis in C (= R_PJ0^T axis_P)
   double mass = 0;
-  Eigen::Matrix3d I_BBo_B = Eigen::Matrix3d::Zero();  // scaled by test_inertia_scale
-  // Ancestors of this node that carry speeds, nearest first, ending with the base (0).
-  std::vector<int> speed_ancestors;
+  Eigen::Matrix3d I_BBo_B = Eigen::Matrix3d::Zero();  // scaled by test_inertia_scale (rigid)
+  // Attachment at a node of a flexible parent whose shape or slope there is not zero: the
+  // node's shapes Phi_Pj and slopes Psi_Pj (3 x pm, parent frame; pm the parent's modes).
+  bool parent_attach = false;
+  int pm = 0;
+  Eigen::Matrix3Xd Phi_Pj, Psi_Pj;
+  // Attachment at a node of this flexible child whose shape or slope is not zero (3 x nm).
+  bool child_attach = false;
+  Eigen::Matrix3Xd Phi_Cj, Psi_Cj;
+  std::vector<int> attached_children;  // child nodes with parent_attach (flexible child body)
+  // Ancestors of this node that carry speeds, nearest first, ending with the base (0), each
+  // with the node below it on the path from here ("via": the child it moves this node through).
+  struct Ancestor {
+    int node = -1, via = -1;
+  };
+  std::vector<Ancestor> speed_ancestors;
 };
 
 // Mutable per-node workspace (N components; positions from the base CM).
 struct NodeWork {
   Eigen::Matrix3d R_NB;       // attitude of the node's body
-  Eigen::Matrix3d I_BBo_N;    // its central inertia, N axes: R_NB I_BBo_B R_NB^T
-  Eigen::Matrix3d W_N;        // partial angular velocities of the node's speeds (columns)
-  Eigen::Vector3d p_B0oBo_N;  // CM position from the base CM
-  Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its CM) from the base CM
+  Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
+  Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
+  Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
+  Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
   Eigen::Vector3d w_NB_N, v_NBo_N;
-  Eigen::Vector3d w_PC_N;            // relative angular velocity of the joint
+  Eigen::Vector3d w_PC_N;            // relative angular velocity of the joint (Jc in Jp)
+  Eigen::Vector3d w_NJp_N;           // angular velocity of Jp
   Eigen::Vector3d alpha_t_N, a_t_N;  // remainder accelerations (all u' = 0)
   Eigen::Vector3d alpha_N, a_N;      // full accelerations (accelerations() only)
   // Subtree S(k) sums about Ok (backward pass).
   double m_sub;
-  Eigen::Vector3d s_sub_N;  // first moment  sum m (p_Bo - p_Ok)
+  Eigen::Vector3d s_sub_N;  // first moment  sum m (p - p_Ok)
   Eigen::Matrix3d J_sub_N;  // inertia about Ok
   Eigen::Vector3d F_sub_N;  // resultant of the residual forces
   Eigen::Vector3d M_sub_N;  // their moment about Ok
+  // Parent side at a flexible parent's node (parent_attach): the elastic twists of the parent's
+  // modal speeds (3 x pm), their values times eta_P', (d/dt Jl) psi' term, and the momenta of
+  // S(k) about Ok in those twists (mass-matrix pass).
+  NodeRotation rot_P;
+  Eigen::Matrix3Xd Wp_N, Vp_N, pp_N, hp_N;
+  Eigen::Vector3d w_att_N, v_att_N, jdot_att_N;
+  // Child side at a node of this flexible body (child_attach): twists of its modal speeds
+  // (3 x nm), their values times eta', and R_NC (d/dt Jl) psi'.
+  NodeRotation rot_C;
+  Eigen::Matrix3Xd Wm_N, Vm_N;
+  Eigen::Vector3d w_m_N, v_m_N, jdot_m_N;
+};
+
+// Per flexible body: the modal integrals evaluated at the state (body frame unless _N).
+struct FlexWork {
+  Eigen::Vector3d c_B, c_N;          // first moment about Bo, sum m_i r_i
+  Eigen::Matrix3d I_B;               // inertia about Bo (deformed, with the J_i)
+  Eigen::Matrix3Xd A_B, S_N, A_N;    // 3 x n: A_k; R_NC S; R_NC A
+  std::vector<Eigen::Matrix3d> N_B;  // n: N_k
+  Eigen::Vector3d cdot_N;            // R_NC S eta'           (linear momentum of deformation)
+  Eigen::Vector3d hdef_N;            // R_NC A eta'           (its angular momentum about Bo)
+  Eigen::Matrix3d L_B;               // sum m_i r_i (Phi_i eta')^T
+  Eigen::Matrix3Xd Ce_B;             // 3 x n: sum_l eta_l' C_lk
+  Eigen::Matrix3Xd pm_N, hm_N;       // 3 x n: momenta of S(k) about Ok per modal speed
+};
+
+// One mass point (a node of a flexible body, or a rigid body's CM with its inertia), computed
+// point by point from the body frames, for tests (no modal integrals).
+struct MassPoint {
+  int body = -1, node = -1;  // System::bodies index; FlexBody::nodes index or -1 (rigid CM)
+  double mass = 0;
+  Eigen::Matrix3d J_N;  // rotational inertia carried by the body frame, N axes
+  Eigen::Vector3d p_NoP_N, v_NP_N;
+};
+
+// A joint's frames and point as seen from both sides (for tests).
+struct JointFrames {
+  Eigen::Matrix3d R_NJp, R_NJc;
+  Eigen::Vector3d p_NoJ_N_parent, p_NoJ_N_child;
 };
 
 // One body's motion at a state, for tests and diagnostics.
@@ -145,32 +277,48 @@ class KaneEngine final : public Engine {
   Eigen::MatrixXd mass_matrix(const double* x);                   // full symmetric M(q)
   Eigen::VectorXd generalized_forces(double t, const double* x);  // f = F_r + F_r*|_{u'=0}
   double kinetic_energy(const double* x);                         // sum over bodies
-  double potential_energy(const double* x) const;                 // hinge springs
+  double potential_energy(const double* x) const;                 // hinge springs + 1/2 eta^T K eta
   Eigen::Vector3d linear_momentum_N(const double* x);
-  Eigen::Vector3d angular_momentum_N(const double* x);   // about the system CM
-  std::vector<BodyMotion> body_motion(const double* x);  // per System::bodies index
+  Eigen::Vector3d angular_momentum_N(const double* x);     // about the system CM
+  std::vector<BodyMotion> body_motion(const double* x);    // per System::bodies index (frame Bo)
+  std::vector<MassPoint> mass_points(const double* x);     // every node and rigid CM, in N
+  std::vector<JointFrames> joint_frames(const double* x);  // per joint (System order)
+  const std::vector<FlexModel>& flex_models() const { return flex_; }
 
  private:
   // Named passes; "=>" reads inputs => writes outputs (all into work_ / M_ / f_).
-  void position_pass(const double* x);  // q => R_NB, I_BBo_N, W_N, p_B0oBo_N, p_B0oOk_N
-  void velocity_pass(const double* u);  // (q, u) => w_NB_N, v_NBo_N, w_PC_N
-  void remainder_pass();                // (q, u) => alpha_t_N, a_t_N
-  void subtree_pass(double t);          // => m_sub, s_sub, J_sub, F_sub, M_sub
-  void mass_matrix_pass();              // subtree sums => M_ (lower triangle)
-  void generalized_force_pass(double t, const double* x);  // subtree sums, hinges => f_
+  // q => R_NB, I_BBo_N, W_N, p_B0oBo_N, p_B0oOk_N; attachment twists Wp, Vp, Wm, Vm;
+  //   flexible bodies' integrals at eta (flex_position)
+  void position_pass(const double* x);
+  // (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N, w_att, v_att, w_m, v_m, Jl-rate terms;
+  //   flexible bodies' rate terms (flex_velocity)
+  void velocity_pass(const double* u);
+  void remainder_pass();                                   // (q, u) => alpha_t_N, a_t_N
+  void subtree_pass(double t);                             // => m_sub, s_sub, J_sub, F_sub, M_sub
+  void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
+  void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   bool solve();                                // (M_, f_) => udot_ (false: M not positive definite)
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
   void dynamics(double t, const double* x);    // all of the above up to udot_
+  // The remainder (udot == nullptr) or full accelerations, into alpha_t/a_t or alpha/a.
+  void propagate_accelerations(const double* udot);
+  void flex_position(const Node& n, NodeWork& w, const double* eta);
+  void flex_velocity(const Node& n, NodeWork& w, const double* eta_rate);
+  // Mass-matrix row r (speed of node k) against k's speed ancestors, from the momenta p, h
+  // (about Ok) of S(k) moving with speed r's partial velocities.
+  void mass_matrix_ancestors(const Node& n, int r, const Eigen::Vector3d& p,
+                             const Eigen::Vector3d& h);
 
   double hinge_torque_revolute(const Node& n, double t, const double* x) const;
   Eigen::Vector3d hinge_torque_spherical(const Node& n, double t, const double* x) const;
   Eigen::Quaterniond read_quat(const double* x, int i) const;
-  double sum_kinetic_energy() const;  // after position and velocity passes
+  double sum_kinetic_energy(const double* u) const;  // after position and velocity passes
   Eigen::Vector3d sum_linear_momentum() const;
   Eigen::Vector3d sum_angular_momentum() const;
 
   const System system_;  // the engine's own copy (loads are read from it)
   std::vector<Node> nodes_;
+  std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
   int n_q_ = 0, n_u_ = 0;
   double total_mass_ = 0;
   std::vector<std::string> labels_;
@@ -178,12 +326,13 @@ class KaneEngine final : public Engine {
 
   // Workspace, sized in the constructor; rhs() never allocates.
   std::vector<NodeWork> work_;
-  std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
+  std::vector<FlexWork> flex_work_;  // per flexible body (Node::flex)
+  std::vector<int> lambda_;          // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // Mass matrix (lower triangle, row major); after solve() its factors L and D.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
-  int extra0_ = 0;                        // first extra column
+  int extra0_ = 0;                       // first extra column
 };
 
 }  // namespace crossdyn::kane

@@ -9,7 +9,8 @@
 
 namespace crossdyn {
 
-// Throws InputError for systems the engine cannot handle (flexible bodies, no free base joint).
+// Throws InputError for systems the engine cannot handle (no free base joint, a second free joint,
+// joints at nodes of rigid bodies, flexible bodies whose mass matrix is singular).
 std::unique_ptr<Engine> make_lagrange_engine(const System& system, const EngineOptions& options);
 
 }  // namespace crossdyn

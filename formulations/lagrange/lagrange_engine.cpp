@@ -2,14 +2,20 @@
 //
 // Passes of one right-hand-side evaluation, (t, x = (q*, pi')) => (q*', pi''):
 //   charts        (q*) => A, B = A^-1 per Euler set; q*' = B pi'                  (Eqs. 16, 22)
-//   pose          (q*) => R_NB, R_PC, p_NoBo_N per body              [templated on the scalar]
-//   twist         (pose, pi') => w_NB_B, v_NBo_N per body             [templated on the scalar]
+//   pose          (q*) => R_NB, R_PC, p_NoBo_N per body; node frames (r, exp([psi x]),
+//                 Jl(psi) Psi) of joints at nodes; I_w, s, H of flexible bodies
+//                                                                    [templated on the scalar]
+//   twist         (pose, pi') => w_NB_B, v_NBo_N (and v_NBo_B of flexible bodies) per body
+//                                                                    [templated on the scalar]
 //   energy        (twists) => T,  (q*) => V                           [templated on the scalar]
 //   mass pass     Dual<1> seeded with the motion q*' (time derivative at fixed pi'), twists for
 //                 every unit seed pi' = e_i. T is quadratic in pi', so its derivatives in pi' are
 //                 the symmetric bilinear form T(xi, eta) of the seeds (polarisation):
 //                   M_ij = d2T/dpi_i dpi_j = T(e_i, e_j),   p_i = dT/dpi_i = T(e_i, pi'),
 //                 and the Dual<1> parts give d/dt p at pi'' = 0, i.e. (dM/dt) pi'.
+//                 A rigid body's bilinear form is w_a . I w_b + m v_a . v_b (paper Eq. 26); a
+//                 flexible body's is Y_a . M_B(eta) Y_b with Y = (w, v_B, eta'), M_B applied by
+//                 flex_momentum (flex_body.hpp).
 //                 Generalised forces of body torques: N_i = tau . w(e_i) (virtual power).
 //   gradient      Dual<K> (chunks of K <= 8) seeded with the quasi-displacements dq* = B e_r:
 //                 L = T - V => B^T dL/dq* at fixed pi'.
@@ -19,6 +25,7 @@
 #include "formulations/lagrange/lagrange_engine.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -27,10 +34,12 @@
 #include <tuple>
 #include <utility>
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/autodiff.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
+#include "formulations/lagrange/flex_body.hpp"
 
 namespace crossdyn::lagrange {
 
@@ -45,6 +54,11 @@ std::string format_number(double v, const char* fmt = "%.6g") {
   return buf;
 }
 
+std::string format_vector(const Eigen::Vector3d& v) {
+  return "(" + format_number(v.x(), "%.9g") + ", " + format_number(v.y(), "%.9g") + ", " +
+         format_number(v.z(), "%.9g") + ")";
+}
+
 }  // namespace
 
 // ------------------------------------------------------------------------------------------------
@@ -54,15 +68,20 @@ struct LagrangeEngine::Model {
   struct BodyM {
     std::string name;
     double mass = 0;
-    Eigen::Matrix3d I_BBo_B;  // times EngineOptions::test_inertia_scale
+    Eigen::Matrix3d I_BBo_B;  // times EngineOptions::test_inertia_scale (rigid bodies)
     Body::Frame torque_frame = Body::Frame::Body;
     PiecewiseConstant<3> torque;
+    int flex = -1;  // index into Model::flex; -1 for a rigid body
+    int e0 = -1;    // flexible: index of eta in q* (and of eta' in pi')
+    int nm = 0;     // flexible: number of modes
   };
   struct JointM {
     std::string name;
     JointType type = JointType::Revolute;
     int parent = -1, child = -1;
     int i0 = 0;          // first index of this joint's block in q* and in pi'
+    int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
+    int size = 0;        // block size: dof, then the child's modal coordinates
     int euler_set = -1;  // index of its Euler-angle set (free, spherical), else -1
     Eigen::Vector3d p_PoJ_P, p_CoJ_C;
     Eigen::Matrix3d R_PJ0;
@@ -72,6 +91,11 @@ struct LagrangeEngine::Model {
     // Rodrigues' formula I + sin [n x] + (1 - cos) [n x]^2 (Kane, Likins & Levinson 1983,
     // Sec. 1.2).
     Eigen::Matrix3d C0, C1, C2;
+    // Attachment at a node of a flexible parent (child): the node's shapes and slopes, and the
+    // index of the parent's (child's) eta in q*. -1: a rigid attachment.
+    int parent_node = -1, child_node = -1;
+    int parent_e0 = -1, child_e0 = -1;
+    Eigen::Matrix3Xd Phi_P, Psi_P, Phi_C, Psi_C;
     std::vector<int> subtree;  // this joint and every joint below it, in topological order
     double stiffness = 0, neutral = 0, damping = 0;
     PiecewiseConstant<1> motor_revolute;
@@ -85,6 +109,7 @@ struct LagrangeEngine::Model {
 
   std::vector<BodyM> bodies;
   std::vector<JointM> joints;
+  std::vector<FlexInvariants> flex;       // per flexible body (BodyM::flex)
   std::vector<EulerSetM> euler_sets;
   std::vector<int> set_of_coordinate;     // per q* index: its Euler set or -1
   std::vector<int> gradient_dirs;         // quasi-coordinates the Lagrangian can depend on
@@ -92,6 +117,7 @@ struct LagrangeEngine::Model {
   std::vector<std::vector<int>> support;  // per body: the pi' indices its twist depends on
   std::vector<int> all_joints;            // 0, 1, ..., in topological order
   int n = 0;
+  int max_modes = 0;
   double total_mass = 0;
   bool zero_linear_momentum = true;
   bool rechart = true;
@@ -108,18 +134,43 @@ namespace {
 using Model = LagrangeEngine::Model;
 
 template <class S>
+using Mat3X = Eigen::Matrix<S, 3, Eigen::Dynamic>;
+
+template <class S>
 struct Kin {
   std::vector<S> q;                      // q* as S, size n
   std::vector<Mat3<S>> R_NB, R_PC;       // per body (R_PC of the body's own joint)
   std::vector<Vec3<S>> p_NoBo_N;         // per body
   std::vector<Vec3<S>> w_NB_B, v_NBo_N;  // per body (twist pass)
-  void resize(int n, int nb) {
-    q.assign(static_cast<std::size_t>(n), S(0.0));
-    R_NB.resize(static_cast<std::size_t>(nb));
-    R_PC.resize(static_cast<std::size_t>(nb));
-    p_NoBo_N.resize(static_cast<std::size_t>(nb));
-    w_NB_B.resize(static_cast<std::size_t>(nb));
-    v_NBo_N.resize(static_cast<std::size_t>(nb));
+  // Flexible bodies (per body) and joints at nodes (per body, for the body's own joint).
+  std::vector<Vec3<S>> v_NBo_B;       // flexible body: v_NBo_N in body components (twist pass)
+  std::vector<FlexInertia<S>> fi;     // flexible body: I_w, s, H at its eta (pose pass)
+  std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position
+  std::vector<Mat3<S>> E_C;           // joint at a child node: exp([psi_C x])
+  std::vector<Mat3X<S>> G_P, G_C;     // joint at a parent (child) node: Jl(psi) Psi, 3 x modes
+  std::vector<S> he;                  // scratch: modal momentum, max_modes
+  void resize(const Model& m) {
+    const std::size_t nb = m.bodies.size();
+    q.assign(static_cast<std::size_t>(m.n), S(0.0));
+    R_NB.resize(nb);
+    R_PC.resize(nb);
+    p_NoBo_N.resize(nb);
+    w_NB_B.resize(nb);
+    v_NBo_N.resize(nb);
+    v_NBo_B.resize(nb);
+    fi.resize(nb);
+    r_P.resize(nb);
+    r_C.resize(nb);
+    E_C.assign(nb, Mat3<S>::Identity());
+    G_P.resize(nb);
+    G_C.resize(nb);
+    for (std::size_t b = 0; b < nb; ++b) fi[b].resize(m.bodies[b].nm);
+    for (const Model::JointM& J : m.joints) {
+      const auto c = static_cast<std::size_t>(J.child);
+      G_P[c].resize(3, J.Psi_P.cols());
+      G_C[c].resize(3, J.Psi_C.cols());
+    }
+    he.assign(static_cast<std::size_t>(m.max_modes), S(0.0));
   }
 };
 
@@ -145,18 +196,48 @@ Vec3<S> times_const(const Mat3<S>& M, const Eigen::Vector3d& v) {
                  M(2, 0) * v.x() + M(2, 1) * v.y() + M(2, 2) * v.z());
 }
 
+// A node of a flexible body at eta (docs/flexible-bodies.md "Joints at nodes"):
+//   r = p + Phi eta (deformed position), E = exp([psi x]) with psi = Psi eta (the node frame in the
+//   body frame), G = Jl(psi) Psi (node frame's angular velocity relative to the body per unit eta',
+//   body components; flex_body.hpp).
+template <class S>
+void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eigen::Matrix3Xd& Psi,
+                const S* eta, Vec3<S>& r, Mat3<S>& E, Mat3X<S>& G) {
+  const auto nm = Phi.cols();
+  Vec3<S> psi;
+  for (int a = 0; a < 3; ++a) {
+    r(a) = S(p(a));
+    psi(a) = S(0.0);
+  }
+  for (Eigen::Index k = 0; k < nm; ++k)
+    for (int a = 0; a < 3; ++a) {
+      r(a) += Phi(a, k) * eta[k];
+      psi(a) += Psi(a, k) * eta[k];
+    }
+  Mat3<S> Jl;
+  rotvec_exp(psi, E, &Jl);
+  for (Eigen::Index k = 0; k < nm; ++k)
+    for (int a = 0; a < 3; ++a)
+      G(a, k) = Jl(a, 0) * Psi(0, k) + Jl(a, 1) * Psi(1, k) + Jl(a, 2) * Psi(2, k);
+}
+
 // pose: (q*) => R_NB, R_PC, p_NoBo_N. Joint kinematics of system.hpp:
-// R_PC = R_PJ0 R_J, R_NC = R_NP R_PC, p_NoCo_N = p_NoPo_N + R_NP p_PoJ_P - R_NC p_CoJ_C.
+// R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, R_NC = R_NP R_PC,
+// p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
+// (psi, u zero at a rigid attachment).
 template <class S>
 void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
   for (const Model::JointM& J : m.joints) {
     const auto c = static_cast<std::size_t>(J.child);
     const S* q = k.q.data() + J.i0;
+    const Model::BodyM& C = m.bodies[c];
     if (J.type == JointType::Free) {
       const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
       k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
       k.R_PC[c] = k.R_NB[c];
       k.p_NoBo_N[c] = Vec3<S>(q[0], q[1], q[2]);
+      if (C.flex >= 0)
+        flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
       continue;
     }
     Mat3<S>& R_PC = k.R_PC[c];
@@ -174,15 +255,34 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
     } else {
       R_PC = J.R_PJ0.cast<S>();
     }
+    if (J.parent_node >= 0) {
+      Mat3<S> E_P;
+      node_frame(J.p_PoJ_P, J.Phi_P, J.Psi_P, k.q.data() + J.parent_e0, k.r_P[c], E_P, k.G_P[c]);
+      R_PC = E_P * R_PC;
+    }
+    if (J.child_node >= 0) {
+      node_frame(J.p_CoJ_C, J.Phi_C, J.Psi_C, k.q.data() + J.child_e0, k.r_C[c], k.E_C[c],
+                 k.G_C[c]);
+      R_PC = R_PC * k.E_C[c].transpose();
+    }
     const auto P = static_cast<std::size_t>(J.parent);
     k.R_NB[c] = k.R_NB[P] * R_PC;
-    k.p_NoBo_N[c] =
-        k.p_NoBo_N[P] + times_const(k.R_NB[P], J.p_PoJ_P) - times_const(k.R_NB[c], J.p_CoJ_C);
+    const Vec3<S> to_joint =
+        J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
+    const Vec3<S> from_joint =
+        J.child_node >= 0 ? Vec3<S>(k.R_NB[c] * k.r_C[c]) : times_const(k.R_NB[c], J.p_CoJ_C);
+    k.p_NoBo_N[c] = k.p_NoBo_N[P] + to_joint - from_joint;
+    if (C.flex >= 0)
+      flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
   }
 }
 
-// twist: (pose, pi') => w_NB_B, v_NBo_N (angular velocities add along the tree; the joint point
-// has one velocity seen from both bodies: v_Co = v_Po + w_P x r_PoJ - w_C x r_CoJ).
+// twist: (pose, pi') => w_NB_B, v_NBo_N (and v_NBo_B of flexible bodies). Angular velocities add
+// along the tree through the joint frames (docs/flexible-bodies.md "Joints at nodes"):
+//   w_C = R_PC^T (w_P + G_P eta_P') + E_C w_rel - G_C eta_C'     (C components)
+// with w_rel the joint's relative angular velocity in child-side joint-frame components
+// (revolute: axis_J rate; spherical: w_PC_C), and the joint point has one velocity seen from both
+// bodies: v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C').
 // Only the joints in `joints` (topological order) are visited: a seed's twists are zero outside the
 // subtree of its joint, whose parent twist the caller sets to zero.
 template <class S>
@@ -194,34 +294,83 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     if (J.type == JointType::Free) {
       k.v_NBo_N[c] = Vec3<S>(S(uj[0]), S(uj[1]), S(uj[2]));
       k.w_NB_B[c] = Vec3<S>(S(uj[3]), S(uj[4]), S(uj[5]));
+      if (m.bodies[c].flex >= 0) k.v_NBo_B[c] = k.R_NB[c].transpose() * k.v_NBo_N[c];
       continue;
     }
     const auto P = static_cast<std::size_t>(J.parent);
-    Vec3<S> w = k.R_PC[c].transpose() * k.w_NB_B[P];
-    if (J.type == JointType::Revolute) {
-      for (int a = 0; a < 3; ++a) w(a) += J.axis_J(a) * uj[0];
-    } else if (J.type == JointType::Spherical) {
-      for (int a = 0; a < 3; ++a) w(a) += uj[a];
+    if (J.parent_node < 0 && J.child_node < 0) {  // rigid attachments on both sides
+      Vec3<S> w = k.R_PC[c].transpose() * k.w_NB_B[P];
+      if (J.type == JointType::Revolute) {
+        for (int a = 0; a < 3; ++a) w(a) += J.axis_J(a) * uj[0];
+      } else if (J.type == JointType::Spherical) {
+        for (int a = 0; a < 3; ++a) w(a) += uj[a];
+      }
+      k.w_NB_B[c] = w;
+      k.v_NBo_N[c] = k.v_NBo_N[P] + k.R_NB[P] * cross(k.w_NB_B[P], J.p_PoJ_P) -
+                     k.R_NB[c] * cross(w, J.p_CoJ_C);
+    } else {
+      // Parent side: the joint point's velocity relative to Po and the parent-side joint frame's
+      // angular velocity, both in P components.
+      Vec3<S> w_J = k.w_NB_B[P];
+      Vec3<S> v_P;
+      if (J.parent_node >= 0) {
+        const double* ed = u + J.parent_e0;
+        v_P = w_J.cross(k.r_P[c]);
+        const Mat3X<S>& G = k.G_P[c];
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) {
+            v_P(a) += J.Phi_P(a, l) * ed[l];
+            w_J(a) += G(a, l) * ed[l];
+          }
+      } else {
+        v_P = cross(w_J, J.p_PoJ_P);
+      }
+      Vec3<S> w = k.R_PC[c].transpose() * w_J;
+      Eigen::Vector3d w_rel = Eigen::Vector3d::Zero();
+      if (J.type == JointType::Revolute) w_rel = J.axis_J * uj[0];
+      if (J.type == JointType::Spherical) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
+      Vec3<S> v_C;
+      if (J.child_node >= 0) {
+        const double* ed = u + J.child_e0;
+        w += times_const(k.E_C[c], w_rel);
+        const Mat3X<S>& G = k.G_C[c];
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
+        v_C = w.cross(k.r_C[c]);
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+      } else {
+        for (int a = 0; a < 3; ++a) w(a) += w_rel(a);
+        v_C = cross(w, J.p_CoJ_C);
+      }
+      k.w_NB_B[c] = w;
+      k.v_NBo_N[c] = k.v_NBo_N[P] + k.R_NB[P] * v_P - k.R_NB[c] * v_C;
     }
-    k.w_NB_B[c] = w;
-    k.v_NBo_N[c] =
-        k.v_NBo_N[P] + k.R_NB[P] * cross(k.w_NB_B[P], J.p_PoJ_P) - k.R_NB[c] * cross(w, J.p_CoJ_C);
+    if (m.bodies[c].flex >= 0) k.v_NBo_B[c] = k.R_NB[c].transpose() * k.v_NBo_N[c];
   }
 }
 
-// T = sum over bodies of (w^T I w + m v.v) / 2 (paper Eqs. 24-25).
+// T = sum over bodies: rigid (w^T I w + m v.v) / 2 (paper Eqs. 24-25); flexible xi . M_B xi / 2
+// (flex_body.hpp), xi = (w_NB_B, v_NBo_B, eta'). u is pi' (the flexible bodies' eta').
 template <class S>
-S kinetic_energy_of(const Model& m, const Kin<S>& k) {
+S kinetic_energy_of(const Model& m, Kin<S>& k, const double* u) {
   S T(0.0);
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    const Vec3<S> Iw = const_times(m.bodies[b].I_BBo_B, k.w_NB_B[b]);
-    T += 0.5 * (k.w_NB_B[b].dot(Iw) + m.bodies[b].mass * k.v_NBo_N[b].squaredNorm());
+    const Model::BodyM& B = m.bodies[b];
+    if (B.flex >= 0) {
+      T += flex_kinetic_energy(m.flex[static_cast<std::size_t>(B.flex)], k.fi[b], k.w_NB_B[b],
+                               k.v_NBo_B[b], u + B.e0, k.he.data());
+      continue;
+    }
+    const Vec3<S> Iw = const_times(B.I_BBo_B, k.w_NB_B[b]);
+    T += 0.5 * (k.w_NB_B[b].dot(Iw) + B.mass * k.v_NBo_N[b].squaredNorm());
   }
   return T;
 }
 
-// V(q*) of the hinge springs (system.hpp): revolute k (angle - neutral)^2 / 2, spherical
-// k |phi|^2 / 2 with phi the rotation vector of R_J, written in the joint's Euler angles.
+// V(q*): the hinge springs (system.hpp), revolute k (angle - neutral)^2 / 2, spherical
+// k |phi|^2 / 2 with phi the rotation vector of R_J, written in the joint's Euler angles; and the
+// flexible bodies' elastic energy eta^T K eta / 2 (docs/flexible-bodies.md "Energy").
 template <class S>
 S potential_energy_of(const Model& m, const int* chart, const S* q) {
   S V(0.0);
@@ -235,6 +384,16 @@ S potential_energy_of(const Model& m, const int* chart, const S* q) {
       const Eigen::Matrix<S, 4, 1> qJ = euler_quaternion(
           kSequences[static_cast<std::size_t>(chart[J.euler_set])], qj[0], qj[1], qj[2]);
       V += 0.5 * J.stiffness * rotation_angle_squared(qJ(0), qJ(1), qJ(2), qJ(3));
+    }
+  }
+  for (const Model::BodyM& B : m.bodies) {
+    if (B.flex < 0) continue;
+    const Eigen::MatrixXd& K = m.flex[static_cast<std::size_t>(B.flex)].K;
+    const S* eta = q + B.e0;
+    for (int k = 0; k < B.nm; ++k) {
+      S row = 0.5 * K(k, k) * eta[k];
+      for (int l = k + 1; l < B.nm; ++l) row += K(k, l) * eta[l];
+      V += eta[k] * row;
     }
   }
   return V;
@@ -261,7 +420,12 @@ struct LagrangeEngine::Workspace {
   Kin<double> k0;
   Kin<Dual<1>> k1;
   GradientKins kg;
-  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> Xi, Xi_dot;  // per body: twists of seeds
+  // Per body: twists of the seeds (w_NB_B; v_NBo_N, or v_NBo_B for a flexible body) and their
+  // time derivatives at fixed pi'.
+  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> Xi, Xi_dot;
+  std::vector<FlexInertia<double>> fi0;  // per body: values of k1.fi (flexible bodies)
+  std::vector<Dual<1>> he1;              // flexible mass pass: modal momentum and its rate
+  Eigen::VectorXd he0, unit;             // flexible mass pass: a seed's modal momentum; e_k
   Eigen::MatrixXd M;
   Eigen::LLT<Eigen::MatrixXd> llt;
   Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed;
@@ -271,6 +435,78 @@ struct LagrangeEngine::Workspace {
 // ------------------------------------------------------------------------------------------------
 // Construction
 // ------------------------------------------------------------------------------------------------
+namespace {
+
+// What the engine cannot run, or what would make its mass matrix singular: InputError naming the
+// scene file, the body or joint and the reason.
+void validate_flex(const System& system, const std::string& where) {
+  for (const Body& b : system.bodies) {
+    if (!b.flex) continue;
+    const FlexBody& f = *b.flex;
+    const std::string body = "bodies: body '" + b.name + "' (flexible): ";
+    const auto n = static_cast<Eigen::Index>(f.modes());
+    if (f.nodes.empty()) throw InputError(where + body + "has no nodes");
+    if (f.K.rows() != n || f.K.cols() != n || f.D.rows() != n || f.D.cols() != n)
+      throw InputError(where + body + "K and D must be " + std::to_string(n) + " x " +
+                       std::to_string(n) + " (one row and column per mode)");
+    if (!f.K.allFinite() || !f.D.allFinite())
+      throw InputError(where + body + "K or D has a non-finite entry");
+    for (const FlexNode& node : f.nodes) {
+      if (node.Phi_B.cols() != n || node.Psi_B.cols() != n)
+        throw InputError(where + body + "node '" + node.name + "' must have " +
+                         std::to_string(n) + " mode shapes and slopes");
+      if (!(node.mass >= 0) || !node.p_BoNi_B.allFinite() || !node.J_Ni_B.allFinite() ||
+          !node.Phi_B.allFinite() || !node.Psi_B.allFinite())
+        throw InputError(where + body + "node '" + node.name +
+                         "' has a negative mass or a non-finite value");
+    }
+    // M_B(0) must be positive definite, or M is singular at zero deformation.
+    const FlexInvariants inv(f, 1.0);
+    const Eigen::VectorXd lambda =
+        Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(inv.mass_matrix_at_rest(),
+                                                       Eigen::EigenvaluesOnly)
+            .eigenvalues();
+    if (!(lambda.minCoeff() > 1e-12 * lambda.maxCoeff()))
+      throw InputError(where + body +
+                       "the mass matrix of its rigid motion and modes is singular at zero "
+                       "deformation (eigenvalues from " +
+                       format_number(lambda.minCoeff()) + " to " +
+                       format_number(lambda.maxCoeff()) +
+                       "): a mode has no kinetic energy, or repeats a rigid-body motion or "
+                       "another mode");
+  }
+  for (std::size_t j = 0; j < system.joints.size(); ++j) {
+    const Joint& J = system.joints[j];
+    const std::string joint = "joints: joint '" + J.name + "': ";
+    auto check_side = [&](int body, int node, const Eigen::Vector3d& point, const char* side,
+                          const char* key) {
+      if (node < 0) return;
+      if (body < 0) throw InputError(where + joint + "a free joint has no " + side + " node");
+      const Body& B = system.bodies[static_cast<std::size_t>(body)];
+      if (!B.flex)
+        throw InputError(where + joint + "attaches at node " + std::to_string(node) + " of its " +
+                         side + " '" + B.name + "', which is rigid (no nodes)");
+      if (node >= static_cast<int>(B.flex->nodes.size()))
+        throw InputError(where + joint + "node index " + std::to_string(node) + " of its " +
+                         side + " '" + B.name + "' is out of range (" +
+                         std::to_string(B.flex->nodes.size()) + " nodes)");
+      const FlexNode& nd = B.flex->nodes[static_cast<std::size_t>(node)];
+      if ((point - nd.p_BoNi_B).norm() > 1e-9 * (1.0 + nd.p_BoNi_B.norm()))
+        throw InputError(where + joint + key + " " + format_vector(point) +
+                         " is not the undeformed position " + format_vector(nd.p_BoNi_B) +
+                         " of node '" + nd.name + "' of body '" + B.name + "'");
+    };
+    if (J.type == JointType::Free && J.child_node >= 0)
+      throw InputError(where + joint +
+                       "the free joint cannot attach at a node: a flexible base moves with its "
+                       "body frame");
+    check_side(J.parent, J.parent_node, J.p_PoJ_P, "parent", "parent_point");
+    if (J.type != JointType::Free) check_side(J.child, J.child_node, J.p_CoJ_C, "child", "child_point");
+  }
+}
+
+}  // namespace
+
 LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& options) {
   auto m = std::make_unique<Model>();
   const std::string where = (system.file.empty() ? system.name : system.file) + ": ";
@@ -281,19 +517,25 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   if (!(options.test_inertia_scale > 0.0) || !std::isfinite(options.test_inertia_scale))
     throw InputError(where + "engine option test_inertia_scale must be positive, got " +
                      format_number(options.test_inertia_scale));
+  validate_flex(system, where);
   for (const Body& b : system.bodies) {
-    if (b.flex)
-      throw InputError(where + "bodies: body '" + b.name +
-                       "' is flexible (modal data): flexible bodies are not supported yet by "
-                       "engine lagrange");
     Model::BodyM bm;
     bm.name = b.name;
     bm.mass = b.mass;
     bm.I_BBo_B = b.I_BBo_B * options.test_inertia_scale;
     bm.torque_frame = b.torque_frame;
     bm.torque = b.torque;
+    if (b.flex) {
+      // The flexible body's mass and inertia are its node sums (docs/flexible-bodies.md).
+      bm.flex = static_cast<int>(m->flex.size());
+      m->flex.emplace_back(*b.flex, options.test_inertia_scale);
+      bm.nm = b.flex->modes();
+      bm.mass = m->flex.back().m;
+      bm.I_BBo_B = m->flex.back().rigid_inertia();
+      m->max_modes = std::max(m->max_modes, bm.nm);
+    }
+    m->total_mass += bm.mass;
     m->bodies.push_back(std::move(bm));
-    m->total_mass += b.mass;
   }
   int i0 = 0;
   for (std::size_t j = 0; j < system.joints.size(); ++j) {
@@ -307,6 +549,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.parent = J.parent;
     jm.child = J.child;
     jm.i0 = i0;
+    jm.dof = J.dof();
+    Model::BodyM& child_body = m->bodies[static_cast<std::size_t>(J.child)];
+    jm.size = jm.dof + child_body.nm;
+    if (child_body.flex >= 0) child_body.e0 = i0 + jm.dof;
     jm.p_PoJ_P = J.p_PoJ_P;
     jm.p_CoJ_C = J.p_CoJ_C;
     jm.q_PJ0 = J.q_PJ0.normalized();
@@ -316,6 +562,24 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.C0 = jm.R_PJ0;
     jm.C1 = jm.R_PJ0 * K;
     jm.C2 = jm.R_PJ0 * K * K;
+    if (J.type != JointType::Free && J.parent_node >= 0) {
+      const FlexNode& nd =
+          system.bodies[static_cast<std::size_t>(J.parent)].flex->nodes[static_cast<std::size_t>(
+              J.parent_node)];
+      jm.parent_node = J.parent_node;
+      jm.p_PoJ_P = nd.p_BoNi_B;
+      jm.Phi_P = nd.Phi_B;
+      jm.Psi_P = nd.Psi_B;
+    }
+    if (J.type != JointType::Free && J.child_node >= 0) {
+      const FlexNode& nd =
+          system.bodies[static_cast<std::size_t>(J.child)].flex->nodes[static_cast<std::size_t>(
+              J.child_node)];
+      jm.child_node = J.child_node;
+      jm.p_CoJ_C = nd.p_BoNi_B;
+      jm.Phi_C = nd.Phi_B;
+      jm.Psi_C = nd.Psi_B;
+    }
     jm.stiffness = J.stiffness;
     jm.neutral = J.neutral_angle;
     jm.damping = J.damping;
@@ -332,7 +596,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
                                                 "' (body '" + child + "')";
       m->euler_sets.push_back(es);
     }
-    // State labels: q* block then (later) pi' block.
+    // State labels: q* block (joint coordinates, then the child's modal coordinates).
     switch (J.type) {
       case JointType::Free:
         for (const char* s : {".x", ".y", ".z", ".euler1", ".euler2", ".euler3"})
@@ -347,21 +611,27 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       case JointType::Fixed:
         break;
     }
-    i0 += J.dof();
+    if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
+      for (const std::string& mode : f->mode_names) m->labels.push_back(child + "." + mode);
+    i0 += jm.size;
     m->joints.push_back(std::move(jm));
   }
   m->n = i0;
+  for (Model::JointM& J : m->joints)
+    if (J.parent_node >= 0) J.parent_e0 = m->bodies[static_cast<std::size_t>(J.parent)].e0;
+  for (Model::JointM& J : m->joints)
+    if (J.child_node >= 0) J.child_e0 = m->bodies[static_cast<std::size_t>(J.child)].e0;
   // Tree structure: subtrees, the joint of every coordinate, each body's supporting pi'.
   const std::size_t nj = m->joints.size();
   for (std::size_t j = 0; j < nj; ++j) {
     m->all_joints.push_back(static_cast<int>(j));
-    for (int i = 0; i < system.joints[j].dof(); ++i)
-      m->coordinate_joint.push_back(static_cast<int>(j));
+    for (int i = 0; i < m->joints[j].size; ++i) m->coordinate_joint.push_back(static_cast<int>(j));
   }
   std::vector<int> joint_of_body(m->bodies.size(), -1);
   for (std::size_t j = 0; j < nj; ++j)
     joint_of_body[static_cast<std::size_t>(m->joints[j].child)] = static_cast<int>(j);
   for (std::size_t j = 0; j < nj; ++j) {
+    cancel::poll();
     // Joint k is below j when walking up from k's child reaches j's child.
     for (std::size_t k = j; k < nj; ++k) {
       int b = m->joints[k].child;
@@ -375,11 +645,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     for (int bb = static_cast<int>(b); bb >= 0;) {
       const Model::JointM& J =
           m->joints[static_cast<std::size_t>(joint_of_body[static_cast<std::size_t>(bb)])];
-      for (int i = 0;
-           i < system.joints[static_cast<std::size_t>(joint_of_body[static_cast<std::size_t>(bb)])]
-                   .dof();
-           ++i)
-        m->support[b].push_back(J.i0 + i);
+      for (int i = 0; i < J.size; ++i) m->support[b].push_back(J.i0 + i);
       bb = J.parent;
     }
     std::sort(m->support[b].begin(), m->support[b].end());
@@ -400,6 +666,9 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       case JointType::Fixed:
         break;
     }
+    if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
+      for (const std::string& mode : f->mode_names)
+        m->labels.push_back(child + "." + mode + "_rate");
   }
   m->set_of_coordinate.assign(static_cast<std::size_t>(m->n), -1);
   for (std::size_t s = 0; s < m->euler_sets.size(); ++s)
@@ -420,11 +689,16 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->chart.assign(ns, kDefaultChart);
   w->A.assign(ns, Eigen::Matrix3d::Identity());
   w->B.assign(ns, Eigen::Matrix3d::Identity());
-  w->k0.resize(n, nb);
-  w->k1.resize(n, nb);
-  std::apply([&](auto&... k) { (k.resize(n, nb), ...); }, w->kg);
+  w->k0.resize(*m);
+  w->k1.resize(*m);
+  std::apply([&](auto&... k) { (k.resize(*m), ...); }, w->kg);
   w->Xi.assign(static_cast<std::size_t>(nb), Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n));
   w->Xi_dot = w->Xi;
+  w->fi0.resize(static_cast<std::size_t>(nb));
+  for (std::size_t b = 0; b < m->bodies.size(); ++b) w->fi0[b].resize(m->bodies[b].nm);
+  w->he1.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
+  w->he0 = Eigen::VectorXd::Zero(m->max_modes);
+  w->unit = Eigen::VectorXd::Zero(m->max_modes);
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
   w->M = Eigen::MatrixXd::Zero(n, n);
   // Size the factorisation's storage by factorising once (assigning LLT(n) would copy Eigen's
@@ -462,6 +736,9 @@ std::string LagrangeEngine::chart_name(int s) const {
 }
 const OutputLayout& LagrangeEngine::layout() const {
   return model_->layout;
+}
+int LagrangeEngine::modal_index(int body) const {
+  return model_->bodies.at(static_cast<std::size_t>(body)).e0;
 }
 
 std::string LagrangeEngine::state_label(int i) const {
@@ -519,8 +796,23 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
         break;
     }
   }
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    if (B.flex < 0) continue;
+    const auto nm = static_cast<Eigen::Index>(B.nm);
+    if (b >= s.eta.size() || b >= s.eta_rate.size() || s.eta[b].size() != nm ||
+        s.eta_rate[b].size() != nm)
+      throw InputError("engine lagrange: pack() got a state without the " + std::to_string(nm) +
+                       " modal coordinates and rates of flexible body '" + B.name + "'");
+    for (Eigen::Index k = 0; k < nm; ++k) {
+      q[B.e0 + k] = s.eta[b](k);
+      u[B.e0 + k] = s.eta_rate[b](k);
+    }
+  }
   if (m.zero_linear_momentum) {
-    // Every body's CM velocity contains the base velocity once: choose it so that sum m v = 0.
+    // Every body's linear momentum contains its mass times the base velocity once (the base
+    // velocity adds to every point's velocity): choose it so that the total is zero, modal rates
+    // included (docs/flexible-bodies.md "Initial state and momentum").
     for (int i = 0; i < 3; ++i) u[i] = 0.0;
     const Eigen::Vector3d P = linear_momentum_N(x);
     for (int i = 0; i < 3; ++i) u[i] = -P(i) / m.total_mass;
@@ -571,7 +863,7 @@ void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* cha
   }
   pose_pass(m, chart, k);
   twist_pass(m, k, x + n, m.all_joints);
-  const Dual<K> L = kinetic_energy_of(m, k) - potential_energy_of(m, chart, k.q.data());
+  const Dual<K> L = kinetic_energy_of(m, k, x + n) - potential_energy_of(m, chart, k.q.data());
   for (int c = 0; c < K; ++c) w.dL(dirs[c]) = L.d[static_cast<std::size_t>(c)];
 }
 
@@ -580,6 +872,71 @@ void gradient_dispatch(std::integer_sequence<int, K...>, int width, const Model&
                        LagrangeEngine::Workspace& w, const int* chart, const double* x,
                        const int* dirs) {
   ((width == K + 1 ? gradient_chunk<K + 1>(m, w, chart, x, dirs) : void()), ...);
+}
+
+// Mass pass of one flexible body b (see the file comment): with Y_i = (Xi_i, e_i on the body's
+// own eta' block) the seed twists and xi = sum Y_i pi'_i the body's twist,
+//   M_ij += Y_i . M_B Y_j,   p_i += Y_i . M_B xi,
+//   (dM/dt pi')_i += Ydot_i . M_B xi + Y_i . d/dt(M_B xi)   (d/dt at fixed pi', Dual<1> parts).
+void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b) {
+  const Model::BodyM& B = m.bodies[b];
+  const FlexInvariants& f = m.flex[static_cast<std::size_t>(B.flex)];
+  const std::vector<int>& sup = m.support[b];
+  const auto& X = w.Xi[b];
+  const auto& Xd = w.Xi_dot[b];
+  const FlexInertia<Dual<1>>& fi1 = w.k1.fi[b];
+  FlexInertia<double>& fi0 = w.fi0[b];
+  for (int r = 0; r < 3; ++r) {
+    fi0.s(r) = fi1.s(r).v;
+    for (int c = 0; c < 3; ++c) fi0.I_w(r, c) = fi1.I_w(r, c).v;
+    for (int k = 0; k < B.nm; ++k) fi0.H(r, k) = fi1.H(r, k).v;
+  }
+  // The body's twist (w, v_B) and its rate at fixed pi', as Dual<1>.
+  Vec3<Dual<1>> wt, vt;
+  for (int a = 0; a < 3; ++a) {
+    double x0 = 0, x1 = 0, d0 = 0, d1 = 0;
+    for (int i : sup) {
+      x0 += X(a, i) * w.u(i);
+      x1 += X(3 + a, i) * w.u(i);
+      d0 += Xd(a, i) * w.u(i);
+      d1 += Xd(3 + a, i) * w.u(i);
+    }
+    wt(a) = Dual<1>(x0);
+    wt(a).d[0] = d0;
+    vt(a) = Dual<1>(x1);
+    vt(a).d[0] = d1;
+  }
+  const double* ed = w.u.data() + B.e0;
+  Vec3<Dual<1>> hw1, hv1;
+  flex_momentum(f, fi1, wt, vt, ed, hw1, hv1, w.he1.data());
+  auto own = [&B](int i) { return i >= B.e0 && i < B.e0 + B.nm; };
+  for (std::size_t ii = 0; ii < sup.size(); ++ii) {
+    const int i = sup[ii];
+    double p = 0, pd = 0;
+    for (int a = 0; a < 3; ++a) {
+      p += X(a, i) * hw1(a).v + X(3 + a, i) * hv1(a).v;
+      pd += Xd(a, i) * hw1(a).v + Xd(3 + a, i) * hv1(a).v + X(a, i) * hw1(a).d[0] +
+            X(3 + a, i) * hv1(a).d[0];
+    }
+    if (own(i)) {
+      p += w.he1[static_cast<std::size_t>(i - B.e0)].v;
+      pd += w.he1[static_cast<std::size_t>(i - B.e0)].d[0];
+    }
+    w.p(i) += p;
+    w.Mdot_u(i) += pd;
+    // M_B Y_i, then its products with Y_j for j >= i.
+    if (own(i)) w.unit(i - B.e0) = 1.0;
+    const Vec3<double> wi = X.col(i).head<3>(), vi = X.col(i).tail<3>();
+    Vec3<double> hw, hv;
+    flex_momentum(f, fi0, wi, vi, w.unit.data(), hw, hv, w.he0.data());
+    if (own(i)) w.unit(i - B.e0) = 0.0;
+    for (std::size_t jj = ii; jj < sup.size(); ++jj) {
+      const int j = sup[jj];
+      double mij = X.col(j).head<3>().dot(hw) + X.col(j).tail<3>().dot(hv);
+      if (own(j)) mij += w.he0(j - B.e0);
+      w.M(i, j) += mij;
+    }
+  }
 }
 
 }  // namespace
@@ -610,6 +967,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   // columns of other bodies stay zero from construction).
   w.seed.setZero();
   for (int i = 0; i < n; ++i) {
+    cancel::poll();
     const Model::JointM& Ji =
         m.joints[static_cast<std::size_t>(m.coordinate_joint[static_cast<std::size_t>(i)])];
     if (Ji.parent >= 0) {
@@ -621,45 +979,52 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     w.seed(i) = 0.0;
     for (int j : Ji.subtree) {
       const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(j)].child);
+      const Vec3<Dual<1>>& v = m.bodies[b].flex >= 0 ? w.k1.v_NBo_B[b] : w.k1.v_NBo_N[b];
       for (int a = 0; a < 3; ++a) {
         w.Xi[b](a, i) = w.k1.w_NB_B[b](a).v;
-        w.Xi[b](3 + a, i) = w.k1.v_NBo_N[b](a).v;
+        w.Xi[b](3 + a, i) = v(a).v;
         w.Xi_dot[b](a, i) = w.k1.w_NB_B[b](a).d[0];
-        w.Xi_dot[b](3 + a, i) = w.k1.v_NBo_N[b](a).d[0];
+        w.Xi_dot[b](3 + a, i) = v(a).d[0];
       }
     }
   }
-  // T(xi, eta) = w_xi^T I w_eta + m v_xi . v_eta per body: M_ij = T(e_i, e_j), p = T(e_i, pi'),
-  // d/dt p at fixed pi' = T(e_i', pi') + T(e_i, pi'') with ' the Dual<1> parts. Only the pi'
-  // supporting the body (its own and its ancestors' joints) contribute.
+  // T(xi, eta) = w_xi^T I w_eta + m v_xi . v_eta per rigid body: M_ij = T(e_i, e_j),
+  // p = T(e_i, pi'), d/dt p at fixed pi' = T(e_i', pi') + T(e_i, pi'') with ' the Dual<1> parts.
+  // Only the pi' supporting the body (its own and its ancestors' joints) contribute.
   w.M.setZero();
   w.p.setZero();
   w.Mdot_u.setZero();
   w.N.setZero();
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    cancel::poll();
     const Model::BodyM& B = m.bodies[b];
     const std::vector<int>& sup = m.support[b];
     const auto& X = w.Xi[b];
     const auto& Xd = w.Xi_dot[b];
-    auto D = [&B](const Eigen::Matrix<double, 6, 1>& xi) {
-      Eigen::Matrix<double, 6, 1> r;
-      r << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
-      return r;
-    };
-    Eigen::Matrix<double, 6, 1> xi = Eigen::Matrix<double, 6, 1>::Zero(), xid = xi;
-    for (int i : sup) {
-      xi += X.col(i) * w.u(i);
-      xid += Xd.col(i) * w.u(i);
+    if (B.flex >= 0) {
+      flex_mass_pass(m, w, b);
+    } else {
+      auto D = [&B](const Eigen::Matrix<double, 6, 1>& xi) {
+        Eigen::Matrix<double, 6, 1> r;
+        r << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
+        return r;
+      };
+      Eigen::Matrix<double, 6, 1> xi = Eigen::Matrix<double, 6, 1>::Zero(), xid = xi;
+      for (int i : sup) {
+        xi += X.col(i) * w.u(i);
+        xid += Xd.col(i) * w.u(i);
+      }
+      const Eigen::Matrix<double, 6, 1> Dxi = D(xi);
+      for (std::size_t ii = 0; ii < sup.size(); ++ii) {
+        const int i = sup[ii];
+        const Eigen::Matrix<double, 6, 1> Dxi_i = D(X.col(i));
+        for (std::size_t jj = ii; jj < sup.size(); ++jj)
+          w.M(i, sup[jj]) += Dxi_i.dot(X.col(sup[jj]));
+        w.p(i) += Dxi_i.dot(xi);
+        w.Mdot_u(i) += Xd.col(i).dot(Dxi) + Dxi_i.dot(xid);
+      }
     }
-    const Eigen::Matrix<double, 6, 1> Dxi = D(xi);
-    for (std::size_t ii = 0; ii < sup.size(); ++ii) {
-      const int i = sup[ii];
-      const Eigen::Matrix<double, 6, 1> Dxi_i = D(X.col(i));
-      for (std::size_t jj = ii; jj < sup.size(); ++jj) w.M(i, sup[jj]) += Dxi_i.dot(X.col(sup[jj]));
-      w.p(i) += Dxi_i.dot(xi);
-      w.Mdot_u(i) += Xd.col(i).dot(Dxi) + Dxi_i.dot(xid);
-    }
-    // Body torque: virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
+    // Body torque (on the body frame): virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
     if (!B.torque.empty()) {
       Eigen::Vector3d tau = B.torque.value(t);
       if (B.torque_frame == Body::Frame::Inertial) {
@@ -670,11 +1035,24 @@ void LagrangeEngine::evaluate(double t, const double* x) {
       }
       for (int i : sup) w.N(i) += X.col(i).head<3>().dot(tau);
     }
+    // Modal damping: generalised force -D eta' (docs/flexible-bodies.md "Energy").
+    if (B.flex >= 0) {
+      const Eigen::MatrixXd& Dm = m.flex[static_cast<std::size_t>(B.flex)].Dmp;
+      for (int k = 0; k < B.nm; ++k) {
+        double f = 0;
+        for (int l = 0; l < B.nm; ++l) f += Dm(k, l) * w.u(B.e0 + l);
+        w.N(B.e0 + k) -= f;
+      }
+    }
   }
   w.M.triangularView<Eigen::StrictlyLower>() = w.M.transpose();
 
-  // Joint dampers and motors: the quasi-velocity of a joint is its relative rate, so a torque on
-  // the child with the reaction on the parent does virtual power tau . rate.
+  // Joint dampers and motors: the torque tau acts on the child-side joint frame and -tau on the
+  // parent-side one, so its virtual power is tau . (w_Jc - w_Jp) = tau . w_rel, and w_rel is the
+  // joint's own quasi-velocity (axis rate, or w_PC_C in child-side joint-frame components) even
+  // when a side is a node frame of a flexible body: the generalised force is tau on the joint's
+  // rates and nothing on any eta' (the node frames' rotations cancel in the pair; the single-frame
+  // forces (Jl Psi)^T tau_B of docs/flexible-bodies.md "Loads at joints" sum to zero here).
   for (const Model::JointM& J : m.joints) {
     if (J.type == JointType::Revolute) {
       w.N(J.i0) += -J.damping * w.u(J.i0) + J.motor_revolute.value(t)(0);
@@ -687,6 +1065,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   w.dL.setZero();
   const int nd = static_cast<int>(m.gradient_dirs.size());
   for (int c0 = 0; c0 < nd; c0 += kMaxChunk) {
+    cancel::poll();
     const int width = std::min(kMaxChunk, nd - c0);
     gradient_dispatch(std::make_integer_sequence<int, kMaxChunk>(), width, m, w, chart, x,
                       m.gradient_dirs.data() + c0);
@@ -788,37 +1167,57 @@ double LagrangeEngine::kinetic_energy(const double* x) {
   for (int i = 0; i < model_->n; ++i) w.k0.q[static_cast<std::size_t>(i)] = x[i];
   pose_pass(*model_, w.chart.data(), w.k0);
   twist_pass(*model_, w.k0, x + model_->n, model_->all_joints);
-  return kinetic_energy_of(*model_, w.k0);
+  return kinetic_energy_of(*model_, w.k0, x + model_->n);
 }
 
 double LagrangeEngine::potential_energy(const double* x) {
   return potential_energy_of(*model_, ws_->chart.data(), x);
 }
 
+namespace {
+
+// Per body, from the pose and twist passes in k: linear momentum P (N), angular momentum about Bo
+// h (N) and first mass moment s = sum m_i x_i (N) (docs/flexible-bodies.md "Energy": the nodes'
+// m_i x_i x v_i, plus R_NB J_i w). A flexible body's are R (h_v, h_w, m p_Bo + R s(eta)) with
+// h_w = dT/dw and h_v = dT/dv of flex_body.hpp.
+struct BodyMomenta {
+  Eigen::Vector3d P, h, s;
+};
+BodyMomenta body_momenta(const Model& m, Kin<double>& k, const double* u, std::size_t b) {
+  const Model::BodyM& B = m.bodies[b];
+  if (B.flex < 0)
+    return {B.mass * k.v_NBo_N[b], k.R_NB[b] * (B.I_BBo_B * k.w_NB_B[b]), B.mass * k.p_NoBo_N[b]};
+  Eigen::Vector3d hw, hv;
+  flex_momentum(m.flex[static_cast<std::size_t>(B.flex)], k.fi[b], k.w_NB_B[b], k.v_NBo_B[b],
+                u + B.e0, hw, hv, static_cast<double*>(nullptr));
+  return {k.R_NB[b] * hv, k.R_NB[b] * hw, B.mass * k.p_NoBo_N[b] + k.R_NB[b] * k.fi[b].s};
+}
+
+}  // namespace
+
 Eigen::Vector3d LagrangeEngine::linear_momentum_N(const double* x) {
   kinetic_energy(x);  // pose and twist passes into k0
   Eigen::Vector3d P = Eigen::Vector3d::Zero();
   for (std::size_t b = 0; b < model_->bodies.size(); ++b)
-    P += model_->bodies[b].mass * ws_->k0.v_NBo_N[b];
+    P += body_momenta(*model_, ws_->k0, x + model_->n, b).P;
   return P;
 }
 
+// H about the system CM c: sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the
+// angular momentum about the origin, moved to the CM).
 Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x) {
   kinetic_energy(x);
   const Model& m = *model_;
-  const Kin<double>& k = ws_->k0;
-  Eigen::Vector3d p_c = Eigen::Vector3d::Zero(), v_c = Eigen::Vector3d::Zero();
+  Kin<double>& k = ws_->k0;
+  Eigen::Vector3d H = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
+                  s = Eigen::Vector3d::Zero();
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    p_c += m.bodies[b].mass * k.p_NoBo_N[b];
-    v_c += m.bodies[b].mass * k.v_NBo_N[b];
+    const BodyMomenta bm = body_momenta(m, k, x + m.n, b);
+    H += k.p_NoBo_N[b].cross(bm.P) + bm.h;
+    P += bm.P;
+    s += bm.s;
   }
-  p_c /= m.total_mass;
-  v_c /= m.total_mass;
-  Eigen::Vector3d H = Eigen::Vector3d::Zero();
-  for (std::size_t b = 0; b < m.bodies.size(); ++b)
-    H += k.R_NB[b] * (m.bodies[b].I_BBo_B * k.w_NB_B[b]) +
-         m.bodies[b].mass * (k.p_NoBo_N[b] - p_c).cross(k.v_NBo_N[b] - v_c);
-  return H;
+  return H - (s / m.total_mass).cross(P);
 }
 
 void LagrangeEngine::output_row(double t, const double* x, double* row) {
@@ -828,7 +1227,13 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
   const double* u = x + n;
   const double E = kinetic_energy(x) + potential_energy(x);
   const double H = angular_momentum_N(x).norm();  // leaves the pose and twist passes in k0
-  // Attitude quaternions: q_NC = q_NP q_PJ0 q_J, q_J from the joint's own coordinates.
+  // Attitude quaternions: q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^*, q_J from the joint's own
+  // coordinates, q(psi) the node frame's rotation vector psi = Psi eta (exp map).
+  auto node_q = [&](const Eigen::Matrix3Xd& Psi, int e0) {
+    Eigen::Vector3d psi = Eigen::Vector3d::Zero();
+    for (Eigen::Index k = 0; k < Psi.cols(); ++k) psi += Psi.col(k) * x[e0 + k];
+    return rot::from_rotation_vector(psi);
+  };
   for (const Model::JointM& J : m.joints) {
     const double* qj = x + J.i0;
     const auto c = static_cast<std::size_t>(J.child);
@@ -845,7 +1250,11 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
     Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();
     if (J.type == JointType::Revolute) q_J = Eigen::AngleAxisd(qj[0], J.axis_J);
     if (J.type == JointType::Spherical) q_J = euler_q(qj);
-    w.q_NB[c] = (w.q_NB[static_cast<std::size_t>(J.parent)] * J.q_PJ0 * q_J).normalized();
+    Eigen::Quaterniond q = w.q_NB[static_cast<std::size_t>(J.parent)];
+    if (J.parent_node >= 0) q = q * node_q(J.Psi_P, J.parent_e0);
+    q = q * J.q_PJ0 * q_J;
+    if (J.child_node >= 0) q = q * node_q(J.Psi_C, J.child_e0).conjugate();
+    w.q_NB[c] = q.normalized();
   }
   RowWriter out(m.layout, row);
   out.time(t);
@@ -856,6 +1265,12 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
     if (J.type == JointType::Revolute) out.revolute(static_cast<int>(j), x[J.i0], u[J.i0]);
     if (J.type == JointType::Spherical)
       out.spherical(static_cast<int>(j), Eigen::Vector3d(u[J.i0], u[J.i0 + 1], u[J.i0 + 2]));
+  }
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    if (B.flex < 0) continue;
+    out.modal(static_cast<int>(b), Eigen::Map<const Eigen::VectorXd>(x + B.e0, B.nm),
+              Eigen::Map<const Eigen::VectorXd>(u + B.e0, B.nm));
   }
   out.momentum(H);
   out.energy(E);
@@ -871,11 +1286,23 @@ void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.a_NBo_N.assign(nb, Eigen::Vector3d::Zero());
   a.angle_ddot.assign(nj, 0.0);
   a.wdot_PC_C.assign(nj, Eigen::Vector3d::Zero());
+  a.eta_ddot.assign(nb, Eigen::VectorXd());
   // Body twist xi = Xi(q*) pi' => xi' = Xi pi'' + (dXi/dt) pi'.
   for (std::size_t b = 0; b < nb; ++b) {
     const Eigen::Matrix<double, 6, 1> xid = w.Xi[b] * w.udot + w.Xi_dot[b] * w.u;
     a.wdot_NB_B[b] = xid.head<3>();
-    a.a_NBo_N[b] = xid.tail<3>();
+    const Model::BodyM& B = m.bodies[b];
+    if (B.flex < 0) {
+      a.a_NBo_N[b] = xid.tail<3>();
+      continue;
+    }
+    // Flexible: the twist holds v_NBo_B, so a_NBo_N = R_NB (v_NBo_B' + w x v_NBo_B).
+    const Eigen::Matrix<double, 6, 1> xi = w.Xi[b] * w.u;
+    Eigen::Matrix3d R;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R(r, c) = w.k1.R_NB[b](r, c).v;
+    a.a_NBo_N[b] = R * (xid.tail<3>() + xi.head<3>().cross(xi.tail<3>()));
+    a.eta_ddot[b] = w.udot.segment(B.e0, B.nm);
   }
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];

@@ -8,9 +8,31 @@
 //   revolute    angle (1)                                  rate (1)
 //   spherical   Euler angles of R_J = R(q_J) (3)           w_PC_C (3), relative, child frame
 //   fixed       -                                          -
+//   then, when the joint's child is flexible, its modal coordinates eta (n) and rates eta' (n):
+//   true coordinates and their true velocities, as in the paper's q* (Eq. 15, the q_j of the
+//   vibrational modes).
 // so q* and pi' have the same length n and block layout, and d(pi) = A(q*) dq* (Eq. 16) with A
 // block-diagonal: identity except the Euler blocks, where A is the matrix of euler_chart.hpp.
 // State x = (q*, pi'), size 2n.
+//
+// Flexible bodies (docs/flexible-bodies.md; flex_body.hpp). A flexible body's kinetic energy is
+// written exactly, every term second order in eta kept, as a quadratic form in its body-axes
+// twist (w_NB_B, v_NBo_B, eta') with an eta-dependent inertia M_B(eta) built from modal inertia
+// invariants summed once over the nodes (Meirovitch 1991, J. Guidance 14(5): T of a flexible body
+// in quasi-coordinates), so T, and everything the engine derives from it, costs O(modes^2) per
+// body and nothing per node. V gains eta^T K eta / 2; modal damping is the generalised force
+// -D eta'. A joint at a node: its point is the node's deformed position p_i + Phi_i eta and its
+// frame the body frame turned by exp([psi x]), psi = Psi_i eta (exact Rodrigues form; the node
+// frame's angular velocity relative to the body is Jl(psi) Psi_i eta'); these enter the pose and
+// twist passes, so M, p, (dM/dt) pi' and the gradient of L come out of the same machinery as for
+// rigid bodies. Hinge torques act on the child-side joint frame with the reaction on the
+// parent-side one: their virtual power is tau . (relative rate), so they load the joint's rates
+// only (lagrange_engine.cpp, "Joint dampers and motors"). Body torques act on the body frame and
+// do no work on eta. The model is read as written in docs/flexible-bodies.md; where it leaves a
+// choice: a joint's point on a node side is the node's own p_i (the constructor checks that
+// Joint::p_PoJ_P / p_CoJ_C equal it), the body's mass and inertia are the node sums (Body::mass and
+// Body::I_BBo_B are not used for a flexible body), and sum m_i p_i is kept in T as summed (zero
+// to rounding for a body whose origin is its undeformed CM).
 //
 // Equations of motion (paper Eq. 23; Whittaker 1944, Ch. II, equations for quasi-coordinates;
 // Meirovitch 1970, Ch. 4, Lagrange's equations in terms of quasi-coordinates), with B = A^-1
@@ -73,6 +95,7 @@ class LagrangeEngine final : public Engine {
   std::string euler_set_owner(int s) const;  // "main" (base body) or the spherical joint's name
   int chart(int s) const;                    // current chart of set s (index into kSequences)
   std::string chart_name(int s) const;       // "3-2-1", ...
+  int modal_index(int body) const;           // index of a flexible body's eta in q* (-1: rigid)
   // Every term of the equations of motion at (t, x) (header comment).
   struct Terms {
     Eigen::MatrixXd M;       // mass matrix d2T/dpi'2

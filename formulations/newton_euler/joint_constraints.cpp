@@ -1,6 +1,7 @@
 #include "formulations/newton_euler/joint_constraints.hpp"
 
 #include "core/rotation.hpp"
+#include "formulations/newton_euler/so3.hpp"
 
 #include <cmath>
 #include <numbers>
@@ -12,7 +13,34 @@ using Eigen::Quaterniond;
 using Eigen::Vector3d;
 using rot::skew;
 
-JointModel JointModel::from(const Joint& joint) {
+namespace {
+
+JointSide side(const System* system, int body, const Vector3d& r, int node) {
+  JointSide s;
+  s.body = body;
+  s.r = r;
+  s.node = node;
+  if (system && body >= 0) {
+    const Body& b = system->bodies[static_cast<std::size_t>(body)];
+    if (b.flex) {
+      s.modes = b.flex->modes();
+      s.Phi = Eigen::Matrix3Xd::Zero(3, s.modes);
+      s.Psi = Eigen::Matrix3Xd::Zero(3, s.modes);
+      if (node >= 0 && s.modes > 0) {
+        const FlexNode& n = b.flex->nodes[static_cast<std::size_t>(node)];
+        s.Phi = n.Phi_B;
+        if (n.Psi_B.cols() == s.modes) s.Psi = n.Psi_B;  // an empty Psi: no slopes at this node
+      }
+    }
+  }
+  if (s.modes == 0) {
+    s.Phi.resize(3, 0);
+    s.Psi.resize(3, 0);
+  }
+  return s;
+}
+
+JointModel model(const Joint& joint, const System* system) {
   JointModel m;
   m.type = joint.type;
   m.parent = joint.parent;
@@ -23,8 +51,8 @@ JointModel JointModel::from(const Joint& joint) {
     case JointType::Revolute: m.rows = 5; break;
     case JointType::Fixed: m.rows = 6; break;
   }
-  m.r_P = joint.p_PoJ_P;
-  m.r_C = joint.p_CoJ_C;
+  m.P = side(system, joint.parent, joint.p_PoJ_P, joint.parent_node);
+  m.C = side(system, joint.child, joint.p_CoJ_C, joint.child_node);
   m.q_PJ0 = joint.q_PJ0.normalized();
   m.R_PJ0 = m.q_PJ0.toRotationMatrix();
   m.a_P = joint.axis_P.normalized();
@@ -36,9 +64,28 @@ JointModel JointModel::from(const Joint& joint) {
   return m;
 }
 
-double revolute_angle_wrapped(const JointModel& m, const Matrix3d& R_PC) {
-  // R_J = R_PJ0^T R_PC = Rot(a_C, angle), so R_J e1 = cos(angle) e1 + sin(angle) (a_C x e1).
-  const Vector3d Re1 = m.R_PJ0.transpose() * (R_PC * m.e1_C);
+}  // namespace
+
+JointModel JointModel::from(const Joint& joint) { return model(joint, nullptr); }
+
+JointModel JointModel::from(const System& system, int j) {
+  return model(system.joints[static_cast<std::size_t>(j)], &system);
+}
+
+JointKinematics::JointKinematics(const JointModel& m) {
+  F.JlPsi = Eigen::Matrix3Xd::Zero(3, m.P.modes);
+  G.JlPsi = Eigen::Matrix3Xd::Zero(3, m.C.modes);
+  F.s_B = m.P.r;
+  G.s_B = m.C.r;
+}
+
+ConstraintRows::ConstraintRows(const JointModel& m)
+    : Je_P(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.P.modes)),
+      Je_C(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.C.modes)) {}
+
+double revolute_angle_wrapped(const JointModel& m, const Matrix3d& R_FG) {
+  // R_J = R_PJ0^T R_FG = Rot(a_C, angle), so R_J e1 = cos(angle) e1 + sin(angle) (a_C x e1).
+  const Vector3d Re1 = m.R_PJ0.transpose() * (R_FG * m.e1_C);
   return std::atan2(m.e2_C.dot(Re1), m.e1_C.dot(Re1));
 }
 
@@ -47,15 +94,50 @@ double unwrap_angle(double wrapped, double reference) {
   return wrapped + two_pi * std::round((reference - wrapped) / two_pi);
 }
 
+void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out) {
+  out.s_B = side.r;
+  if (side.modes == 0) return;  // rigid: the constants set by JointKinematics(m)
+  out.s_B.noalias() += side.Phi * B.eta;
+  out.sdot_B.noalias() = side.Phi * B.eta_dot;
+  Vector3d psi, psi_dot;
+  psi.noalias() = side.Psi * B.eta;
+  psi_dot.noalias() = side.Psi * B.eta_dot;
+  // so3.hpp: exp, Jl and d/dt Jl from one set of coefficients.
+  const so3::Coefficients c = so3::coefficients(psi.norm());
+  const Matrix3d S = skew(psi), S2 = S * S, Sd = skew(psi_dot);
+  const double pp = psi.dot(psi_dot);
+  out.E = Matrix3d::Identity() + c.s * S + c.a * S2;
+  out.q_E = rot::from_rotation_vector(psi);
+  const Matrix3d Jl = Matrix3d::Identity() + c.a * S + c.b * S2;
+  const Matrix3d Jl_dot = c.a1 * pp * S + c.a * Sd + c.b1 * pp * S2 + c.b * (Sd * S + S * Sd);
+  out.JlPsi.noalias() = Jl * side.Psi;
+  out.w_rel_B.noalias() = Jl * psi_dot;
+  out.c_B.noalias() = Jl_dot * psi_dot;
+}
+
 void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
                       JointKinematics& out) {
-  out.q_PC = P.q_NB.conjugate() * C.q_NB;
+  node_frame(m.P, P, out.F);
+  node_frame(m.C, C, out.G);
   out.R_PC.noalias() = P.R_NB.transpose() * C.R_NB;
-  out.w_PC_C = C.w_NB_B - out.R_PC.transpose() * P.w_NB_B;
-  out.w_PC_P = out.R_PC * C.w_NB_B - P.w_NB_B;
+  const Quaterniond q_PC = P.q_NB.conjugate() * C.q_NB;
+  if (m.P.modes == 0 && m.C.modes == 0) {  // F = P, G = C
+    out.q_FG = q_PC;
+    out.R_FG = out.R_PC;
+    out.w_F = P.w_NB_B;
+    out.w_G = C.w_NB_B;
+  } else {
+    // R_FG = E_P^T R_PC E_C; w_F = E_P^T (w_P + w_rel_P), w_G likewise.
+    out.q_FG = out.F.q_E.conjugate() * q_PC * out.G.q_E;
+    out.R_FG.noalias() = out.F.E.transpose() * out.R_PC * out.G.E;
+    out.w_F.noalias() = out.F.E.transpose() * (P.w_NB_B + out.F.w_rel_B);
+    out.w_G.noalias() = out.G.E.transpose() * (C.w_NB_B + out.G.w_rel_B);
+  }
+  out.w_FG_G = out.w_G - out.R_FG.transpose() * out.w_F;
+  out.w_FG_F = out.R_FG * out.w_G - out.w_F;
   if (m.type == JointType::Revolute) {
-    out.angle_wrapped = revolute_angle_wrapped(m, out.R_PC);
-    out.rate = m.a_P.dot(out.w_PC_P);
+    out.angle_wrapped = revolute_angle_wrapped(m, out.R_FG);
+    out.rate = m.a_P.dot(out.w_FG_F);
   } else {
     out.angle_wrapped = 0;
     out.rate = 0;
@@ -66,53 +148,79 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
                      const JointKinematics& jk, ConstraintRows& out) {
   out.J_P.setZero();
   out.J_C.setZero();
+  out.Je_P.setZero();
+  out.Je_C.setZero();
   out.g.setZero();
   out.gdot.setZero();
   out.gamma.setZero();
   if (m.type == JointType::Free) return;
 
-  // Rows 0-2: the joint point J is the same point of P and C (system.hpp, "Joint kinematics").
+  // Rows 0-2: the joint point is the same point of both sides (system.hpp, "Joint kinematics").
   const Vector3d& w_P = P.w_NB_B;
   const Vector3d& w_C = C.w_NB_B;
-  const Vector3d s_P_N = P.R_NB * m.r_P;  // p_PoJ_N
-  const Vector3d s_C_N = C.R_NB * m.r_C;  // p_CoJ_N
-  out.g.head<3>() = C.p_NoBo_N + s_C_N - P.p_NoBo_N - s_P_N;
+  const Vector3d& s_P = jk.F.s_B;
+  const Vector3d& s_C = jk.G.s_B;
+  out.g.head<3>() = C.p_NoBo_N + C.R_NB * s_C - P.p_NoBo_N - P.R_NB * s_P;
   out.J_C.block<3, 3>(0, 0).setIdentity();
-  out.J_C.block<3, 3>(0, 3).noalias() = -C.R_NB * skew(m.r_C);
+  out.J_C.block<3, 3>(0, 3).noalias() = -C.R_NB * skew(s_C);
   out.J_P.block<3, 3>(0, 0) = -Matrix3d::Identity();
-  out.J_P.block<3, 3>(0, 3).noalias() = P.R_NB * skew(m.r_P);
-  out.gdot.head<3>() = C.v_NBo_N + C.R_NB * w_C.cross(m.r_C) - P.v_NBo_N -
-                       P.R_NB * w_P.cross(m.r_P);
-  out.gamma.head<3>() = -(C.R_NB * w_C.cross(w_C.cross(m.r_C)) -
-                          P.R_NB * w_P.cross(w_P.cross(m.r_P)));
+  out.J_P.block<3, 3>(0, 3).noalias() = P.R_NB * skew(s_P);
+  out.gdot.head<3>() = C.v_NBo_N + C.R_NB * (w_C.cross(s_C) + jk.G.sdot_B) - P.v_NBo_N -
+                       P.R_NB * (w_P.cross(s_P) + jk.F.sdot_B);
+  out.gamma.head<3>() =
+      -(C.R_NB * (w_C.cross(w_C.cross(s_C)) + 2.0 * w_C.cross(jk.G.sdot_B)) -
+        P.R_NB * (w_P.cross(w_P.cross(s_P)) + 2.0 * w_P.cross(jk.F.sdot_B)));
+  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * m.C.Phi;
+  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * m.P.Phi;
 
+  // Rotation rows in terms of w_F and w_G (the frames' rigid rows), written in the w_P and w_C
+  // columns, then mapped through the node frames below.
+  const Vector3d& w_F = jk.w_F;
+  const Vector3d& w_G = jk.w_G;
   if (m.type == JointType::Revolute) {
-    const Vector3d u = jk.R_PC * m.a_C;            // the child's axis, in P
-    const Vector3d u_dot = jk.w_PC_P.cross(u);     // P-frame derivative of u
-    const Vector3d transport_P = jk.R_PC * jk.w_PC_C.cross(w_C);
+    const Vector3d u = jk.R_FG * m.a_C;            // the child's axis, in F
+    const Vector3d u_dot = jk.w_FG_F.cross(u);     // F-frame derivative of u
+    const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(w_G);
     const Vector3d* b[2] = {&m.b1_P, &m.b2_P};
     for (int k = 0; k < 2; ++k) {
       const Vector3d c = u.cross(*b[k]);
       out.g(3 + k) = b[k]->dot(u);
-      out.J_C.block<1, 3>(3 + k, 3).noalias() = c.transpose() * jk.R_PC;
+      out.J_C.block<1, 3>(3 + k, 3).noalias() = c.transpose() * jk.R_FG;
       out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
-      out.gdot(3 + k) = c.dot(jk.w_PC_P);
-      out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_PC_P) + c.dot(transport_P));
+      out.gdot(3 + k) = c.dot(jk.w_FG_F);
+      out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
     }
   } else if (m.type == JointType::Fixed) {
-    const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_PC;
+    const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_FG;
     const double s = q_e.w() < 0 ? -1.0 : 1.0;
-    const Vector3d& w = jk.w_PC_C;
+    const Vector3d& w = jk.w_FG_G;
     const Matrix3d E = s * (q_e.w() * Matrix3d::Identity() + skew(q_e.vec()));
     const double qw_dot = -0.5 * q_e.vec().dot(w);
     const Vector3d qv_dot = 0.5 * (q_e.w() * w + q_e.vec().cross(w));
     const Matrix3d E_dot = s * (qw_dot * Matrix3d::Identity() + skew(qv_dot));
-    const Matrix3d R_CP = jk.R_PC.transpose();
+    const Matrix3d R_GF = jk.R_FG.transpose();
     out.g.tail<3>() = 2.0 * s * q_e.vec();
     out.J_C.block<3, 3>(3, 3) = E;
-    out.J_P.block<3, 3>(3, 3).noalias() = -E * R_CP;
+    out.J_P.block<3, 3>(3, 3).noalias() = -E * R_GF;
     out.gdot.tail<3>() = E * w;
-    out.gamma.tail<3>() = -(E_dot * w + E * w.cross(R_CP * w_P));
+    out.gamma.tail<3>() = -(E_dot * w + E * w.cross(R_GF * w_F));
+  }
+  if (m.type == JointType::Spherical) return;
+
+  // Node frames: w_F = E^T (w_B + Jl Psi eta'), d/dt w_F = E^T (alpha_B + Jl Psi eta'' + c -
+  // w_rel x w_B) (header comment): rows A (w.r.t. w_F) become A E^T (w.r.t. w_B) and A E^T Jl Psi
+  // (w.r.t. eta'), and gamma loses A E^T (c - w_rel x w_B).
+  if (m.P.modes > 0) {
+    const Matrix3d A = out.J_P.block<3, 3>(3, 3) * jk.F.E.transpose();
+    out.J_P.block<3, 3>(3, 3) = A;
+    out.Je_P.bottomRows<3>().noalias() = A * jk.F.JlPsi;
+    out.gamma.tail<3>() -= A * (jk.F.c_B - jk.F.w_rel_B.cross(w_P));
+  }
+  if (m.C.modes > 0) {
+    const Matrix3d A = out.J_C.block<3, 3>(3, 3) * jk.G.E.transpose();
+    out.J_C.block<3, 3>(3, 3) = A;
+    out.Je_C.bottomRows<3>().noalias() = A * jk.G.JlPsi;
+    out.gamma.tail<3>() -= A * (jk.G.c_B - jk.G.w_rel_B.cross(w_C));
   }
 }
 

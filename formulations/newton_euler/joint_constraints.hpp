@@ -4,30 +4,48 @@
 // g'' = J nu' - gamma, i.e. J nu' = gamma on the motion (gamma = -Jdot nu).
 //
 // Notation (Drake monogram, see core/system.hpp): R_NP, R_NC body attitudes; p_NoPo_N, p_NoCo_N
-// CM positions; w_NP_P, w_NC_C inertial angular velocities in body axes; r_P = p_PoJ_P,
-// r_C = p_CoJ_C the joint point in each body. A body's generalised velocity is
-// nu_B = [v_NBo_N; w_NB_B] (CM velocity in N, angular velocity in B), as in paper Eqs. (1), (2).
+// body-frame origins; w_P = w_NP_P, w_C = w_NC_C inertial angular velocities in body axes. A rigid
+// body's generalised velocity is nu_B = [v_NBo_N; w_NB_B] (paper Eqs. (1), (2)); a flexible body's
+// is [v_NBo_N; w_NB_B; eta'] (modal_body.hpp), and J has columns for its modal rates too.
+//
+// Joint frames. Each side of a joint carries a joint frame: F on the parent side, G on the child
+// side. On a rigid body (or a flexible body without a node) F is the body frame P and G the body
+// frame C, and the joint point is fixed in the body (r_P = p_PoJ_P, r_C = p_CoJ_C). At node i of a
+// flexible body (docs/flexible-bodies.md "Joints at nodes") the point is s = r + Phi_i eta and the
+// frame is turned from the body frame by E = exp([psi x]), psi = Psi_i eta (so3.hpp). The joint
+// relates F and G exactly as a rigid joint relates P and C: R_FG = R_PJ0 R_J(coordinates), revolute
+// axis a_P in F. Kinematics of a node frame, body components (so3.hpp, Jl = left Jacobian):
+//   s' = Phi eta' (relative to B),   w_NF = w_B + w_rel,   w_rel = Jl(psi) Psi eta',
+//   w_F (F components) = E^T (w_B + w_rel),
+//   d/dt w_F = E^T (alpha_B + Jl Psi eta'' + c - w_rel x w_B),   c = (d/dt Jl) Psi eta'
+// (d/dt E^T = -E^T [w_rel x], since d/dt E E^T = [w_rel x]).
 //
 // Constraint rows (Kane, Likins & Levinson 1983, Sec. 2.4 and 2.6 for the kinematics; Haug 1989,
 // "Computer Aided Kinematics and Dynamics of Mechanical Systems", Sec. 3.3 and 6.3 for the form
 // J nu' = gamma):
-//   rows 0-2, every joint (point coincidence, in N):
-//     g = p_NoCo_N + R_NC r_C - p_NoPo_N - R_NP r_P
-//     J_C = [ I, -R_NC [r_C x] ],  J_P = [ -I, R_NP [r_P x] ]
-//     gamma = -( R_NC (w_C x (w_C x r_C)) - R_NP (w_P x (w_P x r_P)) )
+//   rows 0-2, every joint (point coincidence, in N; s_P, s_C the joint point from each origin):
+//     g = p_NoCo_N + R_NC s_C - p_NoPo_N - R_NP s_P
+//     J_C = [ I, -R_NC [s_C x], R_NC Phi_C ],  J_P = [ -I, R_NP [s_P x], -R_NP Phi_P ]
+//     gamma = -( R_NC (w_C x (w_C x s_C) + 2 w_C x s_C') - R_NP (w_P x (w_P x s_P) + 2 w_P x s_P') )
+//   rotation rows, first in terms of the frames' angular velocities w_F, w_G (rows A_F, A_G, and
+//   gamma_FG = -(A_F' w_F + A_G' w_G), the rigid rows of the frames F and G):
 //   revolute, rows 3-4 (the child's copy of the axis stays on the parent's axis):
-//     u = R_PC a_C (a_C = the axis in C, constant), b_1, b_2 unit vectors fixed in P, normal to a_P;
-//     g_k = b_k . u;  g_k' = c_k . w_PC_P with c_k = u x b_k, w_PC_P = R_PC w_C - w_P
-//     J_C = c_k^T R_PC,  J_P = -c_k^T
-//     gamma_k = -( (u' x b_k) . w_PC_P + c_k . R_PC (w_PC_C x w_C) ),  u' = w_PC_P x u
-//     (the P-frame derivative of w_PC_P is R_PC w_C' - w_P' + R_PC (w_PC_C x w_C), because
-//      d/dt R_PC = R_PC [w_PC_C x]).
+//     u = R_FG a_C (a_C = the axis in G, constant), b_1, b_2 unit vectors fixed in F, normal to a_P;
+//     g_k = b_k . u;  g_k' = c_k . w_FG_F with c_k = u x b_k, w_FG_F = R_FG w_G - w_F
+//     A_G = c_k^T R_FG,  A_F = -c_k^T
+//     gamma_k = -( (u' x b_k) . w_FG_F + c_k . R_FG (w_FG_G x w_G) ),  u' = w_FG_F x u
+//     (the F-frame derivative of w_FG_F is R_FG w_G' - w_F' + R_FG (w_FG_G x w_G), because
+//      d/dt R_FG = R_FG [w_FG_G x]).
 //   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0):
-//     q_e = q_PJ0^* (x) q_PC, s = sign(q_e.w);  g = 2 s vec(q_e)
-//     g' = E w_PC_C with E = s (q_e.w I + [vec(q_e) x])  (Shuster 1993 Eq. 305),
-//     w_PC_C = w_C - R_CP w_P,  J_C = E, J_P = -E R_CP
-//     gamma = -( E' w_PC_C + E (w_PC_C x R_CP w_P) )
+//     q_e = q_PJ0^* (x) q_FG, s = sign(q_e.w);  g = 2 s vec(q_e)
+//     g' = E_q w_FG_G with E_q = s (q_e.w I + [vec(q_e) x])  (Shuster 1993 Eq. 305),
+//     w_FG_G = w_G - R_GF w_F,  A_G = E_q, A_F = -E_q R_GF
+//     gamma = -( E_q' w_FG_G + E_q (w_FG_G x R_GF w_F) )
 //   spherical: rows 0-2 only.
+//   Then, by the node-frame kinematics above (chain rule), on a flexible side:
+//     J_P[rot, w_P] = A_F E_P^T,  J_P[rot, eta_P'] = A_F E_P^T Jl_P Psi_P,
+//     gamma -= A_F E_P^T (c_P - w_rel_P x w_P)        (and the same for C with A_G);
+//   on a rigid side J_P[rot, w_P] = A_F.
 // Rows beyond rows() are zero (TreeKkt pads every joint block to 6 rows).
 #pragma once
 
@@ -38,21 +56,32 @@
 
 namespace crossdyn::newton_euler {
 
+// One side of a joint: a body and, on a flexible body, the node the joint is attached to.
+struct JointSide {
+  int body = -1;
+  int modes = 0;        // the body's number of modes (0: rigid body)
+  int node = -1;        // FlexBody::nodes index, or -1
+  Eigen::Vector3d r = Eigen::Vector3d::Zero();  // undeformed joint point from Bo, body frame
+  Eigen::Matrix3Xd Phi, Psi;  // 3 x modes: the node's shapes and slopes (zero without a node)
+};
+
 // The constant description of one joint (built once from System::joints[j]).
 struct JointModel {
   JointType type = JointType::Revolute;
   int parent = -1, child = -1;
   int rows = 0;                       // 3 (spherical), 5 (revolute), 6 (fixed), 0 (free)
-  Eigen::Vector3d r_P = Eigen::Vector3d::Zero();   // p_PoJ_P
-  Eigen::Vector3d r_C = Eigen::Vector3d::Zero();   // p_CoJ_C
+  JointSide P, C;                     // parent side (frame F) and child side (frame G)
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d a_P = Eigen::Vector3d::UnitZ();  // revolute axis in P
-  Eigen::Vector3d a_C = Eigen::Vector3d::UnitZ();  // the same axis in C (= R_PJ0^T a_P, constant)
-  Eigen::Vector3d b1_P, b2_P;         // unit, fixed in P, (a_P, b1_P, b2_P) right-handed
-  Eigen::Vector3d e1_C, e2_C;         // unit, in C (J0) axes, (a_C, e1_C, e2_C) right-handed
+  Eigen::Vector3d a_P = Eigen::Vector3d::UnitZ();  // revolute axis in F
+  Eigen::Vector3d a_C = Eigen::Vector3d::UnitZ();  // the same axis in G (= R_PJ0^T a_P, constant)
+  Eigen::Vector3d b1_P, b2_P;         // unit, fixed in F, (a_P, b1_P, b2_P) right-handed
+  Eigen::Vector3d e1_C, e2_C;         // unit, in G (J0) axes, (a_C, e1_C, e2_C) right-handed
 
+  // Rigid attachments on both sides (the bodies' modes are not known).
   static JointModel from(const Joint& joint);
+  // With the bodies of `system`: node attachments and modal columns of flexible sides.
+  static JointModel from(const System& system, int j);
 };
 
 // One body's kinematic state, read from the engine's state vector.
@@ -62,37 +91,65 @@ struct BodyKinematics {
   Eigen::Vector3d p_NoBo_N = Eigen::Vector3d::Zero();
   Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();
   Eigen::Vector3d w_NB_B = Eigen::Vector3d::Zero();
+  Eigen::VectorXd eta, eta_dot;  // modal coordinates and rates (size 0: rigid body)
 };
 
-// Relative kinematics of a joint's child C in its parent P.
+// A joint frame on one side at the current state (see the header comment).
+struct NodeFrame {
+  Eigen::Vector3d s_B = Eigen::Vector3d::Zero();      // joint point from Bo, body frame
+  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi eta': its rate relative to the body
+  Eigen::Matrix3d E = Eigen::Matrix3d::Identity();    // exp([psi x]): the frame in the body frame
+  Eigen::Quaterniond q_E = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d w_rel_B = Eigen::Vector3d::Zero();  // Jl(psi) Psi eta'
+  Eigen::Vector3d c_B = Eigen::Vector3d::Zero();      // (d/dt Jl(psi)) Psi eta'
+  Eigen::Matrix3Xd JlPsi;                             // 3 x modes: Jl(psi) Psi
+};
+
+// Relative kinematics of a joint's child-side frame G in its parent-side frame F.
 struct JointKinematics {
-  Eigen::Quaterniond q_PC = Eigen::Quaterniond::Identity();
-  Eigen::Matrix3d R_PC = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d w_PC_C = Eigen::Vector3d::Zero();  // w_C - R_CP w_P
-  Eigen::Vector3d w_PC_P = Eigen::Vector3d::Zero();  // R_PC w_C - w_P
-  double angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of C about the axis
-  double rate = 0;           // revolute: a_P . w_PC_P
+  NodeFrame F, G;
+  Eigen::Quaterniond q_FG = Eigen::Quaterniond::Identity();
+  Eigen::Matrix3d R_FG = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d R_PC = Eigen::Matrix3d::Identity();  // the bodies' relative attitude
+  Eigen::Vector3d w_F = Eigen::Vector3d::Zero();       // w_NF in F components
+  Eigen::Vector3d w_G = Eigen::Vector3d::Zero();       // w_NG in G components
+  Eigen::Vector3d w_FG_G = Eigen::Vector3d::Zero();    // w_G - R_GF w_F
+  Eigen::Vector3d w_FG_F = Eigen::Vector3d::Zero();    // R_FG w_G - w_F
+  double angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of G about the axis
+  double rate = 0;           // revolute: a_P . w_FG_F
+
+  // Sizes the node frames' modal parts (once, outside the right-hand side).
+  explicit JointKinematics(const JointModel& m);
+  JointKinematics() = default;
 };
 
 // The constraint rows of one joint at one state.
 struct ConstraintRows {
-  Matrix6d J_P = Matrix6d::Zero();
-  Matrix6d J_C = Matrix6d::Zero();
+  Matrix6d J_P = Matrix6d::Zero();    // columns [v_P; w_P]
+  Matrix6d J_C = Matrix6d::Zero();    // columns [v_C; w_C]
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Je_P, Je_C;  // columns eta_P', eta_C' (6 x modes)
   Vector6d g = Vector6d::Zero();      // position violation (rows 0-2 m, 3-5 rad-like)
   Vector6d gdot = Vector6d::Zero();   // J nu: velocity violation
   Vector6d gamma = Vector6d::Zero();  // -Jdot nu
+
+  explicit ConstraintRows(const JointModel& m);
+  ConstraintRows() = default;
 };
 
-// (P, C body states) => relative kinematics of joint `m`.
+// (side, body state) => the joint frame on that side.
+void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out);
+
+// (P, C body states) => node frames and relative kinematics of joint `m`. No allocation once
+// `out` is sized (JointKinematics(m)).
 void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
                       JointKinematics& out);
 
-// (P, C body states, relative kinematics) => constraint rows. No allocation.
+// (P, C body states, relative kinematics) => constraint rows. No allocation once `out` is sized.
 void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
                      const JointKinematics& jk, ConstraintRows& out);
 
-// Angle of a revolute joint's child about its axis: atan2 of the rotated e1 in (e1, e2).
-double revolute_angle_wrapped(const JointModel& m, const Eigen::Matrix3d& R_PC);
+// Angle of a revolute joint's child-side frame about its axis: atan2 of the rotated e1 in (e1, e2).
+double revolute_angle_wrapped(const JointModel& m, const Eigen::Matrix3d& R_FG);
 
 // The branch of `wrapped` (+ 2 pi k) nearest to `reference`.
 double unwrap_angle(double wrapped, double reference);

@@ -8,18 +8,24 @@
 //              dynamical systems", Comput. Methods Appl. Mech. Eng. 1, 1-16.
 //   [HLW06]    Hairer, Lubich & Wanner (2006), "Geometric Numerical Integration", 2nd ed., IV.4.
 //   [Shuster93] Shuster (1993), "A survey of attitude representations", J. Astronaut. Sci. 41(4).
+//   [Shabana05] Shabana (2005), "Dynamics of Multibody Systems", 3rd ed., Cambridge, Ch. 5.
+//   [Barfoot17] Barfoot (2017), "State Estimation for Robotics", Cambridge, Sec. 7.1.5.
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
+#include "formulations/newton_euler/modal_body.hpp"
 #include "formulations/newton_euler/tree_kkt.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace crossdyn {
@@ -29,19 +35,23 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
+using Eigen::VectorXd;
 
 constexpr const char* kEngineName = "newton-euler";
 
 // Projection thresholds, per metre of the model's length scale L (the largest of 1 m, the joint
-// lever arms |r_P| + |r_C| and the CM distances from the origin: round-off in g is ~1e-16 L).
-// A state whose violation is below kProjectTrigger L is left alone (so that after_step() does not
-// restart the integrator for round-off); Newton iterations stop at kNewtonTarget L or after
-// kNewtonMaxIterations (each iteration squares the relative error, so one or two reach round-off
-// from any violation an accepted step can produce).
+// lever arms |r_P| + |r_C| and the body origins' distances from the origin: round-off in g is
+// ~1e-16 L). A state whose violation is below kProjectTrigger L is left alone (so that
+// after_step() does not restart the integrator for round-off); Newton iterations stop at
+// kNewtonTarget L or after kNewtonMaxIterations (each iteration squares the relative error, so one
+// or two reach round-off from any violation an accepted step can produce).
 constexpr double kProjectTrigger = 1e-12;      // m (and rad, m/s, rad/s) per metre of L
 constexpr double kNewtonTarget = 1e-14;        // m per metre of L
 constexpr int kNewtonMaxIterations = 4;
 constexpr double kQuaternionNormTrigger = 1e-12;
+// A flexible body's mass and rigid inertia must equal its node sums (core/system.hpp) to this
+// relative tolerance: two different values would make engines disagree silently.
+constexpr double kNodeSumRelTol = 1e-9;
 
 enum class Stabilization { None, Baumgarte, Projection };
 
@@ -56,7 +66,7 @@ class NewtonEulerEngine final : public Engine {
   NewtonEulerEngine(const System& system, const EngineOptions& options);
 
   const char* name() const override { return kEngineName; }
-  int state_size() const override { return 13 * nb_; }
+  int state_size() const override { return nx_; }
   std::string state_label(int i) const override;
   void pack(const TreeState& s, double* x) override;
   void rhs(double t, const double* x, double* xdot) override;
@@ -66,20 +76,31 @@ class NewtonEulerEngine final : public Engine {
   void output_row(double t, const double* x, double* row) override;
 
  private:
-  // State layout.
-  int pos(int b) const { return 7 * b; }
-  int vel(int b) const { return 7 * nb_ + 6 * b; }
+  // State layout (newton_euler.hpp): body b's positions at pos(b), its velocities at vel(b); the
+  // velocities are stacked in the order of the KKT unknowns (nu(b) = vel(b) - vel(0)).
+  int pos(int b) const { return pos_[at(b)]; }
+  int vel(int b) const { return vel_[at(b)]; }
+  int nu(int b) const { return vel_[at(b)] - vel_[0]; }
+  int modes(int b) const { return modes_[at(b)]; }
 
   // Named passes (see newton_euler.hpp).
   void body_pass(double t, const double* x);
+  void mass_pass(double t);
   void joint_pass();
   void force_pass(double t);
   void solve_pass(double t);
   void dynamics(double t, const double* x);
 
-  void write_state(double* x) const;  // bk_ => x (positions, attitudes, velocities)
+  void validate_flex(const std::string& file, int b, const Body& body, const EngineOptions& o);
+  void write_state(double* x) const;  // bk_ => x (positions, attitudes, modes, velocities)
+  void torque_on_frame(int b, const Vector3d& T_B, const Eigen::Matrix3Xd& JlPsi);
+  Vector3d frame_angular_acceleration(const JointSide& side, const NodeFrame& fr, int b) const;
   bool project(double t, double* x);
   void update_turn_counters(double t, const double* x);
+  double total_mass() const;
+  Vector3d first_moment() const;     // sum over elements of m x (from bk_)
+  Vector3d linear_momentum() const;  // sum over elements of m v (from bk_)
+  void shift_all(const Vector3d& dp, const Vector3d& dv);
   double angular_momentum() const;
   double energy() const;
   [[noreturn]] void fail(double t, const std::string& quantity, const std::string& reason) const;
@@ -88,9 +109,12 @@ class NewtonEulerEngine final : public Engine {
   System system_;
   Stabilization stabilization_ = Stabilization::Projection;
   double alpha_ = 0, beta_ = 0;
-  int nb_ = 0, nj_ = 0;
+  int nb_ = 0, nj_ = 0, nx_ = 0, nv_ = 0;
+  std::vector<int> modes_, pos_, vel_;
   std::vector<double> mass_;
-  std::vector<Matrix3d> I_B_;            // inertia about the CM in body axes (scaled for tests)
+  std::vector<Matrix3d> I_B_;            // rigid: inertia about the CM in body axes (scaled for tests)
+  std::vector<int> flex_;                // body => index into inv_ / terms_, or -1 (rigid)
+  std::vector<ModalInvariants> inv_;     // per flexible body
   std::vector<JointModel> joints_;       // per System joint
   double lever_scale_ = 0;               // m, largest |r_P| + |r_C| over the joints
   OutputLayout layout_;          // pinned columns, then joint wrenches, then constraint violations
@@ -99,11 +123,12 @@ class NewtonEulerEngine final : public Engine {
 
   // ---- workspace (mutable, preallocated) ----
   std::vector<BodyKinematics> bk_;
+  std::vector<ModalTerms> terms_;        // per flexible body
   std::vector<JointKinematics> jk_;
   std::vector<ConstraintRows> cr_;       // per System joint (index 0, the free joint, unused)
   std::vector<double> angle_;            // revolute: continuous angle at the current state
   std::vector<double> angle_ref_;        // revolute: continuous angle after the last step/pack
-  std::vector<Vector6d> f_, nu_dot_;     // per body
+  VectorXd f_, nu_dot_;                  // stacked per body (KKT order)
   std::vector<Vector6d> gamma_, y_;      // per KKT link (joint j is link j - 1)
   TreeKkt kkt_;
 };
@@ -134,12 +159,10 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   if (nj_ != nb_)
     throw InputError(file + ": joints: expected exactly one joint per body (" + std::to_string(nb_) +
                      " bodies, " + std::to_string(nj_) + " joints)");
+  flex_.assign(at(nb_), -1);
   for (int b = 0; b < nb_; ++b) {
     const Body& body = system.bodies[at(b)];
     const std::string key = file + ": bodies[" + std::to_string(b) + "] '" + body.name + "'";
-    if (body.flex)
-      throw InputError(key + ": flexible bodies (modal data) are not supported yet by the " +
-                       std::string(kEngineName) + " engine");
     if (!(body.mass > 0) || !std::isfinite(body.mass))
       throw InputError(key + ": mass must be finite and > 0");
     const Matrix3d I = options.test_inertia_scale * body.I_BBo_B;
@@ -148,6 +171,21 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       throw InputError(key + ": inertia must be symmetric positive definite");
     mass_.push_back(body.mass);
     I_B_.push_back(I);
+    modes_.push_back(body.flex ? body.flex->modes() : 0);
+    if (body.flex) {
+      validate_flex(file, b, body, options);
+      mass_.back() = inv_.back().m;  // the node sum (equal to body.mass to 1e-9)
+    }
+  }
+  // State layout: positions (7 + n_b per body), then velocities (6 + n_b per body).
+  for (int b = 0; b < nb_; ++b) {
+    pos_.push_back(nx_);
+    nx_ += 7 + modes(b);
+  }
+  for (int b = 0; b < nb_; ++b) {
+    vel_.push_back(nx_);
+    nx_ += 6 + modes(b);
+    nv_ += 6 + modes(b);
   }
 
   // Joints: joints[0] free (the base), the rest in topological order.
@@ -166,15 +204,34 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       if (J.axis_P.norm() < 1e-12 && J.type == JointType::Revolute)
         throw InputError(key + ": axis must be a non-zero vector");
     }
+    // Node attachments: only on flexible bodies, to an existing node.
+    for (const auto& [node, body, what] :
+         {std::tuple{J.parent_node, J.parent, "parent_node"}, std::tuple{J.child_node, J.child, "child_node"}}) {
+      if (node < 0) continue;
+      const Body* B = body >= 0 && body < nb_ ? &system.bodies[at(body)] : nullptr;
+      if (!B || !B->flex)
+        throw InputError(key + ": " + what + " is set but body " +
+                         (B ? "'" + B->name + "'" : std::string("(none)")) + " is not flexible");
+      if (node >= static_cast<int>(B->flex->nodes.size()))
+        throw InputError(key + ": " + what + " " + std::to_string(node) + " is not a node of '" +
+                         B->name + "' (" + std::to_string(B->flex->nodes.size()) + " nodes)");
+    }
     placed[at(J.child)] = true;
-    joints_.push_back(JointModel::from(J));
+    joints_.push_back(JointModel::from(system, j));
     lever_scale_ = std::max(lever_scale_, J.p_PoJ_P.norm() + J.p_CoJ_C.norm());
     if (j > 0) links.push_back(KktLink{J.parent, J.child, joints_.back().rows});
   }
 
-  // Mass matrix blocks (paper Eqs. (1), (2)): diag(m I3, I_B).
-  kkt_ = TreeKkt(nb_, links);
+  // Mass matrix blocks. Rigid (paper Eqs. (1), (2)): diag(m I3, I_B), constant, set once here.
+  // Flexible: modal_body.hpp, set per state by mass_pass().
+  std::vector<int> dofs;
+  for (int b = 0; b < nb_; ++b) dofs.push_back(6 + modes(b));
+  kkt_ = TreeKkt(dofs, links);
   for (int b = 0; b < nb_; ++b) {
+    if (flex_[at(b)] >= 0) {
+      terms_.emplace_back(modes(b));
+      continue;
+    }
     Matrix6d M = Matrix6d::Zero();
     M.topLeftCorner<3, 3>() = mass_[at(b)] * Matrix3d::Identity();
     M.bottomRightCorner<3, 3>() = I_B_[at(b)];
@@ -194,28 +251,99 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   layout_.add_extra("constraint.vel", "m/s");
   layout_.add_extra("constraint.ang", "rad");
   layout_.add_extra("constraint.angvel", "rad/s");
-  labels_.resize(at(13 * nb_));
+  labels_.resize(at(nx_));
   for (int b = 0; b < nb_; ++b) {
-    const std::string& n = system.bodies[at(b)].name;
+    const Body& body = system.bodies[at(b)];
+    const std::string& n = body.name;
     const char* p[7] = {".x", ".y", ".z", ".qw", ".qx", ".qy", ".qz"};
     const char* v[6] = {".vx", ".vy", ".vz", ".wx", ".wy", ".wz"};
     for (int i = 0; i < 7; ++i) labels_[at(pos(b) + i)] = n + p[i];
     for (int i = 0; i < 6; ++i) labels_[at(vel(b) + i)] = n + v[i];
+    for (int k = 0; k < modes(b); ++k) {
+      labels_[at(pos(b) + 7 + k)] = n + "." + body.flex->mode_names[at(k)];
+      labels_[at(vel(b) + 6 + k)] = n + "." + body.flex->mode_names[at(k)] + "_rate";
+    }
   }
 
   // Workspace.
   bk_.resize(at(nb_));
-  jk_.resize(at(nj_));
-  cr_.resize(at(nj_));
+  for (int b = 0; b < nb_; ++b) {
+    bk_[at(b)].eta = VectorXd::Zero(modes(b));
+    bk_[at(b)].eta_dot = VectorXd::Zero(modes(b));
+  }
+  for (const JointModel& m : joints_) {
+    jk_.emplace_back(m);
+    cr_.emplace_back(m);
+  }
   angle_.assign(at(nj_), 0.0);
   angle_ref_.assign(at(nj_), 0.0);
-  f_.assign(at(nb_), Vector6d::Zero());
-  nu_dot_.assign(at(nb_), Vector6d::Zero());
+  f_ = VectorXd::Zero(nv_);
+  nu_dot_ = VectorXd::Zero(nv_);
   gamma_.assign(links.size(), Vector6d::Zero());
   y_.assign(links.size(), Vector6d::Zero());
   for (int j = 0; j < nj_; ++j)
     if (system.joints[at(j)].type == JointType::Revolute)
       angle_ref_[at(j)] = angle_[at(j)] = system.joints[at(j)].angle0;
+}
+
+// A flexible body: consistent sizes, finite data, non-negative node masses, mass and rigid
+// inertia equal to the node sums, and a positive-definite undeformed mass matrix (a mode that
+// moves no mass, or a mode that is a rigid-body motion or a combination of other modes, would
+// make it singular). The body's invariants are precomputed here.
+void NewtonEulerEngine::validate_flex(const std::string& file, int b, const Body& body,
+                                      const EngineOptions& o) {
+  const FlexBody& flex = *body.flex;
+  const std::string key = file + ": bodies[" + std::to_string(b) + "] '" + body.name + "'";
+  const int n = flex.modes();
+  if (flex.nodes.empty()) throw InputError(key + ": a flexible body needs at least one node");
+  auto square = [&](const Eigen::MatrixXd& A, const char* what, bool may_be_empty) {
+    if (may_be_empty && A.size() == 0) return;
+    if (A.rows() != n || A.cols() != n || !A.allFinite())
+      throw InputError(key + ": modal " + what + " matrix must be finite and " +
+                       std::to_string(n) + " x " + std::to_string(n));
+    if ((A - A.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1 + A.cwiseAbs().maxCoeff()))
+      throw InputError(key + ": modal " + what + " matrix must be symmetric");
+  };
+  square(flex.K, "stiffness K", n == 0);
+  square(flex.D, "damping D", true);
+  for (std::size_t i = 0; i < flex.nodes.size(); ++i) {
+    const FlexNode& node = flex.nodes[i];
+    const std::string nk = key + ": node '" + node.name + "'";
+    if (!(node.mass >= 0) || !std::isfinite(node.mass)) throw InputError(nk + ": mass must be finite and >= 0");
+    if (!node.p_BoNi_B.allFinite() || !node.J_Ni_B.allFinite())
+      throw InputError(nk + ": position and inertia must be finite");
+    if ((n > 0 || node.Phi_B.size() > 0) && (node.Phi_B.cols() != n || !node.Phi_B.allFinite()))
+      throw InputError(nk + ": mode shapes must be finite, 3 x " + std::to_string(n));
+    if (node.Psi_B.size() > 0 && (node.Psi_B.cols() != n || !node.Psi_B.allFinite()))
+      throw InputError(nk + ": mode slopes must be finite, 3 x " + std::to_string(n) + " (or absent)");
+  }
+  const double scale = o.test_inertia_scale;
+  ModalInvariants probe = ModalInvariants::from(flex, Matrix3d::Zero());
+  const Matrix3d I0 = probe.rigid_inertia();
+  if (std::abs(probe.m - body.mass) > kNodeSumRelTol * body.mass)
+    throw InputError(key + ": mass " + std::to_string(body.mass) +
+                     " kg differs from the sum of its node masses " + std::to_string(probe.m) + " kg");
+  if ((I0 - body.I_BBo_B).cwiseAbs().maxCoeff() > kNodeSumRelTol * body.I_BBo_B.cwiseAbs().maxCoeff())
+    throw InputError(key + ": inertia differs from the node sum sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))");
+  ModalInvariants inv = ModalInvariants::from(flex, (scale - 1.0) * I0);
+  ModalTerms terms(n);
+  modal_terms(inv, Matrix3d::Identity(), Vector3d::Zero(), VectorXd::Zero(n), VectorXd::Zero(n), terms);
+  if (Eigen::LLT<Eigen::MatrixXd>(terms.M).info() != Eigen::Success ||
+      Eigen::LLT<Eigen::MatrixXd>(inv.M_ee).info() != Eigen::Success ||
+      terms.M.diagonal().minCoeff() <= 0)
+    throw InputError(key + ": the undeformed body's mass matrix is not positive definite (a mode "
+                     "moves no mass, or is a rigid-body motion or a combination of other modes)");
+  for (const auto& [A, what] : {std::pair{&inv.K, "stiffness K"}, std::pair{&inv.Dmp, "damping D"}}) {
+    if (n == 0) break;
+    const double lowest = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(*A, Eigen::EigenvaluesOnly)
+                              .eigenvalues()
+                              .minCoeff();
+    if (lowest < -1e-12 * (1 + A->cwiseAbs().maxCoeff()))
+      throw InputError(key + ": modal " + what + " matrix must be positive semi-definite (eigenvalue " +
+                       std::to_string(lowest) + ")");
+  }
+  flex_[at(b)] = static_cast<int>(inv_.size());
+  inv_.push_back(std::move(inv));
 }
 
 std::string NewtonEulerEngine::state_label(int i) const {
@@ -230,8 +358,8 @@ void NewtonEulerEngine::fail(double t, const std::string& quantity,
 
 // ---- passes ----------------------------------------------------------------------------------
 
-// x => body kinematics. The attitude is the normalised quaternion (its norm is a free, unused
-// direction of the state; projection resets it).
+// x => body kinematics and modal coordinates. The attitude is the normalised quaternion (its norm
+// is a free, unused direction of the state; projection resets it).
 void NewtonEulerEngine::body_pass(double t, const double* x) {
   for (int b = 0; b < nb_; ++b) {
     BodyKinematics& k = bk_[at(b)];
@@ -245,10 +373,29 @@ void NewtonEulerEngine::body_pass(double t, const double* x) {
     k.p_NoBo_N = Vector3d(xp[0], xp[1], xp[2]);
     k.v_NBo_N = Vector3d(xv[0], xv[1], xv[2]);
     k.w_NB_B = Vector3d(xv[3], xv[4], xv[5]);
+    if (modes(b) > 0) {
+      k.eta = Eigen::Map<const VectorXd>(xp + 7, modes(b));
+      k.eta_dot = Eigen::Map<const VectorXd>(xv + 6, modes(b));
+    }
   }
 }
 
-// Body kinematics => relative joint kinematics, continuous revolute angles, constraint rows.
+// Body kinematics => each flexible body's mass matrix and velocity terms (modal_body.hpp), given
+// to the KKT solver. Rigid bodies' blocks are constant (set by the constructor).
+void NewtonEulerEngine::mass_pass(double t) {
+  for (int b = 0; b < nb_; ++b) {
+    const int fi = flex_[at(b)];
+    if (fi < 0) continue;
+    const BodyKinematics& k = bk_[at(b)];
+    ModalTerms& mt = terms_[at(fi)];
+    modal_terms(inv_[at(fi)], k.R_NB, k.w_NB_B, k.eta, k.eta_dot, mt);
+    if (!kkt_.set_mass(b, mt.M))
+      fail(t, system_.bodies[at(b)].name, "flexible body's mass matrix is not positive definite");
+  }
+}
+
+// Body kinematics => node frames, relative joint kinematics, continuous revolute angles,
+// constraint rows.
 void NewtonEulerEngine::joint_pass() {
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
@@ -261,42 +408,59 @@ void NewtonEulerEngine::joint_pass() {
   }
 }
 
-// t => applied forces and moments, and the gyroscopic term, per body (paper Eqs. (1), (2), (7)
-// with the constraint terms moved to the solve): f_b = [F_ext_N; M_ext_B - w x I w].
-// Joint loads follow core/system.hpp: on the child, the reaction on the parent, one N-frame torque
-// vector for both so that internal loads never change the total angular momentum.
+// A torque T_B (body components) applied to a joint frame of body b: it turns the body and, on a
+// flexible body, does work through the frame's rotation, w_rel = Jl Psi eta', so it has the
+// generalised force (Jl Psi)^T T_B on eta (docs/flexible-bodies.md "Loads at joints").
+void NewtonEulerEngine::torque_on_frame(int b, const Vector3d& T_B, const Eigen::Matrix3Xd& JlPsi) {
+  f_.segment<3>(nu(b) + 3) += T_B;
+  if (JlPsi.cols() > 0) f_.segment(nu(b) + 6, JlPsi.cols()).noalias() += JlPsi.transpose() * T_B;
+}
+
+// t => applied forces and moments, and the velocity terms, per body (paper Eqs. (1), (2), (7)
+// with the constraint terms moved to the solve): rigid f_b = [F_ext_N; M_ext_B - w x I w];
+// flexible f_b = f_bias (modal_body.hpp) + [F_ext_N; M_ext_B; 0].
+// Joint loads follow core/system.hpp: on the child-side joint frame, the reaction on the parent-side
+// joint frame, one vector for both so that internal loads never change the total angular momentum.
 void NewtonEulerEngine::force_pass(double t) {
   for (int b = 0; b < nb_; ++b) {
     const BodyKinematics& k = bk_[at(b)];
     const Body& body = system_.bodies[at(b)];
-    Vector6d& f = f_[at(b)];
-    f.head<3>().setZero();  // the model has no external forces (no gravity)
-    f.tail<3>() = -k.w_NB_B.cross(I_B_[at(b)] * k.w_NB_B);
-    if (!body.torque.empty()) {
+    const int fi = flex_[at(b)];
+    if (fi >= 0) {
+      f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
+    } else {
+      f_.segment<3>(nu(b)).setZero();  // the model has no external forces (no gravity)
+      f_.segment<3>(nu(b) + 3) = -k.w_NB_B.cross(I_B_[at(b)] * k.w_NB_B);
+    }
+    if (!body.torque.empty()) {  // on the body frame: no work on eta
       const Vector3d T = body.torque.value(t);
-      if (body.torque_frame == Body::Frame::Body) f.tail<3>() += T;
-      else f.tail<3>() += k.R_NB.transpose() * T;
+      if (body.torque_frame == Body::Frame::Body) f_.segment<3>(nu(b) + 3) += T;
+      else f_.segment<3>(nu(b) + 3) += k.R_NB.transpose() * T;
     }
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
+    Vector3d T_P;  // the torque on the child-side frame, in P body components
     if (m.type == JointType::Revolute) {
       const double tau = -J.stiffness * (angle_[at(j)] - J.neutral_angle) - J.damping * jk.rate +
                          (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
       if (tau == 0) continue;
-      const Vector3d T_P = tau * m.a_P;  // on the child, in P
-      f_[at(m.child)].tail<3>() += jk.R_PC.transpose() * T_P;
-      f_[at(m.parent)].tail<3>() -= T_P;
+      T_P = tau * m.a_P;  // in F
+      if (m.P.modes > 0) T_P = jk.F.E * T_P;
     } else if (m.type == JointType::Spherical) {
-      Vector3d tau_C = -J.damping * jk.w_PC_C;
+      Vector3d tau_G = -J.damping * jk.w_FG_G;
       if (J.stiffness != 0)
-        tau_C -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_PC);
-      if (!J.motor_spherical.empty()) tau_C += J.motor_spherical.value(t);
-      f_[at(m.child)].tail<3>() += tau_C;
-      f_[at(m.parent)].tail<3>() -= jk.R_PC * tau_C;
+        tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
+      if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
+      const Vector3d T_C = m.C.modes > 0 ? Vector3d(jk.G.E * tau_G) : tau_G;
+      T_P = jk.R_PC * T_C;
+    } else {
+      continue;
     }
+    torque_on_frame(m.child, jk.R_PC.transpose() * T_P, jk.G.JlPsi);
+    torque_on_frame(m.parent, -T_P, jk.F.JlPsi);
   }
 }
 
@@ -304,25 +468,28 @@ void NewtonEulerEngine::force_pass(double t) {
 void NewtonEulerEngine::solve_pass(double t) {
   for (int j = 1; j < nj_; ++j) {
     const ConstraintRows& c = cr_[at(j)];
+    const JointModel& m = joints_[at(j)];
     const int k = j - 1;
-    kkt_.J_parent(k) = c.J_P;
-    kkt_.J_child(k) = c.J_C;
+    kkt_.J_parent(k).leftCols<6>() = c.J_P;
+    kkt_.J_child(k).leftCols<6>() = c.J_C;
+    if (m.P.modes > 0) kkt_.J_parent(k).rightCols(m.P.modes) = c.Je_P;
+    if (m.C.modes > 0) kkt_.J_child(k).rightCols(m.C.modes) = c.Je_C;
     gamma_[at(k)] = c.gamma;
     if (stabilization_ == Stabilization::Baumgarte)  // [Baum72]: g'' + alpha g' + beta g = 0
       gamma_[at(k)] -= alpha_ * c.gdot + beta_ * c.g;
   }
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
   kkt_.solve(f_, gamma_, nu_dot_, y_);
-  for (int b = 0; b < nb_; ++b)
-    if (!nu_dot_[at(b)].allFinite()) {
-      int i = 0;
-      while (i < 5 && std::isfinite(nu_dot_[at(b)](i))) ++i;
-      fail(t, labels_[at(vel(b) + i)], "non-finite acceleration");
-    }
+  if (!nu_dot_.allFinite()) {
+    int i = 0;
+    while (std::isfinite(nu_dot_(i))) ++i;
+    fail(t, labels_[at(vel_[0] + i)], "non-finite acceleration");
+  }
 }
 
 void NewtonEulerEngine::dynamics(double t, const double* x) {
   body_pass(t, x);
+  mass_pass(t);
   joint_pass();
   force_pass(t);
   solve_pass(t);
@@ -336,7 +503,6 @@ void NewtonEulerEngine::rhs(double t, const double* x, double* xdot) {
     const BodyKinematics& k = bk_[at(b)];
     const double* xp = x + pos(b);
     double* dp = xdot + pos(b);
-    double* dv = xdot + vel(b);
     dp[0] = k.v_NBo_N.x();
     dp[1] = k.v_NBo_N.y();
     dp[2] = k.v_NBo_N.z();
@@ -345,8 +511,9 @@ void NewtonEulerEngine::rhs(double t, const double* x, double* xdot) {
     const Eigen::Vector4d qd =
         rot::quat_rate_body(Quaterniond(xp[3], xp[4], xp[5], xp[6]), k.w_NB_B);
     for (int i = 0; i < 4; ++i) dp[3 + i] = qd(i);
-    for (int i = 0; i < 6; ++i) dv[i] = nu_dot_[at(b)](i);
+    for (int i = 0; i < modes(b); ++i) dp[7 + i] = k.eta_dot(i);
   }
+  Eigen::Map<VectorXd>(xdot + vel_[0], nv_) = nu_dot_;
 }
 
 void NewtonEulerEngine::write_state(double* x) const {
@@ -363,16 +530,32 @@ void NewtonEulerEngine::write_state(double* x) const {
     xp[4] = k.q_NB.x();
     xp[5] = k.q_NB.y();
     xp[6] = k.q_NB.z();
+    for (int i = 0; i < modes(b); ++i) {
+      xp[7 + i] = k.eta(i);
+      xv[6 + i] = k.eta_dot(i);
+    }
   }
 }
 
 // Engine-neutral state => maximal coordinates, with this engine's own tree kinematics
-// (core/system.hpp "Joint kinematics"): R_NC = R_NP R_PJ0 R_J, w_C = R_CP w_P + w_PC_C,
-// p_C = p_P + R_NP r_P - R_NC r_C, v_C = v_P + R_NP (w_P x r_P) - R_NC (w_C x r_C) [KLL83 Sec. 2.7].
+// (core/system.hpp "Joint kinematics"; joint_constraints.hpp for the node frames F, G):
+//   R_NG = R_NF R_PJ0 R_J, R_NC = R_NG E_C^T;  w_G = R_GF w_F + w_FG_G, w_C = E_C w_G - w_rel_C;
+//   p_C = p_P + R_NP s_P - R_NC s_C;  v_C = v_P + R_NP (w_P x s_P + s_P') - R_NC (w_C x s_C + s_C')
+// [KLL83 Sec. 2.7].
 void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   if (static_cast<int>(s.joints.size()) != nj_)
     throw InputError(where(system_) + ": TreeState has " + std::to_string(s.joints.size()) +
                      " joints, the scene " + std::to_string(nj_));
+  for (int b = 0; b < nb_; ++b) {
+    if (modes(b) == 0) continue;
+    const auto n = static_cast<Eigen::Index>(modes(b));
+    if (at(b) >= s.eta.size() || at(b) >= s.eta_rate.size() || s.eta[at(b)].size() != n ||
+        s.eta_rate[at(b)].size() != n || !s.eta[at(b)].allFinite() || !s.eta_rate[at(b)].allFinite())
+      throw InputError(where(system_) + ": TreeState: body '" + system_.bodies[at(b)].name +
+                       "' needs " + std::to_string(n) + " finite modal coordinates and rates");
+    bk_[at(b)].eta = s.eta[at(b)];
+    bk_[at(b)].eta_dot = s.eta_rate[at(b)];
+  }
   const int base = joints_[0].child;
   BodyKinematics& B = bk_[at(base)];
   B.q_NB = s.q_NB.normalized();
@@ -385,41 +568,91 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     const TreeState::JointState& js = s.joints[at(j)];
     const BodyKinematics& P = bk_[at(m.parent)];
     BodyKinematics& C = bk_[at(m.child)];
+    NodeFrame& F = jk_[at(j)].F;
+    NodeFrame& G = jk_[at(j)].G;
+    node_frame(m.P, P, F);
+    node_frame(m.C, C, G);  // depends only on the child's modal state
     Quaterniond q_J = Quaterniond::Identity();
-    Vector3d w_PC_C = Vector3d::Zero();
+    Vector3d w_FG_G = Vector3d::Zero();
     if (m.type == JointType::Revolute) {
       q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C));
-      w_PC_C = js.rate * m.a_C;
+      w_FG_G = js.rate * m.a_C;
       angle_ref_[at(j)] = js.angle;
     } else if (m.type == JointType::Spherical) {
       q_J = js.q_J.normalized();
-      w_PC_C = js.w_PC_C;
+      w_FG_G = js.w_PC_C;
     }
-    C.q_NB = (P.q_NB * m.q_PJ0 * q_J).normalized();
+    const Quaterniond q_NF = P.q_NB * F.q_E;
+    C.q_NB = (q_NF * m.q_PJ0 * q_J * G.q_E.conjugate()).normalized();
     C.R_NB = C.q_NB.toRotationMatrix();
-    const Matrix3d R_PC = P.R_NB.transpose() * C.R_NB;
-    C.w_NB_B = R_PC.transpose() * P.w_NB_B + w_PC_C;
-    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * m.r_P - C.R_NB * m.r_C;
-    C.v_NBo_N = P.v_NBo_N + P.R_NB * P.w_NB_B.cross(m.r_P) - C.R_NB * C.w_NB_B.cross(m.r_C);
+    const Matrix3d R_NF = P.R_NB * F.E;
+    const Matrix3d R_FG = R_NF.transpose() * C.R_NB * G.E;
+    const Vector3d w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
+    const Vector3d w_G = R_FG.transpose() * w_F + w_FG_G;
+    C.w_NB_B = G.E * w_G - G.w_rel_B;
+    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * F.s_B - C.R_NB * G.s_B;
+    C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(F.s_B) + F.sdot_B) -
+                C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
   }
-  if (system_.zero_linear_momentum) {
-    Vector3d momentum = Vector3d::Zero();
-    double total_mass = 0;
-    for (int b = 0; b < nb_; ++b) {
-      momentum += mass_[at(b)] * bk_[at(b)].v_NBo_N;
-      total_mass += mass_[at(b)];
-    }
-    const Vector3d v_cm = momentum / total_mass;
-    for (int b = 0; b < nb_; ++b) bk_[at(b)].v_NBo_N -= v_cm;
-  }
+  if (system_.zero_linear_momentum) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
   for (int j = 1; j < nj_; ++j) angle_[at(j)] = angle_ref_[at(j)];
 }
 
+double NewtonEulerEngine::total_mass() const {
+  double m = 0;
+  for (double mb : mass_) m += mb;
+  return m;
+}
+
+// Per body (modal_body.hpp): first moment m p + R S, linear momentum m v + R (w x S + Phi_bar eta'),
+// S = S0 + Phi_bar eta (zero for a rigid body).
+Vector3d NewtonEulerEngine::first_moment() const {
+  Vector3d sum = Vector3d::Zero();
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematics& k = bk_[at(b)];
+    sum += mass_[at(b)] * k.p_NoBo_N;
+    if (flex_[at(b)] < 0) continue;
+    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
+    Vector3d S = inv.S0;
+    S.noalias() += inv.Phi_bar * k.eta;
+    sum += k.R_NB * S;
+  }
+  return sum;
+}
+
+Vector3d NewtonEulerEngine::linear_momentum() const {
+  Vector3d sum = Vector3d::Zero();
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematics& k = bk_[at(b)];
+    sum += mass_[at(b)] * k.v_NBo_N;
+    if (flex_[at(b)] < 0) continue;
+    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
+    Vector3d S = inv.S0, p_rel;
+    S.noalias() += inv.Phi_bar * k.eta;
+    p_rel.noalias() = inv.Phi_bar * k.eta_dot;
+    sum += k.R_NB * (k.w_NB_B.cross(S) + p_rel);
+  }
+  return sum;
+}
+
+// Every body translated by dp and given the extra velocity dv: a rigid translation of the whole
+// system, which leaves every joint condition as it was (g and J nu depend on differences only).
+void NewtonEulerEngine::shift_all(const Vector3d& dp, const Vector3d& dv) {
+  for (BodyKinematics& k : bk_) {
+    k.p_NoBo_N += dp;
+    k.v_NBo_N += dv;
+  }
+}
+
 // Mass-metric projection onto {g = 0} then {J nu = 0} [HLW06 Sec. IV.4]: the corrections solve
-// [M J^T; J 0] [delta; y] = [0; -g] (Newton, a few iterations) and [0; -J nu] (once). They are
-// internal impulses/displacements: total linear momentum and the CM position are unchanged, and
-// so is the angular momentum once the joint points coincide.
+// [M J^T; J 0] [delta; y] = [0; -g] (Newton, a few iterations) and [0; -J nu] (once), delta over
+// every unknown, the modal coordinates and rates included (a joint at a node is closed by moving
+// eta as well as the bodies). They are internal impulses/displacements, so the system's CM moves
+// only at second order and the velocity step keeps the linear momentum; but a flexible body's
+// momentum m v + R (w x S + Phi_bar eta') also depends on R and eta, which the position step moves.
+// A final rigid translation of the whole system (the mass-metric projection onto "CM and linear
+// momentum as before", which leaves every joint condition unchanged) restores both exactly.
 bool NewtonEulerEngine::project(double t, double* x) {
   bool changed = false;
   for (int b = 0; b < nb_; ++b) {
@@ -440,24 +673,34 @@ bool NewtonEulerEngine::project(double t, double* x) {
       v = std::max(v, (velocity ? cr_[at(j)].gdot : cr_[at(j)].g).cwiseAbs().maxCoeff());
     return v;
   };
+  auto load_rows = [this](bool velocity) {
+    for (int j = 1; j < nj_; ++j) {
+      const ConstraintRows& c = cr_[at(j)];
+      const JointModel& m = joints_[at(j)];
+      kkt_.J_parent(j - 1).leftCols<6>() = c.J_P;
+      kkt_.J_child(j - 1).leftCols<6>() = c.J_C;
+      if (m.P.modes > 0) kkt_.J_parent(j - 1).rightCols(m.P.modes) = c.Je_P;
+      if (m.C.modes > 0) kkt_.J_child(j - 1).rightCols(m.C.modes) = c.Je_C;
+      gamma_[at(j - 1)] = velocity ? Vector6d(-c.gdot) : Vector6d(-c.g);
+    }
+    f_.setZero();
+  };
   body_pass(t, x);
+  mass_pass(t);  // the metric: the mass matrix at the step's state
   joint_pass();
+  const Vector3d moment0 = first_moment(), momentum0 = linear_momentum();
   if (max_violation(false) > kProjectTrigger * L) {
     for (int iter = 0; iter < kNewtonMaxIterations; ++iter) {
-      for (int j = 1; j < nj_; ++j) {
-        kkt_.J_parent(j - 1) = cr_[at(j)].J_P;
-        kkt_.J_child(j - 1) = cr_[at(j)].J_C;
-        gamma_[at(j - 1)] = -cr_[at(j)].g;
-      }
-      for (int b = 0; b < nb_; ++b) f_[at(b)].setZero();
+      load_rows(false);
       if (!kkt_.factor()) fail(t, "constraints", "singular constraint system in projection");
       kkt_.solve(f_, gamma_, nu_dot_, y_);  // nu_dot_ holds the displacement delta
       for (int b = 0; b < nb_; ++b) {
         BodyKinematics& k = bk_[at(b)];
-        k.p_NoBo_N += nu_dot_[at(b)].head<3>();
+        k.p_NoBo_N += nu_dot_.segment<3>(nu(b));
         // A small rotation in body axes, as w_NB_B dt: q <- q (x) exp(delta_B).
-        k.q_NB = (k.q_NB * rot::from_rotation_vector(nu_dot_[at(b)].tail<3>())).normalized();
+        k.q_NB = (k.q_NB * rot::from_rotation_vector(nu_dot_.segment<3>(nu(b) + 3))).normalized();
         k.R_NB = k.q_NB.toRotationMatrix();
+        if (modes(b) > 0) k.eta += nu_dot_.segment(nu(b) + 6, modes(b));
       }
       joint_pass();
       changed = true;
@@ -465,22 +708,22 @@ bool NewtonEulerEngine::project(double t, double* x) {
     }
   }
   if (max_violation(true) > kProjectTrigger * L) {
-    for (int j = 1; j < nj_; ++j) {
-      kkt_.J_parent(j - 1) = cr_[at(j)].J_P;
-      kkt_.J_child(j - 1) = cr_[at(j)].J_C;
-      gamma_[at(j - 1)] = -cr_[at(j)].gdot;
-    }
-    for (int b = 0; b < nb_; ++b) f_[at(b)].setZero();
+    load_rows(true);
     if (!kkt_.factor()) fail(t, "constraints", "singular constraint system in projection");
     kkt_.solve(f_, gamma_, nu_dot_, y_);
     for (int b = 0; b < nb_; ++b) {
-      bk_[at(b)].v_NBo_N += nu_dot_[at(b)].head<3>();
-      bk_[at(b)].w_NB_B += nu_dot_[at(b)].tail<3>();
+      BodyKinematics& k = bk_[at(b)];
+      k.v_NBo_N += nu_dot_.segment<3>(nu(b));
+      k.w_NB_B += nu_dot_.segment<3>(nu(b) + 3);
+      if (modes(b) > 0) k.eta_dot += nu_dot_.segment(nu(b) + 6, modes(b));
     }
     changed = true;
   }
-  if (changed) write_state(x);
-  return changed;
+  if (!changed) return false;
+  const double m = total_mass();
+  shift_all((moment0 - first_moment()) / m, (momentum0 - linear_momentum()) / m);
+  write_state(x);
+  return true;
 }
 
 void NewtonEulerEngine::update_turn_counters(double t, const double* x) {
@@ -488,8 +731,8 @@ void NewtonEulerEngine::update_turn_counters(double t, const double* x) {
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     if (m.type != JointType::Revolute) continue;
-    const Matrix3d R_PC = bk_[at(m.parent)].R_NB.transpose() * bk_[at(m.child)].R_NB;
-    angle_ref_[at(j)] = unwrap_angle(revolute_angle_wrapped(m, R_PC), angle_ref_[at(j)]);
+    joint_kinematics(m, bk_[at(m.parent)], bk_[at(m.child)], jk_[at(j)]);
+    angle_ref_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
   }
 }
 
@@ -499,61 +742,92 @@ bool NewtonEulerEngine::after_step(double t, double* x) {
   return changed;
 }
 
+// The F-frame derivative of a joint frame's angular velocity w_F (joint_constraints.hpp):
+// E^T (alpha_B + Jl Psi eta'' + c - w_rel x w_B); alpha_B on a rigid side.
+Vector3d NewtonEulerEngine::frame_angular_acceleration(const JointSide& side, const NodeFrame& fr,
+                                                       int b) const {
+  const Vector3d alpha = nu_dot_.segment<3>(nu(b) + 3);
+  if (side.modes == 0) return alpha;
+  return fr.E.transpose() * (alpha + fr.JlPsi * nu_dot_.segment(nu(b) + 6, side.modes) + fr.c_B -
+                             fr.w_rel_B.cross(bk_[at(b)].w_NB_B));
+}
+
 void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
   dynamics(t, x);
   a.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
   a.a_NBo_N.assign(at(nb_), Vector3d::Zero());
   a.angle_ddot.assign(at(nj_), 0.0);
   a.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
+  a.eta_ddot.assign(at(nb_), VectorXd());
   for (int b = 0; b < nb_; ++b) {
-    a.a_NBo_N[at(b)] = nu_dot_[at(b)].head<3>();
-    a.wdot_NB_B[at(b)] = nu_dot_[at(b)].tail<3>();
+    a.a_NBo_N[at(b)] = nu_dot_.segment<3>(nu(b));
+    a.wdot_NB_B[at(b)] = nu_dot_.segment<3>(nu(b) + 3);
+    if (modes(b) > 0) a.eta_ddot[at(b)] = nu_dot_.segment(nu(b) + 6, modes(b));
   }
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
-    const Vector3d& w_P = bk_[at(m.parent)].w_NB_B;
-    const Vector3d& w_C = bk_[at(m.child)].w_NB_B;
-    const Vector3d alpha_P = nu_dot_[at(m.parent)].tail<3>();
-    const Vector3d alpha_C = nu_dot_[at(m.child)].tail<3>();
+    const Vector3d wdot_F = frame_angular_acceleration(m.P, jk.F, m.parent);
+    const Vector3d wdot_G = frame_angular_acceleration(m.C, jk.G, m.child);
     if (m.type == JointType::Revolute) {
-      // angle'' = a_P . d/dt(w_PC_P) (P-frame derivative; d/dt R_PC = R_PC [w_PC_C x]).
-      a.angle_ddot[at(j)] =
-          m.a_P.dot(jk.R_PC * alpha_C - alpha_P + jk.R_PC * jk.w_PC_C.cross(w_C));
+      // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
+      a.angle_ddot[at(j)] = m.a_P.dot(jk.R_FG * wdot_G - wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
     } else if (m.type == JointType::Spherical) {
-      // C-frame derivative of w_PC_C = w_C - R_CP w_P, with d/dt R_CP = -[w_PC_C x] R_CP.
-      const Vector3d w_P_C = jk.R_PC.transpose() * w_P;
-      a.wdot_PC_C[at(j)] = alpha_C - jk.R_PC.transpose() * alpha_P + jk.w_PC_C.cross(w_P_C);
+      // G-frame derivative of w_FG_G = w_G - R_GF w_F, with d/dt R_GF = -[w_FG_G x] R_GF.
+      const Vector3d w_F_G = jk.R_FG.transpose() * jk.w_F;
+      a.wdot_PC_C[at(j)] = wdot_G - jk.R_FG.transpose() * wdot_F + jk.w_FG_G.cross(w_F_G);
     }
   }
 }
 
-// |sum_b m_b (p_b - p_cm) x (v_b - v_cm) + R_NB I_b w_b|, about the system CM [KLL83 Sec. 4.5].
+// |sum_i m_i (x_i - x_c) x (v_i - v_c) + sum R_NB J w| about the system CM x_c over every mass
+// element [KLL83 Sec. 4.5]. Per body (modal_body.hpp): linear momentum L_b = m v + R (w x S + Phi_bar
+// eta'), angular momentum about its origin h_b = (R S) x v + R (I w + Lambda eta'); then
+// H = sum_b h_b + (p_b - x_c) x L_b (the sum of m_i (x_i - x_c) over all elements is zero).
 double NewtonEulerEngine::angular_momentum() const {
-  Vector3d p_cm = Vector3d::Zero(), v_cm = Vector3d::Zero();
+  Vector3d first_moment = Vector3d::Zero();
   double total = 0;
   for (int b = 0; b < nb_; ++b) {
-    p_cm += mass_[at(b)] * bk_[at(b)].p_NoBo_N;
-    v_cm += mass_[at(b)] * bk_[at(b)].v_NBo_N;
+    first_moment += mass_[at(b)] * bk_[at(b)].p_NoBo_N;
+    if (flex_[at(b)] >= 0) first_moment += bk_[at(b)].R_NB * terms_[at(flex_[at(b)])].S;
     total += mass_[at(b)];
   }
-  p_cm /= total;
-  v_cm /= total;
+  const Vector3d x_c = first_moment / total;
   Vector3d h = Vector3d::Zero();
   for (int b = 0; b < nb_; ++b) {
     const BodyKinematics& k = bk_[at(b)];
-    h += mass_[at(b)] * (k.p_NoBo_N - p_cm).cross(k.v_NBo_N - v_cm) +
-         k.R_NB * (I_B_[at(b)] * k.w_NB_B);
+    const int fi = flex_[at(b)];
+    Vector3d L = mass_[at(b)] * k.v_NBo_N;
+    if (fi < 0) {
+      h += k.R_NB * (I_B_[at(b)] * k.w_NB_B);
+    } else {
+      const ModalTerms& mt = terms_[at(fi)];
+      const Vector3d S_N = k.R_NB * mt.S;
+      L += k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel);
+      h += S_N.cross(k.v_NBo_N) + k.R_NB * (mt.I * k.w_NB_B + mt.h_rel);
+    }
+    h += (k.p_NoBo_N - x_c).cross(L);
   }
   return h.norm();
 }
 
-// Kinetic energy of every body plus the joint springs' potential (core/system.hpp).
+// Kinetic energy 1/2 nu^T M nu of every body (modal_body.hpp), plus the modal strain energy
+// 1/2 eta^T K eta and the joint springs' potential (core/system.hpp).
 double NewtonEulerEngine::energy() const {
   double e = 0;
   for (int b = 0; b < nb_; ++b) {
     const BodyKinematics& k = bk_[at(b)];
-    e += 0.5 * mass_[at(b)] * k.v_NBo_N.squaredNorm() + 0.5 * k.w_NB_B.dot(I_B_[at(b)] * k.w_NB_B);
+    const int fi = flex_[at(b)];
+    e += 0.5 * mass_[at(b)] * k.v_NBo_N.squaredNorm();
+    if (fi < 0) {
+      e += 0.5 * k.w_NB_B.dot(I_B_[at(b)] * k.w_NB_B);
+      continue;
+    }
+    const ModalTerms& mt = terms_[at(fi)];
+    const ModalInvariants& inv = inv_[at(fi)];
+    e += k.v_NBo_N.dot(k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel)) +
+         0.5 * k.w_NB_B.dot(mt.I * k.w_NB_B) + k.w_NB_B.dot(mt.h_rel) +
+         0.5 * k.eta_dot.dot(inv.M_ee * k.eta_dot) + 0.5 * k.eta.dot(inv.K * k.eta);
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
@@ -562,7 +836,7 @@ double NewtonEulerEngine::energy() const {
       const double d = angle_[at(j)] - J.neutral_angle;
       e += 0.5 * J.stiffness * d * d;
     } else if (J.type == JointType::Spherical) {
-      const Vector3d phi = rot::rotation_vector(joints_[at(j)].q_PJ0.conjugate() * jk_[at(j)].q_PC);
+      const Vector3d phi = rot::rotation_vector(joints_[at(j)].q_PJ0.conjugate() * jk_[at(j)].q_FG);
       e += 0.5 * J.stiffness * phi.squaredNorm();
     }
   }
@@ -573,17 +847,21 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   dynamics(t, x);  // the constraint forces need the accelerations
   RowWriter out(layout_, row);
   out.time(t);
-  for (int b = 0; b < nb_; ++b) out.body(b, bk_[at(b)].w_NB_B, bk_[at(b)].q_NB);
+  for (int b = 0; b < nb_; ++b) {
+    out.body(b, bk_[at(b)].w_NB_B, bk_[at(b)].q_NB);
+    if (modes(b) > 0) out.modal(b, bk_[at(b)].eta, bk_[at(b)].eta_dot);
+  }
   for (int j = 1; j < nj_; ++j) {
     const JointType type = joints_[at(j)].type;
     if (type == JointType::Revolute) out.revolute(j, angle_[at(j)], jk_[at(j)].rate);
-    if (type == JointType::Spherical) out.spherical(j, jk_[at(j)].w_PC_C);
+    if (type == JointType::Spherical) out.spherical(j, jk_[at(j)].w_FG_G);
   }
   out.momentum(angular_momentum());
   out.energy(energy());
   int c = wrench0_;
-  // Constraint wrench on the child, J_C^T lambda = [F_N; M_Co_C], lambda = -y; moved to the joint
-  // point and expressed in P.
+  // Constraint wrench on the child, J_C^T lambda = [F_N; M_Co_C; ...], lambda = -y: the force F_N
+  // at the (deformed) joint point and the couple M_Co_C - s_C x F_C, both expressed in the
+  // parent-side joint frame F (the parent's body frame for a rigid attachment).
   double pos_violation = 0, vel_violation = 0, ang_violation = 0, angvel_violation = 0;
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
@@ -592,22 +870,23 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     const Vector6d wrench = -(cr.J_C.transpose() * y_[at(j - 1)]);
     const Matrix3d& R_NC = bk_[at(m.child)].R_NB;
     const Vector3d F_N = wrench.head<3>();
-    const Vector3d M_J_C = wrench.tail<3>() - m.r_C.cross(R_NC.transpose() * F_N);
-    const Vector3d F_P = bk_[at(m.parent)].R_NB.transpose() * F_N;
-    const Vector3d M_P = jk.R_PC * M_J_C;
-    for (int i = 0; i < 3; ++i) out.extra(c + i, F_P(i));
-    for (int i = 0; i < 3; ++i) out.extra(c + 3 + i, M_P(i));
+    const Vector3d couple_C = wrench.tail<3>() - jk.G.s_B.cross(R_NC.transpose() * F_N);
+    const Matrix3d R_FP = jk.F.E.transpose();
+    const Vector3d F_F = R_FP * (bk_[at(m.parent)].R_NB.transpose() * F_N);
+    const Vector3d M_F = R_FP * (jk.R_PC * couple_C);
+    for (int i = 0; i < 3; ++i) out.extra(c + i, F_F(i));
+    for (int i = 0; i < 3; ++i) out.extra(c + 3 + i, M_F(i));
     c += 6;
     pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
     vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
     if (m.type == JointType::Revolute) {
-      const Vector3d u = jk.R_PC * m.a_C;
+      const Vector3d u = jk.R_FG * m.a_C;
       ang_violation = std::max(ang_violation, std::atan2(m.a_P.cross(u).norm(), m.a_P.dot(u)));
       angvel_violation =
-          std::max(angvel_violation, (jk.w_PC_P - m.a_P.dot(jk.w_PC_P) * m.a_P).norm());
+          std::max(angvel_violation, (jk.w_FG_F - m.a_P.dot(jk.w_FG_F) * m.a_P).norm());
     } else if (m.type == JointType::Fixed) {
-      ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_PC));
-      angvel_violation = std::max(angvel_violation, jk.w_PC_C.norm());
+      ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_FG));
+      angvel_violation = std::max(angvel_violation, jk.w_FG_G.norm());
     }
   }
   out.extra(violation0_, pos_violation);

@@ -1,37 +1,65 @@
 // The Newton-Euler engine: maximal coordinates, one set of Newton-Euler equations per body, the
 // joint constraint forces and moments as unknowns (reference paper, "Newton-Euler Equations",
-// Eqs. (1), (2), (7); the paper's model-specific code for Example 1).
+// Eqs. (1), (2), (7); the paper's model-specific code for Example 1), with flexible (modal) bodies
+// written from the paper's Eqs. (3)-(6) (modal_body.hpp).
 //
-// State x (13 per body; n = number of bodies):
-//   x[7b .. 7b+7)          body b: p_NoBo_N (3), q_NB (4, scalar first; kept near unit norm)
-//   x[7n+6b .. 7n+6b+6)    body b: v_NBo_N (3), w_NB_B (3)
-// Labels "<body>.x/.y/.z/.qw/.qx/.qy/.qz/.vx/.vy/.vz/.wx/.wy/.wz".
+// State x (n bodies; body b has n_b modes, n_b = 0 for a rigid body):
+//   positions, body by body:   p_NoBo_N (3), q_NB (4, scalar first; kept near unit norm), eta (n_b)
+//   then velocities, likewise: v_NBo_N (3), w_NB_B (3), eta' (n_b)
+// Labels "<body>.x/.y/.z/.qw/.qx/.qy/.qz/.<mode>" and "<body>.vx/.vy/.vz/.wx/.wy/.wz/.<mode>_rate"
+// (e.g. "beam.qx1", "beam.qx1_rate"). For a flexible body, Bo is the origin of its body frame, the
+// undeformed CM (docs/flexible-bodies.md); TreeAccel::a_NBo_N is that origin's acceleration.
 //
 // Equations (per right-hand-side call, named passes in newton_euler.cpp):
-//   body_pass      x => R_NB, p, v, w of every body
-//   joint_pass     => relative joint kinematics, constraint rows g, J, gamma (joint_constraints.hpp)
+//   body_pass      x => R_NB, p, v, w, eta, eta' of every body
+//   mass_pass      => each flexible body's (6 + n_b)-square mass matrix and velocity terms from
+//                  its precomputed modal invariants (modal_body.hpp: the paper's Eqs. (3)-(6), the
+//                  floating-frame-of-reference equations); rigid blocks diag(m I3, I_B) are constant
+//   joint_pass     => joint frames at nodes (point p_i + Phi_i eta, frame exp([Psi_i eta x])),
+//                  relative joint kinematics, constraint rows g, J, gamma with columns in the modal
+//                  rates of flexible sides (joint_constraints.hpp)
 //   force_pass     t => f_b = [F_ext (zero: no external forces in the model);
-//                              M_ext + spring/damper/motor torques - w x I w]   (Eqs. (1), (7))
-//   solve_pass     [M J^T; J 0] [nu'; -lambda] = [f; gamma_s], factorised in O(n) (tree_kkt.hpp):
-//                  M nu' = f + J^T lambda, J nu' = gamma_s, the constraint wrench on body b is
-//                  J_b^T lambda. gamma_s = gamma (stabilisation none or projection), or
-//                  gamma - alpha g' - beta g (Baumgarte 1972: g'' + alpha g' + beta g = 0).
-//   xdot           p' = v, q' = 1/2 q (x) (0, w), v' = a, w' = alpha.
+//                              M_ext + spring/damper/motor torques - w x I w]   (Eqs. (1), (7));
+//                  flexible: the velocity terms, -K eta - D eta', the body torque (on the body
+//                  frame: no work on eta) and the joint torques on node frames with their modal
+//                  generalised forces (Jl Psi)^T T
+//   solve_pass     [M J^T; J 0] [nu'; -lambda] = [f; gamma_s], factorised in O(bodies) with blocks
+//                  of size 6 or 6 + n_b (tree_kkt.hpp): M nu' = f + J^T lambda, J nu' = gamma_s;
+//                  the constraint wrench on body b is J_b^T lambda. gamma_s = gamma (stabilisation
+//                  none or projection), or gamma - alpha g' - beta g (Baumgarte 1972:
+//                  g'' + alpha g' + beta g = 0).
+//   xdot           p' = v, q' = 1/2 q (x) (0, w), eta' = eta', v' = a, w' = alpha, eta'' .
+// Cost per call: O(bodies) for the tree, O(n_b^3) per flexible body (modal terms and its block),
+// independent of the number of nodes (the node sums are done once, at construction).
 // Stabilisation (EngineOptions::stabilization): "projection" (default) projects positions (Newton
-// iterations) and then velocities onto the constraint manifold, in the mass metric, after every
-// accepted step whose violation exceeds 1e-12 per metre of the model's size (Hairer, Lubich &
-// Wanner 2006, "Geometric Numerical Integration", Sec. IV.4; Hairer & Wanner 1996, Sec. VII.2);
-// "baumgarte"; "none" (drift shows).
+// iterations over p, q and eta) and then velocities (over v, w and eta') onto the constraint
+// manifold, in the mass metric, after every accepted step whose violation exceeds 1e-12 per metre
+// of the model's size, then restores the system's CM and linear momentum by a rigid translation
+// (Hairer, Lubich & Wanner 2006, "Geometric Numerical Integration", Sec. IV.4; Hairer & Wanner
+// 1996, Sec. VII.2); "baumgarte"; "none" (drift shows).
 //
 // Extra output columns after the pinned ones:
 //   per joint other than the free one: <joint>.fx .fy .fz (N) .mx .my .mz (N m): the constraint
-//     force and the constraint moment about the joint point exerted BY THE PARENT ON THE CHILD,
-//     in the parent frame (springs, dampers and motors are not included: they are applied loads);
+//     force and the constraint moment about the joint point exerted BY THE PARENT ON THE CHILD
+//     (springs, dampers and motors are not included: they are applied loads), expressed in the
+//     parent-side joint frame: the parent's body frame for a rigid attachment; at node i of a
+//     flexible parent, the node frame R_NP exp([psi_i x]), and the joint point is the deformed
+//     point p_i + u_i;
 //   constraint.pos (m) and constraint.vel (m/s): largest distance between the two copies of a
 //     joint point, and the largest relative velocity of those copies, over the joints;
 //   constraint.ang (rad), constraint.angvel (rad/s): largest attitude violation (revolute: angle
 //     between the two copies of the axis; fixed: rotation angle away from the offset) and the norm
-//     of the forbidden relative angular velocity.
+//     of the forbidden relative angular velocity (between the joint frames).
+//
+// Readings of the flexible model (docs/flexible-bodies.md) chosen here:
+//   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached
+//     to the body frame: its point and frame do not move with the deformation;
+//   - a node without slopes (FlexNode::Psi_B empty) has psi = 0;
+//   - the body's mass and inertia must equal the node sums (InputError otherwise); the equations
+//     use the node sums, and S0 = sum m_i p_i is kept in them (zero for the model's origin);
+//   - EngineOptions::test_inertia_scale s adds (s - 1) times the undeformed rotational inertia to a
+//     flexible body's sum of node inertias J_i.
+
 #pragma once
 
 #include "core/engine.hpp"
@@ -40,8 +68,12 @@
 
 namespace crossdyn {
 
-// Throws InputError for flexible bodies, a free joint other than joints[0], an unknown
-// stabilisation name, negative Baumgarte gains or a non-positive test_inertia_scale.
+// Throws InputError (naming the scene file and the body or joint) for a free joint other than
+// joints[0], a node on a rigid body or out of range, inconsistent or non-finite modal data, a
+// flexible body's mass or inertia different from its node sums, a singular undeformed mass matrix
+// (a mode with no mass, or a rigid-body or dependent mode), K or D not symmetric positive
+// semi-definite, an unknown stabilisation name, negative Baumgarte gains or a non-positive
+// test_inertia_scale.
 std::unique_ptr<Engine> make_newton_euler_engine(const System& system, const EngineOptions& options);
 
 }  // namespace crossdyn

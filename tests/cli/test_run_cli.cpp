@@ -4,7 +4,7 @@
 
 #include "core/output_layout.hpp"
 #include "core/system.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/support/paths.hpp"
 
 #include <cmath>

@@ -123,6 +123,9 @@ TEST_CASE("adaptive methods land on output times and on load breakpoints") {
   }
 }
 
+// Past t = 0.55 every derivative is NaN whatever the state: rk4 fails at its first step past it;
+// an adaptive method rejects the trial steps that reach past it, shrinks them until the step-size
+// underflow at t = 0.55 (to within steps of 1e-13 s), and names the derivative that stopped it.
 TEST_CASE("a non-finite derivative ends the run with engine, time and quantity, keeping earlier rows") {
   const System s = toy(false);
   for (const char* m : {"rk4", "dopri5", "rkf78", "bulirsch-stoer"}) {
@@ -133,7 +136,12 @@ TEST_CASE("a non-finite derivative ends the run with engine, time and quantity, 
     INFO(m << ": " << r.failure->what());
     CHECK(r.failure->engine() == "oscillator");
     CHECK(r.failure->quantity() == "d/dt v");
-    CHECK(r.failure->time() > 0.55);
+    if (std::string(m) == "rk4") {
+      CHECK(r.failure->time() > 0.55);
+    } else {
+      CHECK(r.failure->time() > 0.55 - 1e-9);
+      CHECK(std::string(r.failure->what()).find("step-size underflow") != std::string::npos);
+    }
     CHECK(r.failure->time() < 0.65);
     CHECK(r.rows() == 6);  // t = 0 ... 0.5
     CHECK(std::string(r.failure->what()).find("non-finite derivative") != std::string::npos);

@@ -4,7 +4,7 @@
 #include "core/engine.hpp"
 #include "harness/engines.hpp"
 #include "core/integrate.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/support/paths.hpp"
 
 #include <random>

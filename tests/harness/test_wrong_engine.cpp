@@ -9,7 +9,7 @@
 #include <catch2/catch.hpp>
 
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/compare.hpp"
 #include "tests/harness/run_program.hpp"
 #include "tests/harness/synthetic.hpp"

@@ -216,4 +216,27 @@ inline TreeState random_state(const System& system, std::mt19937& g) {
   return s;
 }
 
+// The engine's state vector for a tree state.
+inline std::vector<double> packed(Engine& e, const TreeState& s) {
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(s, x.data());
+  return x;
+}
+
+// x + h xdot (a step along the motion; the engine normalises quaternions where it reads them).
+inline std::vector<double> along(const std::vector<double>& x, const std::vector<double>& xdot,
+                                 double h) {
+  std::vector<double> y(x);
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] += h * xdot[i];
+  return y;
+}
+
+// d/dh f(h) at h = 0 by the five-point central difference (error O(h^4)).
+template <typename F>
+auto derivative(F f, double h) -> decltype(f(h)) {
+  using Value = decltype(f(h));  // evaluated (Eigen expressions must not outlive their operands)
+  const Value d = (8.0 * (f(h) - f(-h)) - (f(2 * h) - f(-2 * h))) / (12.0 * h);
+  return d;
+}
+
 }  // namespace crossdyn::test::kane

@@ -4,7 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include "formulations/kane/kane_engine.hpp"
-#include "tests/kane/kane_systems.hpp"
+#include "tests/kane/kane_flex_systems.hpp"
 
 #include <cstddef>
 #include <cstdlib>
@@ -90,10 +90,12 @@ TEST_CASE("kane: rhs performs no heap allocation") {
   loaded.joints[2].motor_spherical.values = {Eigen::Vector3d(0.1, 0.2, 0.3)};
   loaded.bodies[0].torque.times = {0.5};
   loaded.bodies[0].torque.values = {Eigen::Vector3d(1, 0, 0)};
-  for (const System& s : {spear1_case1(), chain(5), loaded}) {
+  // Flexible bodies everywhere, every load, deformed and moving.
+  const System flexible = flex_tree(true);
+  for (const System& s : {spear1_case1(), chain(5), loaded, flexible}) {
     kane::KaneEngine e(s, {});
     std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());
-    e.pack(TreeState::initial(s), x.data());
+    e.pack(flex_state(s, 0.1, 0.5), x.data());
     g_calls = 0;
     g_armed = true;
     for (int i = 0; i < 10; ++i) e.rhs(0.25 * i, x.data(), xdot.data());

@@ -24,27 +24,6 @@ namespace {
 
 std::vector<System> test_systems() { return {spear1_case1(), chain(5), mixed_tree()}; }
 
-std::vector<double> packed(kane::KaneEngine& e, const TreeState& s) {
-  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
-  e.pack(s, x.data());
-  return x;
-}
-
-// x + h xdot (a step along the motion; the engine normalises quaternions where it reads them).
-std::vector<double> along(const std::vector<double>& x, const std::vector<double>& xdot, double h) {
-  std::vector<double> y(x);
-  for (std::size_t i = 0; i < y.size(); ++i) y[i] += h * xdot[i];
-  return y;
-}
-
-// d/dh f(h) at h = 0 by the five-point central difference (error O(h^4)).
-template <typename F>
-auto derivative(F f, double h) -> decltype(f(h)) {
-  using Value = decltype(f(h));  // evaluated (Eigen expressions must not outlive their operands)
-  const Value d = (8.0 * (f(h) - f(-h)) - (f(2 * h) - f(-2 * h))) / (12.0 * h);
-  return d;
-}
-
 // A system with every load the engine knows: springs (mixed_tree), dampers, motors, body torques.
 System loaded_tree() {
   System s = mixed_tree();
@@ -285,7 +264,7 @@ TEST_CASE("kane: after_step renormalises only a visible quaternion drift") {
   CHECK(close(Eigen::Map<const Eigen::Vector4d>(y.data() + 3).norm(), 1.0, 1e-15, 0));
 }
 
-TEST_CASE("kane: columns begin with the pinned columns; state labels are readable") {
+TEST_CASE("kane: columns begin with the pinned columns: state labels are readable") {
   const System s = spear1_case1();
   auto engine = make_kane_engine(s, {});
   REQUIRE(std::string(engine->name()) == "kane");
@@ -311,13 +290,7 @@ TEST_CASE("kane: columns begin with the pinned columns; state labels are readabl
   CHECK(close(row[6], -0.8, 1e-15, 0));  // main.qy
 }
 
-TEST_CASE("kane: flexible bodies and malformed trees are refused with InputError") {
-  System s = spear1_case1();
-  s.bodies[1].flex = FlexBody{};
-  CHECK_THROWS_WITH(
-      make_kane_engine(s, {}),
-      Catch::Contains("boom1") &&
-          Catch::Contains("flexible bodies are not supported by the kane engine yet"));
+TEST_CASE("kane: malformed trees are refused with InputError") {
   System t = spear1_case1();
   std::swap(t.joints[0], t.joints[1]);
   CHECK_THROWS_AS(make_kane_engine(t, {}), InputError);

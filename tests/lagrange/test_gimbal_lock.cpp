@@ -8,7 +8,7 @@
 #include "analytic/torque_free.hpp"
 #include "core/integrate.hpp"
 #include "core/rotation.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "tests/lagrange/scenes.hpp"

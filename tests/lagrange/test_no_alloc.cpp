@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/flex_scenes.hpp"
 #include "tests/lagrange/scenes.hpp"
 
 #if defined(__SANITIZE_ADDRESS__)
@@ -69,10 +70,11 @@ TEST_CASE("lagrange: rhs() does not allocate", "[lagrange][alloc]") {
 
   std::mt19937 g(31);
   for (const crossdyn::System& s :
-       {crossdyn::test::spear1(), crossdyn::test::chain(12), crossdyn::test::mixed_tree(true)}) {
+       {crossdyn::test::spear1(), crossdyn::test::chain(12), crossdyn::test::mixed_tree(true),
+        crossdyn::test::flex_tree(true)}) {
     LagrangeEngine e(s, {});
     std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());
-    e.pack(crossdyn::test::random_state(s, g), x.data());
+    e.pack(crossdyn::test::random_flex_state(s, g), x.data());
     e.rhs(0.0, x.data(), xdot.data());  // warm-up
     g_allocations = 0;
     g_counting = true;

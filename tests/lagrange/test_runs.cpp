@@ -62,7 +62,7 @@ TEST_CASE("lagrange runs: energy and angular momentum are conserved on torque-fr
   }
 }
 
-TEST_CASE("lagrange runs: dampers only dissipate; H is still conserved", "[lagrange][run]") {
+TEST_CASE("lagrange runs: dampers only dissipate: H is still conserved", "[lagrange][run]") {
   System s = test::mixed_tree(false);
   s.joints[1].damping = 0.4;
   s.joints[2].damping = 0.3;

@@ -11,6 +11,7 @@
 #include "formulations/lagrange/euler_chart.hpp"
 #include "formulations/lagrange/lagrange.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/flex_scenes.hpp"
 #include "tests/lagrange/scenes.hpp"
 #include "tests/support/close.hpp"
 
@@ -21,9 +22,17 @@ using crossdyn::test::close;
 
 namespace {
 
-std::vector<System> term_scenes() {
+std::vector<System> rigid_scenes() {
   return {test::spear1(), test::spear1(-10, true), test::chain(5), test::mixed_tree(false),
           test::mixed_tree(true)};
+}
+
+// Rigid and flexible (joints at nodes of flexible parents and children; test_flex.cpp).
+std::vector<System> term_scenes() {
+  std::vector<System> s = rigid_scenes();
+  s.push_back(test::flex_tree(false));
+  s.push_back(test::flex_tree(true));
+  return s;
 }
 
 std::vector<double> packed(LagrangeEngine& e, const TreeState& s) {
@@ -122,7 +131,7 @@ TEST_CASE(
     LagrangeEngine e(s, {});
     const int n = e.dof();
     for (int trial = 0; trial < 10; ++trial) {
-      std::vector<double> x = packed(e, test::random_state(s, g));
+      std::vector<double> x = packed(e, test::random_flex_state(s, g));
       const LagrangeEngine::Terms t = e.terms(0.0, x.data());
       const double T = e.kinetic_energy(x.data());
       const Eigen::VectorXd u = Eigen::Map<const Eigen::VectorXd>(x.data() + n, n);
@@ -163,7 +172,7 @@ TEST_CASE(
     LagrangeEngine e(s, {});
     const int n = e.dof();
     for (int trial = 0; trial < 5; ++trial) {
-      const std::vector<double> x = packed(e, test::random_state(s, g));
+      const std::vector<double> x = packed(e, test::random_flex_state(s, g));
       const LagrangeEngine::Terms t = e.terms(0.0, x.data());
       const double h = 1e-5;  // central differences: truncation O(h^2) ~ 1e-10 relative
       // (dM/dt) pi' at fixed pi': d/dt of p along q*' (xdot with pi'' = 0).
@@ -225,7 +234,7 @@ TEST_CASE(
 TEST_CASE("lagrange: accelerations satisfy the momentum balances and match the motion",
           "[lagrange][terms]") {
   std::mt19937 g(26);
-  for (const System& s : term_scenes()) {
+  for (const System& s : rigid_scenes()) {
     INFO("scene " << s.name);
     LagrangeEngine e(s, {});
     const int nx = e.state_size();
@@ -321,7 +330,7 @@ TEST_CASE(
     "singular",
     "[lagrange][pack]") {
   std::mt19937 g(27);
-  for (const System& s : term_scenes()) {
+  for (const System& s : rigid_scenes()) {
     INFO("scene " << s.name);
     LagrangeEngine e(s, {});
     const int n = e.dof();
@@ -377,7 +386,7 @@ TEST_CASE(
   }
 }
 
-TEST_CASE("lagrange: options, columns, labels and rejected systems", "[lagrange]") {
+TEST_CASE("lagrange: options, columns and labels", "[lagrange]") {
   System s = test::spear1();
   LagrangeEngine e(s, {});
   CHECK(std::string(e.name()) == "lagrange");
@@ -401,18 +410,4 @@ TEST_CASE("lagrange: options, columns, labels and rejected systems", "[lagrange]
   const LagrangeEngine::Terms t1 = e.terms(0, x.data()), t2 = e2.terms(0, x2.data());
   CHECK(all_close(t2.M.topLeftCorner<3, 3>(), t1.M.topLeftCorner<3, 3>(), 0, 0));  // mass
   CHECK(close(t2.M(3, 3), t1.M(3, 3) + 100.0 + 2 * 10.0, 1e-12, 0));  // + I_main,xx + 2 I_boom,xx
-
-  // Flexible bodies are refused by the constructor.
-  System flex = test::spear1();
-  flex.file = "flex.yaml";
-  flex.bodies[0].flex = FlexBody{};
-  try {
-    make_lagrange_engine(flex, {});
-    FAIL("no InputError for a flexible body");
-  } catch (const InputError& err) {
-    const std::string what = err.what();
-    CHECK(what.find("flex.yaml") != std::string::npos);
-    CHECK(what.find("main") != std::string::npos);
-    CHECK(what.find("not supported yet") != std::string::npos);
-  }
 }

@@ -295,7 +295,7 @@ TEST_CASE("newton-euler: state labels, columns and input errors", "[newton_euler
 
   System flexible = s;
   flexible.bodies[1].flex = FlexBody{};
-  CHECK_THROWS_WITH(make_newton_euler_engine(flexible, {}), Catch::Contains("not supported yet") &&
+  CHECK_THROWS_WITH(make_newton_euler_engine(flexible, {}), Catch::Contains("at least one node") &&
                                                                 Catch::Contains("boom1"));
   EngineOptions bad;
   bad.stabilization = "magic";

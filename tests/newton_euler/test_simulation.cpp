@@ -3,7 +3,7 @@
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/integrate.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
 #include "tests/support/paths.hpp"
 

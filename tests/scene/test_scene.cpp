@@ -1,7 +1,7 @@
 // Scene reader: the committed scenes (values, round trip), the formats and units it accepts, the
 // joint reordering, and the fuzz regression inputs. Error messages: test_scene_errors.cpp.
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "core/units.hpp"
 #include "tests/scene/system_equal.hpp"
 #include "tests/support/close.hpp"

@@ -2,7 +2,7 @@
 // breaks one thing, and asserts that read_scene_text throws InputError whose message starts
 // "bad.yaml:<line>:" (the line of the offending text), names the key path and says what is wrong.
 #include "core/errors.hpp"
-#include "core/scene_reader.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>

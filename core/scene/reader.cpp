@@ -1,0 +1,538 @@
+// Scene reader: YAML text => validated System in SI units (scene.hpp).
+//
+//   read_scene_text(text, label)  (text) => (System, warnings), in passes:
+//     precheck_text    size, UTF-8, control characters
+//     parse_yaml       one YAML document
+//     read_header      name, description, source, analytic, zero_linear_momentum
+//     read_bodies      mass, inertia, torque, center_of_mass
+//     read_joints      type, bodies, points, axis, offset, loads, initial conditions
+//     shift_points     joint points given from a body's reference origin => from its CM
+//     order            topology (order_joints, topology.hpp) and the base velocity rule
+//     read_run, read_compare, check_analytic
+// Keys are checked against the schema (schema.hpp) by MapView; values are read as the schema row
+// says (reader_values.cpp).
+//
+// Guards against hostile input (found or anticipated by fuzz/scene_fuzzer.cpp, see fuzz/README.md):
+//   - a scene larger than kMaxSceneBytes is rejected before parsing;
+//   - the text must be valid UTF-8 without C0 control characters other than tab, LF and CR;
+//   - nesting depth: yaml-cpp 0.7's parser is recursive but guards its own depth (DepthGuard in
+//     SingleDocParser, ErrorMsg::BAD_FILE "bad file" past a few hundred levels); that exception
+//     becomes an InputError here. The size limit bounds the work in any case;
+//   - anchors and aliases may make the node graph cyclic (`&a [*a]`): the reader only follows the
+//     scene schema, which has a fixed depth, and never walks the node graph generically.
+#include "core/scene/reader.hpp"
+
+#include <yaml-cpp/anchor.h>
+#include <yaml-cpp/eventhandler.h>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "core/errors.hpp"
+#include "core/run_limits.hpp"
+
+namespace crossdyn {
+
+std::string SceneWarning::text() const {
+  return file + ":" + std::to_string(line) + ":" + std::to_string(column) +
+         ": warning: " + (key.empty() ? "" : key + ": ") + message;
+}
+
+namespace scene {
+namespace {
+
+using units::Dimension;
+
+// ---------------------------------------------------------------------------------------------
+// Text and document
+
+void precheck_text(const Reader& r, const std::string& text) {
+  if (text.size() > kMaxSceneBytes)
+    r.fail(YAML::Mark(), "",
+           "the scene is larger than the limit of " + std::to_string(kMaxSceneBytes) +
+               " bytes (a guard against hostile input; see fuzz/README.md)");
+  auto position = [&text](std::size_t at) {
+    YAML::Mark m;
+    for (std::size_t i = 0; i < at; ++i) {
+      if (text[i] == '\n')
+        ++m.line, m.column = 0;
+      else
+        ++m.column;
+    }
+    return m;
+  };
+  const std::size_t bad = invalid_utf8_at(text);
+  if (bad != std::string_view::npos) r.fail(position(bad), "", "the scene is not valid UTF-8 text");
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const auto u = static_cast<unsigned char>(text[i]);
+    if ((u < 0x20 && u != '\t' && u != '\n' && u != '\r') || u == 0x7F)
+      r.fail(position(i), "",
+             "control character " + std::to_string(u) + " is not allowed in a scene file");
+  }
+}
+
+// Records where each document starts; ignores everything else (used to count documents).
+struct DocumentStarts : YAML::EventHandler {
+  std::vector<YAML::Mark> starts;
+  void OnDocumentStart(const YAML::Mark& mark) override { starts.push_back(mark); }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+Val parse_yaml(const Reader& r, const std::string& text) {
+  YAML::Node doc;
+  try {
+    doc = YAML::Load(text);
+    // One document only. Not YAML::LoadAll: yaml-cpp 0.7's document loop never ends when junk
+    // follows a document's top-level scalar ("\"a\", b" yields empty documents forever; found by
+    // the fuzzer, tests/scene/fuzz_regressions/loadall-hang-*.yaml). Two calls are bounded.
+    std::istringstream in(text);
+    YAML::Parser parser(in);
+    DocumentStarts starts;
+    parser.HandleNextDocument(starts);
+    if (parser.HandleNextDocument(starts))
+      r.fail(starts.starts.size() > 1 ? starts.starts[1] : YAML::Mark(), "",
+             "a second YAML document or text after the end of the first; a scene file holds one "
+             "document");
+  } catch (const YAML::Exception& e) {
+    // yaml-cpp's depth guard reports ErrorMsg::BAD_FILE ("bad file"); say what it means.
+    r.fail(
+        e.mark, "",
+        "malformed YAML: " +
+            (e.msg == "bad file" ? std::string("nesting too deep (yaml-cpp: bad file)") : e.msg));
+  }
+  if (doc.IsNull()) {
+    std::vector<std::string> required;
+    for (const std::string& k : child_names(""))
+      if (find(k)->required) required.push_back(k);
+    r.fail(YAML::Mark(), "",
+           "the scene is empty; expected a mapping with the keys " + join(required));
+  }
+  return Val{doc, "", doc.Mark().is_null() ? YAML::Mark() : doc.Mark()};
+}
+
+// ---------------------------------------------------------------------------------------------
+// The scene's own keys
+
+void read_header(const Reader& r, const MapView& top, System& s) {
+  s.name = r.name(top.at("name"));
+  if (auto f = top.get("description")) s.description = r.text(*f);
+  if (auto f = top.get("source")) s.source = r.text(*f);
+  if (auto f = top.get("analytic")) s.analytic = r.word(*f);
+  if (auto f = top.get("zero_linear_momentum")) s.zero_linear_momentum = r.boolean(*f);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bodies
+
+// What the later passes need to know of the bodies besides the System's fields.
+struct BodyIndex {
+  std::vector<Val> vals;                                 // each body's mapping, for messages
+  std::unordered_map<std::string, int> index;            // name => index
+  std::vector<std::string> names;                        // in file order
+  std::vector<std::optional<Eigen::Vector3d>> p_RoBo_R;  // center_of_mass, when given
+
+  // The body a joint names, or an error naming the known ones.
+  int find(const Reader& r, const Field& f) const {
+    const std::string n = r.name(f);
+    const auto it = index.find(n);
+    if (it == index.end())
+      r.fail(f.val, "unknown body '" + n + "'" + suggestion(n, names) + "; bodies: " + join(names));
+    return it->second;
+  }
+};
+
+Body read_body(const Reader& r, const MapView& m) {
+  Body b;
+  b.name = r.name(m.at("name"));
+  const Field mass = m.at("mass");
+  b.mass = r.number(mass);
+  if (!(b.mass > 0)) r.fail(mass.val, "mass must be positive, found " + shortest(b.mass) + " kg");
+  if (b.mass > kMaxMass) r.fail(mass.val, "absurd mass " + shortest(b.mass) + " kg (limit 1e9 kg)");
+  b.I_BBo_B = r.inertia(m.at("inertia"));
+  if (auto tf = m.get("torque")) {
+    const MapView t(r, tf->val, "bodies[].torque");
+    if (auto f = t.get("frame"))
+      b.torque_frame = r.word(*f) == "inertial" ? Body::Frame::Inertial : Body::Frame::Body;
+    b.torque = r.profile<3>(t.at("profile"), kAnyJoint);
+  }
+  return b;
+}
+
+BodyIndex read_bodies(const Reader& r, const MapView& top, System& s) {
+  BodyIndex bi;
+  for (const Val& item : r.list(top.at("bodies"))) {
+    const MapView m(r, item, "bodies[]");
+    Body b = read_body(r, m);
+    if (auto it = bi.index.find(b.name); it != bi.index.end())
+      r.fail(m.at("name").val,
+             "duplicate body name '" + b.name + "' (first at line " +
+                 std::to_string(bi.vals[static_cast<std::size_t>(it->second)].mark.line + 1) + ")");
+    const auto com = m.get("center_of_mass");
+    bi.p_RoBo_R.push_back(com ? std::optional(r.vector(*com)) : std::nullopt);
+    bi.index.emplace(b.name, static_cast<int>(s.bodies.size()));
+    bi.names.push_back(b.name);
+    bi.vals.push_back(item);
+    s.bodies.push_back(std::move(b));
+  }
+  return bi;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Joints
+
+// A joint as read, before the topology pass orders the joints.
+struct RawJoint {
+  Joint joint;
+  Val node;
+  Val type_val;
+  Val child_val;
+  std::optional<Val> parent_val;
+  std::optional<Val> velocity_val;  // the free joint's initial velocity, if given
+};
+
+JointType type_of(const std::string& word) {
+  for (const JointTypeInfo& t : joint_types())
+    if (t.name == word) return t.type;
+  throw std::logic_error("scene schema: joint type '" + word + "' without a row");
+}
+
+// Why a key does not apply to a joint type, where it helps to say.
+std::string why_not(JointType type, const std::string& key) {
+  if (key == "parent" && type == JointType::Free) return "its parent is the inertial frame N";
+  if (key == "initial" && type == JointType::Fixed)
+    return "a fixed joint has no degrees of freedom, so no initial conditions";
+  return "";
+}
+
+// Spring, damper and motor (revolute and spherical joints).
+void read_loads(const Reader& r, const MapView& m, const std::string& type, Joint& J) {
+  const unsigned bit = joint_type(J.type).bit;
+  if (auto f = m.get("spring")) {
+    const MapView sp(r, f->val, "joints[].spring", bit, type);
+    const Field k = sp.at("stiffness");
+    J.stiffness = r.number(k);
+    if (J.stiffness < 0) r.fail(k.val, "negative stiffness " + shortest(J.stiffness) + " N m/rad");
+    if (auto a = sp.get("neutral_angle")) J.neutral_angle = r.number(*a);
+  }
+  if (auto f = m.get("damper")) {
+    const MapView dm(r, f->val, "joints[].damper", bit, type);
+    const Field c = dm.at("damping");
+    J.damping = r.number(c);
+    if (J.damping < 0) r.fail(c.val, "negative damping " + shortest(J.damping) + " N m s/rad");
+  }
+  if (auto f = m.get("motor")) {
+    const MapView mo(r, f->val, "joints[].motor", bit, type);
+    if (J.type == JointType::Revolute)
+      J.motor_revolute = r.profile<1>(mo.at("profile"), bit);
+    else
+      J.motor_spherical = r.profile<3>(mo.at("profile"), bit);
+  }
+}
+
+void read_initial(const Reader& r, const MapView& m, const std::string& type, RawJoint& raw) {
+  Joint& J = raw.joint;
+  const auto f = m.get("initial");
+  if (!f) return;
+  const MapView ic(r, f->val, "joints[].initial", joint_type(J.type).bit, type);
+  switch (J.type) {
+    case JointType::Free:
+      if (auto x = ic.get("position")) J.p_NoBo_N0 = r.vector(*x);
+      if (auto x = ic.get("attitude")) J.q_NB0 = r.attitude(*x);
+      if (auto x = ic.get("angular_velocity")) J.w_NB_B0 = r.vector(*x);
+      if (auto x = ic.get("velocity")) {
+        J.v_NBo_N0 = r.vector(*x);
+        raw.velocity_val = x->val;
+      }
+      break;
+    case JointType::Revolute:
+      if (auto x = ic.get("angle")) J.angle0 = r.number(*x);
+      if (auto x = ic.get("rate")) J.rate0 = r.number(*x);
+      break;
+    case JointType::Spherical:
+      if (auto x = ic.get("attitude")) J.q_J0 = r.attitude(*x);
+      if (auto x = ic.get("angular_velocity")) J.w_PC_C0 = r.vector(*x);
+      break;
+    case JointType::Fixed:
+      break;
+  }
+}
+
+RawJoint read_joint(const Reader& r, const Val& item, const BodyIndex& bodies,
+                    const std::unordered_map<std::string, const RawJoint*>& earlier) {
+  MapView m(r, item, "joints[]");  // every joint type's keys, until the type is known
+  Joint J;
+  const Field name = m.at("name");
+  J.name = r.name(name);
+  if (auto it = earlier.find(J.name); it != earlier.end())
+    r.fail(name.val, "duplicate joint name '" + J.name + "' (first at line " +
+                         std::to_string(it->second->node.mark.line + 1) + ")");
+  if (bodies.index.count(J.name))
+    r.fail(name.val, "joint name '" + J.name + "' is also a body name; output columns \"" + J.name +
+                         ".*\" would clash");
+  const Field type = m.at("type");
+  const std::string type_word = r.word(type);
+  J.type = type_of(type_word);
+  m.narrow(joint_type(J.type).bit, type_word,
+           [&J](const std::string& key) { return why_not(J.type, key); });
+
+  RawJoint raw{J, item, type.val, m.at("child").val, std::nullopt, std::nullopt};
+  Joint& j = raw.joint;
+  j.child = bodies.find(r, m.at("child"));
+  if (j.type != JointType::Free) {
+    const Field parent = m.at("parent");
+    raw.parent_val = parent.val;
+    j.parent = bodies.find(r, parent);
+    j.p_PoJ_P = r.vector(m.at("parent_point"));
+    j.p_CoJ_C = r.vector(m.at("child_point"));
+    if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
+  }
+  if (j.type == JointType::Revolute) j.axis_P = r.direction(m.at("axis"));
+  if (j.type == JointType::Revolute || j.type == JointType::Spherical)
+    read_loads(r, m, type_word, j);
+  read_initial(r, m, type_word, raw);
+  return raw;
+}
+
+std::vector<RawJoint> read_joints(const Reader& r, const MapView& top, const BodyIndex& bodies) {
+  std::vector<RawJoint> raw;
+  const std::vector<Val> items = r.list(top.at("joints"));
+  raw.reserve(items.size());  // `earlier` points into raw
+  std::unordered_map<std::string, const RawJoint*> earlier;
+  for (const Val& item : items) {
+    raw.push_back(read_joint(r, item, bodies, earlier));
+    earlier.emplace(raw.back().joint.name, &raw.back());
+  }
+  return raw;
+}
+
+// center_of_mass: points of a body given from its reference origin Ro become points from its CM
+// Bo (p_BoJ_B = p_RoJ_B - p_RoBo_B; the axes are the same). A body without center_of_mass has
+// its points from the CM already and is left untouched (bit for bit).
+void shift_points(std::vector<RawJoint>& raw, const BodyIndex& bodies) {
+  auto com = [&bodies](int b) { return bodies.p_RoBo_R[static_cast<std::size_t>(b)]; };
+  for (RawJoint& r : raw) {
+    Joint& J = r.joint;
+    if (J.type == JointType::Free) continue;
+    if (const auto c = com(J.parent)) J.p_PoJ_P -= *c;
+    if (const auto c = com(J.child)) J.p_CoJ_C -= *c;
+  }
+}
+
+// Topology (one parent per body, one free joint, no cycle, connected) and tree order, with each
+// problem reported at the line that causes it; then the base velocity rule.
+void order(const Reader& r, const Val& joints_val, std::vector<RawJoint>& raw,
+           const BodyIndex& bodies, System& s) {
+  std::vector<JointEdge> edges;
+  std::vector<std::string> joint_names;
+  for (const RawJoint& j : raw) {
+    edges.push_back({j.joint.type == JointType::Free, j.joint.parent, j.joint.child});
+    joint_names.push_back(j.joint.name);
+  }
+  const TopologyResult t = order_joints(static_cast<int>(s.bodies.size()), edges);
+  if (const auto& p = t.problem) {
+    using Kind = TopologyProblem::Kind;
+    std::string what = p->describe(bodies.names, joint_names);
+    auto joint = [&raw](int k) -> const RawJoint& { return raw[static_cast<std::size_t>(k)]; };
+    switch (p->kind) {
+      case Kind::SelfLoop:
+        r.fail(*joint(p->joint).parent_val, what);
+      case Kind::SecondFree:
+        r.fail(joint(p->joint).type_val, what);
+      case Kind::SecondParent: {
+        const std::string line =
+            " (line " + std::to_string(joint(p->other).node.mark.line + 1) + ")";
+        what.insert(what.find(';'), line);  // "... parent joint 'hinge' (line 15); a body ..."
+        r.fail(joint(p->joint).child_val, what);
+      }
+      case Kind::NoFree:
+        r.fail(joints_val, what);
+      case Kind::NoJoint: {
+        const Val& b = bodies.vals[static_cast<std::size_t>(p->body)];
+        r.fail(b.mark, b.path, what);
+      }
+      case Kind::Cycle:
+        r.fail(*joint(p->joint).parent_val, what);
+    }
+  }
+  for (int k : t.order) s.joints.push_back(raw[static_cast<std::size_t>(k)].joint);
+
+  const RawJoint& free_joint = raw[static_cast<std::size_t>(t.order.front())];
+  if (s.zero_linear_momentum && free_joint.velocity_val)
+    r.fail(*free_joint.velocity_val,
+           "the base velocity is computed when zero_linear_momentum is true (the default); remove "
+           "it or set zero_linear_momentum: false");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Run and compare
+
+// The limits are core/run_limits.hpp's, shared with the command line's overrides.
+void read_run(const Reader& r, const MapView& top, System& s) {
+  const MapView m(r, top.at("run").val, "run");
+  auto limit = [&r](const Val& v, const std::string& problem) {
+    if (!problem.empty()) r.fail(v, problem);
+  };
+  const Field d = m.at("duration");
+  s.run.duration = r.number(d);
+  limit(d.val, run_limits::duration_problem(s.run.duration));
+  const Field o = m.at("output_step");
+  s.run.output_step = r.number(o);
+  limit(o.val, run_limits::output_step_problem(s.run.output_step, s.run.duration));
+  if (auto f = m.get("integrator")) s.run.integrator = r.word(*f);
+  for (const char* key : {"rtol", "atol"})
+    if (auto f = m.get(key)) {
+      const double x = r.number(*f);
+      limit(f->val, run_limits::tolerance_problem(key, x));
+      (std::string(key) == "rtol" ? s.run.rtol : s.run.atol) = x;
+    }
+  if (auto f = m.get("dt")) {
+    s.run.dt = r.number(*f);
+    limit(f->val, run_limits::dt_problem(s.run.dt));
+  }
+}
+
+Tolerance read_tolerance(const Reader& r, const Val& v, Tolerance base) {
+  const MapView t(r, v, "compare.tolerances.<quantity>");
+  for (const char* key : {"atol", "rtol"})
+    if (auto f = t.get(key)) {
+      const double value = r.number(*f);
+      if (value < 0) r.fail(f->val, "negative tolerance " + shortest(value));
+      (std::string(key) == "atol" ? base.atol : base.rtol) = value;
+    }
+  return base;
+}
+
+void read_compare(const Reader& r, const MapView& top, System& s) {
+  const auto cf = top.get("compare");
+  if (!cf) return;
+  const MapView m(r, cf->val, "compare");
+  if (auto tf = m.get("tolerances")) {
+    const MapView t(r, tf->val, "compare.tolerances");
+    // `default` first, whatever the key order: the others take what they omit from it.
+    for (const MapView::Entry& e : t.entries())
+      if (e.key == "default")
+        s.compare.default_tolerance = read_tolerance(r, e.value, s.compare.default_tolerance);
+    for (const MapView::Entry& e : t.entries()) {
+      if (e.key == "default") continue;
+      r.name(Val{YAML::Node(e.key), e.value.path, e.key_mark}, "quantity name", true);
+      s.compare.tolerances.emplace_back(e.key,
+                                        read_tolerance(r, e.value, s.compare.default_tolerance));
+    }
+  }
+  if (auto ef = m.get("exclude")) {
+    std::unordered_set<std::string> excluded;
+    for (const Val& item : r.list(*ef)) {
+      const MapView x(r, item, "compare.exclude[]");
+      const Field qf = x.at("quantity");
+      const std::string q = r.name(qf);
+      if (!excluded.insert(q).second) r.fail(qf.val, "quantity '" + q + "' is excluded twice");
+      const Field rf = x.at("reason");
+      const std::string reason = r.text(rf);
+      if (reason.empty()) r.fail(rf.val, "give a reason for excluding '" + q + "'");
+      s.compare.excluded.emplace_back(q, reason);
+    }
+  }
+}
+
+void check_analytic(const Reader& r, const MapView& top, const System& s) {
+  if (s.analytic != "torque-free") return;
+  const Val av = top.get("analytic")->val;
+  if (s.bodies.size() != 1)
+    r.fail(av, "the torque-free reference needs a single free rigid body; this scene has " +
+                   std::to_string(s.bodies.size()) + " bodies");
+  if (!s.bodies[0].torque.empty())
+    r.fail(av, "the torque-free reference needs a body without external torque");
+}
+
+System read(const Reader& r, const std::string& text) {
+  precheck_text(r, text);
+  const Val root = parse_yaml(r, text);
+  const MapView top(r, root, "");
+  System s;
+  s.file = r.file();
+  read_header(r, top, s);
+  const BodyIndex bodies = read_bodies(r, top, s);
+  std::vector<RawJoint> raw = read_joints(r, top, bodies);
+  shift_points(raw, bodies);
+  order(r, top.at("joints").val, raw, bodies, s);
+  read_run(r, top, s);
+  read_compare(r, top, s);
+  check_analytic(r, top, s);
+  check_topology(s);  // the promise of scene.hpp, checked by the function engines call
+  return s;
+}
+
+}  // namespace
+}  // namespace scene
+
+System read_scene_text(const std::string& text, const std::string& file_label,
+                       std::vector<SceneWarning>* warnings) {
+  const scene::Reader reader(file_label);
+  System s;
+  try {
+    s = scene::read(reader, text);
+  } catch (const YAML::Exception& e) {  // anything yaml-cpp throws past parsing
+    reader.fail(e.mark, "", "malformed YAML: " + e.msg);
+  }
+  if (warnings)
+    warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
+  return s;
+}
+
+// Why `path` cannot be read as a scene, or "" when it can be opened: missing, a directory, no
+// permission, a symbolic link loop, not a regular file (FIFOs are read: `<(...)`).
+std::string scene_open_problem(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) {
+    const int e = errno;
+    if (e == ENOENT) {
+      struct stat lst {};
+      return ::lstat(path.c_str(), &lst) == 0 ? "it is a symbolic link to a file that does not exist"
+                                             : "no such file";
+    }
+    if (e == ELOOP) return "too many levels of symbolic links (a symbolic link loop)";
+    if (e == EACCES) return "permission denied (a folder on the path cannot be searched)";
+    if (e == ENOTDIR) return "a part of the path is not a folder";
+    return std::strerror(e);
+  }
+  if (S_ISDIR(st.st_mode)) return "it is a directory, not a scene file";
+  if (S_ISSOCK(st.st_mode)) return "it is a socket, not a regular file";
+  if (S_ISBLK(st.st_mode)) return "it is a block device, not a regular file";
+  if (::access(path.c_str(), R_OK) != 0)
+    return errno == EACCES ? "permission denied (the file is not readable)" : std::strerror(errno);
+  return "";
+}
+
+System read_scene(const std::string& path, std::vector<SceneWarning>* warnings) {
+  if (const std::string why = scene_open_problem(path); !why.empty())
+    throw InputError(path + ":1:1: cannot open the scene file: " + why);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ":1:1: cannot open the scene file: " + std::strerror(errno));
+  std::string text;
+  char buf[65536];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+    if (text.size() > scene::kMaxSceneBytes) break;  // precheck_text reports it
+  }
+  if (in.bad()) throw InputError(path + ":1:1: cannot read the scene file");
+  return read_scene_text(text, path, warnings);
+}
+
+}  // namespace crossdyn

@@ -1,0 +1,310 @@
+// The scene schema table (schema.hpp) and the queries the reader, the writer and the
+// documentation generator ask of it.
+#include "core/scene/schema.hpp"
+
+#include <array>
+#include <stdexcept>
+
+namespace crossdyn::scene {
+namespace {
+
+using units::Dimension;
+using enum Type;
+
+// clang-format off
+constexpr std::array kKeys = std::to_array<Key>({
+// ----- the scene ------------------------------------------------------------------------------
+{.path = "", .type = Map, .noun = "the scene",
+ .doc = "The scene file: one YAML mapping."},
+{.path = "name", .type = Name, .required = true, .noun = "scene name",
+ .doc = "The scene's name; committed scenes are named after their file. Letters, digits, `_`, `-` "
+        "and `.`, starting with a letter."},
+{.path = "description", .type = Text, .default_value = "empty", .noun = "description",
+ .doc = "What the scene is."},
+{.path = "source", .type = Text, .default_value = "empty", .noun = "source",
+ .doc = "Where the data come from, and every assumption made where the source is silent."},
+{.path = "analytic", .type = Word, .default_value = "none", .words = "torque-free",
+ .noun = "analytic reference",
+ .doc = "An analytic reference that `compare` and `verify` add as a fourth solution: "
+        "`torque-free`, the free rigid body without loads (a single body, no torque)."},
+{.path = "zero_linear_momentum", .type = Bool, .default_value = "true",
+ .doc = "true: the base's initial velocity is computed so that the total linear momentum is zero "
+        "(the system's centre of mass stays at rest). false: the free joint's `initial.velocity` "
+        "gives it (default zero). It changes no rotational result."},
+{.path = "bodies", .type = List, .required = true, .noun = "a list of bodies",
+ .doc = "The bodies, at least one. Their order is the order of the output columns."},
+{.path = "joints", .type = List, .required = true, .noun = "a list of joints",
+ .doc = "The joints, one per body: exactly one `free` joint holds the base body; every other body "
+        "is the child of one joint. Any order: the reader puts them in tree order."},
+{.path = "run", .type = Map, .required = true, .noun = "the run block",
+ .doc = "How long to run, how often to write a row, and the integrator."},
+{.path = "compare", .type = Map, .noun = "the compare block",
+ .doc = "Tolerances and exclusions for `crossdyn compare` and `verify`."},
+
+// ----- bodies ---------------------------------------------------------------------------------
+{.path = "bodies[]", .type = Map, .noun = "a body",
+ .doc = "One rigid body."},
+{.path = "bodies[].name", .type = Name, .required = true, .noun = "body name",
+ .doc = "The body's name, unique among bodies and joints; output columns are `<name>.wx` etc."},
+{.path = "bodies[].mass", .type = Quantity, .dimension = Dimension::Mass, .required = true,
+ .doc = "Mass, > 0 and at most 1e9 kg."},
+{.path = "bodies[].inertia", .type = Inertia, .dimension = Dimension::Inertia, .required = true,
+ .doc = "Inertia about the centre of mass, in body axes: symmetric, positive definite, principal "
+        "moments obeying I1 + I2 >= I3."},
+{.path = "bodies[].center_of_mass", .type = Vector, .dimension = Dimension::Length,
+ .default_value = "[0, 0, 0]", .noun = "a point", .written = false,
+ .doc = "The centre of mass in the body's own reference frame R (axes = body axes). When given, "
+        "every point of this body (`parent_point` of the joints it carries, `child_point` of its "
+        "own joint) is measured from R's origin, and the reader moves them to the CM; `inertia` "
+        "stays about the CM. The base's `initial.position` and `velocity` remain those of its CM."},
+{.path = "bodies[].torque", .type = Map, .noun = "a body torque",
+ .doc = "An external torque on the body, piecewise constant in time."},
+{.path = "bodies[].torque.frame", .type = Word, .default_value = "body", .words = "body|inertial",
+ .noun = "torque frame",
+ .doc = "The frame of the torque's components: the body frame, or the inertial frame N."},
+{.path = "bodies[].torque.profile", .type = List, .required = true,
+ .noun = "a profile: a list of {t: time, value: ...}",
+ .doc = "The torque from each time on: `[{t: 0, value: [0, 0, 0.1]}, {t: 10 s, value: [0, 0, "
+        "0]}]`; zero before the first time; times >= 0, strictly increasing."},
+{.path = "bodies[].torque.profile[]", .type = Map, .noun = "a profile entry",
+ .doc = "One step of the profile."},
+{.path = "bodies[].torque.profile[].t", .type = Quantity, .dimension = Dimension::Time,
+ .required = true,
+ .doc = "When this value starts."},
+{.path = "bodies[].torque.profile[].value", .type = Vector, .dimension = Dimension::Torque,
+ .required = true,
+ .doc = "The torque from t on, in `frame`."},
+
+// ----- joints ---------------------------------------------------------------------------------
+{.path = "joints[]", .type = Map, .noun = "a joint",
+ .doc = "One joint: it connects its parent body (the inertial frame N for the free joint) to its "
+        "child body."},
+{.path = "joints[].name", .type = Name, .required = true, .noun = "joint name",
+ .doc = "The joint's name, unique among joints and bodies; output columns are `<name>.angle` etc."},
+{.path = "joints[].type", .type = Word, .required = true, .words = "free|revolute|spherical|fixed",
+ .noun = "joint type",
+ .doc = "The joint type (table \"Joint types\" below)."},
+{.path = "joints[].parent", .type = Name, .required = true, .joints = kJointed,
+ .noun = "parent body name",
+ .doc = "The parent body's name."},
+{.path = "joints[].child", .type = Name, .required = true, .noun = "child body name",
+ .doc = "The child body's name; a body is the child of exactly one joint."},
+{.path = "joints[].parent_point", .type = Vector, .dimension = Dimension::Length, .required = true,
+ .joints = kJointed, .noun = "a point",
+ .doc = "The joint point J from the parent's CM, in the parent frame: p_PoJ_P (from the parent's "
+        "reference origin when the parent gives `center_of_mass`)."},
+{.path = "joints[].child_point", .type = Vector, .dimension = Dimension::Length, .required = true,
+ .joints = kJointed, .noun = "a point",
+ .doc = "The same point J from the child's CM, in the child frame: p_CoJ_C. It usually points back "
+        "towards the parent: a boom whose CM is 2 m out along its +x has `[-2, 0, 0]`."},
+{.path = "joints[].axis", .type = Direction, .required = true, .joints = kRevolute,
+ .noun = "an axis",
+ .doc = "The hinge axis in the PARENT frame (normalised by the reader); the angle is positive by "
+        "the right-hand rule about it. R_PC = Rot(axis, angle) R_offset."},
+{.path = "joints[].offset", .type = Attitude, .default_value = "identity", .joints = kJointed,
+ .doc = "The child frame's attitude in the parent frame at joint coordinate zero, R_PJ0 (v_P = "
+        "R_PJ0 v_C): a quaternion, an axis-angle, or a rotation matrix whose columns are the "
+        "child's axes in the parent frame."},
+{.path = "joints[].spring", .type = Map, .joints = kMoving, .noun = "a {type} joint's spring",
+ .doc = "A torsional spring: revolute tau = -stiffness (angle - neutral_angle); spherical tau_C = "
+        "-stiffness phi, phi the joint's rotation vector."},
+{.path = "joints[].spring.stiffness", .type = Quantity, .dimension = Dimension::Stiffness,
+ .required = true, .joints = kMoving,
+ .doc = "Spring stiffness, >= 0."},
+{.path = "joints[].spring.neutral_angle", .type = Quantity, .dimension = Dimension::Angle,
+ .default_value = "0", .joints = kRevolute,
+ .doc = "The angle at which the spring is unstretched."},
+{.path = "joints[].damper", .type = Map, .joints = kMoving, .noun = "a damper",
+ .doc = "A viscous damper: tau = -damping rate (spherical: -damping w_PC_C)."},
+{.path = "joints[].damper.damping", .type = Quantity, .dimension = Dimension::Damping,
+ .required = true, .joints = kMoving,
+ .doc = "Damping coefficient, >= 0."},
+{.path = "joints[].motor", .type = Map, .joints = kMoving, .noun = "a motor",
+ .doc = "A motor torque on the child (reaction on the parent), piecewise constant in time."},
+{.path = "joints[].motor.profile", .type = List, .required = true, .joints = kMoving,
+ .noun = "a profile: a list of {t: time, value: ...}",
+ .doc = "The torque from each time on; zero before the first time; times >= 0, strictly "
+        "increasing."},
+{.path = "joints[].motor.profile[]", .type = Map, .joints = kMoving, .noun = "a profile entry",
+ .doc = "One step of the profile."},
+{.path = "joints[].motor.profile[].t", .type = Quantity, .dimension = Dimension::Time,
+ .required = true, .joints = kMoving,
+ .doc = "When this value starts."},
+{.path = "joints[].motor.profile[].value", .type = Quantity, .dimension = Dimension::Torque,
+ .required = true, .joints = kRevolute,
+ .doc = "The torque about the axis from t on."},
+{.path = "joints[].motor.profile[].value", .type = Vector, .dimension = Dimension::Torque,
+ .required = true, .joints = kSpherical,
+ .doc = "The torque on the child from t on, child-frame components."},
+{.path = "joints[].initial", .type = Map, .default_value = "all zero", .joints = kFree | kMoving,
+ .noun = "the initial conditions of a {type} joint",
+ .doc = "The joint's coordinates and rates at t = 0 (a fixed joint has none)."},
+{.path = "joints[].initial.position", .type = Vector, .dimension = Dimension::Length,
+ .default_value = "[0, 0, 0]", .joints = kFree, .noun = "a position",
+ .doc = "The base body's CM in N, p_NoBo_N (its CM even when it gives `center_of_mass`)."},
+{.path = "joints[].initial.attitude", .type = Attitude, .default_value = "identity",
+ .joints = kFree,
+ .doc = "The base's attitude q_NB (v_N = R(q_NB) v_B)."},
+{.path = "joints[].initial.attitude", .type = Attitude, .default_value = "identity",
+ .joints = kSpherical,
+ .doc = "The joint quaternion q_J: R_PC = R_offset R(q_J)."},
+{.path = "joints[].initial.angular_velocity", .type = Vector, .dimension = Dimension::AngularRate,
+ .default_value = "[0, 0, 0]", .joints = kFree, .noun = "an angular velocity",
+ .doc = "The base's inertial angular velocity in its own frame, w_NB_B."},
+{.path = "joints[].initial.angular_velocity", .type = Vector, .dimension = Dimension::AngularRate,
+ .default_value = "[0, 0, 0]", .joints = kSpherical, .noun = "an angular velocity",
+ .doc = "The child's angular velocity relative to the parent, in the child frame, w_PC_C."},
+{.path = "joints[].initial.velocity", .type = Vector, .dimension = Dimension::Velocity,
+ .default_value = "[0, 0, 0]", .joints = kFree, .noun = "a velocity",
+ .doc = "The base CM's velocity in N, v_NBo_N; only with `zero_linear_momentum: false` (else it is "
+        "computed)."},
+{.path = "joints[].initial.angle", .type = Quantity, .dimension = Dimension::Angle,
+ .default_value = "0", .joints = kRevolute,
+ .doc = "The hinge angle."},
+{.path = "joints[].initial.rate", .type = Quantity, .dimension = Dimension::AngularRate,
+ .default_value = "0", .joints = kRevolute,
+ .doc = "The hinge rate."},
+
+// ----- run ------------------------------------------------------------------------------------
+{.path = "run.duration", .type = Quantity, .dimension = Dimension::Time, .required = true,
+ .doc = "The run's length, from t = 0, > 0."},
+{.path = "run.output_step", .type = Quantity, .dimension = Dimension::Time, .required = true,
+ .doc = "Time between output rows, > 0 and at most the duration; at most 1e7 rows."},
+{.path = "run.integrator", .type = Word, .default_value = "rkf78",
+ .words = "rk4|dopri5|rkf78|bulirsch-stoer", .noun = "integrator",
+ .doc = "The integrator (README \"Integrators\"): rk4 takes fixed steps `dt`; the others adapt "
+        "their step to `rtol` and `atol`."},
+{.path = "run.rtol", .type = Number, .default_value = "1e-10",
+ .doc = "Relative tolerance of the adaptive integrators, > 0."},
+{.path = "run.atol", .type = Number, .default_value = "1e-10",
+ .doc = "Absolute tolerance of the adaptive integrators, > 0."},
+{.path = "run.dt", .type = Quantity, .dimension = Dimension::Time, .default_value = "1 ms",
+ .doc = "rk4's fixed step; the first trial step of the adaptive integrators. > 0."},
+
+// ----- compare --------------------------------------------------------------------------------
+{.path = "compare.tolerances", .type = Map, .noun = "the tolerances",
+ .doc = "Pass when max_t |a - b| <= atol + rtol max_t |b|, per compared quantity."},
+{.path = "compare.tolerances.<quantity>", .type = Map, .default_value = "atol 1e-8, rtol 1e-8",
+ .noun = "a tolerance",
+ .doc = "`default`: the tolerance of every quantity not named; any other key names a quantity (a "
+        "column such as `main.wx`, or a class: `attitude`, `H`, `E`, `H.drift`, `E.drift`) and "
+        "takes what it does not give from `default`."},
+{.path = "compare.tolerances.<quantity>.atol", .type = Number, .default_value = "from default",
+ .doc = "Absolute tolerance, >= 0."},
+{.path = "compare.tolerances.<quantity>.rtol", .type = Number, .default_value = "from default",
+ .doc = "Relative tolerance, >= 0."},
+{.path = "compare.exclude", .type = List, .noun = "a list of {quantity, reason}",
+ .doc = "Quantities not compared, each with the reason."},
+{.path = "compare.exclude[]", .type = Map, .noun = "an exclusion",
+ .doc = "One exclusion."},
+{.path = "compare.exclude[].quantity", .type = Name, .required = true, .noun = "quantity name",
+ .doc = "The quantity (as in `tolerances`), excluded once."},
+{.path = "compare.exclude[].reason", .type = Text, .required = true, .noun = "reason",
+ .doc = "Why it is not compared (not empty)."},
+
+// ----- value forms (wherever a value of that type is accepted; the writer writes SI lists) -----
+{.path = "(list with unit)", .type = Map, .noun = "a list with a unit", .written = false,
+ .doc = "A list of numbers with one unit for all: `{value: [0, 0, 10], unit: deg/s}`; accepted "
+        "for every 3-vector and inertia."},
+{.path = "(list with unit).value", .type = List, .required = true, .noun = "a list of numbers",
+ .written = false,
+ .doc = "The numbers, bare (no unit of their own)."},
+{.path = "(list with unit).unit", .type = Text, .default_value = "SI", .written = false,
+ .doc = "Their unit, of the key's dimension."},
+{.path = "(axis-angle)", .type = Map, .noun = "an axis-angle rotation", .written = false,
+ .doc = "An attitude as a rotation by `angle` about `axis`: `{axis: [0, 0, 1], angle: 90 deg}`."},
+{.path = "(axis-angle).axis", .type = Direction, .required = true, .noun = "an axis",
+ .written = false,
+ .doc = "The rotation axis, in the frame the attitude is expressed in (normalised)."},
+{.path = "(axis-angle).angle", .type = Quantity, .dimension = Dimension::Angle, .required = true,
+ .written = false,
+ .doc = "The rotation angle, right-hand rule. A bare number is radians (a warning above 2 pi)."},
+});
+// clang-format on
+
+constexpr std::array kJointTypes = std::to_array<JointTypeInfo>({
+    {"free", JointType::Free, kFree, 6,
+     "The base body's six degrees of freedom relative to N; exactly one per scene."},
+    {"revolute", JointType::Revolute, kRevolute, 1,
+     "One angle about `axis` (parent frame): R_PC = Rot(axis_P, angle) R_offset."},
+    {"spherical", JointType::Spherical, kSpherical, 3,
+     "Three rotational degrees of freedom: R_PC = R_offset R(q_J)."},
+    {"fixed", JointType::Fixed, kFixed, 0, "No relative motion: R_PC = R_offset."},
+});
+
+// "joints[].initial.angle" => parent "joints[].initial", name "angle". The parent of a list item
+// row "bodies[]" is "bodies" with the name "[]".
+std::pair<std::string_view, std::string_view> split(std::string_view path) {
+  if (path.ends_with("[]")) return {path.substr(0, path.size() - 2), "[]"};
+  const std::size_t dot = path.rfind('.');
+  if (dot == std::string_view::npos) return {"", path};
+  return {path.substr(0, dot), path.substr(dot + 1)};
+}
+
+// Does `pattern` (which may hold "<...>" components) match `path`?
+bool matches(std::string_view pattern, std::string_view path) {
+  while (true) {
+    const std::size_t pd = pattern.find('.'), qd = path.find('.');
+    const std::string_view a = pattern.substr(0, pd), b = path.substr(0, qd);
+    if (!(a == b || (a.starts_with('<') && a.ends_with('>') && !b.empty()))) return false;
+    if (pd == std::string_view::npos || qd == std::string_view::npos)
+      return pd == std::string_view::npos && qd == std::string_view::npos;
+    pattern.remove_prefix(pd + 1);
+    path.remove_prefix(qd + 1);
+  }
+}
+
+}  // namespace
+
+std::span<const Key> keys() { return kKeys; }
+std::span<const JointTypeInfo> joint_types() { return kJointTypes; }
+
+const JointTypeInfo& joint_type(JointType t) {
+  for (const JointTypeInfo& j : kJointTypes)
+    if (j.type == t) return j;
+  throw std::logic_error("scene schema: joint type without a row");
+}
+
+const Key* find(std::string_view path, unsigned joints) {
+  for (const Key& k : kKeys)
+    if ((k.joints & joints) != 0 && matches(k.path, path)) return &k;
+  return nullptr;
+}
+
+std::vector<std::string> child_names(std::string_view parent, unsigned joints) {
+  std::vector<std::string> names;
+  for (const Key& k : kKeys) {
+    const auto [p, name] = split(k.path);
+    if (k.path.empty() || p != parent || name == "[]" || (k.joints & joints) == 0) continue;
+    if (std::find(names.begin(), names.end(), name) == names.end()) names.emplace_back(name);
+  }
+  return names;
+}
+
+std::vector<std::string> joint_keys(JointType t) {
+  return child_names("joints[]", joint_type(t).bit);
+}
+
+std::vector<std::string> initial_keys(JointType t) {
+  return child_names("joints[].initial", joint_type(t).bit);
+}
+
+std::vector<std::string> words(const Key& key) {
+  std::vector<std::string> w;
+  std::string_view s = key.words;
+  while (!s.empty()) {
+    const std::size_t bar = s.find('|');
+    w.emplace_back(s.substr(0, bar));
+    if (bar == std::string_view::npos) break;
+    s.remove_prefix(bar + 1);
+  }
+  return w;
+}
+
+std::string noun(const Key& key, std::string_view type_name) {
+  std::string n(key.noun);
+  if (const std::size_t at = n.find("{type}"); at != std::string::npos) n.replace(at, 6, type_name);
+  return n;
+}
+
+}  // namespace crossdyn::scene

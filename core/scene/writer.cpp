@@ -1,0 +1,261 @@
+// Scene writer: System => scene text (scene.hpp).
+//
+// Every number is SI in its shortest round-trip form (std::to_chars), so that
+// read_scene_text(write_scene_text(s)) == s field by field, bit for bit. Every key is written
+// through its schema row (Out::key): the writer cannot write a key the schema does not hold, nor a
+// reader convenience (center_of_mass: the System is already in the CM frame). An angle whose
+// magnitude is above 2 pi is written with " rad", so that reading it back draws no warning.
+// tests/scene/test_scene.cpp checks that the rich scene's written form holds every written key.
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "core/scene/scene.hpp"
+#include "core/scene/schema.hpp"
+#include "core/scene/text.hpp"
+
+namespace crossdyn {
+namespace {
+
+using scene::shortest;
+
+class Out {
+ public:
+  Out() { out_.SetIndent(2); }
+  YAML::Emitter& yaml() { return out_; }
+
+  // Emits the key of schema row `path` (for joint types `joints`) and readies its value.
+  YAML::Emitter& key(std::string_view path, unsigned joints = scene::kAnyJoint) {
+    const scene::Key* k = scene::find(path, joints);
+    if (k == nullptr || !k->written)
+      throw std::logic_error("scene writer: '" + std::string(path) + "' is not a written key");
+    const std::size_t dot = path.rfind('.');
+    const std::string name(dot == std::string_view::npos ? path : path.substr(dot + 1));
+    return out_ << YAML::Key << name << YAML::Value;
+  }
+
+  // A number of the row's dimension: SI, bare; an angle above a full turn with " rad".
+  void number(double x, const scene::Key* row = nullptr) {
+    const bool rad =
+        row && row->dimension == units::Dimension::Angle && std::abs(x) > 2 * std::numbers::pi;
+    out_ << shortest(x) + (rad ? " rad" : "");
+  }
+  void number(std::string_view path, double x, unsigned joints = scene::kAnyJoint) {
+    key(path, joints);
+    number(x, scene::find(path, joints));
+  }
+
+  template <typename V>
+  void flow(const V& v) {
+    out_ << YAML::Flow << YAML::BeginSeq;
+    for (Eigen::Index i = 0; i < v.size(); ++i) number(v[i]);
+    out_ << YAML::EndSeq;
+  }
+  void quaternion(const Eigen::Quaterniond& q) {
+    flow(Eigen::Vector4d(q.w(), q.x(), q.y(), q.z()));
+  }
+
+  // A profile under `path` ("joints[].motor.profile").
+  template <int D>
+  void profile(std::string_view path, const PiecewiseConstant<D>& p, unsigned joints) {
+    key(path, joints);
+    const std::string item = std::string(path) + "[]";
+    out_ << YAML::BeginSeq;
+    for (std::size_t k = 0; k < p.times.size(); ++k) {
+      out_ << YAML::Flow << YAML::BeginMap;
+      number(item + ".t", p.times[k], joints);
+      key(item + ".value", joints);
+      if constexpr (D == 1)
+        number(p.values[k][0]);
+      else
+        flow(p.values[k]);
+      out_ << YAML::EndMap;
+    }
+    out_ << YAML::EndSeq;
+  }
+
+ private:
+  YAML::Emitter out_;
+};
+
+bool is_identity(const Eigen::Quaterniond& q) {
+  return q.w() == 1 && q.x() == 0 && q.y() == 0 && q.z() == 0;
+}
+
+void write_body(Out& o, const Body& b) {
+  YAML::Emitter& y = o.yaml();
+  y << YAML::BeginMap;
+  o.key("bodies[].name") << b.name;
+  o.number("bodies[].mass", b.mass);
+  o.key("bodies[].inertia");
+  const Eigen::Matrix3d& I = b.I_BBo_B;
+  if (I(0, 1) == 0 && I(0, 2) == 0 && I(1, 2) == 0)
+    o.flow(Eigen::Vector3d(I(0, 0), I(1, 1), I(2, 2)));
+  else
+    o.flow((Eigen::Matrix<double, 6, 1>() << I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2))
+               .finished());
+  if (!b.torque.empty()) {
+    o.key("bodies[].torque") << YAML::BeginMap;
+    o.key("bodies[].torque.frame")
+        << (b.torque_frame == Body::Frame::Inertial ? "inertial" : "body");
+    o.profile("bodies[].torque.profile", b.torque, scene::kAnyJoint);
+    y << YAML::EndMap;
+  }
+  y << YAML::EndMap;
+}
+
+void write_initial(Out& o, const System& s, const Joint& j, unsigned bit) {
+  YAML::Emitter& y = o.yaml();
+  switch (j.type) {
+    case JointType::Free:
+      o.key("joints[].initial", bit) << YAML::BeginMap;
+      o.key("joints[].initial.position", bit);
+      o.flow(j.p_NoBo_N0);
+      o.key("joints[].initial.attitude", bit);
+      o.quaternion(j.q_NB0);
+      o.key("joints[].initial.angular_velocity", bit);
+      o.flow(j.w_NB_B0);
+      if (!s.zero_linear_momentum) {
+        o.key("joints[].initial.velocity", bit);
+        o.flow(j.v_NBo_N0);
+      }
+      y << YAML::EndMap;
+      break;
+    case JointType::Revolute:
+      o.key("joints[].initial", bit) << YAML::Flow << YAML::BeginMap;
+      o.number("joints[].initial.angle", j.angle0, bit);
+      o.number("joints[].initial.rate", j.rate0, bit);
+      y << YAML::EndMap;
+      break;
+    case JointType::Spherical:
+      o.key("joints[].initial", bit) << YAML::BeginMap;
+      o.key("joints[].initial.attitude", bit);
+      o.quaternion(j.q_J0);
+      o.key("joints[].initial.angular_velocity", bit);
+      o.flow(j.w_PC_C0);
+      y << YAML::EndMap;
+      break;
+    case JointType::Fixed:
+      break;
+  }
+}
+
+void write_joint(Out& o, const System& s, const Joint& j) {
+  YAML::Emitter& y = o.yaml();
+  const scene::JointTypeInfo& type = scene::joint_type(j.type);
+  const unsigned bit = type.bit;
+  auto body_name = [&s](int b) { return s.bodies.at(static_cast<std::size_t>(b)).name; };
+  y << YAML::BeginMap;
+  o.key("joints[].name", bit) << j.name;
+  o.key("joints[].type", bit) << std::string(type.name);
+  if (j.type != JointType::Free) o.key("joints[].parent", bit) << body_name(j.parent);
+  o.key("joints[].child", bit) << body_name(j.child);
+  if (j.type != JointType::Free) {
+    o.key("joints[].parent_point", bit);
+    o.flow(j.p_PoJ_P);
+    o.key("joints[].child_point", bit);
+    o.flow(j.p_CoJ_C);
+    if (!is_identity(j.q_PJ0)) {
+      o.key("joints[].offset", bit);
+      o.quaternion(j.q_PJ0);
+    }
+  }
+  if (j.type == JointType::Revolute) {
+    o.key("joints[].axis", bit);
+    o.flow(j.axis_P);
+  }
+  if (j.type == JointType::Revolute || j.type == JointType::Spherical) {
+    if (j.stiffness != 0 || (j.type == JointType::Revolute && j.neutral_angle != 0)) {
+      o.key("joints[].spring", bit) << YAML::Flow << YAML::BeginMap;
+      o.number("joints[].spring.stiffness", j.stiffness, bit);
+      if (j.type == JointType::Revolute)
+        o.number("joints[].spring.neutral_angle", j.neutral_angle, bit);
+      y << YAML::EndMap;
+    }
+    if (j.damping != 0) {
+      o.key("joints[].damper", bit) << YAML::Flow << YAML::BeginMap;
+      o.number("joints[].damper.damping", j.damping, bit);
+      y << YAML::EndMap;
+    }
+    const bool motor =
+        j.type == JointType::Revolute ? !j.motor_revolute.empty() : !j.motor_spherical.empty();
+    if (motor) {
+      o.key("joints[].motor", bit) << YAML::BeginMap;
+      if (j.type == JointType::Revolute)
+        o.profile("joints[].motor.profile", j.motor_revolute, bit);
+      else
+        o.profile("joints[].motor.profile", j.motor_spherical, bit);
+      y << YAML::EndMap;
+    }
+  }
+  write_initial(o, s, j, bit);
+  y << YAML::EndMap;
+}
+
+void write_run(Out& o, const RunSpec& run) {
+  o.key("run") << YAML::BeginMap;
+  o.number("run.duration", run.duration);
+  o.number("run.output_step", run.output_step);
+  o.key("run.integrator") << run.integrator;
+  o.number("run.rtol", run.rtol);
+  o.number("run.atol", run.atol);
+  o.number("run.dt", run.dt);
+  o.yaml() << YAML::EndMap;
+}
+
+void write_compare(Out& o, const CompareSpec& c) {
+  YAML::Emitter& y = o.yaml();
+  auto tolerance = [&](const Tolerance& t) {
+    y << YAML::Flow << YAML::BeginMap;
+    o.number("compare.tolerances.<quantity>.atol", t.atol);
+    o.number("compare.tolerances.<quantity>.rtol", t.rtol);
+    y << YAML::EndMap;
+  };
+  o.key("compare") << YAML::BeginMap;
+  o.key("compare.tolerances") << YAML::BeginMap;
+  y << YAML::Key << "default" << YAML::Value;
+  tolerance(c.default_tolerance);
+  for (const auto& [quantity, t] : c.tolerances) {
+    y << YAML::Key << quantity << YAML::Value;
+    tolerance(t);
+  }
+  y << YAML::EndMap;
+  if (!c.excluded.empty()) {
+    o.key("compare.exclude") << YAML::BeginSeq;
+    for (const auto& [quantity, reason] : c.excluded) {
+      y << YAML::BeginMap;
+      o.key("compare.exclude[].quantity") << quantity;
+      o.key("compare.exclude[].reason") << YAML::DoubleQuoted << reason;
+      y << YAML::EndMap;
+    }
+    y << YAML::EndSeq;
+  }
+  y << YAML::EndMap;
+}
+
+}  // namespace
+
+std::string write_scene_text(const System& s) {
+  Out o;
+  YAML::Emitter& y = o.yaml();
+  y << YAML::BeginMap;
+  o.key("name") << s.name;
+  o.key("description") << YAML::DoubleQuoted << s.description;
+  o.key("source") << YAML::DoubleQuoted << s.source;
+  if (!s.analytic.empty()) o.key("analytic") << s.analytic;
+  o.key("zero_linear_momentum") << (s.zero_linear_momentum ? "true" : "false");
+  o.key("bodies") << YAML::BeginSeq;
+  for (const Body& b : s.bodies) write_body(o, b);
+  y << YAML::EndSeq;
+  o.key("joints") << YAML::BeginSeq;
+  for (const Joint& j : s.joints) write_joint(o, s, j);
+  y << YAML::EndSeq;
+  write_run(o, s.run);
+  write_compare(o, s.compare);
+  y << YAML::EndMap;
+  return std::string(y.c_str()) + "\n";
+}
+
+}  // namespace crossdyn

@@ -1,0 +1,33 @@
+// The crossdyn program as a function: parses the command line, runs the command and maps every
+// outcome to an exit status and a message (README "Exit status"). main() (harness/main.cpp) adds
+// only the signal handlers; the fuzz target (fuzz/cli_fuzzer.cpp) calls it in-process.
+//
+//   0   success                          1   a comparison failed (or compared nothing)
+//   2   bad input: scene file, command line, an output that would overwrite an input or cannot
+//       be written at all, a scene folder that cannot be read (filesystem errors)
+//   3   a run failed, a write failed (disk full, I/O error), out of memory, an internal error
+//   130 interrupted (Ctrl-C, SIGTERM)
+//   141 standard output is a pipe whose reader went away (`crossdyn run x | head -1`): the
+//       command stops at once, silently, with the status a process killed by SIGPIPE has
+#pragma once
+
+#include <exception>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+
+inline constexpr int kExitInterrupted = 130;
+inline constexpr int kExitBrokenPipe = 141;  // 128 + SIGPIPE
+
+int crossdyn_main(int argc, char** argv);
+
+// The exit status for an exception that ended a command, after writing its message to `err`.
+int exit_status_for(const std::exception_ptr& e, std::ostream& err);
+
+// "did you mean" for an unknown word among `known` (closest by edit distance, or `word` is a
+// prefix of one); "" when none is close.
+std::string closest_match(const std::string& word, const std::vector<std::string>& known);
+
+}  // namespace crossdyn

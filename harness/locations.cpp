@@ -1,0 +1,94 @@
+// Where crossdyn finds things (see locations.hpp).
+#include "harness/locations.hpp"
+
+#include "core/errors.hpp"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#ifndef CROSSDYN_SOURCE_DIR
+#error "CROSSDYN_SOURCE_DIR must be defined (harness/CMakeLists.txt)"
+#endif
+#ifndef CROSSDYN_VERSION
+#define CROSSDYN_VERSION "unknown"
+#endif
+
+namespace crossdyn::harness {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool exists_any(const std::string& p) {  // the name exists (even a broken link)
+  struct stat st {};
+  return ::lstat(p.c_str(), &st) == 0;
+}
+
+bool is_folder(const std::string& p) {
+  struct stat st {};
+  return ::stat(p.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+}  // namespace
+
+std::string source_tree() { return CROSSDYN_SOURCE_DIR; }
+
+std::string version() { return CROSSDYN_VERSION; }
+
+std::string installed_reports_dir() { return source_tree() + "/reports"; }
+std::string installed_report_script() { return installed_reports_dir() + "/make_report.py"; }
+
+std::vector<std::string> scene_folders() {
+  std::vector<std::string> out;
+  if (is_folder("scenarios")) out.push_back("scenarios");
+  const std::string tree = source_tree() + "/scenarios";
+  std::error_code ec;
+  if (is_folder(tree) && !(out.size() == 1 && fs::equivalent(out[0], tree, ec)))
+    out.push_back(tree);
+  return out;
+}
+
+std::string resolve_scene(const std::string& scene) {
+  if (scene.empty()) throw InputError("the scene name is empty");
+  if (exists_any(scene) || scene.find('/') != std::string::npos) return scene;
+  std::vector<std::string> tried{scene};
+  for (const std::string& folder : scene_folders())
+    for (const char* ext : {"", ".yaml", ".yml"}) {
+      const std::string p = folder + "/" + scene + ext;
+      if (exists_any(p)) return p;
+      tried.push_back(p);
+    }
+  std::string list;
+  for (const std::string& t : tried) list += "\n  " + t;
+  throw InputError("cannot find the scene '" + scene + "': no such file; tried" + list +
+                   "\n(`crossdyn list` shows the scenes)");
+}
+
+std::vector<std::string> scene_files_in(const std::string& folder) {
+  std::error_code ec;
+  const fs::file_status st = fs::status(folder, ec);
+  if (ec || !fs::is_directory(st)) {
+    if (ec == std::errc::no_such_file_or_directory || (!ec && !fs::exists(st)))
+      throw InputError("the scenes folder '" + folder + "' does not exist");
+    if (ec) throw InputError("cannot open the scenes folder '" + folder + "': " + ec.message());
+    throw InputError("'" + folder + "' is not a folder");
+  }
+  std::vector<std::string> files;
+  fs::directory_iterator it(folder, ec);
+  if (ec) throw InputError("cannot list the scenes folder '" + folder + "': " + ec.message());
+  for (; it != fs::directory_iterator(); it.increment(ec)) {
+    const fs::path p = it->path();
+    const std::string ext = p.extension().string(), name = p.filename().string();
+    // Hidden names are skipped (editor lock files such as emacs's dangling `.#x.yaml` links).
+    if ((ext == ".yaml" || ext == ".yml") && name[0] != '.') files.push_back(p.string());
+  }
+  if (ec) throw InputError("cannot list the scenes folder '" + folder + "': " + ec.message());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+}  // namespace crossdyn::harness

@@ -1,0 +1,38 @@
+// Where crossdyn finds things: scenes named without a path, the report script, its version.
+//
+//   scene names   `crossdyn run gimbal_lock`: a SCENE argument that names no existing file and has
+//                 no '/' is looked up as scenarios/SCENE, scenarios/SCENE.yaml, scenarios/SCENE.yml
+//                 in the current folder, then in the source tree the program was built from.
+//   report script verify --report runs <source tree>/reports/make_report.py, the script of the
+//                 tree the program was built from, never one found beside the scenes (a scene
+//                 bundle must not be able to run code); --report-script names another explicitly.
+//   version       CMake's project version, plus `git describe` at configure time when available.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace crossdyn::harness {
+
+std::string source_tree();            // absolute, compiled in (CROSSDYN_SOURCE_DIR)
+std::string version();                // "0.1.0 (git 1aca500-dirty)"
+// The folder of the installed report scripts (make_report.py, draw_scene.py, their modules and
+// templates): the source tree's reports/, never one found next to the scenes.
+std::string installed_reports_dir();
+std::string installed_report_script();  // installed_reports_dir()/make_report.py
+
+// The folders searched for scene names, in order: ./scenarios (when it exists), then the source
+// tree's scenarios/ (when it is another folder).
+std::vector<std::string> scene_folders();
+
+// The file a SCENE argument names (see above). Returns SCENE itself when it names an existing
+// path or contains '/', so that read_scene reports why it cannot be read; throws InputError listing
+// every path tried when a bare name is found nowhere.
+std::string resolve_scene(const std::string& scene);
+
+// Every *.yaml and *.yml entry of `folder` (not hidden ones), sorted (entries that are not regular files too, so that
+// a broken link or a directory named x.yaml is reported rather than skipped). InputError when the
+// folder cannot be listed, naming it and the reason.
+std::vector<std::string> scene_files_in(const std::string& folder);
+
+}  // namespace crossdyn::harness

@@ -1,0 +1,396 @@
+"""The time-history charts of a scene page. Each chart function returns (file name, caption) or None
+when the scene has nothing to show (no joints, no flexible bodies, no data).
+
+Legends sit outside the axes (to the right), so they never hide data. In the joints chart colour
+tells the joints apart and the line style the engines."""
+
+import os
+
+import numpy as np
+
+from .common import DASHES, gfmt, plt, save_figure
+from .kinematics import attitude_angle, joint_rotation_vectors
+
+TINY = 1e-17  # floor for log-scale plots of differences that are exactly zero
+LEGEND_RIGHT = 0.80  # charts keep the right 20 % of the figure for their legends
+
+GROUP_TITLES = {
+    "run": "engine runs",
+    "t": "output times",
+    "w": "angular velocities",
+    "attitude": "attitudes",
+    "rate": "joint rates",
+    "angle": "joint angles",
+    "modal": "modal coordinates",
+    "H": "angular momentum H",
+    "E": "energy E",
+    "H.drift": "drift of H",
+    "E.drift": "drift of E",
+    "extra": "extra columns",
+}
+JOINT_COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+                 "tab:pink", "tab:olive", "tab:cyan", "0.3"]
+COMPONENT_COLOURS = ("#d62728", "#2ca02c", "#1f4fd6")
+
+
+def rad_axis(ax, unit):
+    """A secondary axis in degrees for an axis in rad or rad/s."""
+    ax.secondary_yaxis("right", functions=(np.degrees, np.radians)).set_ylabel(
+        unit.replace("rad", "deg"), fontsize="small")
+
+
+def outside_legend(fig, ax=None, handles=None, labels=None, title=None, sections=None):
+    """A legend to the right of the axes, in the figure's reserved margin. `sections`: a list of
+    (title, handles, labels) drawn one under the other in one legend."""
+    from matplotlib.lines import Line2D
+    if sections is None:
+        if handles is None:
+            handles, labels = ax.get_legend_handles_labels()
+        sections = [(title, handles, labels)]
+    all_h, all_l = [], []
+    for k, (head, hs, ls) in enumerate(sections):
+        if not hs:
+            continue
+        if head:
+            if all_h:
+                all_h.append(Line2D([], [], color="none"))
+                all_l.append("")
+            all_h.append(Line2D([], [], color="none"))
+            all_l.append(head)
+        all_h += list(hs)
+        all_l += list(ls)
+    if not all_h:
+        return None
+    leg = fig.legend(all_h, all_l, loc="upper left", bbox_to_anchor=(LEGEND_RIGHT + 0.005, 0.93),
+                     fontsize="small", frameon=False, handlelength=2.6)
+    heads = {head for head, _, _ in sections if head}
+    for text in leg.get_texts():
+        if text.get_text() in heads:
+            text.set_weight("bold")
+    return leg
+
+
+def finish(fig, name, out_dir):
+    fig.tight_layout(rect=(0, 0, LEGEND_RIGHT, 1))
+    save_figure(fig, os.path.join(out_dir, name))
+    return name
+
+
+def plot_lines(ax, runs, column):
+    drawn = False
+    for r in runs:
+        if r.has(column):
+            ax.plot(r.t, r.col(column), label=r.label, **r.style)
+            drawn = True
+    return drawn
+
+
+def paper_figures(scene):
+    """The reference paper's figure numbers for the SPEAR-1 scenes (spin, deployment, H)."""
+    name = scene.get("scene", "")
+    if name.startswith("spear1_case1"):
+        return ("4", "5", "6")
+    if name.startswith("spear1_case2"):
+        return ("7", "8", "9")
+    return None
+
+
+def chart_base_w(scene, runs, out_dir, sid):
+    system = scene.get("system", {})
+    base = system.get("joints", [{}])[0].get("child") if system.get("joints") else None
+    if not base or not any(r.has(base + ".wx") for r in runs):
+        return None
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    # A component that stays at rounding-error level is drawn on a span of at least 1e-3 of the
+    # largest component, so it reads as the flat zero it is.
+    peak = max([float(np.max(np.abs(r.col("%s.w%s" % (base, c))))) for r in runs
+                for c in ("x", "y", "z") if r.has("%s.w%s" % (base, c))] + [1e-12])
+    for ax, comp in zip(axes, ("x", "y", "z")):
+        plot_lines(ax, runs, "%s.w%s" % (base, comp))
+        values = [r.col("%s.w%s" % (base, comp)) for r in runs if r.has("%s.w%s" % (base, comp))]
+        if values:
+            v = np.concatenate(values)
+            lo, hi = float(np.min(v)), float(np.max(v))
+            if hi - lo < 1e-3 * peak:
+                mid = 0.5 * (lo + hi)
+                ax.set_ylim(mid - 1e-3 * peak, mid + 1e-3 * peak)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.set_ylabel("%s.w%s (rad/s)" % (base, comp))
+        rad_axis(ax, "rad/s")
+        ax.grid(True, alpha=0.3)
+    outside_legend(fig, axes[0], title="run")
+    axes[-1].set_xlabel("time t (s)")
+    figs = paper_figures(scene)
+    fig.suptitle("Angular velocity of the base body '%s' in N, components in its own body axes%s"
+                 % (base, "\n(%s.wx is the spin rate of the paper's Fig. %s)" % (base, figs[0]) if figs else ""))
+    name = finish(fig, "%s-base-w.png" % sid, out_dir)
+    return name, ("Inertial angular velocity of the base body %s, resolved in its body frame "
+                  "(rad/s; degrees per second on the right axis), every run overlaid. Curves that "
+                  "agree lie on top of each other; the dashes let each stay visible." % base)
+
+
+def _joint_lines(ax, runs, joints, values_of, colours):
+    """One line per joint and run: colour = joint, line style = run."""
+    for ji, j in enumerate(joints):
+        for r in runs:
+            v = values_of(r, j)
+            if v is not None:
+                ax.plot(r.t, v, color=colours[ji % len(colours)], linestyle=r.dash,
+                        linewidth=2.4 if r.label == "analytic" else 1.7, alpha=0.9)
+
+
+def chart_joints(scene, runs, out_dir, sid):
+    system = scene.get("system", {})
+    joints = [j for j in system.get("joints", []) if j["type"] in ("revolute", "spherical")]
+    if not joints:
+        return None
+    revolute = [j for j in joints if j["type"] == "revolute"]
+    spherical = [j for j in joints if j["type"] == "spherical"]
+    # Spherical joints' rotation from the two bodies' attitudes (kinematics.joint_rotation_vectors).
+    phis = {}
+    for r in runs:
+        for j in spherical:
+            phi = joint_rotation_vectors(r, system, j)
+            if phi is not None:
+                phis[(r.label, j["name"])] = phi
+    panels = []
+    if revolute:
+        panels += [("rev-angle", None), ("rev-rate", None)]
+    if spherical:
+        panels += [("sph-angle", None), ("sph-rate", None)] + [("sph-phi", j) for j in spherical]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.5 * len(panels) + 1.0), sharex=True,
+                             squeeze=False)
+    axes = axes[:, 0]
+    colour_of = {j["name"]: JOINT_COLOURS[i % len(JOINT_COLOURS)] for i, j in enumerate(joints)}
+    rev_colours = [colour_of[j["name"]] for j in revolute]
+    sph_colours = [colour_of[j["name"]] for j in spherical]
+    for ax, (kind, joint) in zip(axes, panels):
+        if kind == "rev-angle":
+            _joint_lines(ax, runs, revolute, lambda r, j: r.col(j["name"] + ".angle") if r.has(j["name"] + ".angle")
+                         else None, rev_colours)
+            ax.set_ylabel("revolute angle (rad)")
+            rad_axis(ax, "rad")
+        elif kind == "rev-rate":
+            _joint_lines(ax, runs, revolute, lambda r, j: r.col(j["name"] + ".rate") if r.has(j["name"] + ".rate")
+                         else None, rev_colours)
+            ax.set_ylabel("revolute rate (rad/s)")
+            rad_axis(ax, "rad/s")
+        elif kind == "sph-angle":
+            _joint_lines(ax, runs, spherical, lambda r, j: np.linalg.norm(phis[(r.label, j["name"])], axis=1)
+                         if (r.label, j["name"]) in phis else None, sph_colours)
+            ax.set_ylabel("spherical: rotation\nangle |phi| of q_J (rad)")
+            rad_axis(ax, "rad")
+        elif kind == "sph-rate":
+            def rate(r, j):
+                cols = [j["name"] + c for c in (".wx", ".wy", ".wz")]
+                return np.sqrt(sum(r.col(c) ** 2 for c in cols)) if all(r.has(c) for c in cols) else None
+            _joint_lines(ax, runs, spherical, rate, sph_colours)
+            ax.set_ylabel("spherical: |w_PC|\n(rad/s)")
+            rad_axis(ax, "rad/s")
+        else:  # rotation-vector components of one spherical joint
+            for k in range(3):
+                for r in runs:
+                    phi = phis.get((r.label, joint["name"]))
+                    if phi is not None:
+                        ax.plot(r.t, phi[:, k], color=COMPONENT_COLOURS[k], linestyle=r.dash, linewidth=1.6)
+            ax.set_ylabel("%s: phi_x, phi_y,\nphi_z of q_J (rad)" % joint["name"])
+            rad_axis(ax, "rad")
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time t (s)")
+    # Outside the axes: joints by colour, runs by line style (and components by colour).
+    from matplotlib.lines import Line2D
+    sections = [("joint (colour)", [Line2D([], [], color=colour_of[j["name"]], lw=2.2) for j in joints],
+                 [j["name"] for j in joints]),
+                ("run (line style)", [Line2D([], [], color="0.2", linestyle=r.dash, lw=1.7) for r in runs],
+                 [r.label for r in runs])]
+    if spherical:
+        sections.append(("phi component", [Line2D([], [], color=c, lw=2.2) for c in COMPONENT_COLOURS],
+                         ["phi_x", "phi_y", "phi_z"]))
+    outside_legend(fig, sections=sections)
+    figs = paper_figures(scene)
+    fig.suptitle("Joint motion: each child body relative to its parent%s"
+                 % ("\n(hinge1.rate and hinge2.rate are the deployment rates of the paper's Fig. %s)" % figs[1]
+                    if figs and revolute else ""))
+    name = finish(fig, "%s-joints.png" % sid, out_dir)
+    caption = ""
+    if revolute:
+        caption += ("Revolute joints: angle (rad) and rate (rad/s) of each child about its hinge axis, "
+                    "relative to its parent. ")
+    if spherical:
+        caption += ("Spherical joints: the joint rotation q_J = q_offset^-1 q_NP^-1 q_NC computed from "
+                    "the parent's and child's attitudes in each run, as its rotation angle |phi| and "
+                    "its rotation vector phi (joint frame; |phi| <= pi), and the magnitude of the "
+                    "child's angular velocity relative to the parent. ")
+    return name, caption + "Colour tells the joints apart; the line style tells the runs apart."
+
+
+def chart_modal(scene, runs, out_dir, sid):
+    cols = []
+    for b in scene.get("system", {}).get("bodies", []):
+        for m in b.get("modes", []):
+            cols.append(b["name"] + "." + m)
+    if not cols:
+        return None
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    for i, c in enumerate(cols):
+        for r in runs:
+            if r.has(c):
+                ax.plot(r.t, r.col(c), color=JOINT_COLOURS[i % len(JOINT_COLOURS)], linestyle=r.dash)
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel("modal coordinate (m)")
+    ax.grid(True, alpha=0.3)
+    from matplotlib.lines import Line2D
+    outside_legend(fig, handles=[Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)]) for i in range(len(cols))],
+                   labels=cols, title="mode (colour)")
+    ax.set_title("Elastic deformation: modal coordinates of the flexible bodies")
+    name = finish(fig, "%s-modal.png" % sid, out_dir)
+    return name, ("Modal coordinates (m, in the scene's mode normalisation) of each flexible body, "
+                  "every run overlaid (colour: mode; line style: run).")
+
+
+def padded_limits(values):
+    lo, hi = float(np.min(values)), float(np.max(values))
+    mid = 0.5 * (lo + hi)
+    pad = max(0.08 * (hi - lo), 1e-3 * abs(mid), 1e-12)
+    return mid - max(pad, 0.5 * (hi - lo) + pad), mid + max(pad, 0.5 * (hi - lo) + pad)
+
+
+def chart_H_E(scene, runs, out_dir, sid):
+    if not any(r.has("H") for r in runs):
+        return None
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True)
+    for ax, x, unit, what in ((axes[0], "H", "kg m^2/s", "angular momentum about the system CM"),
+                              (axes[1], "E", "J", "mechanical energy (kinetic + elastic)")):
+        values = [r.col(x) for r in runs if r.has(x)]
+        plot_lines(ax, runs, x)
+        if values:
+            ax.set_ylim(*padded_limits(np.concatenate(values)))
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.set_ylabel("%s (%s)" % (x, unit))
+        ax.set_title("%s: %s" % (x, what), fontsize="medium")
+        ax.grid(True, alpha=0.3)
+    outside_legend(fig, axes[0], title="run")
+    axes[-1].set_xlabel("time t (s)")
+    figs = paper_figures(scene)
+    fig.suptitle("Magnitude of the total angular momentum H and total energy E against time%s"
+                 % ("\n(H is the quantity of the paper's Fig. %s)" % figs[2] if figs else ""))
+    name = finish(fig, "%s-H-E.png" % sid, out_dir)
+    return name, ("H (kg m^2/s) and E (J) of every run. The vertical range is at least 0.1 % of "
+                  "the value, so a conserved quantity shows as a flat line; its drift is in the "
+                  "drift chart below on a log scale.")
+
+
+def chart_differences(scene, runs, out_dir, sid):
+    by_label = {r.label: r for r in runs}
+    pairs = []
+    for c in scene.get("checks", []):
+        if c["b"] and c["group"] not in ("run", "t") and (c["a"], c["b"]) not in pairs:
+            pairs.append((c["a"], c["b"]))
+    pairs = [p for p in pairs if by_label.get(p[0]) and by_label.get(p[1])
+             and by_label[p[0]].data.shape[0] and by_label[p[1]].data.shape[0]]
+    if not pairs:
+        return None
+    present = {c["group"] for c in scene.get("checks", [])}
+    groups = [g for g in scene.get("group_order", []) if g in present and
+              g in ("w", "attitude", "rate", "angle", "modal", "H", "E", "extra")]
+    palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colours = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
+    n = len(pairs)
+    cols = 1 if n == 1 else 2
+    rows_ = (n + cols - 1) // cols
+    fig, axes = plt.subplots(rows_, cols, figsize=(10 if cols == 1 else 13, 3.4 * rows_ + 1.0),
+                             squeeze=False, sharey=True)
+    drawn = set()
+    for ax, (a, b) in zip(axes.flat, pairs):
+        A, B = by_label[a], by_label[b]
+        m = min(A.data.shape[0], B.data.shape[0])
+        t = A.t[:m]
+        worst = {}
+        for c in scene["checks"]:
+            if c["a"] != a or c["b"] != b or c["status"] not in ("PASS", "FAIL") or not c["bound"]:
+                continue
+            q = c["quantity"]
+            if c["group"] == "attitude":
+                body = q[: -len(".attitude")]
+                qc = [body + s for s in (".qw", ".qx", ".qy", ".qz")]
+                if not all(A.has(x) and B.has(x) for x in qc):
+                    continue
+                err = attitude_angle(np.column_stack([A.col(x)[:m] for x in qc]),
+                                     np.column_stack([B.col(x)[:m] for x in qc]))
+            else:
+                if not (A.has(q) and B.has(q)):
+                    continue
+                err = np.abs(A.col(q)[:m] - B.col(q)[:m])
+            norm = err / c["bound"]
+            g = c["group"]
+            worst[g] = norm if g not in worst else np.maximum(worst[g], norm)
+        for g in groups:
+            if g in worst:
+                ax.semilogy(t, np.maximum(worst[g], TINY), color=colours[g], linewidth=1.4,
+                            label=GROUP_TITLES.get(g, g))
+                drawn.add(g)
+        ax.axhline(1.0, color="red", linestyle="--", linewidth=1.2)
+        ax.set_title("%s compared with %s" % (a, b), fontsize="medium")
+        ax.set_xlabel("time t (s)")
+        ax.set_ylabel("|a - b| / (atol + rtol max|b|)")
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], color=colours[g], lw=1.6) for g in groups if g in drawn]
+    labels = [GROUP_TITLES.get(g, g) for g in groups if g in drawn]
+    handles.append(Line2D([], [], color="red", linestyle="--", lw=1.2))
+    labels.append("tolerance (= 1)")
+    outside_legend(fig, handles=handles, labels=labels, title="kind of quantity")
+    fig.suptitle("Pairwise differences between runs, as a fraction of the tolerance (log scale)\n"
+                 "each line: the largest over the quantities of that kind; above the red line fails")
+    name = finish(fig, "%s-differences.png" % sid, out_dir)
+    return name, ("For every pair of runs (a compared with the reference b) and every kind of "
+                  "quantity, the largest normalised difference |a(t) - b(t)| / (atol + rtol "
+                  "max|b|) at each output time; attitudes use the rotation angle between the two "
+                  "attitudes. A check passes when its curve stays at or below 1 (red dashed line) "
+                  "for the whole run. Exact agreement is drawn at 1e-17.")
+
+
+def chart_drift(scene, runs, out_dir, sid):
+    engines = [r for r in runs if r.info.get("engine") != "analytic" and r.has("H")]
+    if not engines:
+        return None
+    checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", []) if c["group"].endswith(".drift")}
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
+    reasons = {"H": scene.get("momentum_not_conserved", ""), "E": scene.get("energy_not_conserved", "")}
+    for ax, x in zip(axes, ("H", "E")):
+        relative = True
+        for r in engines:
+            if not r.has(x):
+                continue
+            v = r.col(x)
+            x0 = v[0]
+            relative = relative and abs(x0) > 0
+            d = np.abs(v - x0) / (abs(x0) if abs(x0) > 0 else 1.0)
+            ax.semilogy(r.t, np.maximum(d, TINY), label=r.label, **{k: s for k, s in r.style.items() if k != "alpha"})
+            c = checks.get((x + ".drift", r.label))
+            if c and c["status"] in ("PASS", "FAIL") and c["bound"]:
+                ax.axhline(c["bound"] / (abs(x0) if abs(x0) > 0 else 1.0), color=r.style["color"],
+                           linestyle="--", linewidth=0.9, alpha=0.7)
+        unit = "" if relative else (" (kg m^2/s)" if x == "H" else " (J)")
+        ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
+        title = "drift of %s from its initial value" % x
+        if reasons[x]:
+            title += "\n(not checked: not conserved, %s)" % reasons[x]
+        ax.set_title(title, fontsize="medium")
+        ax.grid(True, which="both", alpha=0.3)
+    outside_legend(fig, axes[0], title="engine")
+    axes[-1].set_xlabel("time t (s)")
+    fig.suptitle("Conservation: drift of H and E of each engine (log scale)\n"
+                 "dashed lines: the drift tolerance atol + rtol |X(0)| of each engine's check")
+    name = finish(fig, "%s-drift.png" % sid, out_dir)
+    return name, ("Relative drift |X(t) - X(0)| / |X(0)| of the angular momentum magnitude H and "
+                  "the energy E of each engine (absolute drift where X(0) = 0). In a scene without "
+                  "external torques H is conserved; without dampers, motors or external torques E "
+                  "is too, so the drift measures integration and formulation error.")
+
+
+CHARTS = [chart_base_w, chart_joints, chart_modal, chart_H_E, chart_differences, chart_drift]
+
+__all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]

@@ -1,0 +1,271 @@
+"""The report's HTML pages: the data each page shows (plain Python values), rendered through the
+Jinja2 templates in reports/templates/ (autoescaped; no scripts, no network)."""
+
+import json
+import os
+
+import jinja2
+
+from .charts import GROUP_TITLES
+from .common import gfmt, sci, vec
+
+TEMPLATES = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "templates")
+
+# What each kind of check compares, for the index's column headers and the pages' legends.
+GROUP_HELP = {
+    "run": "each engine ran to the end",
+    "t": "runs give the same output times",
+    "w": "bodies' angular velocities <body>.wx/wy/wz",
+    "attitude": "bodies' attitudes (rotation angle between runs)",
+    "rate": "joint rates (revolute .rate, spherical .wx/wy/wz)",
+    "angle": "revolute joint angles",
+    "modal": "flexible bodies' modal coordinates",
+    "H": "angular momentum magnitude H",
+    "E": "energy E",
+    "H.drift": "each engine's drift of H from H(0)",
+    "E.drift": "each engine's drift of E from E(0)",
+    "extra": "extra columns named in the scene's tolerances",
+}
+# Why a scene has no check of a kind: the feature does not exist in it.
+GROUP_ABSENT = {
+    "rate": "no joints with rates",
+    "angle": "no revolute joints",
+    "modal": "no flexible bodies",
+    "attitude": "no attitudes compared",
+    "extra": "no extra columns asked for",
+    "E.drift": "E not checked",
+    "H.drift": "H not checked",
+}
+
+PASS_RULE = ("pass when  max over the run of |a(t) - b(t)|  <=  atol + rtol * max over the run of |b(t)|")
+
+
+def environment():
+    return jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), autoescape=True,
+                              undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
+                              keep_trailing_newline=True)
+
+
+def pair(c):
+    return c["a"] + (" vs " + c["b"] if c.get("b") else "")
+
+
+def check_line(c):
+    """One line naming a failed check and its numbers (as harness/report.cpp describe_failure)."""
+    if c["group"] == "run":
+        return "%s: run failed at t = %s s: %s" % (pair(c), gfmt(c.get("time")), c.get("note", ""))
+    line = ("%s, %s: max error %s at t = %s s > bound %s (atol %s + rtol %s * %s), normalised %s"
+            % (c["quantity"], pair(c), sci(c.get("error"), 4), gfmt(c.get("time")), sci(c.get("bound"), 4),
+               sci(c.get("atol"), 2), sci(c.get("rtol"), 2), sci(c.get("scale"), 4), sci(c.get("normalised"))))
+    if c.get("first_exceeded") is not None:
+        line += ", first over at t = %s s" % gfmt(c["first_exceeded"])
+    if c.get("note"):
+        line += " (%s)" % c["note"]
+    return line
+
+
+def status_counts(checks):
+    counts = {"PASS": 0, "FAIL": 0, "EXCLUDED": 0, "SKIPPED": 0}
+    for c in checks:
+        counts[c["status"]] = counts.get(c["status"], 0) + 1
+    return counts
+
+
+def scene_result(s):
+    if s.get("input_error"):
+        return "BAD INPUT"
+    return "PASS" if s.get("passed") else "FAIL"
+
+
+# ----------------------------------------------------------------------------------------------
+# Index
+
+
+def index_context(summary):
+    scenes = summary.get("scenes", [])
+    order = summary.get("group_order", [])
+    present = [g for g in order if any(x["group"] == g for s in scenes for x in s.get("groups", []))]
+    rows = []
+    failed_checks = []
+    for s in scenes:
+        by = {x["group"]: x for x in s.get("groups", [])}
+        cells = []
+        for g in present:
+            x = by.get(g)
+            if s.get("input_error"):
+                cells.append(dict(kind="none", text="", detail=""))
+            elif not x:
+                cells.append(dict(kind="absent", text="n/a", detail=GROUP_ABSENT.get(g, "no such checks")))
+            elif g == "run":
+                ok = x["checks"] - x["failed"] - x["skipped"]
+                text = ("%d of %d failed" % (x["failed"], x["checks"])) if x["failed"] else "%d ran" % ok
+                if x["skipped"]:
+                    text += ", %d skipped" % x["skipped"]
+                cells.append(dict(kind=x["status"], text=text, detail=""))
+            elif x["status"] in ("PASS", "FAIL"):
+                cells.append(dict(kind=x["status"], text="%s %s" % (x["status"], sci(x["worst"], 2)),
+                                  detail=x["worst_check"] + (" (%d of %d failed)" % (x["failed"], x["checks"])
+                                                             if x["failed"] else "")))
+            else:
+                cells.append(dict(kind=x["status"], text=x["status"].lower(), detail=""))
+        for c in s.get("checks", []):
+            if c["status"] == "FAIL":
+                failed_checks.append(dict(scene=s.get("scene"), page=s["page"], line=check_line(c)))
+        rows.append(dict(scene=s.get("scene"), page=s["page"], cells=cells, result=scene_result(s),
+                         input_error=s.get("input_error", ""), picture_notes=len(s.get("picture_notes", []))))
+    counts = summary.get("counts", {})
+    n = counts.get("scenes", len(scenes))
+    unreadable = counts.get("scenes_unreadable", 0)
+    failed = counts.get("scenes_failed", 0)
+    all_checks = [c for s in scenes for c in s.get("checks", [])]
+    return dict(
+        title="crossdyn verification report",
+        verdict="PASS" if summary.get("passed") else "FAIL",
+        scenes_total=n, scenes_passed=n - failed - unreadable, scenes_failed=failed,
+        scenes_unreadable=unreadable, checks=status_counts(all_checks), checks_total=len(all_checks),
+        columns=[dict(group=g, title=GROUP_TITLES.get(g, g), help=GROUP_HELP.get(g, "")) for g in present],
+        rows=rows, failed_checks=failed_checks,
+        unreadable=[r for r in rows if r["input_error"]],
+        pass_rule=PASS_RULE, summary=summary.get("pass_rule", {}))
+
+
+# ----------------------------------------------------------------------------------------------
+# Scene page
+
+
+def _inertia_text(inertia):
+    if all(abs(inertia[i][j]) == 0 for i in range(3) for j in range(3) if i != j):
+        return "diag" + vec([inertia[i][i] for i in range(3)])
+    return json.dumps(inertia)
+
+
+def scene_tables(system):
+    """Bodies and joints tables, with a column only where some row has something in it."""
+    bodies = system.get("bodies", [])
+    has_modes = any(b.get("modes") for b in bodies)
+    has_torque = any(b.get("torque_N_m") for b in bodies)
+    body_head = ["body", "mass (kg)", "inertia about CM, body axes (kg m^2)"]
+    if has_modes:
+        body_head.append("flexible modes")
+    if has_torque:
+        body_head.append("external torque (N m), from time t (s)")
+    body_rows = []
+    for b in bodies:
+        row = [b["name"], gfmt(b["mass_kg"]), _inertia_text(b["inertia_kg_m2"])]
+        if has_modes:
+            row.append(", ".join(b.get("modes", [])) or "rigid")
+        if has_torque:
+            row.append(json.dumps(b["torque_N_m"]) + " (" + b["torque_frame"] + " frame)"
+                       if b.get("torque_N_m") else "none")
+        body_rows.append(row)
+    joint_rows = []
+    any_loads = False
+    for j in system.get("joints", []):
+        ini = j.get("initial", {})
+        if j["type"] == "free":
+            geometry = "base body; parent is the inertial frame N"
+            initial = "w_NB_B = %s rad/s, q_NB = %s" % (vec(ini.get("w_NB_B_rad_s", [])), vec(ini.get("q_NB", [])))
+            if any(ini.get("p_NoBo_N_m", [0, 0, 0])):
+                initial += ", p_NoBo_N = %s m" % vec(ini["p_NoBo_N_m"])
+        else:
+            geometry = "parent point %s m, child point %s m" % (vec(j["parent_point_m"]), vec(j["child_point_m"]))
+            if "axis" in j:
+                geometry += ", axis %s (parent frame)" % vec(j["axis"])
+            if "orientation_offset_q" in j:
+                geometry += ", offset q %s" % vec(j["orientation_offset_q"])
+            if j["type"] == "revolute":
+                initial = "angle %s rad, rate %s rad/s" % (gfmt(ini.get("angle_rad")), gfmt(ini.get("rate_rad_s")))
+            elif j["type"] == "spherical":
+                initial = "q_J %s, w_PC_C %s rad/s" % (vec(ini.get("q_J", [])), vec(ini.get("w_PC_C_rad_s", [])))
+            else:
+                initial = "-"
+        loads = []
+        for key, label in (("stiffness_N_m_rad", "stiffness %s N m/rad"), ("damping_N_m_s_rad", "damping %s N m s/rad"),
+                           ("neutral_angle_rad", "neutral angle %s rad")):
+            if key in j:
+                loads.append(label % gfmt(j[key]))
+        if "motor_N_m" in j:
+            loads.append("motor " + ", ".join("%s N m from t = %s s" % (json.dumps(m["value"]), gfmt(m["from_t"]))
+                                              for m in j["motor_N_m"]))
+        any_loads = any_loads or bool(loads)
+        joint_rows.append([j["name"], j["type"], "%s -> %s" % (j["parent"], j["child"]), geometry, initial,
+                           "; ".join(loads)])
+    joint_head = ["joint", "type", "parent -> child", "geometry", "initial state", "loads"]
+    if not any_loads:
+        joint_head = joint_head[:-1]
+        joint_rows = [r[:-1] for r in joint_rows]
+    return dict(body_head=body_head, body_rows=body_rows, joint_head=joint_head, joint_rows=joint_rows)
+
+
+def run_rows(scene):
+    rows = []
+    for r in scene.get("runs", []):
+        failure = r.get("failure")
+        note = r.get("note", "")
+        analytic = r["engine"] == "analytic"
+        if analytic:
+            note = "closed-form torque-free solution (Jacobi elliptic functions)"
+        if failure:
+            note += " (failed at t = %s s)" % gfmt(failure["time"])
+        rows.append(dict(label=r["label"], state=r["state"], rows=r["rows"],
+                         rhs="-" if analytic else r["rhs_calls"], steps="-" if analytic else r["steps"],
+                         wall="-" if analytic else gfmt(r["wall_seconds"], 3), note=note,
+                         csv=r.get("data", ""),
+                         cls={"ok": "", "failed": "FAIL", "skipped": "SKIPPED"}.get(r["state"], "")))
+    return rows
+
+
+def check_rows(scene):
+    order = {"FAIL": 0, "PASS": 1, "EXCLUDED": 2, "SKIPPED": 3}
+    rows = []
+    for c in sorted(scene.get("checks", []), key=lambda c: order.get(c["status"], 9)):
+        numbers = c["status"] in ("PASS", "FAIL") and c["group"] != "run"
+        dash = "-"
+        rows.append(dict(
+            status=c["status"], quantity=c["quantity"], pair=pair(c),
+            error=sci(c["error"]) if numbers else dash,
+            time=gfmt(c["time"]) if numbers or (c["group"] == "run" and c["status"] == "FAIL") else dash,
+            first=gfmt(c["first_exceeded"]) if c.get("first_exceeded") is not None else dash,
+            atol=sci(c["atol"], 2) if numbers else dash, rtol=sci(c["rtol"], 2) if numbers else dash,
+            scale=sci(c["scale"]) if numbers else dash, bound=sci(c["bound"]) if numbers else dash,
+            normalised=sci(c["normalised"]) if numbers else dash,
+            note=c["note"] or ("tolerance '%s'" % c["tolerance_key"]
+                               if c["tolerance_key"] not in ("default", "-") else "")))
+    return rows
+
+
+def scene_context(scene, pictures, charts, motion_note):
+    system = scene.get("system", {})
+    settings = scene.get("settings", {})
+    run = system.get("run", {})
+    comp = system.get("compare", {})
+    tolerances = [dict(key="default", atol=sci(comp.get("default", {}).get("atol")),
+                       rtol=sci(comp.get("default", {}).get("rtol")), note="")]
+    for t in comp.get("tolerances", []):
+        tolerances.append(dict(key=t["quantity"], atol=sci(t["atol"]), rtol=sci(t["rtol"]), note=""))
+    for x in comp.get("excluded", []):
+        tolerances.append(dict(key=x["quantity"], atol="-", rtol="-", note="excluded: " + x["reason"]))
+    checks = scene.get("checks", [])
+    return dict(
+        title="crossdyn: " + str(scene.get("scene", scene["id"])),
+        scene=scene.get("scene", scene["id"]), path=scene.get("path", ""), result=scene_result(scene),
+        input_error=scene.get("input_error", ""),
+        counts=status_counts(checks), checks_total=len(checks),
+        failed=[check_line(c) for c in checks if c["status"] == "FAIL"],
+        description=system.get("description", ""), source=system.get("source", ""),
+        pictures=pictures, motion_note=motion_note, picture_notes=scene.get("picture_notes", []),
+        tables=scene_tables(system) if system else None,
+        run_text=("0 to %s s, output every %s s, integrator %s (rtol %s, atol %s). Total linear momentum %s."
+                  % (gfmt(settings.get("duration_s", run.get("duration_s"))),
+                     gfmt(settings.get("output_step_s", run.get("output_step_s"))),
+                     settings.get("integrator", run.get("integrator")), gfmt(settings.get("rtol")),
+                     gfmt(settings.get("atol")), "zero" if system.get("zero_linear_momentum") else "as given")),
+        analytic=system.get("analytic", ""),
+        tolerances=tolerances, runs=run_rows(scene), charts=charts, checks=check_rows(scene),
+        notes=scene.get("notes", []), pass_rule=PASS_RULE,
+        groups=[dict(title=GROUP_TITLES.get(g["group"], g["group"]), help=GROUP_HELP.get(g["group"], ""))
+                for g in scene.get("groups", [])])
+
+
+def render(env, template, context):
+    return env.get_template(template).render(**context)

@@ -1,0 +1,346 @@
+"""Tests of the report and drawing scripts (reports/crossdyn_report), run by ctest with Debian's
+/usr/bin/python3:
+
+    CROSSDYN=build/crossdyn CROSSDYN_SOURCE_DIR=. /usr/bin/python3 -B -m unittest -v test_report_py
+
+They assert what a reader of the report relies on: the joint angles drawn for spherical joints are
+the joint rotation the engines integrate (checked against kane's own revolute angle column, offset
+included), the index counts passed / failed / unreadable scenes exactly and names the failing
+checks in its text, a page has no column for a feature its scene lacks, the joints chart colours
+joints and dashes runs with its legend outside the data, and the scene picture flags a child
+folded into its parent.
+"""
+
+import html
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+SOURCE = os.environ.get("CROSSDYN_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
+sys.path.insert(0, os.path.join(SOURCE, "reports"))
+
+from crossdyn_report import charts, kinematics, pages, scene_view  # noqa: E402
+from crossdyn_report.common import Run  # noqa: E402
+
+CROSSDYN = os.environ.get("CROSSDYN", os.path.join(SOURCE, "build", "crossdyn"))
+
+
+def quat(axis, angle):
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    return np.concatenate([[math.cos(angle / 2)], math.sin(angle / 2) * a])
+
+
+def visible(page):
+    """The text of a page a reader sees: tags and their attributes (tooltips) removed."""
+    text = re.sub(r"</(td|th|li|p|h1|h2|tr|div|small|pre)>", " ", page)
+    text = re.sub(r"<[^>]*>", "", text)
+    return html.unescape(re.sub(r"\s+", " ", text))
+
+
+class FakeRun(Run):
+    """A run from arrays instead of a CSV file."""
+
+    def __init__(self, label, columns, data, index=0):
+        super().__init__({"label": label, "engine": label}, "", index)
+        self.columns, self.data = list(columns), np.asarray(data, float)
+
+
+class Kinematics(unittest.TestCase):
+    def test_rotation_vector_is_axis_times_angle(self):
+        axis = np.array([1.0, 2.0, 2.0]) / 3.0
+        for angle in (0.0, 1e-9, 0.7, 3.0, math.pi - 1e-9):
+            q = quat(axis, angle)[None, :]
+            np.testing.assert_allclose(kinematics.rotation_vector(q)[0], angle * axis, rtol=0, atol=1e-14)
+            # q and -q are the same rotation.
+            np.testing.assert_allclose(kinematics.rotation_vector(-q)[0], angle * axis, rtol=0, atol=1e-14)
+
+    def test_joint_rotation_from_attitudes_undoes_the_offset(self):
+        # R_NC = R_NP R_offset Rot(axis_J, theta): the joint rotation is theta about axis_J,
+        # whatever the parent's attitude.
+        q_NP = quat([0.3, -0.5, 0.8], 1.1)
+        q_off = quat([0, 0, 1], math.pi / 2)
+        axis_J = np.array([0.0, -1.0, 0.0])
+        thetas = np.linspace(-2.5, 2.5, 11)
+        mul = kinematics.multiply
+        rows = []
+        for th in thetas:
+            q_NC = mul(mul(q_NP[None, :], q_off[None, :]), quat(axis_J, th)[None, :])[0]
+            rows.append(np.concatenate([[th], q_NP, q_NC]))
+        run = FakeRun("kane", ["t", "p.qw", "p.qx", "p.qy", "p.qz", "c.qw", "c.qx", "c.qy", "c.qz"], rows)
+        system = {"bodies": [{"name": "p"}, {"name": "c"}]}
+        joint = {"name": "j", "parent": "p", "child": "c", "orientation_offset_q": list(q_off)}
+        phi = kinematics.joint_rotation_vectors(run, system, joint)
+        np.testing.assert_allclose(phi, thetas[:, None] * axis_J[None, :], rtol=0, atol=1e-13)
+        # The free joint has no parent body: nothing to draw.
+        self.assertIsNone(kinematics.joint_rotation_vectors(run, system, dict(joint, parent="N (inertial)")))
+
+    def test_joint_rotation_is_the_engines_own_angle(self):
+        # kane's attitudes of the hinged panels (a hinge with a 180 deg offset, one without) give
+        # back kane's own angle column: the formula of the spherical-joint chart, checked on data.
+        scene = os.path.join(SOURCE, "tests", "harness", "scenes", "hinged_panels.yaml")
+        with tempfile.TemporaryDirectory() as tmp:
+            csv = os.path.join(tmp, "kane.csv")
+            summary = os.path.join(tmp, "summary.json")
+            subprocess.run([CROSSDYN, "run", scene, "--engine", "kane", "-o", csv], check=True)
+            subprocess.run([CROSSDYN, "compare", scene, "--engines", "kane", "--allow-no-comparison", "--json", summary], check=True,
+                           stdout=subprocess.DEVNULL)
+            with open(summary, encoding="utf-8") as f:
+                system = json.load(f)["scenes"][0]["system"]
+            run = Run({"label": "kane", "engine": "kane", "data": "kane.csv"}, tmp, 0)
+        self.assertGreater(run.data.shape[0], 100)
+        checked = 0
+        for joint in system["joints"]:
+            if joint["type"] != "revolute":
+                continue
+            phi = kinematics.joint_rotation_vectors(run, system, joint)
+            q_off = np.asarray(joint.get("orientation_offset_q", [1, 0, 0, 0]), float)
+            R_off = rotation_matrix(q_off)
+            axis_J = R_off.T @ np.asarray(joint["axis"], float)
+            angle = run.col(joint["name"] + ".angle")
+            self.assertGreater(np.ptp(angle), 0.05)  # the hinge moves
+            np.testing.assert_allclose(phi, angle[:, None] * axis_J[None, :], rtol=0, atol=1e-8)
+            checked += 1
+        self.assertEqual(checked, 2)
+
+
+def rotation_matrix(q):
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def check(quantity, group, status, a="lagrange", b="kane", normalised=0.1):
+    return {"quantity": quantity, "group": group, "a": a, "b": b, "tolerance_key": "default", "atol": 1e-8,
+            "rtol": 1e-8, "scale": 1.0, "bound": 2e-8, "error": normalised * 2e-8, "time": 1.5,
+            "first_exceeded": 0.5 if status == "FAIL" else None, "normalised": normalised, "status": status,
+            "note": ""}
+
+
+def group(name, status, worst, worst_check, failed=0):
+    return {"group": name, "status": status, "worst": worst, "worst_check": worst_check, "checks": 1,
+            "failed": failed, "excluded": 0, "skipped": 0}
+
+
+def summary_three_scenes():
+    system = {"name": "s", "description": "d", "source": "src", "zero_linear_momentum": True, "analytic": "",
+              "bodies": [{"name": "main", "mass_kg": 1.0, "inertia_kg_m2": [[1, 0, 0], [0, 2, 0], [0, 0, 3]]}],
+              "joints": [{"name": "base", "type": "free", "parent": "N (inertial)", "child": "main",
+                          "initial": {"w_NB_B_rad_s": [1, 0, 0], "q_NB": [1, 0, 0, 0]}}],
+              "run": {"duration_s": 1, "output_step_s": 0.1, "integrator": "rkf78"},
+              "compare": {"default": {"atol": 1e-8, "rtol": 1e-8}, "tolerances": [], "excluded": []}}
+    runs = [{"label": "kane", "engine": "kane", "state": "ok", "note": "", "rows": 11, "rhs_calls": 10,
+             "steps": 2, "wall_seconds": 0.01, "data": "data/good/kane.csv"},
+            {"label": "lagrange", "engine": "lagrange", "state": "ok", "note": "", "rows": 11, "rhs_calls": 10,
+             "steps": 2, "wall_seconds": 0.01, "data": "data/good/lagrange.csv"}]
+    good = {"id": "good", "scene": "good", "page": "good.html", "path": "good.yaml", "passed": True,
+            "system": system, "runs": runs, "settings": {"duration_s": 1, "output_step_s": 0.1},
+            "checks": [check("main.wx", "w", "PASS"), check("hinge.rate", "rate", "PASS")],
+            "groups": [group("w", "PASS", 0.1, "main.wx lagrange vs kane"),
+                       group("rate", "PASS", 0.1, "hinge.rate lagrange vs kane")], "notes": []}
+    bad = dict(good, id="bad", scene="bad", page="bad.html", passed=False,
+               checks=[check("main.wx", "w", "FAIL", normalised=4.6e2)],
+               groups=[group("w", "FAIL", 4.6e2, "main.wx lagrange vs kane", failed=1)])
+    unreadable = {"id": "broken", "scene": "broken", "page": "broken.html", "path": "broken.yaml",
+                  "passed": False, "input_error": "broken.yaml:2:3: bodies: expected a list"}
+    return {"tool": "crossdyn", "passed": False, "group_order": ["run", "t", "w", "attitude", "rate", "angle",
+                                                                "modal", "H", "E", "H.drift", "E.drift", "extra"],
+            "counts": {"scenes": 3, "scenes_failed": 1, "scenes_unreadable": 1, "checks": 3, "checks_failed": 1},
+            "scenes": [good, bad, unreadable]}
+
+
+class Pages(unittest.TestCase):
+    def setUp(self):
+        self.env = pages.environment()
+
+    def test_index_counts_scenes_and_names_the_failures(self):
+        html = pages.render(self.env, "index.html", pages.index_context(summary_three_scenes()))
+        text = visible(html)
+        self.assertIn("FAIL: 3 scenes: 1 passed, 1 failed (a check did not pass), 1 could not be read.", text)
+        self.assertIn("3 checks: 2 passed, 1 failed, 0 excluded, 0 skipped.", text)
+        self.assertIn("bad: main.wx, lagrange vs kane: max error 9.200e-06 at t = 1.5 s > bound 2.000e-08", text)
+        self.assertIn("broken: could not be read: broken.yaml:2:3: bodies: expected a list", text)
+        self.assertIn("error / (atol + rtol * scale)", text)
+        self.assertIn("1 or less passes", text)
+        # The worst check of a cell is in the cell's text, not only in a tooltip.
+        self.assertIn("FAIL 4.6e+02 main.wx lagrange vs kane (1 of 1 failed)", text)
+        # A column for rates (one scene has them), "n/a" where a scene has none; no column for
+        # kinds of check no scene has (modal coordinates, angles).
+        self.assertIn("joint rates", text)
+        self.assertIn("n/a no joints with rates", text)
+        self.assertNotIn("modal", text)
+        self.assertNotIn("joint angles", text)
+        self.assertNotIn("<script", html)
+
+    def test_a_scene_whose_picture_flags_something_is_pointed_at(self):
+        summary = summary_three_scenes()
+        summary["scenes"][0]["picture_notes"] = ["hinge1: arm's CM is inboard of the joint"]
+        html = pages.render(self.env, "index.html", pages.index_context(summary))
+        self.assertIn('<a href="good.html#picture">look at the picture: 1 note</a>', html)
+        self.assertEqual(html.count("look at the picture:"), 1)
+        page = pages.render(self.env, "scene.html", pages.scene_context(summary["scenes"][0], [], [], ""))
+        self.assertIn("The picture flags: hinge1: arm's CM is inboard of the joint", visible(page))
+
+    def test_scene_page_links_csv_and_has_no_empty_columns(self):
+        s = summary_three_scenes()["scenes"][1]
+        s["group_order"] = []
+        html = pages.render(self.env, "scene.html", pages.scene_context(s, [], [], ""))
+        text = visible(html)
+        self.assertIn('<a href="data/good/kane.csv">CSV</a>', html)
+        self.assertIn('<a href="data/good/lagrange.csv">CSV</a>', html)
+        self.assertIn("Failed checks main.wx, lagrange vs kane: max error", text)
+        self.assertNotIn("flexible modes", text)
+        self.assertNotIn("external torque", text)
+        self.assertNotIn("loads", text)
+
+    def test_ascii_only_headline_when_all_pass(self):
+        summary = summary_three_scenes()
+        summary["scenes"] = summary["scenes"][:1]
+        summary["counts"] = {"scenes": 1, "scenes_failed": 0, "scenes_unreadable": 0}
+        summary["passed"] = True
+        text = visible(pages.render(self.env, "index.html", pages.index_context(summary)))
+        self.assertIn("ALL PASS: 1 scene: 1 passed, 0 failed (a check did not pass), 0 could not be read.", text)
+        self.assertNotIn("What failed", text)
+
+
+class JointsChart(unittest.TestCase):
+    def test_colour_is_the_joint_line_style_the_run_and_the_legend_is_outside(self):
+        t = np.linspace(0, 1, 21)
+        cols = ["t", "main.qw", "main.qx", "main.qy", "main.qz", "a.qw", "a.qx", "a.qy", "a.qz",
+                "h1.angle", "h1.rate", "h2.angle", "h2.rate", "s.wx", "s.wy", "s.wz"]
+        runs = []
+        for i, label in enumerate(("kane", "lagrange", "newton-euler")):
+            q_a = np.array([quat([0, 0, 1], 0.3 * x) for x in t])
+            data = np.column_stack([t, np.ones_like(t), 0 * t, 0 * t, 0 * t, q_a, np.sin(t), np.cos(t),
+                                    -np.sin(t), -np.cos(t), 0 * t, 0 * t, 0.3 + 0 * t])
+            runs.append(FakeRun(label, cols, data, i))
+        scene = {"scene": "x", "system": {"bodies": [{"name": "main"}, {"name": "a"}],
+                                          "joints": [{"name": "base", "type": "free", "parent": "N (inertial)", "child": "main"},
+                                                     {"name": "h1", "type": "revolute", "parent": "main", "child": "a"},
+                                                     {"name": "h2", "type": "revolute", "parent": "main", "child": "a"},
+                                                     {"name": "s", "type": "spherical", "parent": "main", "child": "a"}]}}
+        captured = []
+        saved = charts.save_figure
+        charts.save_figure = lambda fig, path: captured.append(fig)
+        try:
+            name, caption = charts.chart_joints(scene, runs, "/nonexistent", "x")
+        finally:
+            charts.save_figure = saved
+        self.assertEqual(name, "x-joints.png")
+        self.assertIn("rotation angle", caption)
+        fig = captured[0]
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        axes = [ax for ax in fig.axes if ax.get_lines()]
+        # Revolute angle, revolute rate, spherical angle, spherical rate, s's rotation vector.
+        self.assertEqual(len(axes), 5)
+        by_joint, by_run = {}, {}
+        for ln in axes[0].get_lines():
+            by_joint.setdefault(ln.get_color(), set()).add(str(ln.get_linestyle()))
+        self.assertEqual(len(by_joint), 2)  # two joints: two colours ...
+        for styles in by_joint.values():
+            self.assertEqual(len(styles), 3)  # ... each in the three runs' line styles
+        for ln in axes[0].get_lines():
+            by_run.setdefault(str(ln.get_linestyle()), set()).add(ln.get_color())
+        self.assertEqual(len(by_run), 3)
+        # The spherical joint's rotation angle is drawn (0.3 rad about z, from the attitudes).
+        np.testing.assert_allclose(axes[2].get_lines()[0].get_ydata(), 0.3 * t, atol=1e-12)
+        legends = fig.legends
+        self.assertEqual(len(legends), 1)
+        box = legends[0].get_window_extent(renderer)
+        for ax in axes:
+            self.assertFalse(box.overlaps(ax.get_window_extent(renderer)), "the legend covers a chart")
+
+
+def geometry(child_at, child_point):
+    """A hub (2 m cube) with a 1 m cube child hinged at (1, 0, 0) of the hub; child CM at child_at."""
+    box = lambda s: {"type": "box", "R_BX": np.eye(3).tolist(), "size_m": [s, s, s]}
+    pose = lambda p: {"p_NoBo_N": list(p), "R_NB": np.eye(3).tolist()}
+    J = np.array([1.0, 0, 0])
+    frame = {"t": 0, "bodies": [pose([0, 0, 0]), pose(child_at)],
+             "joints": [{"p_NoJ_N_parent": [0, 0, 0], "p_NoJ_N_child": [0, 0, 0], "gap_m": 0,
+                         "axis_N_parent": [0, 0, 0], "axis_N_child": [0, 0, 0], "axis_mismatch_rad": 0},
+                        {"p_NoJ_N_parent": list(J), "p_NoJ_N_child": list(np.asarray(child_at) + child_point),
+                         "gap_m": float(np.linalg.norm(np.asarray(child_at) + child_point - J)),
+                         "axis_N_parent": [0, 0, 1], "axis_N_child": [0, 0, 1], "axis_mismatch_rad": 0}]}
+    return {"scene": "g", "bodies": [{"name": "hub", "is_base": True, "shape": box(2.0), "nodes": []},
+                                     {"name": "arm", "is_base": False, "shape": box(1.0), "nodes": []}],
+            "joints": [{"name": "base", "type": "free", "parent": -1, "child": 0},
+                       {"name": "hinge", "type": "revolute", "parent": 0, "child": 1, "axis_P": [0, 0, 1]}],
+            "initial": frame, "motion": {"engine": "kane", "state": "failed", "note": "kane: failed at t = 2 s",
+                                         "frames": [dict(frame, t=0.0)]}}
+
+
+class ScenePicture(unittest.TestCase):
+    def test_a_child_folded_into_its_parent_is_flagged(self):
+        good = geometry([2.0, 0, 0], [-1.0, 0, 0])
+        self.assertEqual(scene_view.geometry_warnings(good, good["initial"]), [])
+        folded = geometry([0.2, 0, 0], [0.8, 0, 0])
+        warnings = scene_view.geometry_warnings(folded, folded["initial"])
+        self.assertEqual(warnings, ["hinge: arm's CM is inboard of the joint, inside hub's box: check the sign "
+                                    "of child_point and the offset"])
+        # A rotor turning about its own CM inside its parent is normal.
+        rotor = geometry([1.0, 0, 0], [0.0, 0, 0])
+        self.assertEqual(scene_view.geometry_warnings(rotor, rotor["initial"]), [])
+        # Two points that should be one are named, with the distance.
+        apart = geometry([2.0, 0, 0], [-0.5, 0, 0])
+        self.assertEqual(scene_view.geometry_warnings(apart, apart["initial"]),
+                         ["hinge: the parent's and the child's joint points are 0.5 m apart"])
+
+    def test_a_failed_run_still_gives_a_picture_that_says_so(self):
+        g = geometry([2.0, 0, 0], [-1.0, 0, 0])
+        png = scene_view.combined_png(g)
+        self.assertTrue(png.startswith(b"\x89PNG\r\n\x1a\n"))
+        self.assertIn("the run failed, so only 1 time can be shown: kane: failed at t = 2 s",
+                      scene_view.motion_title(g))
+        # A positive angle about +z moves the arm (at +x of the hinge) towards +y.
+        self.assertEqual(scene_view.joint_notes(g, g["initial"]),
+                         ["hinge: axis (0, 0, 1) in hub, (0, 0, 1) in N; + angle moves arm towards N +y"])
+
+
+class CheckScenes(unittest.TestCase):
+    """The Basilisk-like hinged panels and two copies with one wrong sign each
+    (tests/harness/scenes): the picture of each says what is wrong, the correct one says nothing."""
+
+    def geometry(self, name):
+        scene = os.path.join(SOURCE, "tests", "harness", "scenes", name + ".yaml")
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "geometry.json")
+            subprocess.run([CROSSDYN, "draw", scene, "--no-motion", "-o", os.path.join(tmp, "p.png"),
+                            "--geometry", out], check=True, stdout=subprocess.DEVNULL)
+            return scene_view.load(out)
+
+    def messages(self, g):
+        f = g["initial"]
+        return scene_view.geometry_warnings(g, f), scene_view.symmetry_notes(g, f), scene_view.joint_notes(g, f)
+
+    def test_the_correct_panels_raise_nothing(self):
+        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels"))
+        self.assertEqual(warnings, [])
+        self.assertEqual(symmetry, [])
+        self.assertIn("hinge1: axis (0, -1, 0) in hub, (0, -1, 0) in N (offset); + angle moves panel1 towards N +z",
+                      notes)
+        self.assertIn("hinge2: axis (0, 1, 0) in hub, (0, 1, 0) in N; + angle moves panel2 towards N +z", notes)
+
+    def test_a_flipped_axis_is_named(self):
+        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels_flipped_axis"))
+        self.assertEqual(warnings, [])
+        self.assertEqual(symmetry, ["note: hinge1 and hinge2 carry identical bodies at mirror-image points of "
+                                    "hub, yet a positive angle moves them to opposite sides (panel1 towards "
+                                    "N -z, panel2 towards N +z)"])
+
+    def test_a_flipped_child_point_is_named(self):
+        warnings, _, _ = self.messages(self.geometry("hinged_panels_flipped_child_point"))
+        self.assertEqual(warnings, ["hinge1: panel1's CM is inboard of the joint, inside hub's box: check the "
+                                    "sign of child_point and the offset"])
+
+
+if __name__ == "__main__":
+    unittest.main()

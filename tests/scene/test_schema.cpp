@@ -1,0 +1,228 @@
+// The scene schema (core/scene/schema.hpp) is the one owner of the format: these tests hold the
+// reader, the writer, the fuzz dictionary and the rest of the code to it.
+#include "core/integrate.hpp"
+#include "core/scene/scene.hpp"
+#include "core/scene/schema.hpp"
+#include "tests/support/paths.hpp"
+
+#include <catch2/catch.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include <fstream>
+#include <set>
+#include <sstream>
+
+using namespace crossdyn;
+using scene::Key;
+using scene::Type;
+
+namespace {
+
+// The scenes that between them hold every key of the schema (tests/scene/test_scene.cpp's rich
+// scene without its comments, a single-body analytic scene, and one with the conveniences).
+const char* kRich = R"(
+name: rich
+description: every feature
+source: made up
+zero_linear_momentum: false
+bodies:
+  - name: hub
+    mass: 1 kg
+    inertia: [[10, 1, 0.5], [1, 20, 0.25], [0.5, 0.25, 25]]
+    torque:
+      frame: inertial
+      profile:
+        - {t: 0, value: [1, 0, 0]}
+        - {t: 0.5 min, value: {value: [0, -2, 0], unit: N*m}}
+  - name: arm
+    mass: 500 g
+    inertia: {value: [1, 1, 1.5, 0.1, 0, 0], unit: kg m^2}
+    center_of_mass: [0.5, 0, 0]
+  - name: tip
+    mass: 0.25 kg
+    inertia: [0.1, 0.1, 0.1]
+  - name: cap
+    mass: 0.1 kg
+    inertia: [0.01, 0.01, 0.01]
+joints:
+  - name: base
+    type: free
+    child: hub
+    initial:
+      position: {value: [1, 2, 3], unit: km}
+      attitude: {axis: [1, 1, 0], angle: 30 deg}
+      angular_velocity: [0.1, 0.2, 0.3]
+      velocity: [1 m/s, 0, 0]
+  - name: hinge
+    type: revolute
+    parent: hub
+    child: arm
+    parent_point: [1, 0, 0]
+    child_point: [-50 cm, 0, 0]
+    axis: [0, 3, 4]
+    offset: [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    spring: {stiffness: 2 N m/rad, neutral_angle: 5 deg}
+    damper: {damping: 0.5 N*m*s/rad}
+    motor: {profile: [{t: 0, value: 1 N m}, {t: 2 s, value: -1}]}
+    initial: {angle: 10 deg, rate: 30 rpm}
+  - name: ball
+    type: spherical
+    parent: arm
+    child: tip
+    parent_point: [1, 0, 0]
+    child_point: [-0.5, 0, 0]
+    offset: {axis: [0, 0, 1], angle: 90 deg}
+    spring: {stiffness: 1}
+    damper: {damping: 0.1}
+    motor: {profile: [{t: 1 s, value: [0, 0, 0.5]}]}
+    initial:
+      attitude: [0.9998, 0.02, 0, 0]
+      angular_velocity: {value: [0, 0, 10], unit: deg/s}
+  - name: weld
+    type: fixed
+    parent: tip
+    child: cap
+    parent_point: [0.1, 0, 0]
+    child_point: [0, 0, 0]
+    offset: [1, 0, 0, 0]
+run:
+  duration: 2 min
+  output_step: 500 ms
+  integrator: dopri5
+  rtol: 1e-9
+  atol: 1e-12
+  dt: 1 ms
+compare:
+  tolerances:
+    H: {atol: 1e-6}
+    default: {atol: 1e-7, rtol: 1e-6}
+  exclude:
+    - {quantity: E, reason: "the dampers dissipate energy"}
+)";
+
+const char* kAnalytic = R"(
+name: one
+analytic: torque-free
+bodies: [{name: b, mass: 1, inertia: [1, 2, 2.5]}]
+joints: [{name: base, type: free, child: b}]
+run: {duration: 1, output_step: 0.1}
+)";
+
+// The schema rows a scene text uses, found by walking its YAML as the schema describes it
+// (rows of each joint by that joint's type; value forms where a value is written as a mapping).
+void collect(const YAML::Node& n, const std::string& path, unsigned joints,
+             std::set<const Key*>& used) {
+  const Key* row = scene::find(path, joints);
+  REQUIRE(row != nullptr);
+  used.insert(row);
+  const std::string prefix = path.empty() ? "" : path + ".";
+  if (row->type == Type::Map && n.IsMap()) {
+    if (path == "joints[]") {
+      for (const scene::JointTypeInfo& t : scene::joint_types())
+        if (n["type"].Scalar() == t.name) joints = t.bit;
+    }
+    for (const auto& kv : n) {
+      const std::string key = kv.first.Scalar();
+      collect(kv.second, prefix + (path == "compare.tolerances" ? "<quantity>" : key), joints,
+              used);
+    }
+  } else if (row->type == Type::List && n.IsSequence() && scene::find(path + "[]", joints)) {
+    for (const auto& item : n) collect(item, path + "[]", joints, used);
+  } else if (n.IsMap()) {  // a value form
+    const std::string form = row->type == Type::Attitude ? "(axis-angle)" : "(list with unit)";
+    used.insert(scene::find(form));
+    for (const auto& kv : n) used.insert(scene::find(form + "." + kv.first.Scalar()));
+  }
+}
+
+std::set<const Key*> rows_used(const std::string& text) {
+  std::set<const Key*> used;
+  collect(YAML::Load(text), "", scene::kAnyJoint, used);
+  return used;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("schema: every row is well formed") {
+  std::set<std::pair<std::string_view, unsigned>> joint_rows;
+  for (const Key& k : scene::keys()) {
+    INFO(k.path);
+    CHECK(!k.doc.empty());
+    if (k.required) CHECK(k.default_value.empty());
+    if (k.type == Type::Map || k.type == Type::List || k.type == Type::Word ||
+        k.type == Type::Name)
+      CHECK(!k.noun.empty());
+    CHECK((k.type == Type::Word) == !k.words.empty());
+    const bool dimensional =
+        k.type == Type::Quantity || k.type == Type::Vector || k.type == Type::Inertia;
+    CHECK(dimensional == (k.dimension != units::Dimension::None));
+    // Rows outside joints[] apply to every joint type; rows of one path do not overlap.
+    if (!k.path.starts_with("joints[]")) CHECK(k.joints == scene::kAnyJoint);
+    for (const auto& [path, bits] : joint_rows)
+      if (path == k.path) CHECK((bits & k.joints) == 0);
+    joint_rows.insert({k.path, k.joints});
+    // Every row but the scene's own sits in a mapping (or a list item) of the schema.
+    if (k.path.empty() || (k.path.starts_with('(') && k.path.find('.') == std::string::npos))
+      continue;
+    std::string parent(k.path.substr(0, k.path.rfind('.') == std::string_view::npos
+                                            ? 0
+                                            : k.path.rfind('.')));
+    if (k.path.ends_with("[]")) parent = std::string(k.path.substr(0, k.path.size() - 2));
+    const Key* p = scene::find(parent, k.joints);
+    REQUIRE(p != nullptr);
+    CHECK((p->type == Type::Map || (p->type == Type::List && k.path.ends_with("[]"))));
+  }
+}
+
+TEST_CASE("schema: joint types and integrators agree with the rest of the code") {
+  for (const scene::JointTypeInfo& t : scene::joint_types()) {
+    Joint j;
+    j.type = t.type;
+    CHECK(t.dof == j.dof());
+  }
+  CHECK(scene::joint_types().size() == 4);
+  CHECK(scene::words(*scene::find("run.integrator")) == integrator_names());
+  CHECK(scene::find("run.integrator")->default_value == RunSpec{}.integrator);
+  CHECK(scene::joint_keys(JointType::Free) ==
+        std::vector<std::string>{"name", "type", "child", "initial"});
+  CHECK(scene::initial_keys(JointType::Revolute) == std::vector<std::string>{"angle", "rate"});
+  CHECK(scene::initial_keys(JointType::Fixed).empty());
+}
+
+TEST_CASE("schema: the reader accepts every key of the schema, and the writer writes each one "
+          "it may") {
+  std::set<const Key*> read, written;
+  for (const char* text : {kRich, kAnalytic}) {
+    const System s = read_scene_text(text, "all.yaml");
+    const std::set<const Key*> r = rows_used(text);
+    const std::set<const Key*> w = rows_used(write_scene_text(s));
+    read.insert(r.begin(), r.end());
+    written.insert(w.begin(), w.end());
+  }
+  for (const Key& k : scene::keys()) {
+    INFO(k.path << " (joint types " << k.joints << ")");
+    CHECK(read.count(&k) == 1);
+    CHECK(written.count(&k) == (k.written ? 1u : 0u));
+  }
+}
+
+TEST_CASE("schema: fuzz/scene.dict is generated from the schema") {
+  const std::string committed = slurp(test::source_dir() + "/fuzz/scene.dict");
+  INFO("regenerate: build/tests/scene/crossdyn_scene_doc --write-dict fuzz/scene.dict");
+  CHECK(committed == scene::fuzz_dictionary());
+  // Every key name is there, spelled as a key.
+  for (const Key& k : scene::keys()) {
+    const std::size_t dot = k.path.rfind('.');
+    const std::string_view name = dot == std::string_view::npos ? k.path : k.path.substr(dot + 1);
+    if (name.empty() || name.starts_with('(') || name.starts_with('<') || name.ends_with("[]"))
+      continue;
+    CHECK(committed.find("\"" + std::string(name) + ":\"") != std::string::npos);
+  }
+}
