@@ -331,7 +331,7 @@ TEST_CASE("free-free modes: sum m_i Phi_ik = 0 and sum m_i p_i x Phi_ik = 0 to t
   }
 }
 
-TEST_CASE("modes are orthogonal in the nodes' mass to the slicing error, O(N^-2); across planes exactly") {
+TEST_CASE("modes are orthogonal in the nodes' mass to the slicing error, O(N^-2), across planes exactly") {
   double cross13[3];
   const int Ns[3] = {50, 100, 200};
   for (int i = 0; i < 3; ++i) {
