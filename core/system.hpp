@@ -91,6 +91,10 @@ struct FlexBody {
   Eigen::MatrixXd K;                    // n x n modal stiffness (symmetric, positive semi-definite)
   Eigen::MatrixXd D;                    // n x n modal damping (symmetric, positive semi-definite)
   std::string origin;                   // where the data came from ("beam generator: ...", a file)
+  // The scene's `flexible:` block this body was read from, in the canonical form the scene
+  // writer writes back (YAML, SI units, every key; core/scene/flex_block.hpp). Empty when built
+  // in code. The engines ignore it.
+  std::string scene_form;
 
   int modes() const { return static_cast<int>(mode_names.size()); }
   int node_index(const std::string& n) const {

@@ -26,10 +26,11 @@
 //
 // The CM. Positions are in the body's reference frame R (the FE model's origin, body axes). The
 // reader shifts every node to the nodes' CM, p_BoNi_B = p_RoNi_R - p_RoBo_R with
-// p_RoBo_R = sum m_i p_RoNi_R / m, and returns p_RoBo_R (FlexModel): the scene reader treats it
-// as a rigid body's `center_of_mass`, so rigid joint points on this body (parent_point/child_point
-// without a node) are given in R too and moved to Bo by subtracting it. A joint at a node takes
-// the node's position and needs no point. Shapes, slopes and J are not changed by the shift.
+// p_RoBo_R = sum m_i p_RoNi_R / m, and returns p_RoBo_R (FlexModel) for information. In a scene
+// (docs/scene-format.md) rigid joint points on a flexible body (parent_point/child_point without
+// a node) are measured from that CM, Bo, as on a rigid body without `center_of_mass`; a joint at
+// a node names the node (parent_node/child_node) and takes its position. Shapes, slopes and J
+// are not changed by the shift.
 //
 // A small strict parser rather than a CSV library: Debian's libcsv (C, RFC 4180, callbacks, no
 // line/column positions) and libfccp (fast-cpp-csv-parser: column count fixed at compile time)

@@ -4,8 +4,8 @@
 //     precheck_text    size, UTF-8, control characters
 //     parse_yaml       one YAML document
 //     read_header      name, description, source, analytic, zero_linear_momentum
-//     read_bodies      mass, inertia, torque, center_of_mass
-//     read_joints      type, bodies, points, axis, offset, loads, initial conditions
+//     read_bodies      mass, inertia, torque, center_of_mass, flexible (flex_block.hpp)
+//     read_joints      type, bodies, points or nodes, axis, offset, loads, initial conditions
 //     shift_points     joint points given from a body's reference origin => from its CM
 //     order            topology (order_joints, topology.hpp) and the base velocity rule
 //     read_run, read_compare, check_analytic
@@ -29,6 +29,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -37,6 +38,7 @@
 
 #include "core/errors.hpp"
 #include "core/run_limits.hpp"
+#include "core/scene/flex_block.hpp"
 
 namespace crossdyn {
 
@@ -158,14 +160,60 @@ struct BodyIndex {
   }
 };
 
+// A flexible body's mass and inertia are its nodes' sums; when the scene gives them too they must
+// agree (to kFlexRigidTolerance relative), a check of the modal data against the author's numbers.
+inline constexpr double kFlexRigidTolerance = 1e-6;
+
+void check_flex_rigid(const Reader& r, const MapView& m, const flex::FlexModel& model) {
+  if (auto f = m.get("mass")) {
+    const double given = r.number(*f);
+    if (!(std::abs(given - model.mass) <= kFlexRigidTolerance * model.mass))
+      r.fail(f->val, "the flexible body's nodes sum to " + shortest(model.mass) + " kg, but mass is " +
+                         shortest(given) + " kg; they must agree to 1e-6 relative (omit mass to "
+                         "take the node sum)");
+  }
+  if (auto f = m.get("inertia")) {
+    const Eigen::Matrix3d given = r.inertia(*f);
+    const double scale = model.I_BBo_B.cwiseAbs().maxCoeff();
+    const double diff = (given - model.I_BBo_B).cwiseAbs().maxCoeff();
+    if (!(diff <= kFlexRigidTolerance * scale)) {
+      const Eigen::Matrix3d& I = model.I_BBo_B;
+      r.fail(f->val, "the flexible body's nodes give the inertia [" + shortest(I(0, 0)) + ", " +
+                         shortest(I(1, 1)) + ", " + shortest(I(2, 2)) + ", " + shortest(I(0, 1)) +
+                         ", " + shortest(I(0, 2)) + ", " + shortest(I(1, 2)) +
+                         "] kg m^2 (xx, yy, zz, xy, xz, yz), which differs from the one given by " +
+                         shortest(diff) + " kg m^2; they must agree to 1e-6 of the largest entry "
+                         "(omit inertia to take the node sum)");
+    }
+  }
+}
+
 Body read_body(const Reader& r, const MapView& m) {
   Body b;
   b.name = r.name(m.at("name"));
-  const Field mass = m.at("mass");
-  b.mass = r.number(mass);
-  if (!(b.mass > 0)) r.fail(mass.val, "mass must be positive, found " + shortest(b.mass) + " kg");
-  if (b.mass > kMaxMass) r.fail(mass.val, "absurd mass " + shortest(b.mass) + " kg (limit 1e9 kg)");
-  b.I_BBo_B = r.inertia(m.at("inertia"));
+  if (auto ff = m.get("flexible")) {
+    if (auto com = m.get("center_of_mass"))
+      r.fail(com->val, "a flexible body's origin is its nodes' centre of mass: center_of_mass is not "
+                       "allowed (points on it are measured from that CM, or name a node)");
+    flex::FlexModel model = read_flexible(r, *ff);
+    check_flex_rigid(r, m, model);
+    b.mass = model.mass;
+    b.I_BBo_B = model.I_BBo_B;
+    if (!(b.mass > 0) || b.mass > kMaxMass)
+      r.fail(ff->val, "the nodes' total mass " + shortest(b.mass) + " kg is outside (0, 1e9] kg");
+    b.flex = std::move(model.flex);
+  } else {
+    for (const char* key : {"mass", "inertia"})
+      if (!m.get(key))
+        r.fail(m.self(), std::string("missing required key '") + key + "' in a body (a rigid body "
+                         "needs mass and inertia; a flexible one takes them from its nodes)");
+    const Field mass = *m.get("mass");
+    b.mass = r.number(mass);
+    if (!(b.mass > 0)) r.fail(mass.val, "mass must be positive, found " + shortest(b.mass) + " kg");
+    if (b.mass > kMaxMass)
+      r.fail(mass.val, "absurd mass " + shortest(b.mass) + " kg (limit 1e9 kg)");
+    b.I_BBo_B = r.inertia(*m.get("inertia"));
+  }
   if (auto tf = m.get("torque")) {
     const MapView t(r, tf->val, "bodies[].torque");
     if (auto f = t.get("frame"))
@@ -274,7 +322,37 @@ void read_initial(const Reader& r, const MapView& m, const std::string& type, Ra
   }
 }
 
-RawJoint read_joint(const Reader& r, const Val& item, const BodyIndex& bodies,
+// A joint's point on its parent or child (`side`): `<side>_point`, or `<side>_node` on a flexible
+// body, whose undeformed position it then is (docs/flexible-bodies.md "Joints at nodes").
+Eigen::Vector3d joint_point(const Reader& r, const MapView& m, const System& s, int body,
+                            const std::string& side, int& node) {
+  const auto point = m.get(side + "_point");
+  const auto named = m.get(side + "_node");
+  const Body& b = s.bodies[static_cast<std::size_t>(body)];
+  if (!named) {
+    if (!point)
+      r.fail(m.self(), "missing required key '" + side + "_point' in a joint (or '" + side +
+                           "_node' for a node of a flexible " + side + ")");
+    return r.vector(*point);
+  }
+  if (point)
+    r.fail(point->val, "give either " + side + "_point or " + side + "_node, not both (the joint "
+                       "point is the node's position)");
+  const std::string n = r.name(*named);
+  if (!b.flex)
+    r.fail(named->val, "the " + side + " '" + b.name + "' is a rigid body, without nodes; give " +
+                           side + "_point");
+  node = b.flex->node_index(n);
+  if (node < 0) {
+    std::vector<std::string> names;
+    for (const FlexNode& x : b.flex->nodes) names.push_back(x.name);
+    r.fail(named->val, "body '" + b.name + "' has no node '" + n + "'" + suggestion(n, names) +
+                           "; its nodes: " + join(names, 6));
+  }
+  return b.flex->nodes[static_cast<std::size_t>(node)].p_BoNi_B;
+}
+
+RawJoint read_joint(const Reader& r, const Val& item, const System& s, const BodyIndex& bodies,
                     const std::unordered_map<std::string, const RawJoint*>& earlier) {
   MapView m(r, item, "joints[]");  // every joint type's keys, until the type is known
   Joint J;
@@ -299,8 +377,8 @@ RawJoint read_joint(const Reader& r, const Val& item, const BodyIndex& bodies,
     const Field parent = m.at("parent");
     raw.parent_val = parent.val;
     j.parent = bodies.find(r, parent);
-    j.p_PoJ_P = r.vector(m.at("parent_point"));
-    j.p_CoJ_C = r.vector(m.at("child_point"));
+    j.p_PoJ_P = joint_point(r, m, s, j.parent, "parent", j.parent_node);
+    j.p_CoJ_C = joint_point(r, m, s, j.child, "child", j.child_node);
     if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
   }
   if (j.type == JointType::Revolute) j.axis_P = r.direction(m.at("axis"));
@@ -310,13 +388,14 @@ RawJoint read_joint(const Reader& r, const Val& item, const BodyIndex& bodies,
   return raw;
 }
 
-std::vector<RawJoint> read_joints(const Reader& r, const MapView& top, const BodyIndex& bodies) {
+std::vector<RawJoint> read_joints(const Reader& r, const MapView& top, const System& s,
+                                  const BodyIndex& bodies) {
   std::vector<RawJoint> raw;
   const std::vector<Val> items = r.list(top.at("joints"));
   raw.reserve(items.size());  // `earlier` points into raw
   std::unordered_map<std::string, const RawJoint*> earlier;
   for (const Val& item : items) {
-    raw.push_back(read_joint(r, item, bodies, earlier));
+    raw.push_back(read_joint(r, item, s, bodies, earlier));
     earlier.emplace(raw.back().joint.name, &raw.back());
   }
   return raw;
@@ -469,7 +548,7 @@ System read(const Reader& r, const std::string& text) {
   s.file = r.file();
   read_header(r, top, s);
   const BodyIndex bodies = read_bodies(r, top, s);
-  std::vector<RawJoint> raw = read_joints(r, top, bodies);
+  std::vector<RawJoint> raw = read_joints(r, top, s, bodies);
   shift_points(raw, bodies);
   order(r, top.at("joints").val, raw, bodies, s);
   read_run(r, top, s);

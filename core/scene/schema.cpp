@@ -43,20 +43,97 @@ constexpr std::array kKeys = std::to_array<Key>({
 
 // ----- bodies ---------------------------------------------------------------------------------
 {.path = "bodies[]", .type = Map, .noun = "a body",
- .doc = "One rigid body."},
+ .doc = "One body: rigid, or flexible when it has a `flexible` block."},
 {.path = "bodies[].name", .type = Name, .required = true, .noun = "body name",
  .doc = "The body's name, unique among bodies and joints; output columns are `<name>.wx` etc."},
-{.path = "bodies[].mass", .type = Quantity, .dimension = Dimension::Mass, .required = true,
- .doc = "Mass, > 0 and at most 1e9 kg."},
-{.path = "bodies[].inertia", .type = Inertia, .dimension = Dimension::Inertia, .required = true,
+{.path = "bodies[].mass", .type = Quantity, .dimension = Dimension::Mass,
+ .default_value = "flexible: the node sum",
+ .doc = "Mass, > 0 and at most 1e9 kg. Required for a rigid body. A flexible body's mass is the sum "
+        "of its nodes' masses; when also given here it must agree with that sum to 1e-6 relative "
+        "(a check of the modal data), and the node sum is used."},
+{.path = "bodies[].inertia", .type = Inertia, .dimension = Dimension::Inertia,
+ .default_value = "flexible: the node sum",
  .doc = "Inertia about the centre of mass, in body axes: symmetric, positive definite, principal "
-        "moments obeying I1 + I2 >= I3."},
+        "moments obeying I1 + I2 >= I3. Required for a rigid body. A flexible body's is the node "
+        "sum sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T)) (undeformed); when also given here every "
+        "entry must agree with it to 1e-6 of its largest entry, and the node sum is used."},
 {.path = "bodies[].center_of_mass", .type = Vector, .dimension = Dimension::Length,
  .default_value = "[0, 0, 0]", .noun = "a point", .written = false,
  .doc = "The centre of mass in the body's own reference frame R (axes = body axes). When given, "
         "every point of this body (`parent_point` of the joints it carries, `child_point` of its "
         "own joint) is measured from R's origin, and the reader moves them to the CM; `inertia` "
-        "stays about the CM. The base's `initial.position` and `velocity` remain those of its CM."},
+        "stays about the CM. The base's `initial.position` and `velocity` remain those of its CM. Not on a flexible body (its nodes' CM is its origin)."},
+{.path = "bodies[].flexible", .type = Map, .noun = "a flexible block: {beam: ...} or {nodes: file}",
+ .doc = "Makes the body flexible (docs/flexible-bodies.md): its mass is carried by nodes with mode "
+        "shapes, from EITHER `beam` (a uniform Euler-Bernoulli beam the reader builds) OR `nodes` "
+        "(a nodal data file, docs/flexible-data.md). Points on it (`parent_point`, `child_point`) "
+        "are measured from its undeformed CM, the nodes' CM; a joint at a node names it with "
+        "`parent_node`/`child_node`."},
+{.path = "bodies[].flexible.beam", .type = Map, .noun = "a beam",
+ .doc = "A uniform beam along one body axis, centred on the body origin, sliced into `slices` "
+        "nodes plus the massless end nodes `bottom` (at -length/2) and `top` (+length/2); modes "
+        "`qx1, qx2, ...` displace it along x, `qy1, ...` along y (core/flex/beam.hpp)."},
+{.path = "bodies[].flexible.beam.length", .type = Quantity, .dimension = Dimension::Length,
+ .required = true,
+ .doc = "The beam's length L, > 0."},
+{.path = "bodies[].flexible.beam.axis", .type = Word, .default_value = "z", .words = "x|y|z",
+ .noun = "beam axis",
+ .doc = "The body axis the beam lies along."},
+{.path = "bodies[].flexible.beam.mass_per_length", .type = Number, .required = true,
+ .doc = "rho A in kg/m (a bare SI number), > 0: the beam's mass is mass_per_length * length."},
+{.path = "bodies[].flexible.beam.section", .type = Vector, .dimension = Dimension::Length,
+ .required = true, .noun = "the section's sides",
+ .doc = "The box section's sides along x, y, z, 0 along the long axis: `[2, 2, 0]` for a beam "
+        "along z (for the slices' own inertia, so that the body's inertia is the box's)."},
+{.path = "bodies[].flexible.beam.bending", .type = Map, .noun = "the bending planes",
+ .doc = "Per displacement axis (the two axes across the beam): modes and stiffness. An axis not "
+        "given has no modes."},
+{.path = "bodies[].flexible.beam.bending.x", .type = Map, .noun = "a bending plane",
+ .doc = "Bending with displacement along x."},
+{.path = "bodies[].flexible.beam.bending.x.modes", .type = Number, .required = true,
+ .doc = "The number of modes, 0 to 50 (integer)."},
+{.path = "bodies[].flexible.beam.bending.x.EI", .type = Number, .default_value = "0",
+ .doc = "Bending stiffness EI in N m^2 (a bare SI number), > 0 when modes > 0."},
+{.path = "bodies[].flexible.beam.bending.y", .type = Map, .noun = "a bending plane",
+ .doc = "Bending with displacement along y."},
+{.path = "bodies[].flexible.beam.bending.y.modes", .type = Number, .required = true,
+ .doc = "As for x."},
+{.path = "bodies[].flexible.beam.bending.y.EI", .type = Number, .default_value = "0",
+ .doc = "As for x."},
+{.path = "bodies[].flexible.beam.bending.z", .type = Map, .noun = "a bending plane",
+ .doc = "Bending with displacement along z."},
+{.path = "bodies[].flexible.beam.bending.z.modes", .type = Number, .required = true,
+ .doc = "As for x."},
+{.path = "bodies[].flexible.beam.bending.z.EI", .type = Number, .default_value = "0",
+ .doc = "As for x."},
+{.path = "bodies[].flexible.beam.boundary", .type = Word, .default_value = "free-free",
+ .words = "free-free|clamped-bottom|clamped-top", .noun = "boundary condition",
+ .doc = "Free-free, or clamped (cantilevered) at the `bottom` or `top` end: the clamp is the "
+        "body frame itself, so a cantilever is attached to its hub at that end."},
+{.path = "bodies[].flexible.beam.slices", .type = Number, .default_value = "100",
+ .doc = "The number of slices N (integer, 1 to 10000; at least 2 (k + 1) for mode k)."},
+{.path = "bodies[].flexible.beam.normalisation", .type = Word, .default_value = "auto",
+ .words = "auto|top|bottom|mass", .noun = "normalisation",
+ .doc = "Each shape scaled to unit displacement at the `top` end (`auto`: top, or bottom when "
+        "clamped at the top), at the `bottom` end, or to unit modal mass (1 kg)."},
+{.path = "bodies[].flexible.beam.damping", .type = Map, .noun = "a modal damping",
+ .doc = "Modal damping: EITHER `ratios` OR Rayleigh `alpha`, `beta`; none when not given."},
+{.path = "bodies[].flexible.beam.damping.ratios", .type = List, .noun = "a list of damping ratios",
+ .doc = "The damping ratio zeta (>= 0): one for every mode, or one per mode in mode order (qx1, "
+        "qx2, ..., qy1, ...): D_k = 2 zeta_k omega_k M_k."},
+{.path = "bodies[].flexible.beam.damping.ratios[]", .type = Number,
+ .doc = "One damping ratio, >= 0."},
+{.path = "bodies[].flexible.beam.damping.alpha", .type = Number, .default_value = "0",
+ .doc = "Rayleigh D = alpha M + beta K: alpha in 1/s (a bare number), >= 0."},
+{.path = "bodies[].flexible.beam.damping.beta", .type = Number, .default_value = "0",
+ .doc = "Rayleigh beta in s (a bare number), >= 0."},
+{.path = "bodies[].flexible.nodes", .type = Text, .noun = "a nodal data file",
+ .doc = "A nodal data file (CSV, docs/flexible-data.md): one row per node with its mass, position, "
+        "inertia and per mode its shape and slope. A relative path is relative to the scene "
+        "file's folder."},
+{.path = "bodies[].flexible.modes", .type = Text, .noun = "a modes file",
+ .doc = "With `nodes`: the modes file (CSV, one row per mode: frequency and damping ratio, or rows "
+        "of K and D); required when the nodes file has mode columns."},
 {.path = "bodies[].torque", .type = Map, .noun = "a body torque",
  .doc = "An external torque on the body, piecewise constant in time."},
 {.path = "bodies[].torque.frame", .type = Word, .default_value = "body", .words = "body|inertial",
@@ -89,14 +166,22 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "The parent body's name."},
 {.path = "joints[].child", .type = Name, .required = true, .noun = "child body name",
  .doc = "The child body's name; a body is the child of exactly one joint."},
-{.path = "joints[].parent_point", .type = Vector, .dimension = Dimension::Length, .required = true,
+{.path = "joints[].parent_point", .type = Vector, .dimension = Dimension::Length,
  .joints = kJointed, .noun = "a point",
  .doc = "The joint point J from the parent's CM, in the parent frame: p_PoJ_P (from the parent's "
-        "reference origin when the parent gives `center_of_mass`)."},
-{.path = "joints[].child_point", .type = Vector, .dimension = Dimension::Length, .required = true,
+        "reference origin when the parent gives `center_of_mass`). Required unless `parent_node` "
+        "is given (then not allowed)."},
+{.path = "joints[].child_point", .type = Vector, .dimension = Dimension::Length,
  .joints = kJointed, .noun = "a point",
  .doc = "The same point J from the child's CM, in the child frame: p_CoJ_C. It usually points back "
-        "towards the parent: a boom whose CM is 2 m out along its +x has `[-2, 0, 0]`."},
+        "towards the parent: a boom whose CM is 2 m out along its +x has `[-2, 0, 0]`. Required "
+        "unless `child_node` is given (then not allowed)."},
+{.path = "joints[].parent_node", .type = Name, .joints = kJointed, .noun = "node name",
+ .doc = "A node of a flexible parent: the joint point is the node's undeformed position (so "
+        "`parent_point` is not given), and the point and the joint frame move with the node's "
+        "displacement and slope (docs/flexible-bodies.md \"Joints at nodes\")."},
+{.path = "joints[].child_node", .type = Name, .joints = kJointed, .noun = "node name",
+ .doc = "The same for a flexible child (instead of `child_point`)."},
 {.path = "joints[].axis", .type = Direction, .required = true, .joints = kRevolute,
  .noun = "an axis",
  .doc = "The hinge axis in the PARENT frame (normalised by the reader); the angle is positive by "

@@ -6,6 +6,8 @@
 // reader convenience (center_of_mass: the System is already in the CM frame). An angle whose
 // magnitude is above 2 pi is written with " rad", so that reading it back draws no warning.
 // tests/scene/test_scene.cpp checks that the rich scene's written form holds every written key.
+// A flexible body is written as the `flexible:` block it was read from (FlexBody::scene_form), a
+// joint at a node by the node's name.
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
@@ -96,6 +98,16 @@ void write_body(Out& o, const Body& b) {
   else
     o.flow((Eigen::Matrix<double, 6, 1>() << I(0, 0), I(1, 1), I(2, 2), I(0, 1), I(0, 2), I(1, 2))
                .finished());
+  if (b.flex) {
+    // The block as the reader read it, in its canonical form (flex_block.hpp): the reader builds
+    // the same FlexBody from it again (the beam generator is deterministic; a nodal data file is
+    // read again, so the written scene must be read from the same folder). Mass and inertia are
+    // written too: they are the node sums, so the reader's agreement check passes exactly.
+    if (b.flex->scene_form.empty())
+      throw std::logic_error("scene writer: flexible body '" + b.name +
+                             "' was not read from a scene (no scene form to write)");
+    o.key("bodies[].flexible") << YAML::Load(b.flex->scene_form);
+  }
   if (!b.torque.empty()) {
     o.key("bodies[].torque") << YAML::BeginMap;
     o.key("bodies[].torque.frame")
@@ -153,10 +165,22 @@ void write_joint(Out& o, const System& s, const Joint& j) {
   if (j.type != JointType::Free) o.key("joints[].parent", bit) << body_name(j.parent);
   o.key("joints[].child", bit) << body_name(j.child);
   if (j.type != JointType::Free) {
-    o.key("joints[].parent_point", bit);
-    o.flow(j.p_PoJ_P);
-    o.key("joints[].child_point", bit);
-    o.flow(j.p_CoJ_C);
+    auto node_name = [&s](int b, int node) {
+      return s.bodies.at(static_cast<std::size_t>(b)).flex->nodes.at(static_cast<std::size_t>(node))
+          .name;
+    };
+    if (j.parent_node >= 0) {
+      o.key("joints[].parent_node", bit) << node_name(j.parent, j.parent_node);
+    } else {
+      o.key("joints[].parent_point", bit);
+      o.flow(j.p_PoJ_P);
+    }
+    if (j.child_node >= 0) {
+      o.key("joints[].child_node", bit) << node_name(j.child, j.child_node);
+    } else {
+      o.key("joints[].child_point", bit);
+      o.flow(j.p_CoJ_C);
+    }
     if (!is_identity(j.q_PJ0)) {
       o.key("joints[].offset", bit);
       o.quaternion(j.q_PJ0);

@@ -41,7 +41,27 @@ inline std::string system_difference(const System& a, const System& b) {
       eq(p + "name", x.name == y.name);
       eq(p + "mass", x.mass == y.mass);
       eq(p + "I_BBo_B", x.I_BBo_B == y.I_BBo_B);
-      eq(p + "flex", !x.flex && !y.flex);
+      if (eq(p + "flex", x.flex.has_value() == y.flex.has_value()) && x.flex) {
+        const FlexBody& f = *x.flex;
+        const FlexBody& g = *y.flex;
+        eq(p + "flex.mode_names", f.mode_names == g.mode_names);
+        eq(p + "flex.K", f.K.rows() == g.K.rows() && f.K.cols() == g.K.cols() && f.K == g.K);
+        eq(p + "flex.D", f.D.rows() == g.D.rows() && f.D.cols() == g.D.cols() && f.D == g.D);
+        eq(p + "flex.origin", f.origin == g.origin);
+        eq(p + "flex.scene_form", f.scene_form == g.scene_form);
+        if (eq(p + "flex.nodes.size", f.nodes.size() == g.nodes.size()))
+          for (std::size_t k = 0; k < f.nodes.size(); ++k) {
+            const FlexNode& u = f.nodes[k];
+            const FlexNode& v = g.nodes[k];
+            const std::string q = p + "flex.nodes[" + std::to_string(k) + "].";
+            eq(q + "name", u.name == v.name);
+            eq(q + "mass", u.mass == v.mass);
+            eq(q + "p_BoNi_B", u.p_BoNi_B == v.p_BoNi_B);
+            eq(q + "J_Ni_B", u.J_Ni_B == v.J_Ni_B);
+            eq(q + "Phi_B", u.Phi_B.cols() == v.Phi_B.cols() && u.Phi_B == v.Phi_B);
+            eq(q + "Psi_B", u.Psi_B.cols() == v.Psi_B.cols() && u.Psi_B == v.Psi_B);
+          }
+      }
       eq(p + "torque_frame", x.torque_frame == y.torque_frame);
       eq(p + "torque", pc3(x.torque, y.torque));
     }
@@ -56,6 +76,8 @@ inline std::string system_difference(const System& a, const System& b) {
       eq(p + "child", x.child == y.child);
       eq(p + "p_PoJ_P", x.p_PoJ_P == y.p_PoJ_P);
       eq(p + "p_CoJ_C", x.p_CoJ_C == y.p_CoJ_C);
+      eq(p + "parent_node", x.parent_node == y.parent_node);
+      eq(p + "child_node", x.child_node == y.child_node);
       eq(p + "axis_P", x.axis_P == y.axis_P);
       eq(p + "q_PJ0", q_eq(x.q_PJ0, y.q_PJ0));
       eq(p + "stiffness", x.stiffness == y.stiffness);

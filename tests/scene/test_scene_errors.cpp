@@ -129,8 +129,9 @@ TEST_CASE("errors: malformed YAML names the position") {
 TEST_CASE("errors: unknown keys, with a suggestion for typos") {
   expect_edit_error("    inertia: [10, 20, 25]", "    inertai: [10, 20, 25]", "bodies[0].inertai",
                     "did you mean 'inertia'?");
-  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, 1]\n    flexible: {}",
-                    "bodies[1].flexible", "unknown key 'flexible'", "flexible");
+  expect_edit_error("    inertia: [1, 1, 1]", "    inertia: [1, 1, 1]\n    flexibel: {}",
+                    "bodies[1].flexibel", "unknown key 'flexibel' in a body (did you mean "
+                    "'flexible'?)", "flexibel");
   expect_edit_error("name: tiny", "name: tiny\ndurationn: 1", "durationn", "unknown key",
                     "durationn");
   expect_edit_error("  duration: 10 s", "  duraton: 10 s", "run.duraton",
@@ -166,7 +167,7 @@ TEST_CASE("errors: wrong types") {
                     "bodies[0].inertia", "6 numbers (xx, yy, zz, xy, xz, yz)");
   expect_edit_error("  - name: arm", "  - name: [arm]", "bodies[1].name",
                     "expected body name, found a list");
-  expect_edit_error("    mass: 100 kg", "    mass:", "bodies[0].mass", "has no value");
+  expect_edit_error("    mass: 100 kg", "    mass:", "bodies[0].mass", "found no value");
 }
 
 TEST_CASE("errors: non-finite and absurd numbers") {

@@ -44,6 +44,33 @@ bodies:
   - name: cap
     mass: 0.1 kg
     inertia: [0.01, 0.01, 0.01]
+  - name: boom
+    mass: 2 kg
+    flexible:
+      beam:
+        length: 2 m
+        axis: x
+        mass_per_length: 1
+        section: [0, 10 cm, 0.1]
+        bending:
+          y: {modes: 1, EI: 10}
+          z: {modes: 0, EI: 0}
+        boundary: clamped-bottom
+        slices: 8
+        normalisation: mass
+        damping: {alpha: 0.1, beta: 0.01}
+  - name: mast
+    flexible:
+      beam:
+        length: 3
+        mass_per_length: 2
+        section: [0.1, 0.1, 0]
+        bending: {x: {modes: 1, EI: 20}, y: {modes: 0}}
+        damping: {ratios: [0.02]}
+  - name: panel
+    flexible:
+      nodes: )" CROSSDYN_SOURCE_DIR R"(/scenarios/data/panel_nodes.csv
+      modes: )" CROSSDYN_SOURCE_DIR R"(/scenarios/data/panel_modes.csv
 joints:
   - name: base
     type: free
@@ -85,6 +112,25 @@ joints:
     parent_point: [0.1, 0, 0]
     child_point: [0, 0, 0]
     offset: [1, 0, 0, 0]
+  - name: boom_root
+    type: fixed
+    parent: hub
+    parent_point: [0, 0, 1]
+    child: boom
+    child_node: bottom
+  - name: mast_hinge
+    type: revolute
+    parent: boom
+    parent_node: top
+    child: mast
+    child_node: bottom
+    axis: [0, 0, 1]
+  - name: panel_root
+    type: fixed
+    parent: mast
+    parent_node: top
+    child: panel
+    child_node: root
 run:
   duration: 2 min
   output_step: 500 ms
