@@ -209,7 +209,8 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
     FlexNode& node = f.nodes[static_cast<std::size_t>(j)];
     node.name = j == 0 ? "bottom" : j == n_nodes - 1 ? "top" : "slice" + std::to_string(j);
     node.mass = mass[static_cast<std::size_t>(j)];
-    node.p_BoNi_B = x[static_cast<std::size_t>(j)] * e_a;
+    node.p_BoNi_B = Eigen::Vector3d::Zero();  // not x * e_a: no -0 across the axis
+    node.p_BoNi_B(a) = x[static_cast<std::size_t>(j)];
     node.J_Ni_B = node.mass > 0 ? J_slice : Eigen::Matrix3d::Zero();
     node.Phi_B = Eigen::Matrix3Xd::Zero(3, n_modes);
     node.Psi_B = Eigen::Matrix3Xd::Zero(3, n_modes);

@@ -224,6 +224,43 @@ def chart_joints(scene, runs, out_dir, sid):
     return name, caption + "Colour tells the joints apart; the line style tells the runs apart."
 
 
+def chart_attitude_y(scene, runs, out_dir, sid):
+    """Scenes with a flexible body: every body's attitude angle about N's y axis (the reference
+    paper's Fig. 11 for its Example 2, scenarios/pointing_flex.yaml), every run overlaid.
+    theta_y = atan2(R_13, R_33) of R_NB: for a rotation about y alone it is that rotation's angle,
+    and it stays defined (no Euler sequence) for the planar motion such scenes show."""
+    system = scene.get("system", {})
+    bodies = system.get("bodies", [])
+    if not any(b.get("modes") for b in bodies):
+        return None
+    names = [b["name"] for b in bodies if all(r.has(b["name"] + ".q" + c) for r in runs for c in "wxyz")]
+    if not names:
+        return None
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    for i, n in enumerate(names):
+        for r in runs:
+            w, x, y, z = (r.col(n + ".q" + c) for c in "wxyz")
+            theta = np.arctan2(2 * (x * z + w * y), 1 - 2 * (x * x + y * y))
+            ax.plot(r.t, theta, color=JOINT_COLOURS[i % len(JOINT_COLOURS)], linestyle=r.dash)
+    ax.set_xlabel("time t (s)")
+    ax.set_ylabel("attitude about N y (rad)")
+    rad_axis(ax, "rad")
+    ax.grid(True, alpha=0.3)
+    from matplotlib.lines import Line2D
+    outside_legend(fig, sections=[
+        ("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
+                           for i in range(len(names))], names),
+        ("run (line style)", [Line2D([], [], color="0.2", linestyle=r.dash, lw=1.7) for r in runs],
+         [r.label for r in runs])])
+    paper = " (the reference paper's Fig. 11)" if scene.get("scene", "") == "pointing_flex" else ""
+    ax.set_title("Attitude of each body about N's y axis%s" % paper)
+    name = finish(fig, "%s-attitude-y.png" % sid, out_dir)
+    return name, ("Attitude angle of each body about the inertial y axis, theta_y = atan2(R_13, R_33) "
+                  "of its rotation matrix R_NB (rad; degrees on the right axis), every run overlaid "
+                  "(colour: body; line style: run). With the modal coordinates below, the reference "
+                  "paper's Figs. 11 and 12 for its Example 2.")
+
+
 def chart_modal(scene, runs, out_dir, sid):
     cols = []
     for b in scene.get("system", {}).get("bodies", []):
@@ -242,7 +279,8 @@ def chart_modal(scene, runs, out_dir, sid):
     from matplotlib.lines import Line2D
     outside_legend(fig, handles=[Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)]) for i in range(len(cols))],
                    labels=cols, title="mode (colour)")
-    ax.set_title("Elastic deformation: modal coordinates of the flexible bodies")
+    ax.set_title("Elastic deformation: modal coordinates of the flexible bodies%s"
+                 % (" (the reference paper's Fig. 12)" if scene.get("scene", "") == "pointing_flex" else ""))
     name = finish(fig, "%s-modal.png" % sid, out_dir)
     return name, ("Modal coordinates (m, in the scene's mode normalisation) of each flexible body, "
                   "every run overlaid (colour: mode; line style: run).")
@@ -391,6 +429,6 @@ def chart_drift(scene, runs, out_dir, sid):
                   "is too, so the drift measures integration and formulation error.")
 
 
-CHARTS = [chart_base_w, chart_joints, chart_modal, chart_H_E, chart_differences, chart_drift]
+CHARTS = [chart_base_w, chart_joints, chart_attitude_y, chart_modal, chart_H_E, chart_differences, chart_drift]
 
 __all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]
