@@ -225,6 +225,8 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
                      {"duration_s", c.settings.duration},
                      {"output_step_s", c.settings.output_step}};
     if (s.system) j["system"] = system_json(*s.system);
+    if (!s.converge_json.empty()) j["converge"] = json::parse(s.converge_json);
+    if (!s.converge_note.empty()) j["converge_note"] = s.converge_note;
     if (i < geometry_files.size() && !geometry_files[i].empty()) j["geometry"] = geometry_files[i];
     json runs = json::array();
     for (std::size_t r = 0; r < c.runs.size(); ++r) {

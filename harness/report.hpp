@@ -18,6 +18,10 @@ struct SceneOutcome {
   std::optional<SceneComparison> comparison;  // empty when the file could not be read
   std::string input_error;                    // InputError message when it could not
   bool internal_error = false;                // input_error is another error (verify: exit 3)
+  // verify on a flexible scene: `crossdyn converge`'s result as JSON (harness/converge.hpp
+  // converge_json), or why it was not run; informational, never part of the verdict.
+  std::string converge_json{};
+  std::string converge_note{};
 };
 
 // The scene x check-group summary cell (verify's table, the report index, JSON "groups").

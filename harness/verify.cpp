@@ -5,6 +5,7 @@
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/converge.hpp"
 #include "harness/locations.hpp"
 
 #include <algorithm>
@@ -96,6 +97,35 @@ void require_comparison(SceneComparison& c, bool allow) {
   c.checks.push_back(k);
 }
 
+// A flexible scene's `converge` result for the report (converge.hpp), with kane and the
+// comparison's run settings; what keeps it from running is a note, never a failure of the scene.
+void add_converge(SceneOutcome& s, const VerifyOptions& o) {
+  const std::vector<ModeGroup> groups = mode_groups(*s.system);
+  if (groups.empty()) return;
+  long models = 1;
+  for (const ModeGroup& g : groups) models *= static_cast<long>(g.modes.size()) + 1;
+  if (models > kVerifyConvergeModels) {
+    s.converge_note = "converge not run by verify: " + std::to_string(models) +
+                      " models (the limit here is " + std::to_string(kVerifyConvergeModels) +
+                      "); run `crossdyn converge " + s.path + "`";
+    return;
+  }
+  CompareOptions one = o.compare;
+  one.engines = {{"kane", "kane", {}}};
+  one.progress = false;
+  try {
+    s.converge_json = converge_json(converge_scene(*s.system, one));
+  } catch (const cancel::Cancelled& c) {
+    if (c.reason() == cancel::Reason::Interrupt) throw;
+    s.converge_note = std::string("converge not completed: ") + c.what();
+  } catch (const InputError& e) {
+    s.converge_note = std::string("converge not run: ") + e.what();
+  } catch (const RunFailure& f) {
+    if (f.reason() == "interrupted" || cancel::interrupted()) throw;
+    s.converge_note = std::string("converge not completed: ") + f.what();
+  }
+}
+
 VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& files) {
   VerifyResult result;
   const RunOverrides overrides = run_overrides(o.compare);
@@ -111,6 +141,7 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
       s.comparison = o.compare_fn ? o.compare_fn(*s.system, o.compare)
                                   : compare_scene(*s.system, o.compare);
       require_comparison(*s.comparison, o.allow_no_comparison);
+      if (o.converge) add_converge(s, o);
     } catch (const cancel::Cancelled& c) {
       if (c.reason() == cancel::Reason::Interrupt) throw;  // Ctrl-C ends verify (exit 130)
       s.comparison.reset();

@@ -19,12 +19,18 @@
 
 namespace crossdyn::harness {
 
+// The most models verify's converge runs for one scene (converge.hpp); beyond, a note.
+inline constexpr long kVerifyConvergeModels = 32;
+
 struct VerifyOptions {
   std::vector<std::string> scenes;          // empty: every scene of scenarios_dir
   std::string scenarios_dir;                // "": the first of scene_folders() (locations.hpp)
   CompareOptions compare;
   bool allow_no_comparison = false;         // a scene that compares nothing passes (with a note)
   bool quiet = false;                       // no per-scene progress lines on stderr
+  // Flexible scenes: also run `converge` (kane, at most kVerifyConvergeModels models) for the
+  // report's model-size table and chart; informational, never part of the verdict.
+  bool converge = true;
   // The comparison of one scene; compare_scene unless a test replaces it.
   std::function<SceneComparison(const System&, const CompareOptions&)> compare_fn;
 };

@@ -10,6 +10,7 @@
 #include "harness/locations.hpp"
 #include "harness/verify.hpp"
 
+#include <cstdint>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -140,6 +141,8 @@ void add_verify_command(CLI::App& app, int& exit_code) {
                   "The report script to run (default: reports/make_report.py of the source tree "
                   "crossdyn was built from; a script beside the scenes is never run)");
   sub->add_flag("--quiet,-q", o->verify.quiet, "No progress line per scene on stderr");
+  sub->add_flag("--no-converge", [o](std::int64_t) { o->verify.converge = false; },
+                "Do not run `converge` on flexible scenes (the report's model-size section)");
   sub->callback([o, &exit_code] { exit_code = verify(*o); });
 }
 

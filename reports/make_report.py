@@ -79,7 +79,15 @@ def scene_page(env, scene, out_dir):
             result = None
         if result:
             made.append(dict(name=result[0], caption=result[1]))
-    return pages.render(env, "scene.html", pages.scene_context(scene, pictures, made, motion_note))
+    try:
+        conv_chart = charts.chart_converge(scene, out_dir, sid)
+    except Exception as e:  # a chart that cannot be drawn must not lose the page
+        warn("%s: the converge chart failed: %r" % (sid, e))
+        plt.close("all")
+        conv_chart = None
+    converge = pages.converge_context(
+        scene, dict(name=conv_chart[0], caption=conv_chart[1]) if conv_chart else None)
+    return pages.render(env, "scene.html", pages.scene_context(scene, pictures, made, motion_note, converge))
 
 
 def main(argv):

@@ -234,7 +234,25 @@ def check_rows(scene):
     return rows
 
 
-def scene_context(scene, pictures, charts, motion_note):
+def converge_context(scene, chart):
+    """The model-size section: `crossdyn converge`'s table (verify runs it on flexible scenes)."""
+    conv = scene.get("converge")
+    note = scene.get("converge_note", "")
+    if not conv:
+        return dict(rows=[], chart=None, smallest="", engine="", note=note) if note else None
+    rows = []
+    for m in conv.get("models", []):
+        worst = m.get("worst_normalised")
+        rows.append(dict(label=m["label"], modes=m["modes"],
+                         change="reference" if m.get("full") else sci(worst if worst is not None else float("inf")),
+                         where="" if m.get("full") else m.get("worst_quantity", ""),
+                         verdict="" if m.get("full") else ("within" if m["passed"] else "changes"),
+                         cls="" if m.get("full") else ("pass" if m["passed"] else "fail")))
+    return dict(rows=rows, chart=chart, smallest=conv.get("smallest", ""), engine=conv.get("engine", ""),
+                note=note, notes=conv.get("notes", []))
+
+
+def scene_context(scene, pictures, charts, motion_note, converge=None):
     system = scene.get("system", {})
     settings = scene.get("settings", {})
     run = system.get("run", {})
@@ -262,7 +280,7 @@ def scene_context(scene, pictures, charts, motion_note):
                      gfmt(settings.get("atol")), "zero" if system.get("zero_linear_momentum") else "as given")),
         analytic=system.get("analytic", ""),
         tolerances=tolerances, runs=run_rows(scene), charts=charts, checks=check_rows(scene),
-        notes=scene.get("notes", []), pass_rule=PASS_RULE,
+        notes=scene.get("notes", []), pass_rule=PASS_RULE, converge=converge,
         groups=[dict(title=GROUP_TITLES.get(g["group"], g["group"]), help=GROUP_HELP.get(g["group"], ""))
                 for g in scene.get("groups", [])])
 
