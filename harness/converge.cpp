@@ -3,13 +3,16 @@
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
+#include "core/scene/scene.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <regex>
 #include <sstream>
 
 namespace crossdyn::harness {
@@ -108,6 +111,27 @@ std::string model_label(const System& system, const std::vector<ModeGroup>& grou
   return out;
 }
 
+std::optional<System> reslice(const System& system, int body, int slices) {
+  const auto& flex = system.bodies[static_cast<std::size_t>(body)].flex;
+  static const std::regex kSlices(R"(\bslices: *[0-9]+)");
+  if (!flex || flex->scene_form.rfind("{beam:", 0) != 0 ||
+      !std::regex_search(flex->scene_form, kSlices))
+    return std::nullopt;
+  System s = system;
+  auto& form = s.bodies[static_cast<std::size_t>(body)].flex->scene_form;
+  form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
+  System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
+  out.name = system.name;
+  out.file = system.file;
+  return out;
+}
+
+int beam_slices(const FlexBody& f) {
+  std::smatch m;
+  static const std::regex kSlices(R"(\bslices: *([0-9]+))");
+  return std::regex_search(f.scene_form, m, kSlices) ? std::stoi(m[1].str()) : 0;
+}
+
 ConvergeResult converge_scene(const System& system, const CompareOptions& options) {
   ConvergeResult r;
   r.scene = system.name;
@@ -182,10 +206,62 @@ ConvergeResult converge_scene(const System& system, const CompareOptions& option
     }
     r.models.push_back(std::move(m));
   }
-  // The smallest passing model (the full model always qualifies).
+  // Slicing rows: every beam-generator body with half and twice its slices, every mode kept.
+  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+    const auto& flex = system.bodies[b].flex;
+    if (!flex || flex->modes() == 0) continue;
+    const int n = beam_slices(*flex);
+    if (n == 0) continue;
+    for (int slices : {n / 2, 2 * n}) {
+      cancel::poll();
+      std::optional<System> s;
+      try {
+        s = reslice(system, static_cast<int>(b), slices);
+      } catch (const InputError& e) {
+        r.notes.push_back(system.bodies[b].name + " with " + std::to_string(slices) +
+                          " slices: not run (" + e.what() + ")");
+        continue;
+      }
+      if (!s) continue;
+      ConvergeModel m;
+      m.counts = full_counts;
+      m.modes = r.models.front().modes;
+      m.slices = slices;
+      m.slice_body = static_cast<int>(b);
+      m.label = model_label(system, r.groups, full_counts) + ", " + system.bodies[b].name + " " +
+                std::to_string(slices) + " slices";
+      SceneComparison c = compare_scene(*s, one);
+      m.run = std::move(c.runs.at(0));
+      m.run.label = m.label;
+      if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
+        m.worst_normalised = std::numeric_limits<double>::infinity();
+        m.worst_quantity = "run: " + (m.run.result.failure ? std::string(m.run.result.failure->what())
+                                                           : m.run.note);
+        r.models.push_back(std::move(m));
+        continue;
+      }
+      SceneComparison d = compare_runs(*s, {full_run, m.run});
+      m.passed = true;
+      for (Check& k : d.checks) {
+        if (k.b.empty() || k.group == "run" || k.group == "t") {
+          if (k.status == CheckStatus::Fail) m.passed = false;
+          continue;
+        }
+        if (k.status == CheckStatus::Fail) m.passed = false;
+        if (k.status != CheckStatus::Excluded && !(k.normalised <= m.worst_normalised)) {
+          m.worst_normalised = k.normalised;
+          m.worst_quantity = k.quantity;
+        }
+        m.checks.push_back(std::move(k));
+      }
+      r.models.push_back(std::move(m));
+    }
+  }
+  // The smallest passing model (the full model always qualifies; slicing rows do not compete).
   r.smallest = 0;
   for (std::size_t i = 1; i < r.models.size(); ++i)
-    if (r.models[i].passed && r.models[i].modes < r.models[static_cast<std::size_t>(r.smallest)].modes)
+    if (r.models[i].passed && r.models[i].slices == 0 &&
+        r.models[i].modes < r.models[static_cast<std::size_t>(r.smallest)].modes)
       r.smallest = static_cast<int>(i);
   return r;
 }
@@ -207,6 +283,30 @@ std::string format_converge(const ConvergeResult& r) {
   const ConvergeModel& s = r.models[static_cast<std::size_t>(r.smallest)];
   out << "smallest model within the scene's tolerances: " << s.label << " (" << s.modes << " of "
       << r.models.front().modes << " modes)\n";
+  for (const ConvergeModel& m : r.models)
+    if (m.slices > 0)
+      out << "slicing: with " << m.slices << " slices the answer "
+          << (m.passed ? "stays within" : "changes beyond") << " the tolerances (largest change "
+          << sci(m.worst_normalised) << " of the tolerance" +
+                 (m.worst_quantity.empty() ? std::string() : ", in " + m.worst_quantity)
+          << ")\n";
+  // Observed order of the slicing error: the change from N/2 to N slices over the change from N
+  // to 2N is 2^p for an error ~ N^-p.
+  for (std::size_t i = 0; i + 1 < r.models.size(); ++i) {
+    const ConvergeModel& a = r.models[i];
+    const ConvergeModel& b = r.models[i + 1];
+    if (a.slices > 0 && b.slice_body == a.slice_body && b.slices == 4 * a.slices &&
+        std::isfinite(a.worst_normalised) && std::isfinite(b.worst_normalised) &&
+        a.worst_normalised > 0 && b.worst_normalised > 0) {
+      const double ratio = a.worst_normalised / b.worst_normalised;
+      char line[200];
+      std::snprintf(line, sizeof line,
+                    "slicing order: the largest change falls %.2f times per doubling of the "
+                    "slices (observed order %.2f)\n", ratio, std::log2(ratio));
+      out << line;
+    }
+  }
+  for (const std::string& n : r.notes) out << "note: " << n << '\n';
   return out.str();
 }
 
@@ -227,12 +327,13 @@ std::string converge_json(const ConvergeResult& r) {
       checks.push_back({{"quantity", k.quantity}, {"error", num(k.error)}, {"bound", num(k.bound)},
                         {"normalised", num(k.normalised)}, {"status", to_string(k.status)}});
     models.push_back({{"label", m.label}, {"counts", m.counts}, {"modes", m.modes},
-                      {"full", m.full}, {"passed", m.passed},
+                      {"full", m.full}, {"slices", m.slices}, {"passed", m.passed},
                       {"worst_normalised", num(m.worst_normalised)},
                       {"worst_quantity", m.worst_quantity}, {"checks", checks}});
   }
   j["models"] = models;
   j["smallest"] = r.models[static_cast<std::size_t>(r.smallest)].label;
+  j["notes"] = r.notes;
   return j.dump(2) + "\n";
 }
 

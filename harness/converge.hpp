@@ -21,11 +21,18 @@
 // A model passes when every quantity passes. The smallest model is the passing model with the
 // fewest modes (ties: the first in the table's order, which lists fewer modes of earlier groups
 // first).
+//
+// Slicing. A body made by the beam generator (its FlexBody::scene_form is a `beam:` block) is
+// also re-generated with half and twice its slices (every mode kept; the scene is written with
+// write_scene_text and read back, so the reader's checks apply) and compared with the full model
+// the same way: these rows say whether the slicing has converged, and do not compete for the
+// smallest model.
 #pragma once
 
 #include "core/system.hpp"
 #include "harness/compare.hpp"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +59,8 @@ struct ConvergeModel {
   int modes = 0;               // total modes kept
   std::string label;
   bool full = false;           // the reference
+  int slices = 0;              // > 0: a slicing row (the beam re-generated with this many slices)
+  int slice_body = -1;         // the body of a slicing row
   EngineRun run;
   std::vector<Check> checks;   // against the full model (pairwise checks only)
   double worst_normalised = 0; // max over checks of error / bound (0 for the full model)
@@ -65,7 +74,12 @@ struct ConvergeResult {
   std::vector<ModeGroup> groups;
   std::vector<ConvergeModel> models;  // the full model first, then every other model
   int smallest = -1;                  // index into models of the smallest passing model
+  std::vector<std::string> notes;     // slicing rows that could not be made, and why
 };
+
+// The system with the beam-generator body `body` re-generated with `slices` slices, or nullopt
+// when the body is not a beam-generator body. Throws InputError when the reader refuses it.
+std::optional<System> reslice(const System& system, int body, int slices);
 
 // At most this many models (the product of (n_g + 1) over the groups); more is an InputError.
 inline constexpr int kMaxConvergeModels = 256;

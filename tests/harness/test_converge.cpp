@@ -2,10 +2,14 @@
 // (harness/converge.hpp).
 #include <catch2/catch.hpp>
 
+#include <cmath>
+
 #include "core/engine.hpp"
 #include "core/errors.hpp"
 #include "harness/converge.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/engines.hpp"
+#include "tests/support/paths.hpp"
 #include "tests/cross/flex_systems.hpp"
 #include "tests/harness/run_program.hpp"
 
@@ -126,4 +130,29 @@ TEST_CASE("crossdyn converge on a rigid scene, with an unknown engine or an outp
   r = test::run_crossdyn("convrge scenarios/spear1_case1.yaml");
   CHECK(r.status == 2);
   CHECK_THAT(r.output, Catch::Contains("did you mean 'converge'"));
+}
+
+TEST_CASE("converge on the committed pointing_flex scene: two x-plane modes, and the slicing "
+          "error falls at second order") {
+  System s = read_scene(test::scene_path("pointing_flex"));
+  s.run.duration = 20.0;
+  CompareOptions o;
+  o.engines = {{"kane", "kane", {}}};
+  const ConvergeResult r = converge_scene(s, o);
+  const std::string table = format_converge(r);
+  INFO(table);
+  CHECK(r.models[static_cast<std::size_t>(r.smallest)].counts == std::vector<int>{2, 0});
+  // The slicing rows: the beam with 50 and 200 slices (the scene has 100).
+  std::vector<const ConvergeModel*> sliced;
+  for (const ConvergeModel& m : r.models)
+    if (m.slices > 0) sliced.push_back(&m);
+  REQUIRE(sliced.size() == 2);
+  CHECK(sliced[0]->slices == 50);
+  CHECK(sliced[1]->slices == 200);
+  // Midpoint sampling of the modal integrals: error ~ N^-2, so the change from 50 to 100 slices
+  // is 4 times the change from 100 to 200 (observed order 2 +- 0.2).
+  const double order = std::log2(sliced[0]->worst_normalised / sliced[1]->worst_normalised);
+  CHECK(order > 1.8);
+  CHECK(order < 2.2);
+  CHECK_THAT(table, Catch::Contains("observed order"));
 }
