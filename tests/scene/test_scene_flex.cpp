@@ -6,6 +6,7 @@
 #include "core/flex/beam.hpp"
 #include "core/flex/nodal_csv.hpp"
 #include "core/scene/scene.hpp"
+#include "tests/cross/flex_systems.hpp"
 #include "tests/scene/system_equal.hpp"
 #include "tests/support/paths.hpp"
 
@@ -230,4 +231,18 @@ TEST_CASE("scene flex: joints at nodes") {
   CHECK_THAT(error_of(edit("    child: beam\n", "    child: beam\n    parent_node: top\n")),
              StartsWith("flex.yaml:21:5: joints[0].parent_node: 'parent_node' does not apply to a "
                         "free joint"));
+}
+
+TEST_CASE("scene flex: scenarios/pointing_flex.yaml is Scene 2 as the engines' tests build it in code") {
+  const System file = read_scene(test::scene_path("pointing_flex"));
+  System code = test::pointing_flex_system();
+  // What only a file has: its name, path, texts, compare block and the flexible body's scene form.
+  code.name = file.name;
+  code.file = file.file;
+  code.description = file.description;
+  code.source = file.source;
+  code.compare = file.compare;
+  code.bodies[0].flex->scene_form = file.bodies[0].flex->scene_form;
+  code.bodies[0].flex->origin = file.bodies[0].flex->origin;
+  CHECK(test::system_difference(file, code) == "");
 }
