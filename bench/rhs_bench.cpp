@@ -1,6 +1,6 @@
 // Micro-benchmarks: one right-hand-side call per engine per scene, at the scene's initial state.
 // Speed is measured here and reported, never asserted in a test.
-//   build/crossdyn_bench                       all engines, all pinned scenes
+//   build/crossdyn_bench                       all engines, every committed scene (scenarios/)
 //   build/crossdyn_bench --benchmark_filter=kane/spear1_case1
 #include <benchmark/benchmark.h>
 
@@ -9,6 +9,8 @@
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
 
+#include <algorithm>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 #include <vector>
@@ -33,11 +35,15 @@ void bench_rhs(benchmark::State& state, const crossdyn::System& system, const st
 
 int main(int argc, char** argv) {
   static std::vector<crossdyn::System> systems;  // outlives the registered benchmarks
-  for (const char* scene :
-       {"spear1_case1", "spear1_case2", "spear1_case1_spherical", "chain5", "gimbal_lock"}) {
+  std::vector<std::filesystem::path> scenes;
+  for (const auto& f :
+       std::filesystem::directory_iterator(std::string(CROSSDYN_SOURCE_DIR) + "/scenarios"))
+    if (f.path().extension() == ".yaml") scenes.push_back(f.path());
+  std::sort(scenes.begin(), scenes.end());
+  systems.reserve(scenes.size());
+  for (const auto& scene : scenes) {
     try {
-      systems.push_back(crossdyn::read_scene(std::string(CROSSDYN_SOURCE_DIR) + "/scenarios/" +
-                                             scene + ".yaml"));
+      systems.push_back(crossdyn::read_scene(scene.string()));
     } catch (const crossdyn::InputError& e) {
       std::cerr << "skipping " << scene << ": " << e.what() << '\n';
     }

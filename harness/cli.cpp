@@ -35,6 +35,14 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
   return d[a.size()][b.size()];
 }
 
+// "run, compare, verify, list, draw, converge": the registered commands, in order.
+std::string command_list(const CLI::App& app) {
+  std::string out;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
+    out += (out.empty() ? "" : ", ") + sub->get_name();
+  return out;
+}
+
 // Every spelling of the options of `app` ("--engines", "-o"), and its subcommands' names.
 std::vector<std::string> known_words(const CLI::App& app, bool options) {
   std::vector<std::string> out;
@@ -67,7 +75,7 @@ std::string unexpected_arguments(CLI::App& app, const CLI::ExtrasError& e) {
   if (used.empty() && !extras.empty()) {
     const std::string hint = closest_match(extras.front(), known_words(app, false));
     return "unknown command '" + extras.front() + "'" +
-           (hint.empty() ? " (commands: run, compare, verify, list)"
+           (hint.empty() ? " (commands: " + command_list(app) + ")"
                          : " (did you mean '" + hint + "'?)");
   }
   return cmd + e.what();
@@ -162,6 +170,7 @@ int crossdyn_main(int argc, char** argv) {
     add_verify_command(app, exit_code);
     add_list_command(app, exit_code);
     add_draw_command(app, exit_code);
+    add_converge_command(app, exit_code);
     try {
       app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -181,17 +190,17 @@ int crossdyn_main(int argc, char** argv) {
       std::string message = e.what();
       if (app.get_subcommands().empty()) {  // no command recognised
         const std::vector<std::string> rest = app.remaining(true);
-        if (rest.empty()) message = "no command given (commands: run, compare, verify, list)";
+        if (rest.empty()) message = "no command given (commands: " + command_list(app) + ")";
         else if (rest.front().size() > 1 && rest.front()[0] == '-') {
           const std::string name = rest.front().substr(0, rest.front().find('='));
           const std::string hint = closest_match(name, known_words(app, true));
           message = "unknown option '" + name + "'" +
-                    (hint.empty() ? " (a command comes first: run, compare, verify, list)"
+                    (hint.empty() ? " (a command comes first: " + command_list(app) + ")"
                                   : " (did you mean '" + hint + "'?)");
         } else {
           const std::string hint = closest_match(rest.front(), known_words(app, false));
           message = "unknown command '" + rest.front() + "'" +
-                    (hint.empty() ? " (commands: run, compare, verify, list)"
+                    (hint.empty() ? " (commands: " + command_list(app) + ")"
                                   : " (did you mean '" + hint + "'?)");
         }
       }

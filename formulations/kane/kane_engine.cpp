@@ -3,6 +3,7 @@
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
+#include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -240,10 +241,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     : system_(system), layout_(system_) {
   const std::string file = where(system_);
   const std::size_t nj = system_.joints.size(), nb = system_.bodies.size();
-  if (nj == 0) throw InputError(file + ": no joints: the kane engine needs a free base joint");
-  if (nj != nb)
-    throw InputError(file + ": " + std::to_string(nb) + " bodies but " + std::to_string(nj) +
-                     " joints (exactly one joint per body is required)");
+  // The tree (one free joint first, every parent the child of an earlier joint, one joint per
+  // body, indices in range): the one public check, core/scene/topology.hpp.
+  check_topology(system_);
   if (!(options.test_inertia_scale > 0) || !std::isfinite(options.test_inertia_scale))
     throw InputError("engine option test_inertia_scale must be positive and finite");
 
@@ -267,22 +267,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
     n.type = J.type;
     n.joint = static_cast<int>(k);
     n.body = J.child;
-    if (J.child < 0 || J.child >= static_cast<int>(nb))
-      throw InputError(jname + ": child body index out of range");
-    if (k == 0) {
-      if (J.type != JointType::Free || J.parent != -1)
-        throw InputError(jname + ": the first joint must be the free joint of the base body");
-    } else {
-      if (J.type == JointType::Free)
-        throw InputError(jname + ": only the first joint may be free (one free base)");
-      if (J.parent < 0 || J.parent >= static_cast<int>(nb) ||
-          node_of_body[static_cast<std::size_t>(J.parent)] < 0)
-        throw InputError(jname + ": parent body must be the child of an earlier joint");
-      n.parent = node_of_body[static_cast<std::size_t>(J.parent)];
-    }
-    if (node_of_body[static_cast<std::size_t>(J.child)] >= 0)
-      throw InputError(jname + ": body '" + system_.bodies[static_cast<std::size_t>(J.child)].name +
-                       "' is the child of two joints");
+    if (k > 0) n.parent = node_of_body[static_cast<std::size_t>(J.parent)];
     node_of_body[static_cast<std::size_t>(J.child)] = static_cast<int>(k);
     const Body& B = system_.bodies[static_cast<std::size_t>(J.child)];
     if (!(B.mass > 0) || !std::isfinite(B.mass))

@@ -36,6 +36,7 @@
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
+#include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/autodiff.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
@@ -510,10 +511,9 @@ void validate_flex(const System& system, const std::string& where) {
 LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& options) {
   auto m = std::make_unique<Model>();
   const std::string where = (system.file.empty() ? system.name : system.file) + ": ";
-  if (system.joints.empty() || system.joints[0].type != JointType::Free)
-    throw InputError(where +
-                     "joints: engine lagrange needs joints[0] to be the free joint of the "
-                     "base body");
+  // The tree (one free joint first, every parent the child of an earlier joint, one joint per
+  // body, indices in range): the one public check, core/scene/topology.hpp.
+  check_topology(system);
   if (!(options.test_inertia_scale > 0.0) || !std::isfinite(options.test_inertia_scale))
     throw InputError(where + "engine option test_inertia_scale must be positive, got " +
                      format_number(options.test_inertia_scale));
@@ -540,9 +540,6 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   int i0 = 0;
   for (std::size_t j = 0; j < system.joints.size(); ++j) {
     const Joint& J = system.joints[j];
-    if (j > 0 && J.type == JointType::Free)
-      throw InputError(where + "joints: joint '" + J.name +
-                       "' is a second free joint; engine lagrange handles one tree");
     Model::JointM jm;
     jm.name = J.name;
     jm.type = J.type;

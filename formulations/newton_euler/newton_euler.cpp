@@ -14,6 +14,7 @@
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/errors.hpp"
+#include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
 #include "formulations/newton_euler/modal_body.hpp"
@@ -155,10 +156,9 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
 
   nb_ = static_cast<int>(system.bodies.size());
   nj_ = static_cast<int>(system.joints.size());
-  if (nb_ == 0) throw InputError(file + ": bodies: the scene has no bodies");
-  if (nj_ != nb_)
-    throw InputError(file + ": joints: expected exactly one joint per body (" + std::to_string(nb_) +
-                     " bodies, " + std::to_string(nj_) + " joints)");
+  // The tree (one free joint first, every parent the child of an earlier joint, one joint per
+  // body, indices in range): the one public check, core/scene/topology.hpp.
+  check_topology(system);
   flex_.assign(at(nb_), -1);
   for (int b = 0; b < nb_; ++b) {
     const Body& body = system.bodies[at(b)];
@@ -189,18 +189,11 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   }
 
   // Joints: joints[0] free (the base), the rest in topological order.
-  std::vector<bool> placed(at(nb_), false);
   std::vector<KktLink> links;
   for (int j = 0; j < nj_; ++j) {
     const Joint& J = system.joints[at(j)];
     const std::string key = file + ": joints[" + std::to_string(j) + "] '" + J.name + "'";
-    if ((j == 0) != (J.type == JointType::Free))
-      throw InputError(key + ": the first joint, and only it, must be the free joint of the base");
-    if (J.child < 0 || J.child >= nb_ || placed[at(J.child)])
-      throw InputError(key + ": child must be a body not already attached by an earlier joint");
     if (j > 0) {
-      if (J.parent < 0 || J.parent >= nb_ || !placed[at(J.parent)])
-        throw InputError(key + ": parent must be a body attached by an earlier joint");
       if (J.axis_P.norm() < 1e-12 && J.type == JointType::Revolute)
         throw InputError(key + ": axis must be a non-zero vector");
     }
@@ -216,7 +209,6 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
         throw InputError(key + ": " + what + " " + std::to_string(node) + " is not a node of '" +
                          B->name + "' (" + std::to_string(B->flex->nodes.size()) + " nodes)");
     }
-    placed[at(J.child)] = true;
     joints_.push_back(JointModel::from(system, j));
     lever_scale_ = std::max(lever_scale_, J.p_PoJ_P.norm() + J.p_CoJ_C.norm());
     if (j > 0) links.push_back(KktLink{J.parent, J.child, joints_.back().rows});

@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from .common import DASHES, gfmt, plt, save_figure
-from .kinematics import attitude_angle, joint_rotation_vectors
+from .kinematics import attitude, attitude_angle, joint_rotation_vectors, rotation_vector
 
 TINY = 1e-17  # floor for log-scale plots of differences that are exactly zero
 LEGEND_RIGHT = 0.80  # charts keep the right 20 % of the figure for their legends
@@ -93,6 +93,12 @@ def paper_figures(scene):
     if name.startswith("spear1_case2"):
         return ("7", "8", "9")
     return None
+
+
+def flexible_paper_figures(scene):
+    """The paper's figure numbers for Example 2 (pointing_flex): attitudes about y, modal
+    coordinates."""
+    return ("11", "12") if scene.get("scene", "").startswith("pointing_flex") else None
 
 
 def chart_base_w(scene, runs, out_dir, sid):
@@ -224,6 +230,52 @@ def chart_joints(scene, runs, out_dir, sid):
     return name, caption + "Colour tells the joints apart; the line style tells the runs apart."
 
 
+def chart_attitudes(scene, runs, out_dir, sid):
+    """Flexible scenes (the paper's Fig. 11 for Example 2): every body's attitude as the three
+    components of its rotation vector (log map of q_NB, rad, inertial axes), runs overlaid. For a
+    motion in the x-z plane (Example 2) the y component is the attitude angle about y and the
+    others stay zero."""
+    system = scene.get("system", {})
+    if not any(b.get("modes") for b in system.get("bodies", [])):
+        return None
+    bodies = [b["name"] for b in system.get("bodies", [])]
+    fig, axes = plt.subplots(3, 1, figsize=(10, 7.5), sharex=True)
+    drawn = False
+    for bi, body in enumerate(bodies):
+        colour = JOINT_COLOURS[bi % len(JOINT_COLOURS)]
+        for r in runs:
+            q = attitude(r, body)
+            if q is None:
+                continue
+            phi = rotation_vector(q)
+            for ci, ax in enumerate(axes):
+                ax.plot(r.t, phi[:, ci], color=colour, linestyle=r.dash)
+            drawn = True
+    if not drawn:
+        plt.close(fig)
+        return None
+    for ax, comp in zip(axes, ("x", "y", "z")):
+        ax.set_ylabel("rotation about %s (rad)" % comp)
+        rad_axis(ax, "rad")
+        ax.grid(True, alpha=0.3)
+    axes[-1].set_xlabel("time t (s)")
+    from matplotlib.lines import Line2D
+    sections = [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
+                                   for i in range(len(bodies))], bodies),
+                ("run (line style)", [Line2D([], [], color="0.3", linestyle=r.dash) for r in runs],
+                 [r.label for r in runs])]
+    outside_legend(fig, sections=sections)
+    figs = flexible_paper_figures(scene)
+    fig.suptitle("Attitude of every body: rotation vector of q_NB in inertial axes%s"
+                 % ("\n(the rotation about y is the attitude angle of the paper's Fig. %s)" % figs[0]
+                    if figs else ""))
+    name = finish(fig, "%s-attitudes.png" % sid, out_dir)
+    return name, ("Each body's attitude as a rotation vector (axis times angle, rad; degrees on the "
+                  "right axis) in the inertial frame, every run overlaid (colour: body; line style: "
+                  "run). In a motion confined to the x-z plane only the y component moves: it is "
+                  "the attitude angle about y.")
+
+
 def chart_modal(scene, runs, out_dir, sid):
     cols = []
     for b in scene.get("system", {}).get("bodies", []):
@@ -242,7 +294,9 @@ def chart_modal(scene, runs, out_dir, sid):
     from matplotlib.lines import Line2D
     outside_legend(fig, handles=[Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)]) for i in range(len(cols))],
                    labels=cols, title="mode (colour)")
-    ax.set_title("Elastic deformation: modal coordinates of the flexible bodies")
+    figs = flexible_paper_figures(scene)
+    ax.set_title("Elastic deformation: modal coordinates of the flexible bodies%s"
+                 % (" (the paper's Fig. %s)" % figs[1] if figs else ""))
     name = finish(fig, "%s-modal.png" % sid, out_dir)
     return name, ("Modal coordinates (m, in the scene's mode normalisation) of each flexible body, "
                   "every run overlaid (colour: mode; line style: run).")
@@ -391,6 +445,6 @@ def chart_drift(scene, runs, out_dir, sid):
                   "is too, so the drift measures integration and formulation error.")
 
 
-CHARTS = [chart_base_w, chart_joints, chart_modal, chart_H_E, chart_differences, chart_drift]
+CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_differences, chart_drift]
 
 __all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]

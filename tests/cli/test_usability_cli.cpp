@@ -97,9 +97,9 @@ TEST_CASE("crossdyn list shows every scene with its one-line description, in 100
   const Run r = run_in(source_dir(), "list");
   INFO(r.err);
   CHECK(r.status == 0);
-  for (const auto& e : fs::directory_iterator(source_dir() + "/scenarios")) {
-    const std::string name = e.path().stem().string();
-    const crossdyn::System s = crossdyn::read_scene(e.path().string());
+  for (const std::string& path : committed_scenes()) {
+    const std::string name = fs::path(path).stem().string();
+    const crossdyn::System s = crossdyn::read_scene(path);
     const std::string words = s.description.substr(0, 20);
     bool found = false;
     for (const std::string& line : lines_of(r.out))

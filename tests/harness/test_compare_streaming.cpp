@@ -124,14 +124,6 @@ const RunResult& run_of(const SceneComparison& c, const std::string& label) {
   throw std::logic_error("unreachable");
 }
 
-std::vector<std::string> committed_scenes() {
-  std::vector<std::string> files;
-  for (const auto& e : fs::directory_iterator(test::source_dir() + "/scenarios"))
-    if (e.path().extension() == ".yaml") files.push_back(e.path().string());
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
 struct Budget {
   explicit Budget(std::size_t bytes) : saved(row_memory_budget()) { set_row_memory_budget(bytes); }
   ~Budget() { set_row_memory_budget(saved); }
@@ -142,7 +134,7 @@ struct Budget {
 
 TEST_CASE("streaming compare: every check's numbers equal the whole-column reference, and are "
           "identical with the rows spilled to temporary files, on every committed scene") {
-  const std::vector<std::string> scenes = committed_scenes();
+  const std::vector<std::string> scenes = test::committed_scenes();
   REQUIRE(scenes.size() >= 10);
   for (const std::string& path : scenes) {
     INFO(path);

@@ -1,0 +1,85 @@
+// Model no more than a scene needs (issue 11, `crossdyn converge SCENE`): re-run a flexible scene
+// with fewer modes and report how much each compared quantity changes, then name the smallest
+// model that stays within the scene's tolerances.
+//
+// Mode groups. A flexible body's modes are grouped by their name without its trailing digits
+// (the beam generator's `qx1, qx2` are the group `qx`: the bending plane of x; a nodal file's
+// `bend1, bend2, torsion1` give `bend` and `torsion`). A model keeps the first c_g modes of every
+// group g (c_g = 0 .. n_g, in the order the modes are listed), so every combination of counts is
+// one model; the full model (every c_g = n_g) is the reference.
+//
+// Truncation (core/system.hpp FlexBody): keeping the mode subset S of a body keeps the columns S
+// of every node's Phi_B and Psi_B and the rows and columns S of K and D; the nodes, their masses,
+// positions and rigid inertias are unchanged, so the rigid body (and every rigid quantity) is the
+// same. This is a Galerkin (Ritz) truncation of the same modal basis: the model with fewer modes
+// is exactly the full model with the dropped modal coordinates held at zero.
+//
+// Comparison. Each model is run by one engine (default kane) with the scene's run settings, and
+// compared with the full model's run by compare_runs (harness/compare.hpp): every quantity of the
+// smaller model's output layout (so the modal coordinates the smaller model keeps are compared
+// too), with the scene's tolerances: pass when max_t |model - full| <= atol + rtol max_t |full|.
+// A model passes when every quantity passes. The smallest model is the passing model with the
+// fewest modes (ties: the first in the table's order, which lists fewer modes of earlier groups
+// first).
+#pragma once
+
+#include "core/system.hpp"
+#include "harness/compare.hpp"
+
+#include <string>
+#include <vector>
+
+namespace crossdyn::harness {
+
+// One mode group of one flexible body.
+struct ModeGroup {
+  int body = -1;               // System::bodies index
+  std::string name;            // "qx"
+  std::vector<int> modes;      // the body's mode indices in this group, in order
+};
+std::vector<ModeGroup> mode_groups(const System& system);
+
+// The system with, for each group g, only the first counts[g] modes of the group kept.
+System truncate_modes(const System& system, const std::vector<ModeGroup>& groups,
+                      const std::vector<int>& counts);
+
+// "beam qx2 qy0" (bodies named; groups in mode_groups order).
+std::string model_label(const System& system, const std::vector<ModeGroup>& groups,
+                        const std::vector<int>& counts);
+
+struct ConvergeModel {
+  std::vector<int> counts;     // per group
+  int modes = 0;               // total modes kept
+  std::string label;
+  bool full = false;           // the reference
+  EngineRun run;
+  std::vector<Check> checks;   // against the full model (pairwise checks only)
+  double worst_normalised = 0; // max over checks of error / bound (0 for the full model)
+  std::string worst_quantity;
+  bool passed = false;         // ran to the end and every check passed (the full model: ran)
+};
+
+struct ConvergeResult {
+  std::string scene;
+  std::string engine;
+  std::vector<ModeGroup> groups;
+  std::vector<ConvergeModel> models;  // the full model first, then every other model
+  int smallest = -1;                  // index into models of the smallest passing model
+};
+
+// At most this many models (the product of (n_g + 1) over the groups); more is an InputError.
+inline constexpr int kMaxConvergeModels = 256;
+
+// Runs every model with `options.engines[0]` (the one engine) and compares each with the full
+// model. Throws InputError when the scene has no flexible body with modes, or too many models;
+// cancel::Cancelled when interrupted.
+ConvergeResult converge_scene(const System& system, const CompareOptions& options);
+
+// The table (one row per model: modes, worst normalised change and its quantity, pass/fail) and
+// the conclusion line.
+std::string format_converge(const ConvergeResult& r);
+
+// JSON: scene, engine, groups, models (label, counts, modes, passed, worst, checks), smallest.
+std::string converge_json(const ConvergeResult& r);
+
+}  // namespace crossdyn::harness
