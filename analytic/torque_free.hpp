@@ -1,6 +1,6 @@
 // Torque-free rigid body: the analytic solution (Euler's equations solved with Jacobi elliptic
 // functions; Landau & Lifshitz, Mechanics, Sec. 37; Kane, Likins & Levinson 1983, Sec. 3.1),
-// kept apart from every engine (../shared/STYLE.md item 7).
+// kept apart from every engine (docs/style.md item 7).
 #pragma once
 
 #include <Eigen/Core>

@@ -2,7 +2,7 @@
 // engines from the same point and compare them there. Engines never call each other: they meet
 // only through this interface (see README "Independence").
 //
-// Life of an engine object (const model, mutable workspace; ../shared/STYLE.md item 1):
+// Life of an engine object (const model, mutable workspace; docs/style.md item 1):
 //   Engine e(system, options);   // preallocates its workspace; may throw InputError
 //   e.pack(tree_state, x);       // engine-neutral state => the engine's own state vector x
 //   e.rhs(t, x, xdot);           // (t, x) => xdot; no heap allocation; called by the integrator
@@ -10,6 +10,7 @@
 //   e.output_row(t, x, row);     // (t, x) => one CSV row, layout() order (core/output_layout.hpp)
 #pragma once
 
+#include "core/names.hpp"
 #include "core/output_layout.hpp"
 #include "core/system.hpp"
 
@@ -54,8 +55,8 @@ struct TreeAccel {
 };
 
 struct EngineOptions {
-  // Newton-Euler constraint stabilisation: "projection" (default), "baumgarte", "none".
-  std::string stabilization = "projection";
+  // Newton-Euler constraint stabilisation: projection (default), baumgarte, none (core/names.hpp).
+  Choice<ConstraintStabilization> stabilization = ConstraintStabilization::Projection;
   double baumgarte_alpha = 10.0;  // 1/s, velocity-error gain  (Baumgarte 1972)
   double baumgarte_beta = 25.0;   // 1/s^2, position-error gain
   // Lagrange: re-chart Euler angles near their singularity (false: stop with an error there).

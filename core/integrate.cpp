@@ -1,6 +1,6 @@
 // Integrator plumbing with Boost.Odeint (see integrate.hpp for the contract).
 //
-// Steppers, used as Odeint's examples use them (../shared/STYLE.md item 11): a system object that
+// Steppers, used as Odeint's examples use them (docs/style.md item 11): a system object that
 // holds the engine, the stepper chosen explicitly, and right-hand-side calls counted here.
 //   rk4             runge_kutta4                                       (Hairer et al. I, Table 1.2)
 //   dopri5          dense_output of controlled runge_kutta_dopri5      (Dormand & Prince 1980)
@@ -101,7 +101,7 @@ class Runner {
       : engine_(engine), s_(s), result_(result), on_row_(on_row), on_step_(on_step), rows_(rows),
         sys_{&engine, &result.stats}, outputs_(output_times(s.duration, s.output_step)),
         breaks_(system.breakpoints()), row_(engine.columns().size()) {
-    sys_.trial_steps = s.method != "rk4";
+    sys_.trial_steps = s.method != Integrator::Rk4;
     sys_.start_x = &start_x_;
   }
 
@@ -109,14 +109,19 @@ class Runner {
     check_state(engine_, 0.0, x);
     emit(0.0, x);
     if (on_step_) on_step_(0.0, result_.stats);
-    if (s_.method == "rk4") fixed_rk4(x);
-    else if (s_.method == "dopri5") dense_dopri5(x);
-    else if (s_.method == "rkf78") {
-      auto stepper = odeint::make_controlled(s_.atol, s_.rtol, odeint::runge_kutta_fehlberg78<State>());
-      controlled(stepper, x);
-    } else {
-      odeint::bulirsch_stoer<State> stepper(s_.atol, s_.rtol);
-      controlled(stepper, x);
+    switch (s_.method.value()) {
+      case Integrator::Rk4: fixed_rk4(x); break;
+      case Integrator::Dopri5: dense_dopri5(x); break;
+      case Integrator::Rkf78: {
+        auto stepper = odeint::make_controlled(s_.atol, s_.rtol, odeint::runge_kutta_fehlberg78<State>());
+        controlled(stepper, x);
+        break;
+      }
+      case Integrator::BulirschStoer: {
+        odeint::bulirsch_stoer<State> stepper(s_.atol, s_.rtol);
+        controlled(stepper, x);
+        break;
+      }
     }
   }
 
@@ -353,10 +358,6 @@ void clear_interrupt() { cancel::detail::reset_interrupt_for_tests(); }
 RunResult simulate(Engine& engine, const System& system, const TreeState& initial,
                    const IntegratorSettings& s, const RowCallback& on_row,
                    const StepCallback& on_step) {
-  const auto names = integrator_names();
-  if (std::find(names.begin(), names.end(), s.method) == names.end())
-    throw InputError("unknown integrator '" + s.method +
-                     "' (known: rk4, dopri5, rkf78, bulirsch-stoer)");
   auto positive = [](double v, const char* what) {
     if (!(v > 0) || !std::isfinite(v))
       throw InputError(std::string(what) + " must be a positive number, got " + fmt(v));
@@ -364,7 +365,7 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
   positive(s.duration, "duration");
   positive(s.output_step, "output step");
   positive(s.dt, "step dt");
-  if (s.method != "rk4") {
+  if (s.method != Integrator::Rk4) {
     positive(s.rtol, "rtol");
     positive(s.atol, "atol");
   }

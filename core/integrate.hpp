@@ -23,6 +23,7 @@
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
+#include "core/names.hpp"
 #include "core/rows.hpp"
 
 #include <functional>
@@ -34,7 +35,7 @@
 namespace crossdyn {
 
 struct IntegratorSettings {
-  std::string method = "rkf78";
+  Choice<Integrator> method = Integrator::Rkf78;  // core/names.hpp
   double rtol = 1e-10;
   double atol = 1e-10;
   double dt = 1e-3;              // rk4 step; first trial step of adaptive methods
@@ -48,7 +49,7 @@ struct IntegratorSettings {
   static IntegratorSettings from(const RunSpec& run);
 };
 
-std::vector<std::string> integrator_names();  // rk4, dopri5, rkf78, bulirsch-stoer
+std::vector<std::string> integrator_names();  // all_names<Integrator>(): rk4, dopri5, rkf78, bulirsch-stoer
 
 struct RunStats {
   long rhs_calls = 0;
@@ -86,8 +87,8 @@ using RowCallback = std::function<void(const double* row)>;
 // Called after every accepted step with the time reached and the counts so far (progress).
 using StepCallback = std::function<void(double t, const RunStats& stats)>;
 
-// Runs `engine` from `initial`. Throws InputError for bad settings (unknown method, non-positive
-// step or tolerance). A failing run (RunFailure from the engine or the plumbing: non-finite
+// Runs `engine` from `initial`. Throws InputError for bad settings (non-positive step or
+// tolerance). A failing run (RunFailure from the engine or the plumbing: non-finite
 // derivative or state, step-size underflow, step limit, interrupt, timeout, rows that cannot be
 // stored) is returned in RunResult::failure, not thrown. cancel::poll() is called before every
 // step attempt (engines poll inside long right-hand sides).

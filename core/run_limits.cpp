@@ -39,8 +39,8 @@ std::string positive_time(const char* what, double x) {
 }  // namespace crossdyn::run_limits
 
 namespace crossdyn {
-// Declared in core/integrate.hpp; the one list of integrator names.
-std::vector<std::string> integrator_names() { return {"rk4", "dopri5", "rkf78", "bulirsch-stoer"}; }
+// Declared in core/integrate.hpp; the names come from the one table, core/names.hpp.
+std::vector<std::string> integrator_names() { return all_names<Integrator>(); }
 }  // namespace crossdyn
 
 namespace crossdyn::run_limits {
@@ -73,12 +73,7 @@ std::string tolerance_problem(const std::string& key, double value) {
 }
 
 std::string integrator_problem(const std::string& name) {
-  std::string known;
-  for (const std::string& k : integrator_names()) {
-    if (k == name) return "";
-    known += (known.empty() ? "" : ", ") + k;
-  }
-  return "unknown integrator '" + name + "' (known: " + known + ")";
+  return parse_name<Integrator>(name) ? "" : unknown_name_message<Integrator>(name);
 }
 
 std::string max_steps_problem(long max_steps) {
@@ -100,16 +95,15 @@ std::optional<Problem> check(const IntegratorSettings& s) {
     if (message.empty()) return std::nullopt;
     return Problem{setting, std::move(message)};
   };
-  if (auto p = first("integrator", integrator_problem(s.method))) return p;
   if (auto p = first("duration", duration_problem(s.duration))) return p;
   if (auto p = first("output_step", output_step_problem(s.output_step, s.duration))) return p;
   if (auto p = first("dt", dt_problem(s.dt))) return p;
-  if (s.method != "rk4") {
+  if (s.method != Integrator::Rk4) {
     if (auto p = first("rtol", tolerance_problem("rtol", s.rtol))) return p;
     if (auto p = first("atol", tolerance_problem("atol", s.atol))) return p;
   }
   if (auto p = first("max_steps", max_steps_problem(s.max_steps))) return p;
-  if (s.method == "rk4")
+  if (s.method == Integrator::Rk4)
     if (auto p = first("dt", fixed_step_count_problem(s.duration, s.dt, s.max_steps))) return p;
   return std::nullopt;
 }

@@ -32,12 +32,12 @@ std::string duration_problem(double duration);
 std::string output_step_problem(double output_step, double duration);
 std::string dt_problem(double dt);
 std::string tolerance_problem(const std::string& key, double value);  // key: "rtol" or "atol"
-std::string integrator_problem(const std::string& name);
+std::string integrator_problem(const std::string& name);  // unknown_name_message<Integrator>
 std::string max_steps_problem(long max_steps);
 std::string fixed_step_count_problem(double duration, double dt, long max_steps);
 
 // The first problem of a complete set of settings: which setting ("duration", "output_step",
-// "dt", "rtol", "atol", "integrator", "max_steps") and what is wrong.
+// "dt", "rtol", "atol", "max_steps") and what is wrong (the method, a Choice, is always valid).
 struct Problem {
   std::string setting;
   std::string message;

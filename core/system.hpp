@@ -1,6 +1,6 @@
 // The immutable model every engine consumes: bodies, joints and loads read from one scene file.
 //
-// Notation (Drake's monogram notation, see ../shared/STYLE.md item 3):
+// Notation (Drake's monogram notation, see docs/style.md item 3):
 //   N          the inertial (Newtonian) frame;  B, P, C   a body, a joint's parent, its child.
 //   Bo         the origin of body frame B, which is always the body's centre of mass (CM).
 //   p_PoJ_P    position from Po to the joint point J, expressed in frame P.
@@ -8,7 +8,7 @@
 //   R_PC       rotation matrix taking C components to P components (v_P = R_PC v_C).
 //   q_NB       unit quaternion, scalar first, with R(q_NB) = R_NB.
 //
-// Joint kinematics, shared by every engine (../shared/SCENARIOS.md "Conventions"):
+// Joint kinematics, shared by every engine (docs/conventions.md):
 //   R_PC = R_PJ0 * R_J(coordinates), where R_PJ0 is the joint's fixed orientation offset (the
 //   child frame's attitude in P at joint coordinate zero) and R_J the joint rotation:
 //     revolute   R_J = Rot(axis_J, angle), axis_J = R_PJ0^T axis_P (the axis is given in P);
@@ -34,6 +34,8 @@
 //
 // Everything is SI (kg, m, s, rad, N, N m); the reader converts units.
 #pragma once
+
+#include "core/names.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -179,7 +181,7 @@ struct CompareSpec {
 struct RunSpec {
   double duration = 0;          // s, > 0
   double output_step = 0;       // s, > 0
-  std::string integrator = "rkf78";
+  Choice<Integrator> integrator = Integrator::Rkf78;  // core/names.hpp
   double rtol = 1e-10, atol = 1e-10;
   double dt = 1e-3;             // fixed step for rk4; first trial step for adaptive methods
 };

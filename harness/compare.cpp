@@ -514,14 +514,19 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
       }
     }
 
-  // Drift of each engine (not of the analytic solution).
+  // Drift of each engine (not of the analytic solution): each conserved quantity with the reason
+  // the scene does not conserve it ("" when it does).
   const std::string no_E = energy_not_conserved_reason(system);
   const std::string no_H = momentum_not_conserved_reason(system);
-  for (const char* x : {"H", "E"})
+  const struct {
+    const char* quantity;
+    const std::string& not_conserved;
+  } drifts[] = {{"H", no_H}, {"E", no_E}};
+  for (const auto& d : drifts)
     for (const EngineRun* r : ok)
       if (r->engine != "analytic") {
         accs.emplace_back();
-        checks.push_back(drift_check(x, *r, look, std::string(x) == "E" ? no_E : no_H, accs.back()));
+        checks.push_back(drift_check(d.quantity, *r, look, d.not_conserved, accs.back()));
         if (accs.back()) accs.back()->a = index_of(r);
       }
 
@@ -774,7 +779,7 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
                           : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) +
                                 " checks passed"),
               "", "  ");
-  out += wrap("integrator " + c.settings.method + ", rtol " + fmt_g(c.settings.rtol) + ", atol " +
+  out += wrap("integrator " + c.settings.method.str() + ", rtol " + fmt_g(c.settings.rtol) + ", atol " +
                   fmt_g(c.settings.atol) + "; output every " + fmt_g(c.settings.output_step) +
                   " s to " + fmt_g(c.settings.duration) + " s",
               "", "  ");

@@ -74,7 +74,7 @@ struct EngineSpec {
 
 struct CompareOptions {
   std::vector<EngineSpec> engines;          // empty: every engine of engine_names()
-  std::optional<std::string> integrator;    // overrides of the scene's run block
+  std::optional<Choice<Integrator>> integrator;  // overrides of the scene's run block
   std::optional<double> rtol, atol, dt;
   bool analytic = true;                     // add "analytic" where System::analytic is set
   std::optional<long> max_steps;            // per run: IntegratorSettings::max_steps

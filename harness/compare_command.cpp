@@ -30,7 +30,7 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
                  "Comma-separated engines to run, in reference order (default: "
                  "kane,lagrange,newton-euler; engines not built yet are skipped)");
   sub.add_option("--integrator", o.integrator,
-                 "rk4, dopri5, rkf78 or bulirsch-stoer (default: the scene's)");
+                 known_names<Integrator>() + " (default: the scene's)");
   sub.add_option("--rtol", o.rtol, "Relative tolerance of adaptive integrators (default: the scene's)");
   sub.add_option("--atol", o.atol, "Absolute tolerance of adaptive integrators (default: the scene's)");
   sub.add_option("--dt", o.dt, "rk4 step, or first trial step of adaptive integrators, s");
@@ -58,7 +58,7 @@ CompareOptions to_compare_options(const CompareCliOptions& o) {
   overrides.dt = o.dt;
   check_overrides(overrides);
   CompareOptions c;
-  c.integrator = o.integrator;
+  if (o.integrator) c.integrator = *o.integrator;  // checked above
   c.rtol = o.rtol;
   c.atol = o.atol;
   c.dt = o.dt;

@@ -76,7 +76,7 @@ void add_converge_command(CLI::App& app, int& exit_code) {
       ->required();
   sub->add_option("--engine", o->engine, "The engine that runs every model (default: kane)");
   sub->add_option("--integrator", o->common.integrator,
-                  "rk4, dopri5, rkf78 or bulirsch-stoer (default: the scene's)");
+                  known_names<Integrator>() + " (default: the scene's)");
   sub->add_option("--rtol", o->common.rtol, "Relative tolerance (default: the scene's)");
   sub->add_option("--atol", o->common.atol, "Absolute tolerance (default: the scene's)");
   sub->add_option("--dt", o->common.dt, "rk4 step, or first trial step, s");

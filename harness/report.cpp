@@ -131,7 +131,7 @@ json system_json(const System& s) {
           {"analytic", s.analytic},
           {"run", {{"duration_s", s.run.duration},
                    {"output_step_s", s.run.output_step},
-                   {"integrator", s.run.integrator},
+                   {"integrator", s.run.integrator.str()},
                    {"rtol", s.run.rtol},
                    {"atol", s.run.atol},
                    {"dt_s", s.run.dt}}},
@@ -218,7 +218,7 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
     j["scene"] = c.scene;
     j["passed"] = c.passed();
     if (!c.passed()) ++n_scenes_failed;
-    j["settings"] = {{"integrator", c.settings.method},
+    j["settings"] = {{"integrator", c.settings.method.str()},
                      {"rtol", c.settings.rtol},
                      {"atol", c.settings.atol},
                      {"dt_s", c.settings.dt},

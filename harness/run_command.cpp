@@ -27,6 +27,7 @@ struct RunOptions {
   bool stats = false;
   bool quiet = false;
   EngineOptions engine_options;
+  std::optional<std::string> stabilization;  // --stabilization, a name of ConstraintStabilization
   bool no_rechart = false;
 };
 
@@ -44,6 +45,7 @@ int run(const RunOptions& o) {
   IntegratorSettings s = harness::settings_for(system, o.overrides);
   s.keep_rows = false;  // rows stream to the CSV as they are computed; memory stays flat
   EngineOptions eo = o.engine_options;
+  if (o.stabilization) eo.stabilization = *o.stabilization;  // the option's check parsed it
   eo.rechart = !o.no_rechart;
   // On a terminal only (and not when the rows themselves go to it); erased before any message.
   ProgressLine progress(!o.quiet && (!o.output.empty() || !ProgressLine::stdout_is_terminal()));
@@ -97,7 +99,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
       ->required();
   sub->add_option("--engine", o->engine, "Engine: kane, lagrange or newton-euler (default kane)");
   sub->add_option("--integrator", o->overrides.integrator,
-                  "rk4 (fixed step --dt), dopri5, rkf78 or bulirsch-stoer (default: the scene's)");
+                  known_names<Integrator>() + " (rk4: fixed step --dt; default: the scene's)");
   sub->add_option("--rtol", o->overrides.rtol, "Relative tolerance of adaptive integrators (> 0)");
   sub->add_option("--atol", o->overrides.atol, "Absolute tolerance of adaptive integrators (> 0)");
   sub->add_option("--dt", o->overrides.dt, "rk4 step, or first trial step of adaptive integrators, s");
@@ -111,9 +113,16 @@ void add_run_command(CLI::App& app, int& exit_code) {
                   "README for devices, FIFOs, symbolic links and read-only files)");
   sub->add_flag("--stats", o->stats, "Print step and right-hand-side counts to stderr");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
-  sub->add_option("--stabilization", o->engine_options.stabilization,
-                  "newton-euler: projection (default), baumgarte or none")
-      ->check(CLI::IsMember({"projection", "baumgarte", "none"}));
+  sub->add_option("--stabilization", o->stabilization,
+                  "newton-euler: " + known_names<ConstraintStabilization>() + " (default " +
+                      EngineOptions{}.stabilization.str() + ")")
+      ->check(CLI::Validator(
+          [](std::string& name) {
+            return parse_name<ConstraintStabilization>(name)
+                       ? std::string()
+                       : unknown_name_message<ConstraintStabilization>(name);
+          },
+          "{" + known_names<ConstraintStabilization>(",") + "}"));
   sub->add_option("--baumgarte-alpha", o->engine_options.baumgarte_alpha,
                   "newton-euler: Baumgarte velocity gain, 1/s (default 10)");
   sub->add_option("--baumgarte-beta", o->engine_options.baumgarte_beta,

@@ -57,7 +57,6 @@ IntegratorSettings settings_for(const System& system, const RunOverrides& o) {
     std::string value;
   };
   const Source sources[] = {
-      {"integrator", "--integrator", o.integrator.has_value(), s.method},
       {"duration", "--duration", o.duration.has_value(), shortest(s.duration)},
       {"output_step", "--output-step", o.output_step.has_value(), shortest(s.output_step)},
       {"dt", "--dt", o.dt.has_value(), shortest(s.dt)},
@@ -76,7 +75,7 @@ IntegratorSettings settings_for(const System& system, const RunOverrides& o) {
     if (p->setting == "dt" && o.max_steps)
       throw InputError("--max-steps " + std::to_string(s.max_steps) + ": " + p->message + from_scene);
     if (p->setting == "dt" && o.integrator)
-      throw InputError("--integrator " + s.method + ": " + p->message + from_scene);
+      throw InputError("--integrator " + s.method.str() + ": " + p->message + from_scene);
   }
   throw InputError(system.file + ": run." + p->setting + ": " + p->message);
 }

@@ -50,7 +50,7 @@ std::vector<std::string> scene_files(const VerifyOptions& o) {
 
 RunOverrides run_overrides(const CompareOptions& c) {
   RunOverrides o;
-  o.integrator = c.integrator;
+  if (c.integrator) o.integrator = c.integrator->str();
   o.rtol = c.rtol;
   o.atol = c.atol;
   o.dt = c.dt;

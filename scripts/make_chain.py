@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Writes the chainN scene (../shared/SCENARIOS.md, Scene 3: chain5 with N links) to stdout.
+"""Writes the chainN scene (docs/scenarios.md, Scene 3: chain5 with N links) to stdout.
 
     scripts/make_chain.py N [--duration T] [--output-step H] > chainN.yaml
 
@@ -16,10 +16,10 @@ if a.n < 1:
     p.error("N must be at least 1")
 
 # YAML anchors keep the file small (chain5000 is under the reader's 1 MiB limit).
-out = [f"# chain{a.n}: scripts/make_chain.py {a.n}; chain5 of ../shared/SCENARIOS.md Scene 3 with {a.n} links.",
+out = [f"# chain{a.n}: scripts/make_chain.py {a.n}; chain5 of docs/scenarios.md Scene 3 with {a.n} links.",
        f"name: chain{a.n}",
        f"description: {a.n} identical slender links joined end to end by spherical joints (chainN).",
-       "source: crossdyn's own scaling scene, ../shared/SCENARIOS.md Scene 3 (chainN).",
+       "source: crossdyn's own scaling scene, docs/scenarios.md Scene 3 (chainN).",
        "bodies:",
        "  - {name: link1, mass: 10, inertia: &I [0.1, 3.4, 3.4]}"]
 for k in range(2, a.n + 1):

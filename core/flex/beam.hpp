@@ -1,5 +1,5 @@
 // The beam generator: a uniform Euler-Bernoulli beam as a flexible body (docs/flexible-data.md
-// "Beam generator"; ../shared/SCENARIOS.md "Beam generator"; issue 11 "Sources of modal data").
+// "Beam generator"; docs/scenarios.md "Beam generator"; issue 11 "Sources of modal data").
 //
 // Geometry. The beam lies along one body axis a (the long axis), centred on the body origin Bo
 // (its undeformed CM): it spans x_a in [-L/2, +L/2]. The end at +L/2 is the node `top`, the end at

@@ -2,6 +2,8 @@
 // documentation generator ask of it.
 #include "core/scene/schema.hpp"
 
+#include "core/names.hpp"
+
 #include <array>
 #include <stdexcept>
 
@@ -255,8 +257,8 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "The run's length, from t = 0, > 0."},
 {.path = "run.output_step", .type = Quantity, .dimension = Dimension::Time, .required = true,
  .doc = "Time between output rows, > 0 and at most the duration; at most 1e7 rows."},
-{.path = "run.integrator", .type = Word, .default_value = "rkf78",
- .words = "rk4|dopri5|rkf78|bulirsch-stoer", .noun = "integrator",
+{.path = "run.integrator", .type = Word, .default_value = name_of(RunSpec{}.integrator.value()),
+ .words = kNameWords<Integrator>, .noun = "integrator",
  .doc = "The integrator (README \"Integrators\"): rk4 takes fixed steps `dt`; the others adapt "
         "their step to `rtol` and `atol`."},
 {.path = "run.rtol", .type = Number, .default_value = "1e-10",

@@ -222,7 +222,7 @@ void write_run(Out& o, const RunSpec& run) {
   o.key("run") << YAML::BeginMap;
   o.number("run.duration", run.duration);
   o.number("run.output_step", run.output_step);
-  o.key("run.integrator") << run.integrator;
+  o.key("run.integrator") << run.integrator.str();
   o.number("run.rtol", run.rtol);
   o.number("run.atol", run.atol);
   o.number("run.dt", run.dt);

@@ -112,7 +112,7 @@
 //          moving base", J. Guidance, Control, and Dynamics 10(2), 1987, 139-151.
 //   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
 //   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
-//           using TREETOPS and model-specific computer codes", 1990 (../shared/reference).
+//           using TREETOPS and model-specific computer codes", 1990 (docs/references.md).
 #pragma once
 
 #include "core/engine.hpp"

@@ -1,7 +1,8 @@
 // The Newton-Euler engine (see newton_euler.hpp for the state layout, equations and outputs).
 //
 // Bibliography
-//   [Paper]    Cochran, No & Fitz-Coy (1990), ../shared/reference/cochran-no-fitzcoy-1990-treetops.md
+//   [Paper]    Cochran, No & Fitz-Coy (1990), "Simulation of spacecraft attitude dynamics using
+//              TREETOPS and model-specific computer codes" (full citation: docs/references.md).
 //   [KLL83]    Kane, Likins & Levinson (1983), "Spacecraft Dynamics", McGraw-Hill.
 //   [Baraff96] Baraff (1996), "Linear-time dynamics using Lagrange multipliers", SIGGRAPH 96.
 //   [Baum72]   Baumgarte (1972), "Stabilization of constraints and integrals of motion in
@@ -137,12 +138,11 @@ class NewtonEulerEngine final : public Engine {
 NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& options)
     : system_(system) {
   const std::string file = where(system);
-  if (options.stabilization == "projection") stabilization_ = Stabilization::Projection;
-  else if (options.stabilization == "baumgarte") stabilization_ = Stabilization::Baumgarte;
-  else if (options.stabilization == "none") stabilization_ = Stabilization::None;
-  else
-    throw InputError("engine option stabilization: unknown value '" + options.stabilization +
-                     "' (known: projection, baumgarte, none)");
+  switch (options.stabilization.value()) {  // named in core/names.hpp, parsed where it entered
+    case ConstraintStabilization::Projection: stabilization_ = Stabilization::Projection; break;
+    case ConstraintStabilization::Baumgarte: stabilization_ = Stabilization::Baumgarte; break;
+    case ConstraintStabilization::None: stabilization_ = Stabilization::None; break;
+  }
   if (!std::isfinite(options.baumgarte_alpha) || options.baumgarte_alpha < 0 ||
       !std::isfinite(options.baumgarte_beta) || options.baumgarte_beta < 0)
     throw InputError("engine options baumgarte_alpha, baumgarte_beta: must be finite and >= 0 (got " +

@@ -47,7 +47,7 @@ struct Folder {
   fs::path path;
 };
 
-// chainN of ../shared/SCENARIOS.md Scene 3 (the generator scripts/make_chain.py writes the same).
+// chainN of docs/scenarios.md Scene 3 (the generator scripts/make_chain.py writes the same).
 std::string chain_scene(int n, double duration = 10, double output_step = 0.1) {
   std::ostringstream s;
   s << "name: chain" << n << "\ndescription: " << n << " links joined by spherical joints.\n"

@@ -11,7 +11,7 @@
 
 namespace crossdyn::test {
 
-// The pinned rigid scenes every engine must agree on (../shared/SCENARIOS.md).
+// The pinned rigid scenes every engine must agree on (docs/scenarios.md).
 inline const std::vector<std::string>& pinned_rigid_scenes() {
   static const std::vector<std::string> s{"spear1_case1", "spear1_case2", "spear1_case1_spherical",
                                           "chain5"};

@@ -21,7 +21,7 @@ using crossdyn::test::close;
 
 namespace {
 
-// Scene 2's beam (../shared/SCENARIOS.md): 10 m along z, 50 kg/m, 2 x 2 m section, EI = 100 N m^2
+// Scene 2's beam (docs/scenarios.md): 10 m along z, 50 kg/m, 2 x 2 m section, EI = 100 N m^2
 // in both planes, two free-free modes per plane, unit displacement at the top end.
 BeamSpec scene2_beam(int slices = 100, int modes = 2) {
   BeamSpec s;
@@ -169,7 +169,7 @@ TEST_CASE("the beam's rigid mass and inertia equal the uniform box's, for every 
       CHECK(test::all_close(r.I, b.I_BBo_B, 0, 1e-15));
       CHECK(b.p_RoBo_R.norm() == 0.0);
     }
-  // Scene 2's numbers as written in ../shared/SCENARIOS.md.
+  // Scene 2's numbers as written in docs/scenarios.md.
   const FlexModel b = make_beam(scene2_beam(), "beam");
   CHECK(close(b.I_BBo_B(0, 0), 4333.33, 0.01, 0));
   CHECK(close(b.I_BBo_B(2, 2), 333.33, 0.01, 0));

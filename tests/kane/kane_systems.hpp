@@ -71,7 +71,7 @@ inline System single_body(const Eigen::Matrix3d& I_BBo_B, const Eigen::Vector3d&
   return s;
 }
 
-// ../shared/SCENARIOS.md "Scene 1", spear1_case1, built in code (same data as the scene file).
+// docs/scenarios.md "Scene 1", spear1_case1, built in code (same data as the scene file).
 inline System spear1_case1() {
   const double deg = M_PI / 180.0;
   System s;
@@ -92,7 +92,7 @@ inline System spear1_case1() {
   return s;
 }
 
-// ../shared/SCENARIOS.md "Scene 3", chainN, built in code.
+// docs/scenarios.md "Scene 3", chainN, built in code.
 inline System chain(int links) {
   System s;
   s.name = "chain" + std::to_string(links);

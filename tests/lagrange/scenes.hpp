@@ -1,5 +1,5 @@
 // Systems built in code for the Lagrange engine's tests (the pinned scenes of
-// ../shared/SCENARIOS.md where the tests need them without the scene reader, plus small cases).
+// docs/scenarios.md where the tests need them without the scene reader, plus small cases).
 #pragma once
 
 #include <Eigen/Geometry>

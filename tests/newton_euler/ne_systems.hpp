@@ -32,7 +32,7 @@ inline Joint free_joint(int child) {
   return j;
 }
 
-// chainN of ../shared/SCENARIOS.md "Scene 3": N links of 10 kg, diag(0.1, 3.4, 3.4) kg m^2, 2 m
+// chainN of docs/scenarios.md "Scene 3": N links of 10 kg, diag(0.1, 3.4, 3.4) kg m^2, 2 m
 // long along x, spherical joints from (1, 0, 0) of link k-1 to (-1, 0, 0) of link k; link1 spins at
 // (0.3, 0.2, 0.5) rad/s, every joint at (0.1, -0.2, 0.3) rad/s in the child frame.
 inline System chain(int n) {
@@ -58,7 +58,7 @@ inline System chain(int n) {
   return s;
 }
 
-// SPEAR-1 case I (../shared/SCENARIOS.md "Scene 1"), for tests that must not wait for files.
+// SPEAR-1 case I (docs/scenarios.md "Scene 1"), for tests that must not wait for files.
 inline System spear1() {
   System s;
   s.name = "spear1_case1_code";

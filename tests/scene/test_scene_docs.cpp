@@ -1,16 +1,19 @@
 // docs/scene-format.md cannot drift from the schema: its key reference is generated from
 // core/scene/schema.cpp (tests/scene/scene_doc.cpp), and every key of its tables is a key of the
-// schema and the reverse. The documents travel with the repository: none points outside it.
+// schema and the reverse. The documents travel with the repository: no file of it points outside it.
 #include "core/scene/schema.hpp"
 #include "tests/scene/generated_block.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <string>
+#include <vector>
 
 using namespace crossdyn;
 namespace fs = std::filesystem;
@@ -74,20 +77,84 @@ TEST_CASE("every key of the schema is in docs/scene-format.md, and every key the
   }
 }
 
+namespace {
+
+// Text that points outside the repository: the shared folder next to a developer's clone, or an
+// absolute path of the machine it was written on. Written in two pieces so that this file does not
+// hold them.
+const std::string kOutside[] = {std::string("../") + "shared", std::string("/") + "work/"};
+
+// 1-based numbers of the lines of `text` that hold one of kOutside.
+std::vector<std::size_t> outside_lines(const std::string& text) {
+  std::vector<std::size_t> lines;
+  std::istringstream in(text);
+  std::string line;
+  for (std::size_t n = 1; std::getline(in, line); ++n)
+    for (const std::string& o : kOutside)
+      if (line.find(o) != std::string::npos) {
+        lines.push_back(n);
+        break;
+      }
+  return lines;
+}
+
+// Every file of the repository, relative to the source tree: `git ls-files` when the tree is a git
+// checkout, else every file found walking it (not .git, build trees, generated reports).
+std::vector<std::string> repository_files() {
+  std::vector<std::string> files;
+  const std::string cmd = "git -C '" + test::source_dir() + "' ls-files -z 2>/dev/null";
+  if (FILE* f = ::popen(cmd.c_str(), "r")) {
+    std::string out;
+    char buf[4096];
+    for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) out.append(buf, n);
+    const int status = ::pclose(f);
+    std::istringstream in(out);
+    if (status == 0)
+      for (std::string name; std::getline(in, name, '\0');)
+        if (!name.empty()) files.push_back(name);
+  }
+  if (!files.empty()) return files;
+  const fs::path root = test::source_dir();
+  for (auto it = fs::recursive_directory_iterator(root); it != fs::recursive_directory_iterator();
+       ++it) {
+    const fs::path rel = fs::relative(it->path(), root);
+    if (it->is_directory() &&
+        (rel.filename() == ".git" || fs::exists(it->path() / "CMakeCache.txt") ||
+         rel == "reports/latest" || rel == "reports/example/data")) {
+      it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_regular_file()) files.push_back(rel.string());
+  }
+  return files;
+}
+
+}  // namespace
+
+TEST_CASE("outside_lines finds every line that points outside the repository") {
+  const std::string text = std::string("fine\nsee ../") + "shared/STYLE.md\nok\n/" +
+                           "work/main/x\n../share is fine\n";
+  CHECK(outside_lines(text) == std::vector<std::size_t>{2, 4});
+  CHECK(outside_lines("docs/style.md item 3\n").empty());
+}
+
 TEST_CASE("the documents the repository relies on are in it, and none points outside it") {
-  std::vector<fs::path> files{test::source_dir() + "/README.md"};
-  for (const char* name : {"scene-format.md", "conventions.md", "scenarios.md"}) {
-    const fs::path p = test::source_dir() + "/docs/" + name;
-    CHECK(fs::exists(p));
-    files.push_back(p);
+  for (const char* name : {"scene-format.md", "conventions.md", "scenarios.md", "style.md",
+                           "references.md", "flexible-bodies.md"})
+    CHECK(fs::exists(test::source_dir() + "/docs/" + name));
+  // Every source, script, document and data file (binary files, such as pictures, are skipped).
+  const std::vector<std::string> files = repository_files();
+  REQUIRE(files.size() > 100);
+  std::size_t scanned = 0;
+  for (const std::string& name : files) {
+    const std::string text = slurp(test::source_dir() + "/" + name);
+    if (text.find('\0') != std::string::npos) continue;
+    ++scanned;
+    for (std::size_t line : outside_lines(text))
+      FAIL_CHECK(name << ":" << line << ": points outside the repository (its own docs/ hold "
+                      "the style, the scenes, the conventions and the references)");
   }
-  for (const char* dir : {"/scenarios", "/docs"})
-    for (const auto& e : fs::directory_iterator(test::source_dir() + dir))
-      if (e.is_regular_file()) files.push_back(e.path());
-  for (const fs::path& p : files) {
-    INFO(p);
-    CHECK(slurp(p).find("../shared") == std::string::npos);
-  }
+  CHECK(scanned > 100);
   // The figure docs/scene-format.md shows is committed with the script that draws it.
   CHECK(fs::exists(test::source_dir() + "/docs/figures/joint_frames.png"));
   CHECK(fs::exists(test::source_dir() + "/docs/figures/make_figures.py"));

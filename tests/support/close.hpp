@@ -1,4 +1,4 @@
-// Comparing doubles with an absolute and a relative bound (../shared/STYLE.md item 9):
+// Comparing doubles with an absolute and a relative bound (docs/style.md item 9):
 // close(a, b, atol, rtol) is |a - b| <= atol + rtol * |b|. Use an absolute bound where the expected
 // value is zero; never compare doubles for equality.
 #pragma once
