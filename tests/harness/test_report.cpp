@@ -26,7 +26,8 @@ namespace {
 
 // The scenes of reports/example/ (keep in step with reports/README.md).
 const char* const kExampleScenes =
-    "scenarios/spear1_case1.yaml scenarios/spear1_case2.yaml scenarios/torque_free_asymmetric.yaml";
+    "scenarios/spear1_case1.yaml scenarios/spear1_case2.yaml scenarios/torque_free_asymmetric.yaml "
+    "scenarios/pointing_flex.yaml";
 
 std::string read_text(const fs::path& p) {
   std::ifstream in(p);
@@ -149,12 +150,12 @@ TEST_CASE("report: the regenerated example folder is complete and matches the co
   INFO(r.output);
   REQUIRE((r.status == 0 || r.status == 1));  // 1: some check failed; the report is still made
   CHECK(r.output.find("report: " + out.string() + "/index.html") != std::string::npos);
-  const std::set<std::string> fresh = check_complete(out, 3);
+  const std::set<std::string> fresh = check_complete(out, 4);
   CHECK(fs::exists(out / "junit.xml"));
 
   const fs::path example = fs::path(crossdyn::test::source_dir()) / "reports" / "example";
   REQUIRE(fs::exists(example));
-  const std::set<std::string> committed = check_complete(example, 3, /*csv_present=*/false);
+  const std::set<std::string> committed = check_complete(example, 4, /*csv_present=*/false);
   CHECK(fresh == committed);
 }
 
