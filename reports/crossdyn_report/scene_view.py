@@ -378,7 +378,7 @@ def geometry_warnings(geom, frame):
 
 def symmetry_notes(geom, frame):
     """Pairs of revolute joints on one parent that carry identical bodies at the same or mirror-image
-    points, where a positive angle moves the two children to mirror-opposite sides: often a flipped
+    points, where a positive angle does not move the two children as mirror images: often a flipped
     axis sign, sometimes the design. Said, not judged."""
     out = []
     rev = [(joint, js) for joint, js in zip(geom["joints"], frame["joints"]) if joint["type"] == "revolute"]
@@ -403,7 +403,7 @@ def symmetry_notes(geom, frame):
                 where = "at one point"
             if np.dot(da, db) < -0.5:
                 out.append("note: %s and %s carry identical bodies %s of %s, yet a positive angle moves them "
-                           "to opposite sides (%s towards N %s, %s towards N %s)" % (
+                           "other than as mirror images (%s towards N %s, %s towards N %s)" % (
                                ja["name"], jb["name"], where, bodies[ja["parent"]]["name"], ba["name"],
                                direction_name(positive_direction(frame, ja, sa)), bb["name"],
                                direction_name(positive_direction(frame, jb, sb))))

@@ -333,7 +333,7 @@ class CheckScenes(unittest.TestCase):
         warnings, symmetry, notes = self.messages(self.geometry("hinged_panels_flipped_axis"))
         self.assertEqual(warnings, [])
         self.assertEqual(symmetry, ["note: hinge1 and hinge2 carry identical bodies at mirror-image points of "
-                                    "hub, yet a positive angle moves them to opposite sides (panel1 towards "
+                                    "hub, yet a positive angle moves them other than as mirror images (panel1 towards "
                                     "N -z, panel2 towards N +z)"])
 
     def test_a_flipped_child_point_is_named(self):
