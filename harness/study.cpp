@@ -54,6 +54,20 @@ double median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// `text` wrapped at 100 characters, continuation lines indented by two spaces.
+std::string wrap100(const std::string& text) {
+  std::string out, line = text.rfind("  ", 0) == 0 ? "  " : "";
+  std::istringstream words(text);
+  for (std::string w; words >> w;) {
+    if (!line.empty() && line.size() + 1 + w.size() > 100) {
+      out += line + "\n";
+      line = "  ";
+    }
+    line += (line.empty() || line == "  " ? "" : " ") + w;
+  }
+  return out + line + "\n";
+}
+
 // The progress display, redrawn at most 4 times a second (phase() draws at once).
 struct Progress {
   ProgressLine* line = nullptr;
@@ -557,9 +571,9 @@ std::string recommendation(const SceneStudy& s, double target, bool history) {
 
 std::string format_study(const SceneStudy& s) {
   std::ostringstream out;
-  out << "scene " << s.scene << " (" << s.file << "): " << fmt_g(s.duration, 6) << " s, output every "
-      << fmt_g(s.output_step, 6) << " s\n";
-  out << "reference: " << s.reference.description << "\n";
+  out << wrap100("scene " + s.scene + " (" + s.file + "): " + fmt_g(s.duration, 6) + " s, output every " +
+                 fmt_g(s.output_step, 6) + " s");
+  out << wrap100("reference: " + s.reference.description);
   out << "cpu: median CPU of the integration (simulate() only, no CSV), ms; error: max over the\n"
          "compared quantities of |x - ref| / scale (attitude, angles: rad), at the end (end) and\n"
          "over every output time (history); front: on the Pareto front of cpu and end error (e),\n"
@@ -582,11 +596,11 @@ std::string format_study(const SceneStudy& s) {
   out << text_table(rows);
   if (!failures.empty()) {
     out << "\nfailed configurations:\n";
-    for (const std::string& f : failures) out << "  " << f << "\n";
+    for (const std::string& f : failures) out << wrap100("  " + f);
   }
   out << "\n";
-  for (double t : recommendation_targets()) out << recommendation(s, t) << "\n";
-  for (const std::string& n : s.notes) out << "note: " << n << "\n";
+  for (double t : recommendation_targets()) out << wrap100(recommendation(s, t));
+  for (const std::string& n : s.notes) out << wrap100("note: " + n);
   return out.str();
 }
 
@@ -753,10 +767,11 @@ ScalingStudy scaling_study(const ScalingOptions& o) {
 
 std::string format_scaling(const ScalingStudy& s) {
   std::ostringstream out;
-  out << "right-hand-side cost on chainN (docs/scenarios.md Scene 3) at its initial state: median\n"
-         "CPU per call, us (batches of >= 1 ms, >= "
-      << fmt_g(s.budget, 3) << " s per point); exponent: least-squares slope of log cost\n"
-         "against log N over the upper half of N\n\n";
+  out << wrap100("right-hand-side cost on chainN (docs/scenarios.md Scene 3) at its initial state: "
+                 "median CPU per call, us (batches of >= 1 ms, >= " + fmt_g(s.budget, 3) +
+                 " s per point); exponent: least-squares slope of log cost against log N over the "
+                 "upper half of N")
+      << "\n";
   std::vector<std::vector<std::string>> rows{{"N"}};
   for (const ScalingLine& l : s.lines) rows[0].push_back(l.engine);
   for (std::size_t k = 0; k < s.links.size(); ++k) {
@@ -772,7 +787,7 @@ std::string format_scaling(const ScalingStudy& s) {
   out << text_table(rows);
   for (const ScalingLine& l : s.lines)
     for (const ScalingPoint& p : l.points)
-      if (!p.ok) out << "note: " << l.engine << " on chain" << p.links << ": " << p.note << "\n";
+      if (!p.ok) out << wrap100("note: " + l.engine + " on chain" + std::to_string(p.links) + ": " + p.note);
   return out.str();
 }
 
