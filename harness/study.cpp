@@ -515,7 +515,9 @@ void mark_fronts(SceneStudy& s) {
     end.push_back(r.ok ? r.error.end : kNaN);
     hist.push_back(r.ok ? r.error.history : kNaN);
   }
-  const std::vector<bool> fe = pareto_front(cost, end), fh = pareto_front(cost, hist);
+  // Errors below the reference's own accuracy (its runs' agreement) are all the same accuracy.
+  const double floor = std::max(1e-15, std::isfinite(s.reference.agreement) ? s.reference.agreement : 0.0);
+  const std::vector<bool> fe = pareto_front(cost, end, floor), fh = pareto_front(cost, hist, floor);
   for (std::size_t i = 0; i < s.rows.size(); ++i) {
     s.rows[i].front_end = fe[i];
     s.rows[i].front_history = fh[i];

@@ -159,7 +159,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options);
 // it. Errors below `floor` count as `floor` (error 0 and 1e-17 are the same accuracy).
 std::vector<bool> pareto_front(const std::vector<double>& cost, const std::vector<double>& error,
                                double floor = 1e-16);
-// Sets every row's front_end and front_history.
+// Sets every row's front_end and front_history; errors below the reference's accuracy
+// (max(1e-15, reference.agreement)) count as equal.
 void mark_fronts(SceneStudy& s);
 
 // The cheapest row (least median CPU) whose end-state error (or history error) is <= target.

@@ -551,7 +551,8 @@ def chart_study(scene, out_dir):
                   "integrator, marker and dash the engine. Left: error of the end state; right: the "
                   "largest error over every output time; both against the %s. The thick grey step "
                   "line and the circles are the Pareto front: no configuration is both faster and "
-                  "more accurate than a circled one. Errors of exactly 0 are drawn at 1e-17."
+                  "more accurate than a circled one (errors below the reference's own accuracy count as "
+                  "equal). Errors of exactly 0 are drawn at 1e-17."
                   % (scene.get("scene"), "analytic solution" if scene["reference"]["kind"] == "analytic"
                      else "engines' reference"))
 
