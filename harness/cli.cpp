@@ -35,7 +35,7 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
   return d[a.size()][b.size()];
 }
 
-// "run, compare, verify, list, draw, converge": the registered commands, in order.
+// "run, compare, verify, list, draw, converge, study": the registered commands, in order.
 std::string command_list(const CLI::App& app) {
   std::string out;
   for (const CLI::App* sub : app.get_subcommands([](const CLI::App*) { return true; }))
@@ -171,6 +171,7 @@ int crossdyn_main(int argc, char** argv) {
     add_list_command(app, exit_code);
     add_draw_command(app, exit_code);
     add_converge_command(app, exit_code);
+    add_study_command(app, exit_code);
     try {
       app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {

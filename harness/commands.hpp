@@ -14,5 +14,6 @@ void add_verify_command(CLI::App& app, int& exit_code);   // harness/verify_comm
 void add_draw_command(CLI::App& app, int& exit_code);     // harness/draw_command.cpp
 void add_list_command(CLI::App& app, int& exit_code);     // harness/list_command.cpp
 void add_converge_command(CLI::App& app, int& exit_code); // harness/converge_command.cpp
+void add_study_command(CLI::App& app, int& exit_code);    // harness/study_command.cpp
 
 }  // namespace crossdyn

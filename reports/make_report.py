@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Static HTML report of a `crossdyn verify` run.
+"""Static HTML report of a `crossdyn verify` run (or of `crossdyn study`: a study.json).
 
     /usr/bin/python3 reports/make_report.py SUMMARY.json OUT_DIR
 
@@ -90,6 +90,30 @@ def scene_page(env, scene, out_dir):
     return pages.render(env, "scene.html", pages.scene_context(scene, pictures, made, motion_note, converge))
 
 
+def study_report(summary, out_dir):
+    """The pages of `crossdyn study --report DIR` (study.json, "kind": "study"): index.html, one
+    <scene>-study.html per scene with its work-precision chart, and scaling.html."""
+    env = pages.environment()
+    for scene in summary.get("scenes", []):
+        try:
+            made = charts.chart_study(scene, out_dir)
+        except Exception as e:  # a chart that cannot be drawn must not lose the page
+            warn("%s: the study chart failed: %r" % (scene.get("scene"), e))
+            plt.close("all")
+            made = None
+        chart = dict(name=made[0], caption=made[1]) if made else None
+        write_atomic(os.path.join(out_dir, scene["page"]),
+                     pages.render(env, "study.html", pages.study_scene_context(summary, scene, chart)))
+    if summary.get("scaling"):
+        made = charts.chart_scaling(summary["scaling"], out_dir)
+        chart = dict(name=made[0], caption=made[1]) if made else None
+        write_atomic(os.path.join(out_dir, summary["scaling"].get("page", "scaling.html")),
+                     pages.render(env, "scaling.html", pages.scaling_context(summary, chart)))
+    write_atomic(os.path.join(out_dir, "index.html"),
+                 pages.render(env, "study_index.html", pages.study_index_context(summary)))
+    return 0
+
+
 def main(argv):
     if len(argv) != 3:
         print(__doc__, file=sys.stderr)
@@ -102,6 +126,8 @@ def main(argv):
         warn("cannot read %s: %s" % (summary_path, e))
         return 2
     os.makedirs(out_dir, exist_ok=True)
+    if summary.get("kind") == "study":
+        return study_report(summary, out_dir)
     env = pages.environment()
     for scene in summary.get("scenes", []):
         scene.setdefault("group_order", summary.get("group_order", []))

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from .common import DASHES, gfmt, plt, save_figure
+from .common import DASHES, STYLES, gfmt, plt, save_figure
 from .kinematics import attitude, attitude_angle, joint_rotation_vectors, rotation_vector
 
 TINY = 1e-17  # floor for log-scale plots of differences that are exactly zero
@@ -485,6 +485,108 @@ def chart_converge(scene, out_dir, sid):
                   "slices, hatched) run by %s and compared with the full model on every quantity; "
                   "the bar is the largest change as a multiple of that quantity's tolerance "
                   "(zero is drawn at 1e-17). Green stays within the scene's tolerances." % conv.get("engine", "kane"))
+
+
+# ---- `crossdyn study`: speed against accuracy, and the scaling of the right-hand side ----
+
+# Colour: the integrator; marker and line style: the engine (study charts).
+STUDY_COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
+                 "tab:pink", "tab:olive", "tab:cyan", "0.3"]
+STUDY_MARKERS = {"kane": "o", "lagrange": "s", "newton-euler": "^"}
+STUDY_DASHES = {"kane": "-", "lagrange": "--", "newton-euler": ":"}
+
+
+def _study_look(engine, integrator, integrators, engines):
+    colour = STUDY_COLOURS[integrators.index(integrator) % len(STUDY_COLOURS)]
+    k = engines.index(engine)
+    return dict(color=colour, marker=STUDY_MARKERS.get(engine, "dvpx"[k % 4]),
+                linestyle=STUDY_DASHES.get(engine, "-."), linewidth=1.3, markersize=4.5)
+
+
+def chart_study(scene, out_dir):
+    """Work-precision chart of one scene: end-state error (left) and history error (right) against
+    the median CPU time of the integration, log-log; one line per engine x integrator through its
+    tolerances (or rk4 steps); the Pareto front marked. Returns (file name, caption) or None."""
+    rows = [r for r in scene.get("rows", []) if r.get("ok") and r.get("cpu_median")]
+    if not rows:
+        return None
+    engines = list(dict.fromkeys(r["engine"] for r in scene["rows"]))
+    integrators = list(dict.fromkeys(r["integrator"] for r in scene["rows"]))
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.2), sharey=False)
+    handles, labels = [], []
+    for ax, key, front_key, title in ((axes[0], "end_error", "front_end", "end-state error"),
+                                      (axes[1], "history_error", "front_history", "history error")):
+        for engine in engines:
+            for integ in integrators:
+                line = [r for r in rows if r["engine"] == engine and r["integrator"] == integ
+                        and r.get(key) is not None]
+                if not line:
+                    continue
+                x = [1e3 * r["cpu_median"] for r in line]
+                y = [max(r[key], TINY) for r in line]
+                h, = ax.plot(x, y, **_study_look(engine, integ, integrators, engines))
+                if ax is axes[0]:
+                    handles.append(h)
+                    labels.append("%s + %s" % (engine, integ))
+        front = sorted((1e3 * r["cpu_median"], max(r[key], TINY)) for r in rows
+                       if r.get(front_key) and r.get(key) is not None)
+        if front:
+            fx, fy = zip(*front)
+            hf, = ax.step(fx, fy, where="post", color="black", linewidth=2.2, alpha=0.35, zorder=0)
+            ax.plot(fx, fy, linestyle="none", marker="o", markersize=11, markerfacecolor="none",
+                    markeredgecolor="black", markeredgewidth=1.2)
+            if ax is axes[0]:
+                handles.append(hf)
+                labels.append("Pareto front (circled)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("CPU time of the integration, ms (median)")
+        ax.set_ylabel(title + " (relative; rad for angles)")
+        ax.set_title("%s: %s against CPU time" % (scene.get("scene"), title), fontsize="medium")
+        ax.grid(True, which="both", alpha=0.25)
+    outside_legend(fig, handles=handles, labels=labels, title="engine + integrator")
+    name = finish(fig, "%s-study.png" % scene["id"], out_dir)
+    return name, ("Speed against accuracy on %s: each line is one engine with one integrator, its "
+                  "points the tolerances (rk4: the steps) from loose (left) to tight; colour is the "
+                  "integrator, marker and dash the engine. Left: error of the end state; right: the "
+                  "largest error over every output time; both against the %s. The thick grey step "
+                  "line and the circles are the Pareto front: no configuration is both faster and "
+                  "more accurate than a circled one (errors below the reference's own accuracy count as "
+                  "equal). Errors of exactly 0 are drawn at 1e-17."
+                  % (scene.get("scene"), "analytic solution" if scene["reference"]["kind"] == "analytic"
+                     else "engines' reference"))
+
+
+def chart_scaling(scaling, out_dir):
+    """Right-hand-side cost against chain length N (log-log), one line per engine, the fitted
+    exponent in the legend. Returns (file name, caption) or None."""
+    lines = scaling.get("lines", [])
+    if not lines:
+        return None
+    fig, ax = plt.subplots(figsize=(10, 5.2))
+    for k, line in enumerate(lines):
+        pts = [p for p in line["points"] if p.get("ok") and p.get("seconds_per_call")]
+        if not pts:
+            continue
+        x = [p["links"] for p in pts]
+        y = [1e6 * p["seconds_per_call"] for p in pts]
+        e = line.get("exponent")
+        label = "%s: N^%s" % (line["engine"], "%.2f" % e if e is not None else "?")
+        style = dict(STYLES.get(line["engine"], {}))
+        style.update(marker=STUDY_MARKERS.get(line["engine"], "d"), markersize=5)
+        style.setdefault("color", STUDY_COLOURS[k % len(STUDY_COLOURS)])
+        ax.plot(x, y, label=label, **style)
+    ax.set_xscale("log", base=2)
+    ax.set_yscale("log")
+    ax.set_xlabel("links N (chainN, docs/scenarios.md Scene 3)")
+    ax.set_ylabel("CPU per right-hand side, us (median)")
+    ax.set_title("Right-hand-side cost against chain length", fontsize="medium")
+    ax.grid(True, which="both", alpha=0.25)
+    outside_legend(fig, ax, title="engine: fitted cost")
+    name = finish(fig, "scaling.png", out_dir)
+    return name, ("Median CPU time of one right-hand side of each engine on chainN at its initial "
+                  "state, against N (log-log). The exponent is the least-squares slope of log cost "
+                  "against log N over the upper half of N.")
 
 
 CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_differences, chart_drift]

@@ -287,3 +287,69 @@ def scene_context(scene, pictures, charts, motion_note, converge=None):
 
 def render(env, template, context):
     return env.get_template(template).render(**context)
+
+
+# ----------------------------------------------------------------------------------------------
+# `crossdyn study`: speed against accuracy (study.json, "kind": "study")
+
+
+def _ms(seconds):
+    return "n/a" if seconds is None else "%.3g" % (1e3 * seconds)
+
+
+def study_scene_context(summary, scene, chart):
+    rows = []
+    for r in scene.get("rows", []):
+        rows.append(dict(
+            engine=r["engine"], integrator=r["integrator"], setting=r["setting"], ok=r["ok"],
+            cpu=_ms(r.get("cpu_median")) if r["ok"] else "failed",
+            spread=("%s to %s" % (_ms(r.get("cpu_min")), _ms(r.get("cpu_max")))) if r["ok"] else "",
+            repeats=r.get("repeats", 0), rhs=r["rhs_calls"], steps=r["steps"], rejected=r["rejected"],
+            end=sci(r.get("end_error"), 2) if r["ok"] else "-",
+            end_q=r.get("end_quantity", ""),
+            history=sci(r.get("history_error"), 2) if r["ok"] else "-",
+            history_q=r.get("history_quantity", ""),
+            front=("end" if r.get("front_end") else "") + (" history" if r.get("front_history") else ""),
+            failure=r.get("failure", "")))
+    ref = scene.get("reference", {})
+    return dict(
+        title="crossdyn study: " + scene["scene"], scene=scene["scene"], file=scene.get("file", ""),
+        duration=gfmt(scene.get("duration")), output_step=gfmt(scene.get("output_step")),
+        reference=ref.get("description", ""), reference_kind=ref.get("kind", ""),
+        recommendations=[x["text"] for x in scene.get("recommendations", [])],
+        chart=chart, csv=scene.get("csv", ""), rows=rows, notes=scene.get("notes", []),
+        timing=summary.get("timing", ""), error_metric=summary.get("error_metric", ""),
+        csv_header=summary.get("csv_header", "").strip())
+
+
+def scaling_context(summary, chart):
+    sc = summary.get("scaling") or {}
+    lines = sc.get("lines", [])
+    table = []
+    for k, n in enumerate(sc.get("links", [])):
+        cells = []
+        for line in lines:
+            p = line["points"][k] if k < len(line["points"]) else None
+            cells.append("%.4g" % (1e6 * p["seconds_per_call"]) if p and p.get("seconds_per_call") else "-")
+        table.append(dict(links=n, cells=cells))
+    return dict(title="crossdyn study: right-hand-side cost against chain length", chart=chart,
+                engines=[x["engine"] for x in lines],
+                exponents=[("%.2f" % x["exponent"]) if x.get("exponent") is not None else "-" for x in lines],
+                table=table, csv=sc.get("csv", ""), budget=gfmt(sc.get("budget")))
+
+
+def study_index_context(summary):
+    scenes = []
+    for s in summary.get("scenes", []):
+        ok = [r for r in s.get("rows", []) if r["ok"]]
+        scenes.append(dict(scene=s["scene"], page=s["page"], configurations=len(s.get("rows", [])),
+                           failed=len(s.get("rows", [])) - len(ok),
+                           reference=s.get("reference", {}).get("kind", ""),
+                           recommendations=[x["text"] for x in s.get("recommendations", [])]))
+    sc = summary.get("scaling")
+    return dict(title="crossdyn: speed against accuracy", scenes=scenes,
+                scaling=dict(page=sc.get("page", "scaling.html"),
+                             exponents=[dict(engine=x["engine"],
+                                             exponent=("%.2f" % x["exponent"]) if x.get("exponent") is not None else "-")
+                                        for x in sc.get("lines", [])]) if sc else None,
+                timing=summary.get("timing", ""), error_metric=summary.get("error_metric", ""))

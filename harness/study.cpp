@@ -1,0 +1,827 @@
+// Speed against accuracy: the work-precision study and the scaling study (see study.hpp).
+#include "harness/study.hpp"
+
+#include "core/cancel.hpp"
+#include "core/errors.hpp"
+#include "core/integrate.hpp"
+#include "core/output_layout.hpp"
+#include "core/progress.hpp"
+#include "core/rotation.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/engines.hpp"
+
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace crossdyn::harness {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// CPU time of the process, s (clock_gettime(2), CLOCK_PROCESS_CPUTIME_ID).
+double cpu_now() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+std::string fmt_g(double v, int digits = 3) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+// "1e-08" style for settings (tolerances, steps): at most 3 significant digits.
+std::string setting_text(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return kNaN;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// `text` wrapped at 100 characters, continuation lines indented by two spaces.
+std::string wrap100(const std::string& text) {
+  std::string out, line = text.rfind("  ", 0) == 0 ? "  " : "";
+  std::istringstream words(text);
+  for (std::string w; words >> w;) {
+    if (!line.empty() && line.size() + 1 + w.size() > 100) {
+      out += line + "\n";
+      line = "  ";
+    }
+    line += (line.empty() || line == "  " ? "" : " ") + w;
+  }
+  return out + line + "\n";
+}
+
+// The progress display, redrawn at most 4 times a second (phase() draws at once).
+struct Progress {
+  ProgressLine* line = nullptr;
+  std::chrono::steady_clock::time_point last{};
+  void show(const std::string& text, bool force = false) {
+    if (!line) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (!force && now - last < std::chrono::milliseconds(250)) return;
+    last = now;
+    line->phase(text);
+  }
+};
+
+// One timed run: the engine is made before the clock starts; the clock covers simulate() only.
+struct TimedRun {
+  RunResult result;  // rows not kept: stats and failure
+  History history;   // the pinned values at the output times
+  double cpu = 0;    // s
+};
+
+TimedRun timed_run(const std::string& label, const std::string& engine_name, const EngineOptions& eo,
+                   const System& system, const IntegratorSettings& settings, double timeout,
+                   std::size_t pinned, std::size_t output_rows) {
+  TimedRun out;
+  std::optional<cancel::Deadline> deadline;
+  if (timeout > 0) deadline.emplace(timeout);
+  std::unique_ptr<Engine> engine;
+  try {
+    engine = make_engine(engine_name, system, eo);
+  } catch (const cancel::Cancelled& c) {
+    if (c.reason() == cancel::Reason::Interrupt) throw;
+    out.result.failure = RunFailure(label, 0.0, "", std::string(c.what()) + " while setting up the engine");
+    return out;
+  }
+  const std::vector<std::string> pinned_names = pinned_columns(system);
+  const std::vector<std::string>& cols = engine->columns();
+  if (cols.size() < pinned || !std::equal(pinned_names.begin(), pinned_names.end(), cols.begin()))
+    throw std::logic_error("engine " + engine_name + " does not write the pinned columns first");
+  out.history.columns = pinned;
+  out.history.data.reserve(pinned * (output_rows + 1));
+  History& h = out.history;
+  // Stores only what the error needs (no allocation: reserved above).
+  const RowCallback on_row = [&h, pinned](const double* row) {
+    if (h.data.size() + pinned <= h.data.capacity()) h.data.insert(h.data.end(), row, row + pinned);
+  };
+  const TreeState initial = TreeState::initial(system);
+  const double c0 = cpu_now();
+  try {
+    out.result = simulate(*engine, system, initial, settings, on_row);
+  } catch (const InputError&) {
+    throw;
+  } catch (const RunFailure& f) {
+    out.result.failure = f;
+  } catch (const cancel::Cancelled& c) {
+    if (c.reason() == cancel::Reason::Interrupt) throw;
+    out.result.failure = RunFailure(label, 0.0, "", c.what());
+  }
+  out.cpu = cpu_now() - c0;
+  if (out.result.failure && cancel::interrupted()) throw cancel::Cancelled(cancel::Reason::Interrupt, 0);
+  return out;
+}
+
+std::string run_label(const std::string& engine, const std::string& integrator, double tol) {
+  return engine + " + " + integrator + " at " + setting_text(tol);
+}
+
+// The mean of runs sampled at the same times; attitudes: the quaternions turned to the first
+// run's hemisphere, averaged and normalised.
+History mean_history(const System& system, const std::vector<History>& runs) {
+  History m;
+  m.columns = runs.at(0).columns;
+  std::size_t rows = runs[0].rows();
+  for (const History& h : runs) rows = std::min(rows, h.rows());
+  m.data.assign(rows * m.columns, 0.0);
+  const OutputLayout layout(system);
+  std::vector<int> q_first;  // the qw column of each body
+  for (std::size_t c = 0; c < m.columns && c < layout.columns().size(); ++c)
+    if (layout.columns()[c].kind == ColumnKind::BodyQ && layout.columns()[c].component == 0)
+      q_first.push_back(static_cast<int>(c));
+  const double n = static_cast<double>(runs.size());
+  for (std::size_t k = 0; k < rows; ++k) {
+    double* out = m.data.data() + k * m.columns;
+    for (const History& h : runs) {
+      const double* r = h.row(k);
+      std::vector<double> sign(m.columns, 1.0);
+      for (int q : q_first) {
+        double dot = 0;
+        for (int i = 0; i < 4; ++i) dot += r[q + i] * runs[0].row(k)[q + i];
+        if (dot < 0)
+          for (int i = 0; i < 4; ++i) sign[static_cast<std::size_t>(q + i)] = -1;
+      }
+      for (std::size_t c = 0; c < m.columns; ++c) out[c] += sign[c] * r[c] / n;
+    }
+    for (int q : q_first) {
+      double norm = 0;
+      for (int i = 0; i < 4; ++i) norm += out[q + i] * out[q + i];
+      norm = std::sqrt(norm);
+      if (norm > 0)
+        for (int i = 0; i < 4; ++i) out[q + i] /= norm;
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+// ---- The error metric ----
+
+ErrorMetric::ErrorMetric(const System& system, const History& reference) : reference_(&reference) {
+  const OutputLayout layout(system);
+  const auto& cols = layout.columns();
+  // Scale groups (study.hpp): "w:<body>", "rate", "modal:<body>", "modal_rate:<body>", "H", "E";
+  // attitudes and joint angles have scale 1.
+  std::vector<std::string> group(cols.size());
+  for (std::size_t c = 0; c < cols.size(); ++c) {
+    const Column& col = cols[c];
+    Quantity q;
+    q.name = col.name;
+    q.columns = {static_cast<int>(c)};
+    switch (col.kind) {
+      case ColumnKind::BodyW: group[c] = "w:" + std::to_string(col.body); break;
+      case ColumnKind::BodyQ:
+        if (col.component != 0) continue;
+        q.name = system.bodies[static_cast<std::size_t>(col.body)].name + ".attitude";
+        q.columns = {static_cast<int>(c), static_cast<int>(c + 1), static_cast<int>(c + 2),
+                     static_cast<int>(c + 3)};
+        q.attitude = true;
+        break;
+      case ColumnKind::RevoluteAngle: break;
+      case ColumnKind::RevoluteRate:
+      case ColumnKind::SphericalW: group[c] = "rate"; break;
+      case ColumnKind::Modal: group[c] = "modal:" + std::to_string(col.body); break;
+      case ColumnKind::ModalRate: group[c] = "modal_rate:" + std::to_string(col.body); break;
+      case ColumnKind::MomentumH: group[c] = "H"; break;
+      case ColumnKind::EnergyE: group[c] = "E"; break;
+      case ColumnKind::Time:
+      case ColumnKind::Extra: continue;
+    }
+    quantities_.push_back(q);
+  }
+  // Per group: max over the reference's rows of |value| (w and spherical w: the vector's norm).
+  std::map<std::string, double> scale;
+  for (std::size_t k = 0; k < reference.rows(); ++k) {
+    const double* r = reference.row(k);
+    for (std::size_t c = 0; c < cols.size() && c < reference.columns; ++c) {
+      if (group[c].empty()) continue;
+      double v = std::abs(r[c]);
+      const bool vector = cols[c].kind == ColumnKind::BodyW || cols[c].kind == ColumnKind::SphericalW;
+      if (vector && cols[c].component == 0 && c + 2 < reference.columns)
+        v = std::sqrt(r[c] * r[c] + r[c + 1] * r[c + 1] + r[c + 2] * r[c + 2]);
+      if (std::isfinite(v)) scale[group[c]] = std::max(scale[group[c]], v);
+    }
+  }
+  for (Quantity& q : quantities_) {
+    const std::string& g = group[static_cast<std::size_t>(q.columns[0])];
+    q.scale = g.empty() || !(scale[g] > 0) ? 1.0 : scale[g];
+  }
+}
+
+StudyError ErrorMetric::error(const History& run) const { return error(run, *reference_); }
+
+StudyError ErrorMetric::error(const History& a, const History& b) const {
+  StudyError e;
+  const std::size_t n = std::min(a.rows(), b.rows());
+  if (n == 0) return e;
+  e.history = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const double* A = a.row(k);
+    const double* B = b.row(k);
+    const bool last = k + 1 == n;
+    if (last) e.end = 0;
+    for (const Quantity& q : quantities_) {
+      double v;
+      if (q.attitude) {
+        const Eigen::Quaterniond qa(A[q.columns[0]], A[q.columns[1]], A[q.columns[2]], A[q.columns[3]]);
+        const Eigen::Quaterniond qb(B[q.columns[0]], B[q.columns[1]], B[q.columns[2]], B[q.columns[3]]);
+        v = rot::angle_between(qa.normalized(), qb.normalized());
+      } else {
+        v = std::abs(A[q.columns[0]] - B[q.columns[0]]) / q.scale;
+      }
+      if (!std::isfinite(v)) v = std::numeric_limits<double>::infinity();
+      if (v > e.history || e.history_quantity.empty()) {
+        if (v > e.history) e.history = v;
+        if (v >= e.history) e.history_quantity = q.name;
+      }
+      if (last && (v > e.end || e.end_quantity.empty())) {
+        if (v > e.end) e.end = v;
+        if (v >= e.end) e.end_quantity = q.name;
+      }
+    }
+  }
+  return e;
+}
+
+// ---- Options ----
+
+std::vector<double> default_tolerances() {
+  std::vector<double> t;
+  for (int e = 4; e <= 13; ++e) t.push_back(std::pow(10.0, -e));
+  return t;
+}
+
+std::vector<double> parse_values(const std::string& text, const std::string& option, bool allow_range) {
+  auto number = [&](const std::string& s) {
+    std::size_t used = 0;
+    double v = kNaN;
+    try {
+      v = std::stod(s, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used != s.size() || s.empty())
+      throw InputError(option + ": '" + s + "' is not a number (in '" + text + "')");
+    if (!(v > 0) || !std::isfinite(v))
+      throw InputError(option + ": " + s + " must be a positive, finite number");
+    return v;
+  };
+  std::vector<double> out;
+  const std::size_t dots = text.find("..");
+  if (dots != std::string::npos) {
+    if (!allow_range)
+      throw InputError(option + ": give a list of values (a,b,c), not a range ('" + text + "')");
+    const double a = number(text.substr(0, dots)), b = number(text.substr(dots + 2));
+    const double la = std::log10(a), lb = std::log10(b);
+    const long n = std::lround(std::abs(lb - la));
+    if (std::abs(std::abs(lb - la) - static_cast<double>(n)) > 1e-9)
+      throw InputError(option + ": a range runs from one power of ten to another, one value per "
+                       "decade (e.g. 1e-4..1e-13); got '" + text + "'");
+    const double step = lb >= la ? 1.0 : -1.0;
+    for (long k = 0; k <= n; ++k) out.push_back(a * std::pow(10.0, step * static_cast<double>(k)));
+  } else {
+    std::stringstream in(text);
+    std::string item;
+    while (std::getline(in, item, ',')) out.push_back(number(item));
+    if (out.empty()) throw InputError(option + ": no values given");
+  }
+  if (out.size() > 40) throw InputError(option + ": at most 40 values, got " + std::to_string(out.size()));
+  return out;
+}
+
+std::string StudyRow::setting() const {
+  return fixed_step ? "dt " + setting_text(dt) : "rtol " + setting_text(tolerance);
+}
+
+// ---- The study ----
+
+SceneStudy study_scene(const System& system, const StudyOptions& options) {
+  SceneStudy s;
+  s.scene = system.name;
+  s.file = system.file;
+  const IntegratorSettings base = IntegratorSettings::from(system.run);
+  s.duration = base.duration;
+  s.output_step = base.output_step;
+  const std::vector<double> times = output_times(base);
+  const std::size_t pinned = pinned_columns(system).size();
+  Progress progress{options.progress};
+  if (options.progress) options.progress->start(system.name, base.duration);
+
+  std::vector<std::string> engines = options.engines.empty() ? engine_names() : options.engines;
+  std::vector<std::string> integrators =
+      options.integrators.empty() ? integrator_names() : options.integrators;
+  for (const std::string& i : integrators) (void)Choice<Integrator>(i);  // InputError if unknown
+  const std::vector<double> tolerances = options.tolerances.empty() ? default_tolerances() : options.tolerances;
+  std::vector<double> dts = options.dts;
+  if (dts.empty())
+    for (int k = 0; k <= 7; ++k) dts.push_back(base.output_step / std::pow(2.0, k));
+  if (options.repeat < 1) throw InputError("--repeat: must be at least 1");
+
+  // Engines that cannot run the scene are left out with the reason.
+  std::vector<EngineSpec> reference_specs = options.reference_engines;
+  if (reference_specs.empty())
+    for (const std::string& e : engine_names()) reference_specs.push_back({e, e, {}});
+  std::set<std::string> unusable;
+  auto usable = [&](const std::string& engine, const EngineOptions& eo) {
+    if (unusable.count(engine)) return false;
+    try {
+      progress.show(system.name + ": setting up " + engine, true);
+      make_engine(engine, system, eo);
+      return true;
+    } catch (const InputError& e) {
+      unusable.insert(engine);
+      s.notes.push_back(engine + " left out: " + e.what());
+      return false;
+    }
+  };
+
+  IntegratorSettings settings = base;
+  settings.keep_rows = false;
+  if (options.max_steps) settings.max_steps = *options.max_steps;
+
+  // The reference.
+  History reference;
+  const double ref_c0 = cpu_now();
+  if (options.use_analytic && system.analytic == "torque-free") {
+    const RunResult a = analytic_run(system, times);
+    reference.columns = a.columns.size();
+    a.for_each_row([&reference](const double* row) {
+      reference.data.insert(reference.data.end(), row, row + reference.columns);
+    });
+    if (reference.columns != pinned) throw std::logic_error("analytic run: not the pinned columns");
+    s.reference.kind = "analytic";
+    s.reference.description = "the closed-form torque-free solution (analytic/torque_free.hpp)";
+    s.reference.runs = {"analytic"};
+  } else {
+    std::vector<History> runs;
+    for (const EngineSpec& spec : reference_specs) {
+      if (!usable(spec.engine, spec.options)) continue;
+      for (const std::string& integ : options.reference_integrators) {
+        IntegratorSettings rs = settings;
+        rs.method = integ;
+        rs.rtol = rs.atol = options.reference_tolerance;
+        const std::string label = run_label(spec.label, integ, options.reference_tolerance);
+        progress.show(system.name + ": reference run " + label, true);
+        TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs, options.timeout,
+                               pinned, times.size());
+        if (r.result.failure)
+          throw StudyRefused(system.file + ": no reference: the reference run " + label +
+                                 " failed: " + r.result.failure->what(),
+                             kExitRunFailed);
+        s.reference.runs.push_back(label);
+        runs.push_back(std::move(r.history));
+      }
+    }
+    if (runs.size() < 2)
+      throw StudyRefused(system.file + ": no reference: fewer than two reference runs could be made "
+                                       "(the scene has no analytic solution)",
+                         kExitRunFailed);
+    const ErrorMetric agreement(system, runs[0]);
+    double worst = -1;
+    std::string worst_quantity;
+    for (std::size_t j = 1; j < runs.size(); ++j)
+      for (std::size_t i = 0; i < j; ++i) {
+        const StudyError e = agreement.error(runs[j], runs[i]);
+        const double v = std::isnan(e.history) ? std::numeric_limits<double>::infinity() : e.history;
+        if (v > worst) {
+          worst = v;
+          worst_quantity = e.history_quantity;
+          s.reference.worst_pair = s.reference.runs[j] + " vs " + s.reference.runs[i];
+        }
+      }
+    s.reference.agreement = worst;
+    if (!(worst <= options.reference_agreement))
+      throw StudyRefused(system.file + ": no reference: the engines do not agree at the tightest "
+                         "settings: " + s.reference.worst_pair + " differ by " + sci(worst) +
+                         " (largest on " + worst_quantity + ") > " + sci(options.reference_agreement) +
+                         " (history error, the study's metric); the study needs a reference the "
+                         "engines agree on",
+                         kExitCheckFailed);
+    reference = mean_history(system, runs);
+    s.reference.kind = "engines";
+    s.reference.description =
+        "the mean of " + std::to_string(runs.size()) + " runs (every engine with " +
+        [&] {
+          std::string l;
+          for (const std::string& i : options.reference_integrators) l += (l.empty() ? "" : " and ") + i;
+          return l;
+        }() +
+        " at rtol = atol = " + setting_text(options.reference_tolerance) +
+        "), which agree to " + sci(worst) + " (worst pair: " + s.reference.worst_pair +
+        "; required: " + sci(options.reference_agreement) + ")";
+  }
+  s.reference.cpu_seconds = cpu_now() - ref_c0;
+  const ErrorMetric metric(system, reference);
+
+  // The configurations.
+  std::vector<StudyRow> rows;
+  for (const std::string& engine : engines) {
+    if (!usable(engine, {})) continue;
+    for (const std::string& integ : integrators) {
+      const bool fixed = Choice<Integrator>(integ) == Integrator::Rk4;
+      for (double v : fixed ? dts : tolerances) {
+        StudyRow r;
+        r.engine = engine;
+        r.integrator = integ;
+        r.fixed_step = fixed;
+        (fixed ? r.dt : r.tolerance) = v;
+        rows.push_back(r);
+      }
+    }
+  }
+  // Interleaved repeats: repeat 1 of every configuration, then repeat 2, ...
+  std::vector<std::vector<double>> cpu(rows.size());
+  std::size_t done = 0;
+  const std::size_t total = rows.size() * static_cast<std::size_t>(options.repeat);
+  for (int rep = 0; rep < options.repeat; ++rep)
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      StudyRow& row = rows[i];
+      ++done;
+      if (rep > 0 && !row.ok) continue;
+      progress.show(system.name + " " + row.engine + " " + row.integrator + " " + row.setting() +
+                    ": run " + std::to_string(done) + " of " + std::to_string(total));
+      IntegratorSettings rs = settings;
+      rs.method = row.integrator;
+      if (row.fixed_step) rs.dt = row.dt;
+      else rs.rtol = rs.atol = row.tolerance;
+      TimedRun r = timed_run(row.engine, row.engine, {}, system, rs, options.timeout, pinned, times.size());
+      if (rep == 0) {
+        row.rhs_calls = r.result.stats.rhs_calls;
+        row.steps = r.result.stats.steps;
+        row.rejected = r.result.stats.rejected;
+        if (r.result.failure) {
+          row.failure = r.result.failure->what();
+          continue;
+        }
+        row.ok = true;
+        row.error = metric.error(r.history);
+      }
+      cpu[i].push_back(r.cpu);
+    }
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    if (rows[i].ok) {
+      rows[i].repeats = static_cast<int>(cpu[i].size());
+      rows[i].cpu_median = median(cpu[i]);
+      rows[i].cpu_min = *std::min_element(cpu[i].begin(), cpu[i].end());
+      rows[i].cpu_max = *std::max_element(cpu[i].begin(), cpu[i].end());
+    }
+  if (options.progress) options.progress->clear();
+  s.rows = std::move(rows);
+  mark_fronts(s);
+  return s;
+}
+
+std::vector<bool> pareto_front(const std::vector<double>& cost, const std::vector<double>& error,
+                               double floor) {
+  const std::size_t n = std::min(cost.size(), error.size());
+  std::vector<bool> front(cost.size(), false);
+  auto e_of = [&](std::size_t i) { return std::max(error[i], floor); };
+  auto usable = [&](std::size_t i) { return std::isfinite(cost[i]) && std::isfinite(error[i]); };
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!usable(i)) continue;
+    bool dominated = false;
+    for (std::size_t j = 0; j < n && !dominated; ++j)
+      if (j != i && usable(j) && cost[j] <= cost[i] && e_of(j) <= e_of(i) &&
+          (cost[j] < cost[i] || e_of(j) < e_of(i)))
+        dominated = true;
+    front[i] = !dominated;
+  }
+  return front;
+}
+
+void mark_fronts(SceneStudy& s) {
+  std::vector<double> cost, end, hist;
+  for (const StudyRow& r : s.rows) {
+    cost.push_back(r.ok ? r.cpu_median : kNaN);
+    end.push_back(r.ok ? r.error.end : kNaN);
+    hist.push_back(r.ok ? r.error.history : kNaN);
+  }
+  // Errors below the reference's own accuracy (its runs' agreement) are all the same accuracy.
+  const double floor = std::max(1e-15, std::isfinite(s.reference.agreement) ? s.reference.agreement : 0.0);
+  const std::vector<bool> fe = pareto_front(cost, end, floor), fh = pareto_front(cost, hist, floor);
+  for (std::size_t i = 0; i < s.rows.size(); ++i) {
+    s.rows[i].front_end = fe[i];
+    s.rows[i].front_history = fh[i];
+  }
+}
+
+std::optional<std::size_t> cheapest_within(const SceneStudy& s, double target, bool history) {
+  std::optional<std::size_t> best;
+  for (std::size_t i = 0; i < s.rows.size(); ++i) {
+    const StudyRow& r = s.rows[i];
+    const double e = history ? r.error.history : r.error.end;
+    if (!r.ok || !(e <= target)) continue;
+    if (!best || r.cpu_median < s.rows[*best].cpu_median) best = i;
+  }
+  return best;
+}
+
+const std::vector<double>& recommendation_targets() {
+  static const std::vector<double> t{1e-4, 1e-6, 1e-8, 1e-10};
+  return t;
+}
+
+namespace {
+std::string ms(double seconds) { return fmt_g(seconds * 1e3, 3) + " ms"; }
+std::string config_text(const StudyRow& r) {
+  return r.engine + " + " + r.integrator + " at " + r.setting();
+}
+}  // namespace
+
+std::string recommendation(const SceneStudy& s, double target, bool history) {
+  const std::string what = history ? "history error" : "end-state error";
+  const auto best = cheapest_within(s, target, history);
+  if (best) {
+    const StudyRow& r = s.rows[*best];
+    return "for " + sci(target, 1) + " " + what + " on " + s.scene + " use " + config_text(r) + ": " +
+           ms(r.cpu_median) + " of integration CPU (" + what + " " +
+           sci(history ? r.error.history : r.error.end, 2) + ", " + std::to_string(r.rhs_calls) +
+           " right-hand sides)";
+  }
+  const StudyRow* closest = nullptr;
+  for (const StudyRow& r : s.rows) {
+    const double e = history ? r.error.history : r.error.end;
+    if (r.ok && std::isfinite(e) &&
+        (!closest || e < (history ? closest->error.history : closest->error.end)))
+      closest = &r;
+  }
+  std::string out = "no configuration reached " + sci(target, 1) + " " + what + " on " + s.scene;
+  if (closest)
+    out += " (the smallest: " + sci(history ? closest->error.history : closest->error.end, 2) +
+           " with " + config_text(*closest) + ")";
+  return out;
+}
+
+std::string format_study(const SceneStudy& s) {
+  std::ostringstream out;
+  out << wrap100("scene " + s.scene + " (" + s.file + "): " + fmt_g(s.duration, 6) + " s, output every " +
+                 fmt_g(s.output_step, 6) + " s");
+  out << wrap100("reference: " + s.reference.description);
+  out << "cpu: median CPU of the integration (simulate() only, no CSV), ms; error: max over the\n"
+         "compared quantities of |x - ref| / scale (attitude, angles: rad), at the end (end) and\n"
+         "over every output time (history); front: on the Pareto front of cpu and end error (e),\n"
+         "history error (h)\n\n";
+  std::vector<std::vector<std::string>> rows{
+      {"engine", "integrator", "setting", "cpu ms", "rhs", "steps", "rej", "end err", "hist err", "front"}};
+  std::vector<std::string> failures;
+  for (const StudyRow& r : s.rows) {
+    if (!r.ok) {
+      rows.push_back({r.engine, r.integrator, r.setting(), "failed", std::to_string(r.rhs_calls),
+                      std::to_string(r.steps), std::to_string(r.rejected), "-", "-", ""});
+      failures.push_back(config_text(r) + ": " + r.failure);
+      continue;
+    }
+    rows.push_back({r.engine, r.integrator, r.setting(), fmt_g(r.cpu_median * 1e3, 3),
+                    std::to_string(r.rhs_calls), std::to_string(r.steps), std::to_string(r.rejected),
+                    sci(r.error.end, 2), sci(r.error.history, 2),
+                    std::string(r.front_end ? "e" : "") + (r.front_history ? "h" : "")});
+  }
+  out << text_table(rows);
+  if (!failures.empty()) {
+    out << "\nfailed configurations:\n";
+    for (const std::string& f : failures) out << wrap100("  " + f);
+  }
+  out << "\n";
+  for (double t : recommendation_targets()) out << wrap100(recommendation(s, t));
+  for (const std::string& n : s.notes) out << wrap100("note: " + n);
+  return out.str();
+}
+
+namespace {
+std::string csv_number(double v) {
+  if (!std::isfinite(v)) return "";
+  char b[64];
+  std::snprintf(b, sizeof b, "%.6g", v);
+  return b;
+}
+std::string csv_text(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c == '\n' ? ' ' : c);
+  return q + "\"";
+}
+}  // namespace
+
+std::string study_csv_header() {
+  return "scene,engine,integrator,rtol,dt,status,cpu_ms_median,cpu_ms_min,cpu_ms_max,repeats,"
+         "rhs_calls,steps,rejected,end_error,history_error,end_quantity,history_quantity,"
+         "front_end,front_history,failure\n";
+}
+
+std::string study_csv_rows(const SceneStudy& s) {
+  std::ostringstream out;
+  for (const StudyRow& r : s.rows) {
+    out << csv_text(s.scene) << ',' << r.engine << ',' << r.integrator << ','
+        << (r.fixed_step ? "" : csv_number(r.tolerance)) << ',' << (r.fixed_step ? csv_number(r.dt) : "")
+        << ',' << (r.ok ? "ok" : "failed") << ',' << (r.ok ? csv_number(r.cpu_median * 1e3) : "") << ','
+        << (r.ok ? csv_number(r.cpu_min * 1e3) : "") << ',' << (r.ok ? csv_number(r.cpu_max * 1e3) : "")
+        << ',' << r.repeats << ',' << r.rhs_calls << ',' << r.steps << ',' << r.rejected << ','
+        << (r.ok ? csv_number(r.error.end) : "") << ',' << (r.ok ? csv_number(r.error.history) : "")
+        << ',' << csv_text(r.error.end_quantity) << ',' << csv_text(r.error.history_quantity) << ','
+        << (r.front_end ? 1 : 0) << ',' << (r.front_history ? 1 : 0) << ',' << csv_text(r.failure)
+        << '\n';
+  }
+  return out.str();
+}
+
+// ---- Scaling ----
+
+std::string chain_scene_text(int n) {
+  if (n < 1) throw InputError("chainN: N must be at least 1, got " + std::to_string(n));
+  // The same text as scripts/make_chain.py N (docs/scenarios.md Scene 3).
+  std::ostringstream y;
+  y << "name: chain" << n << "\n"
+    << "description: " << n << " identical slender links joined end to end by spherical joints (chainN).\n"
+    << "source: crossdyn's own scaling scene, docs/scenarios.md Scene 3 (chainN).\n"
+    << "bodies:\n  - {name: link1, mass: 10, inertia: &I [0.1, 3.4, 3.4]}\n";
+  for (int k = 2; k <= n; ++k) y << "  - {name: link" << k << ", mass: 10, inertia: *I}\n";
+  y << "joints:\n"
+    << "  - {name: joint1, type: free, child: link1, initial: {angular_velocity: [0.3, 0.2, 0.5]}}\n";
+  for (int k = 2; k <= n; ++k)
+    y << "  - {name: joint" << k << ", type: spherical, parent: link" << k - 1 << ", child: link" << k
+      << ", "
+      << (k == 2 ? "parent_point: &P [1, 0, 0], child_point: &C [-1, 0, 0], "
+                   "initial: &W {angular_velocity: [0.1, -0.2, 0.3]}"
+                 : "parent_point: *P, child_point: *C, initial: *W")
+      << "}\n";
+  y << "run: {duration: 10.0, output_step: 0.1, integrator: rkf78, rtol: 1e-10, atol: 1e-10}\n";
+  return y.str();
+}
+
+double fit_exponent(const std::vector<double>& x, const std::vector<double>& y) {
+  std::vector<std::pair<double, double>> p;
+  for (std::size_t i = 0; i < std::min(x.size(), y.size()); ++i)
+    if (x[i] > 0 && y[i] > 0 && std::isfinite(x[i]) && std::isfinite(y[i]))
+      p.emplace_back(std::log(x[i]), std::log(y[i]));
+  std::sort(p.begin(), p.end());
+  p.erase(p.begin(), p.begin() + static_cast<std::ptrdiff_t>(p.size() / 2));  // the upper half
+  if (p.size() < 2) return kNaN;
+  double mx = 0, my = 0;
+  for (const auto& [a, b] : p) {
+    mx += a;
+    my += b;
+  }
+  mx /= static_cast<double>(p.size());
+  my /= static_cast<double>(p.size());
+  double sxy = 0, sxx = 0;
+  for (const auto& [a, b] : p) {
+    sxy += (a - mx) * (b - my);
+    sxx += (a - mx) * (a - mx);
+  }
+  return sxx > 0 ? sxy / sxx : kNaN;
+}
+
+std::vector<int> scaling_links(int max_links) {
+  std::vector<int> n;
+  for (int a = 2; a <= max_links; a *= 2) {
+    n.push_back(a);
+    if (a + a / 2 <= max_links && a >= 2) n.push_back(a + a / 2);
+  }
+  if (n.empty() || n.back() != max_links) n.push_back(max_links);
+  std::sort(n.begin(), n.end());
+  n.erase(std::unique(n.begin(), n.end()), n.end());
+  return n;
+}
+
+ScalingStudy scaling_study(const ScalingOptions& o) {
+  if (o.max_links < 2 || o.max_links > 1024)
+    throw InputError("--max-links: must be from 2 to 1024, got " + std::to_string(o.max_links));
+  ScalingStudy s;
+  s.links = scaling_links(o.max_links);
+  s.budget = o.budget;
+  const std::vector<std::string> engines = o.engines.empty() ? engine_names() : o.engines;
+  for (const std::string& e : engines) s.lines.push_back({e, {}, kNaN});
+  Progress progress{o.progress};
+  if (o.progress) o.progress->start("scaling", 0);
+  for (int n : s.links) {
+    const System system = read_scene_text(chain_scene_text(n), "chain" + std::to_string(n) + " (generated)");
+    for (ScalingLine& line : s.lines) {
+      progress.show("scaling: " + line.engine + " on chain" + std::to_string(n), true);
+      ScalingPoint p;
+      p.links = n;
+      std::unique_ptr<Engine> engine;
+      try {
+        engine = make_engine(line.engine, system, {});
+      } catch (const InputError& e) {
+        p.ok = false;
+        p.note = e.what();
+        line.points.push_back(p);
+        continue;
+      }
+      std::vector<double> x(static_cast<std::size_t>(engine->state_size())), xdot(x.size());
+      engine->pack(TreeState::initial(system), x.data());
+      engine->rhs(0.0, x.data(), xdot.data());  // warm-up (first touches of the workspace)
+      // Calls per batch: at least 1 ms of CPU each.
+      long per_batch = 1;
+      for (;;) {
+        cancel::poll();
+        const double c0 = cpu_now();
+        for (long k = 0; k < per_batch; ++k) engine->rhs(0.0, x.data(), xdot.data());
+        if (cpu_now() - c0 >= 1e-3 || per_batch >= (1L << 24)) break;
+        per_batch *= 2;
+      }
+      std::vector<double> per_call;
+      double spent = 0;
+      while (static_cast<int>(per_call.size()) < o.min_batches || spent < o.budget) {
+        cancel::poll();
+        const double c0 = cpu_now();
+        for (long k = 0; k < per_batch; ++k) engine->rhs(0.0, x.data(), xdot.data());
+        const double c = cpu_now() - c0;
+        spent += c;
+        per_call.push_back(c / static_cast<double>(per_batch));
+        p.calls += per_batch;
+      }
+      p.seconds_per_call = median(per_call);
+      line.points.push_back(p);
+    }
+  }
+  for (ScalingLine& line : s.lines) {
+    std::vector<double> x, y;
+    for (const ScalingPoint& p : line.points)
+      if (p.ok) {
+        x.push_back(p.links);
+        y.push_back(p.seconds_per_call);
+      }
+    line.exponent = fit_exponent(x, y);
+  }
+  if (o.progress) o.progress->clear();
+  return s;
+}
+
+std::string format_scaling(const ScalingStudy& s) {
+  std::ostringstream out;
+  out << wrap100("right-hand-side cost on chainN (docs/scenarios.md Scene 3) at its initial state: "
+                 "median CPU per call, us (batches of >= 1 ms, >= " + fmt_g(s.budget, 3) +
+                 " s per point); exponent: least-squares slope of log cost against log N over the "
+                 "upper half of N")
+      << "\n";
+  std::vector<std::vector<std::string>> rows{{"N"}};
+  for (const ScalingLine& l : s.lines) rows[0].push_back(l.engine);
+  for (std::size_t k = 0; k < s.links.size(); ++k) {
+    std::vector<std::string> r{std::to_string(s.links[k])};
+    for (const ScalingLine& l : s.lines)
+      r.push_back(k < l.points.size() && l.points[k].ok ? fmt_g(l.points[k].seconds_per_call * 1e6, 4)
+                                                         : "-");
+    rows.push_back(r);
+  }
+  std::vector<std::string> e{"exponent"};
+  for (const ScalingLine& l : s.lines) e.push_back(std::isfinite(l.exponent) ? fmt_g(l.exponent, 3) : "-");
+  rows.push_back(e);
+  out << text_table(rows);
+  for (const ScalingLine& l : s.lines)
+    for (const ScalingPoint& p : l.points)
+      if (!p.ok) out << wrap100("note: " + l.engine + " on chain" + std::to_string(p.links) + ": " + p.note);
+  return out.str();
+}
+
+std::string scaling_csv(const ScalingStudy& s) {
+  std::ostringstream out;
+  out << "engine,links,us_per_call,calls,exponent\n";
+  for (const ScalingLine& l : s.lines)
+    for (const ScalingPoint& p : l.points)
+      out << l.engine << ',' << p.links << ',' << (p.ok ? csv_number(p.seconds_per_call * 1e6) : "")
+          << ',' << p.calls << ',' << csv_number(l.exponent) << '\n';
+  return out.str();
+}
+
+const std::string& study_timing_text() {
+  static const std::string t =
+      "CPU time (clock_gettime CLOCK_PROCESS_CPUTIME_ID) of the integration only: one simulate() "
+      "call from the initial state to the end, every step and right-hand side, the engine's "
+      "after-step projection, and at each output time the engine's output row with its pinned "
+      "values copied to memory set aside beforehand. Not timed: making the engine (before), the "
+      "error (after); no CSV or row store is written. Median of the repeats, run interleaved "
+      "(every configuration once, then again), in one process.";
+  return t;
+}
+
+const std::string& study_error_text() {
+  static const std::string t =
+      "error = max over the scene's compared quantities q of |x_q - ref_q| / S_q, where S_q is the "
+      "size of q's kind of motion in the reference (body w: max |w_body|; joint rates: the largest "
+      "joint rate; modal: the body's largest modal value; H, E: max |H|, |E|); attitudes (the "
+      "rotation angle between the two) and joint angles are absolute, in rad. End-state error: at "
+      "the last output time; history error: the largest over every output time.";
+  return t;
+}
+
+}  // namespace crossdyn::harness

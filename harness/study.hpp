@@ -1,0 +1,236 @@
+// Speed against accuracy (issue 12, `crossdyn study`): a work-precision study of the engines and
+// integrators on a scene, and the scaling of the right-hand-side cost with chain length.
+//
+// What is timed. For each scene x engine x integrator x tolerance (adaptive methods, rtol = atol
+// = the tolerance) or step dt (rk4), the CPU time of one simulate() call (core/integrate.hpp):
+// packing the initial state, every step and right-hand side, the engine's after_step(), and at
+// every output time the engine's output row plus copying its pinned values into memory kept
+// aside (IntegratorSettings::keep_rows = false: no CSV, no row store). The engine is constructed
+// before the clock starts and the error is computed after it stops. CPU time is the process's
+// (clock_gettime CLOCK_PROCESS_CPUTIME_ID); the figure is the median of `repeat` runs, repeated
+// interleaved (repeat 1 of every configuration, then repeat 2, ...), all in this process.
+//
+// The error metric (one number per run, the same for the end state and the whole history).
+// Every compared quantity q of the scene (compare.hpp's pinned quantities: body w components,
+// body attitudes, joint angles and rates, modal coordinates and rates, H, E) has an error
+//   e_q(t) = |x_q(t) - r_q(t)| / S_q          (attitude: rotation angle between x and r, rad)
+// against the reference r, where the scale S_q is the size of q's kind of motion in the reference:
+//   body w components      S = max_t |w_body(t)|   (the body's angular velocity vector)
+//   attitudes, joint angles S = 1 (absolute, rad)
+//   joint rates            S = max over the scene's joints and t of |rate| or |w_PC_C|
+//   modal coordinates      S = max over the body's modes and t of |eta|  (rates likewise)
+//   H, E                   S = max_t |H|, max_t |E|
+// (S = 1 when the reference's whole kind is zero). The end-state error is max_q e_q(T), the
+// history error max_q max_t e_q(t) over the output times.
+//
+// The reference. A scene with an analytic solution (System::analytic = torque-free) uses it
+// (compare.hpp analytic_run). Otherwise every engine is run with two integrators (rkf78 and dopri5)
+// at the tightest tolerance (1e-13); every pair of these runs must agree to 1e-11 (history error,
+// same metric, scales from the first run) or the study refuses the scene (StudyRefused: which
+// pair, by how much, on which quantity). The reference is then the mean of these runs (attitudes:
+// the mean quaternion, normalised), so no configuration is measured against itself.
+//
+// A configuration that fails (step limit, step-size underflow, non-finite state, timeout) is a row
+// with its failure reason, not an abort; an interrupt ends the study (cancel::Cancelled).
+#pragma once
+
+#include "core/system.hpp"
+#include "harness/compare.hpp"
+
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+class ProgressLine;
+}
+
+namespace crossdyn::harness {
+
+// The study refuses a scene: the reference could not be made (engines disagree: exit status 1;
+// a reference run failed: 3).
+class StudyRefused : public std::runtime_error {
+ public:
+  StudyRefused(const std::string& what, int exit_status)
+      : std::runtime_error(what), exit_status_(exit_status) {}
+  int exit_status() const { return exit_status_; }
+
+ private:
+  int exit_status_;
+};
+
+// Pinned values of a run at its output times: rows x columns (pinned_columns(system) order).
+struct History {
+  std::vector<double> data;
+  std::size_t columns = 0;
+  std::size_t rows() const { return columns ? data.size() / columns : 0; }
+  const double* row(std::size_t k) const { return data.data() + k * columns; }
+};
+
+// How a run differs from the reference (see the header comment).
+struct StudyError {
+  double end = std::numeric_limits<double>::quiet_NaN();
+  double history = std::numeric_limits<double>::quiet_NaN();
+  std::string end_quantity, history_quantity;
+};
+
+// The error metric: the quantities of a scene and their scales from the reference.
+class ErrorMetric {
+ public:
+  ErrorMetric(const System& system, const History& reference);
+  // Error of `run` against the reference (rows beyond the shorter of the two are not compared).
+  StudyError error(const History& run) const;
+  // Error of `a` against `b` with this metric's scales (the reference-agreement check).
+  StudyError error(const History& a, const History& b) const;
+
+ private:
+  struct Quantity {
+    std::string name;
+    std::vector<int> columns;  // into the pinned columns (attitude: qw qx qy qz)
+    bool attitude = false;
+    double scale = 1;
+  };
+  std::vector<Quantity> quantities_;
+  const History* reference_;
+};
+
+struct StudyOptions {
+  std::vector<std::string> engines;      // empty: every engine of engine_names()
+  std::vector<std::string> integrators;  // empty: every integrator of integrator_names()
+  std::vector<double> tolerances;        // adaptive methods: rtol = atol = each; empty: 1e-4..1e-13
+  std::vector<double> dts;               // rk4 steps; empty: output step / 2^k, k = 0..7
+  int repeat = 3;                        // timed runs per configuration (median)
+  std::optional<long> max_steps;         // per run
+  double timeout = 60;                   // per run, s of wall-clock time (0: none)
+  // The reference when the scene has no analytic solution.
+  std::vector<EngineSpec> reference_engines;  // empty: every engine, default options
+  std::vector<std::string> reference_integrators{"rkf78", "dopri5"};
+  double reference_tolerance = 1e-13;
+  double reference_agreement = 1e-11;
+  bool use_analytic = true;
+  ProgressLine* progress = nullptr;      // optional progress display
+};
+
+// The default tolerances: 1e-4, 1e-5, ..., 1e-13.
+std::vector<double> default_tolerances();
+// "1e-4..1e-13" (one per decade, either direction) or "1e-4,1e-6,1e-8"; InputError naming
+// `option` for anything else (non-positive, not a number, more than 40 values).
+std::vector<double> parse_values(const std::string& text, const std::string& option, bool allow_range);
+
+struct StudyRow {
+  std::string engine, integrator;
+  bool fixed_step = false;      // rk4: dt is the setting; otherwise tolerance
+  double tolerance = 0, dt = 0;
+  bool ok = false;
+  std::string failure;          // why the run failed (ok = false)
+  double cpu_median = 0, cpu_min = 0, cpu_max = 0;  // s
+  int repeats = 0;
+  long rhs_calls = 0, steps = 0, rejected = 0;
+  StudyError error;
+  bool front_end = false, front_history = false;  // on the Pareto front (cpu, error)
+  std::string setting() const;  // "rtol 1e-08" or "dt 0.0125"
+};
+
+struct StudyReference {
+  std::string kind;                 // "analytic" or "engines"
+  std::string description;          // one sentence for tables and the report
+  std::vector<std::string> runs;    // "kane + rkf78 at 1e-13", ...
+  double agreement = 0;             // worst pairwise history error of the reference runs
+  std::string worst_pair;           // "lagrange + dopri5 vs kane + rkf78"
+  double cpu_seconds = 0;           // making the reference (not part of any row)
+};
+
+struct SceneStudy {
+  std::string scene, file;
+  double duration = 0, output_step = 0;
+  StudyReference reference;
+  std::vector<StudyRow> rows;
+  std::vector<std::string> notes;   // engines not built, and the like
+};
+
+// Runs the study on one scene. Throws StudyRefused when the reference cannot be made,
+// InputError for bad options, cancel::Cancelled when interrupted.
+SceneStudy study_scene(const System& system, const StudyOptions& options);
+
+// The Pareto front of points (cost, error): true where no other point has cost <= and
+// error <= with one of them strictly smaller. Points with a non-finite cost or error are never on
+// it. Errors below `floor` count as `floor` (error 0 and 1e-17 are the same accuracy).
+std::vector<bool> pareto_front(const std::vector<double>& cost, const std::vector<double>& error,
+                               double floor = 1e-16);
+// Sets every row's front_end and front_history; errors below the reference's accuracy
+// (max(1e-15, reference.agreement)) count as equal.
+void mark_fronts(SceneStudy& s);
+
+// The cheapest row (least median CPU) whose end-state error (or history error) is <= target.
+std::optional<std::size_t> cheapest_within(const SceneStudy& s, double target, bool history = false);
+// "for 1e-08 end-state error on spear1_case1 use kane + dopri5 at rtol 1e-09: 0.41 ms of CPU", or
+// what the study found instead when no configuration reaches the target.
+std::string recommendation(const SceneStudy& s, double target, bool history = false);
+// The targets recommendations are made for: 1e-4, 1e-6, 1e-8, 1e-10.
+const std::vector<double>& recommendation_targets();
+
+// Text table (fits 100 columns), the reference and the recommendations.
+std::string format_study(const SceneStudy& s);
+// CSV: the header line (study_csv_header) and one line per row; `scene` in every line.
+std::string study_csv_header();
+std::string study_csv_rows(const SceneStudy& s);
+
+// ---- The scaling of the right-hand side with chain length (chainN, docs/scenarios.md Scene 3) ----
+
+// The chainN scene as YAML (what scripts/make_chain.py N writes).
+std::string chain_scene_text(int links);
+
+// Least-squares slope of log(y) against log(x) over the upper half of the points (by x; the
+// middle point of an odd count included); NaN with fewer than two usable (positive, finite) points.
+double fit_exponent(const std::vector<double>& x, const std::vector<double>& y);
+
+struct ScalingOptions {
+  std::vector<std::string> engines;  // empty: every engine
+  int max_links = 128;
+  double budget = 0.2;               // s of CPU per point (at least min_batches batches)
+  int min_batches = 5;
+  ProgressLine* progress = nullptr;
+};
+struct ScalingPoint {
+  int links = 0;
+  double seconds_per_call = 0;  // median over batches of batch CPU / calls
+  long calls = 0;
+  bool ok = true;
+  std::string note;
+};
+struct ScalingLine {
+  std::string engine;
+  std::vector<ScalingPoint> points;
+  double exponent = std::numeric_limits<double>::quiet_NaN();
+};
+struct ScalingStudy {
+  std::vector<int> links;  // 2, 4, 8, ... up to max_links, and max_links
+  std::vector<ScalingLine> lines;
+  double budget = 0;
+};
+// The link counts: 2, 3, 4, 6, 8, 12, 16, ... (a factor of about 1.5) up to max_links.
+std::vector<int> scaling_links(int max_links);
+ScalingStudy scaling_study(const ScalingOptions& options);
+std::string format_scaling(const ScalingStudy& s);
+std::string scaling_csv(const ScalingStudy& s);
+
+// ---- Output ----
+
+// The JSON the report script reads (reports/make_report.py, "kind": "study").
+std::string study_json(const std::vector<SceneStudy>& scenes, const std::optional<ScalingStudy>& scaling,
+                       const std::string& what_is_timed);
+// What is timed, one paragraph (the help text, the report, the JSON).
+const std::string& study_timing_text();
+// What the error is, one paragraph.
+const std::string& study_error_text();
+
+// Writes DIR/study.json, DIR/<scene>-study.csv, DIR/scaling.csv and runs the report script, which
+// writes DIR/index.html, DIR/<scene>-study.html and the PNG charts. Refuses (InputError) a DIR
+// that is a file, or a non-empty folder without a crossdyn study.json.
+void write_study_report(const std::string& dir, const std::vector<SceneStudy>& scenes,
+                        const std::optional<ScalingStudy>& scaling,
+                        const std::string& python = "/usr/bin/python3");
+
+}  // namespace crossdyn::harness

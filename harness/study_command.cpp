@@ -1,0 +1,182 @@
+// crossdyn study SCENE...: speed against accuracy, and the scaling of the right-hand side with
+// chain length (harness/study.hpp).
+#include <CLI/CLI.hpp>
+
+#include "core/errors.hpp"
+#include "core/output.hpp"
+#include "core/progress.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/commands.hpp"
+#include "harness/engines.hpp"
+#include "harness/locations.hpp"
+#include "harness/report.hpp"
+#include "harness/study.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+namespace crossdyn {
+
+namespace {
+
+struct StudyCliOptions {
+  std::vector<std::string> scenes;
+  std::string engines, integrators;
+  std::optional<std::string> tolerances, dts;
+  int repeat = 3;
+  std::optional<long> max_steps;
+  double timeout = 60;
+  std::string report, csv;
+  bool scaling = false;
+  int max_links = 128;
+  double budget = 0.2;
+  bool quiet = false;
+};
+
+std::vector<std::string> split_names(const std::string& text, const std::string& option,
+                                     const std::vector<std::string>& known, const std::string& noun) {
+  std::vector<std::string> out;
+  if (text.empty()) return out;
+  std::stringstream in(text);
+  std::string name;
+  while (std::getline(in, name, ',')) {
+    if (name.empty()) throw InputError(option + ": empty " + noun + " name in '" + text + "'");
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError(option + ": unknown " + noun + " '" + name + "' (known: " + list + ")");
+    }
+    if (std::find(out.begin(), out.end(), name) != out.end())
+      throw InputError(option + ": '" + name + "' is listed twice");
+    out.push_back(name);
+  }
+  return out;
+}
+
+int study(const StudyCliOptions& o) {
+  // Everything that can be refused is refused before any run (exit 2).
+  if (o.scenes.empty() && !o.scaling)
+    throw InputError("study: give at least one scene, or --scaling");
+  harness::StudyOptions options;
+  options.engines = split_names(o.engines, "--engines", engine_names(), "engine");
+  options.integrators = split_names(o.integrators, "--integrators", integrator_names(), "integrator");
+  if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
+  if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
+  if (o.repeat < 1 || o.repeat > 1000)
+    throw InputError("--repeat: must be from 1 to 1000, got " + std::to_string(o.repeat));
+  options.repeat = o.repeat;
+  if (o.max_steps && *o.max_steps <= 0)
+    throw InputError("--max-steps: must be a positive number of steps, got " + std::to_string(*o.max_steps));
+  options.max_steps = o.max_steps;
+  if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
+    throw InputError("--timeout: must be a finite number of seconds >= 0 (0: no limit)");
+  options.timeout = o.timeout;
+  if (!(o.budget > 0) || !(o.budget <= 60))
+    throw InputError("--budget: must be more than 0 and at most 60 s");
+  std::vector<std::string> paths;
+  for (const std::string& s : o.scenes) paths.push_back(harness::resolve_scene(s));
+  std::vector<NamedPath> outputs{{"standard output", "-"}};
+  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  std::vector<NamedPath> inputs;
+  for (const std::string& p : paths) inputs.push_back({"the scene file", p});
+  check_outputs_are_not_inputs(outputs, inputs);
+  std::vector<System> systems;
+  for (const std::string& p : paths) {
+    std::vector<SceneWarning> warnings;
+    systems.push_back(read_scene(p, &warnings));
+    for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  }
+
+  ProgressLine progress(!o.quiet);
+  options.progress = &progress;
+  std::vector<harness::SceneStudy> results;
+  int status = kExitOk;
+  for (const System& system : systems) {
+    try {
+      results.push_back(harness::study_scene(system, options));
+    } catch (const harness::StudyRefused& r) {
+      progress.clear();
+      std::cerr << "crossdyn: study refused: " << r.what() << '\n';
+      status = std::max(status, r.exit_status());
+      continue;
+    }
+    std::cout << harness::format_study(results.back()) << '\n';
+    check_written(std::cout);
+  }
+  std::optional<harness::ScalingStudy> scaling;
+  if (o.scaling) {
+    harness::ScalingOptions so;
+    so.engines = options.engines;
+    so.max_links = o.max_links;
+    so.budget = o.budget;
+    so.progress = &progress;
+    scaling = harness::scaling_study(so);
+    std::cout << harness::format_scaling(*scaling) << '\n';
+    check_written(std::cout);
+  }
+  if (!o.csv.empty()) {
+    if (o.csv != "-") harness::make_directories(std::filesystem::path(o.csv).parent_path().string());
+    AtomicFile f(o.csv, "--csv");
+    f.stream() << harness::study_csv_header();
+    for (const harness::SceneStudy& s : results) f.stream() << harness::study_csv_rows(s);
+    f.commit();
+  }
+  if (!o.report.empty()) harness::write_study_report(o.report, results, scaling);
+  return status;
+}
+
+}  // namespace
+
+void add_study_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<StudyCliOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "study",
+      "Speed against accuracy: for each scene x engine x integrator x tolerance (or rk4 step),\n"
+      "the CPU time of the integration, right-hand-side calls, steps, and the error of the end\n"
+      "state and of the whole history against a reference; the Pareto front and the cheapest\n"
+      "configuration for 1e-4 ... 1e-10 end-state error.\n\n"
+      "Timed: " + harness::study_timing_text() + "\n\n"
+      "Error: " + harness::study_error_text() + "\n\n"
+      "Reference: the analytic solution where the scene has one; otherwise the mean of every\n"
+      "engine run with rkf78 and dopri5 at rtol = atol = 1e-13, used only when every pair of them\n"
+      "agrees to 1e-11 (else the scene is refused, with the pair and the difference).\n\n"
+      "--scaling: the right-hand-side cost (median CPU per call) on chainN, N = 2 ... --max-links,\n"
+      "one line per engine, with the exponent fitted over the upper half of N.\n\n"
+      "Exit status 0 done, 1 a scene was refused (its reference engines disagree), 2 bad input,\n"
+      "3 a reference run or a write failed, 130 interrupted.");
+  sub->add_option("scene", o->scenes, "Scene files (YAML) or scene names (see `crossdyn list`)");
+  sub->add_option("--engines", o->engines, "Comma-separated engines (default: all: " +
+                                               [] {
+                                                 std::string l;
+                                                 for (const std::string& e : engine_names())
+                                                   l += (l.empty() ? "" : ", ") + e;
+                                                 return l;
+                                               }() + ")");
+  sub->add_option("--integrators", o->integrators,
+                  "Comma-separated integrators (default: all: " + known_names<Integrator>() + ")");
+  sub->add_option("--tolerances", o->tolerances,
+                  "Adaptive methods' rtol = atol: a range one per decade (1e-4..1e-13, the default) "
+                  "or a list (1e-4,1e-8)");
+  sub->add_option("--dts", o->dts, "rk4 steps, s, a list (default: the output step / 1, 2, 4, ... 128)");
+  sub->add_option("--repeat", o->repeat, "Timed runs per configuration; the median is reported (default 3)");
+  sub->add_option("--max-steps", o->max_steps, "Per run: fail the run after N steps");
+  sub->add_option("--timeout", o->timeout, "Per run: fail the run after SECONDS (default 60; 0: none)");
+  sub->add_option("--report", o->report,
+                  "Write the pages (index.html, <scene>-study.html, scaling.html), PNG charts and "
+                  "CSV files into DIR");
+  sub->add_option("--csv", o->csv, "Write one CSV line per configuration to FILE (header: " +
+                                       harness::study_csv_header().substr(0, harness::study_csv_header().size() - 1) +
+                                       "; times in ms, errors as above, empty when failed)");
+  sub->add_flag("--scaling", o->scaling, "Also measure the right-hand-side cost against chain length");
+  sub->add_option("--max-links", o->max_links, "--scaling: the longest chain (default 128)");
+  sub->add_option("--budget", o->budget, "--scaling: CPU seconds per point (default 0.2)");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
+  sub->callback([o, &exit_code] { exit_code = study(*o); });
+}
+
+}  // namespace crossdyn

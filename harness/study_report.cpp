@@ -1,0 +1,170 @@
+// The study's JSON and report folder (see study.hpp; the pages are made by reports/make_report.py,
+// "kind": "study").
+#include "harness/study.hpp"
+
+#include "core/errors.hpp"
+#include "core/output.hpp"
+#include "harness/locations.hpp"
+#include "harness/report.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+namespace crossdyn::harness {
+
+namespace {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+
+std::string safe_id(std::string s) {
+  for (char& ch : s)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_') ch = '_';
+  return s.empty() ? "_" : s;
+}
+
+// Unique ids, one per scene (page <id>-study.html, <id>-study.csv).
+std::vector<std::string> study_ids(const std::vector<SceneStudy>& scenes) {
+  std::vector<std::string> ids;
+  std::set<std::string> taken{"index", "scaling"};
+  for (const SceneStudy& s : scenes) {
+    std::string id = safe_id(s.scene);
+    for (int k = 2; taken.count(id); ++k) id = safe_id(s.scene) + "_" + std::to_string(k);
+    taken.insert(id);
+    ids.push_back(id);
+  }
+  return ids;
+}
+
+json scene_json(const SceneStudy& s, const std::string& id) {
+  json j;
+  j["scene"] = s.scene;
+  j["file"] = s.file;
+  j["id"] = id;
+  j["page"] = id + "-study.html";
+  j["csv"] = id + "-study.csv";
+  j["duration"] = s.duration;
+  j["output_step"] = s.output_step;
+  j["reference"] = {{"kind", s.reference.kind},
+                    {"description", s.reference.description},
+                    {"runs", s.reference.runs},
+                    {"agreement", number(s.reference.agreement)},
+                    {"worst_pair", s.reference.worst_pair},
+                    {"cpu_seconds", number(s.reference.cpu_seconds)}};
+  j["notes"] = s.notes;
+  json recs = json::array();
+  for (double t : recommendation_targets()) {
+    const auto best = cheapest_within(s, t);
+    recs.push_back({{"target", t},
+                    {"text", recommendation(s, t)},
+                    {"row", best ? json(*best) : json(nullptr)}});
+  }
+  j["recommendations"] = recs;
+  json rows = json::array();
+  for (const StudyRow& r : s.rows)
+    rows.push_back({{"engine", r.engine},
+                    {"integrator", r.integrator},
+                    {"fixed_step", r.fixed_step},
+                    {"tolerance", r.fixed_step ? json(nullptr) : number(r.tolerance)},
+                    {"dt", r.fixed_step ? number(r.dt) : json(nullptr)},
+                    {"setting", r.setting()},
+                    {"ok", r.ok},
+                    {"failure", r.failure},
+                    {"cpu_median", number(r.cpu_median)},
+                    {"cpu_min", number(r.cpu_min)},
+                    {"cpu_max", number(r.cpu_max)},
+                    {"repeats", r.repeats},
+                    {"rhs_calls", r.rhs_calls},
+                    {"steps", r.steps},
+                    {"rejected", r.rejected},
+                    {"end_error", r.ok ? number(r.error.end) : json(nullptr)},
+                    {"history_error", r.ok ? number(r.error.history) : json(nullptr)},
+                    {"end_quantity", r.error.end_quantity},
+                    {"history_quantity", r.error.history_quantity},
+                    {"front_end", r.front_end},
+                    {"front_history", r.front_history}});
+  j["rows"] = rows;
+  return j;
+}
+
+json scaling_json(const ScalingStudy& s) {
+  json j;
+  j["links"] = s.links;
+  j["budget"] = s.budget;
+  j["csv"] = "scaling.csv";
+  j["page"] = "scaling.html";
+  json lines = json::array();
+  for (const ScalingLine& l : s.lines) {
+    json points = json::array();
+    for (const ScalingPoint& p : l.points)
+      points.push_back({{"links", p.links},
+                        {"seconds_per_call", p.ok ? number(p.seconds_per_call) : json(nullptr)},
+                        {"calls", p.calls},
+                        {"ok", p.ok},
+                        {"note", p.note}});
+    lines.push_back({{"engine", l.engine}, {"exponent", number(l.exponent)}, {"points", points}});
+  }
+  j["lines"] = lines;
+  return j;
+}
+
+bool is_study_folder(const fs::path& dir) {
+  std::ifstream in(dir / "study.json");
+  if (!in) return false;
+  try {
+    const json j = json::parse(in);
+    return j.is_object() && j.value("tool", "") == "crossdyn" && j.value("kind", "") == "study";
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+}  // namespace
+
+std::string study_json(const std::vector<SceneStudy>& scenes, const std::optional<ScalingStudy>& scaling,
+                       const std::string& what_is_timed) {
+  json j;
+  j["tool"] = "crossdyn";
+  j["kind"] = "study";
+  j["version"] = version();
+  j["timing"] = what_is_timed;
+  j["error_metric"] = study_error_text();
+  j["csv_header"] = study_csv_header();
+  const std::vector<std::string> ids = study_ids(scenes);
+  json list = json::array();
+  for (std::size_t i = 0; i < scenes.size(); ++i) list.push_back(scene_json(scenes[i], ids[i]));
+  j["scenes"] = list;
+  j["scaling"] = scaling ? scaling_json(*scaling) : json(nullptr);
+  return j.dump(1) + "\n";
+}
+
+void write_study_report(const std::string& given, const std::vector<SceneStudy>& scenes,
+                        const std::optional<ScalingStudy>& scaling, const std::string& python) {
+  if (given.empty()) throw InputError("--report: the folder name is empty");
+  const fs::path dir = fs::absolute(given).lexically_normal();
+  std::error_code ec;
+  if (fs::exists(dir, ec)) {
+    if (!fs::is_directory(dir, ec)) throw InputError("--report: '" + given + "' is a file, not a folder");
+    if (!fs::is_empty(dir, ec) && !is_study_folder(dir))
+      throw InputError("--report: '" + given + "' is neither empty nor a crossdyn study report (no "
+                       "study.json written by crossdyn study); give a new folder, an empty one or "
+                       "an earlier study report");
+  }
+  make_directories(dir.string());
+  const std::vector<std::string> ids = study_ids(scenes);
+  for (std::size_t i = 0; i < scenes.size(); ++i)
+    write_file_atomic((dir / (ids[i] + "-study.csv")).string(),
+                      study_csv_header() + study_csv_rows(scenes[i]));
+  if (scaling) write_file_atomic((dir / "scaling.csv").string(), scaling_csv(*scaling));
+  const std::string summary = (dir / "study.json").string();
+  write_file_atomic(summary, study_json(scenes, scaling, study_timing_text()));
+  run_python(python, {installed_report_script(), summary, dir.string()});
+}
+
+}  // namespace crossdyn::harness

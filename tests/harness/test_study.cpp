@@ -1,0 +1,287 @@
+// `crossdyn study`: the reference rule, the error falling at the rate of each method's order, the
+// Pareto front, the exponent fit, the command line and the report folder (harness/study.hpp).
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/errors.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/study.hpp"
+#include "tests/harness/run_program.hpp"
+#include "tests/support/paths.hpp"
+
+using namespace crossdyn;
+using namespace crossdyn::harness;
+
+namespace {
+
+System scene(const std::string& name, double duration, double output_step) {
+  System s = read_scene(test::scene_path(name));
+  s.run.duration = duration;
+  s.run.output_step = output_step;
+  return s;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("study: a reference the engines do not agree on is refused, with the pair and the "
+          "difference") {
+  const System s = scene("spear1_case1", 0.5, 0.1);
+  StudyOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"dopri5"};
+  o.tolerances = {1e-6};
+  o.repeat = 1;
+  o.reference_integrators = {"rkf78"};
+  SECTION("engines that agree make the reference") {
+    o.reference_engines = {{"kane", "kane", {}}, {"lagrange", "lagrange", {}}};
+    const SceneStudy st = study_scene(s, o);
+    CHECK(st.reference.kind == "engines");
+    CHECK(st.reference.runs.size() == 2);
+    CHECK(st.reference.agreement <= 1e-11);
+    REQUIRE(st.rows.size() == 1);
+    CHECK(st.rows[0].ok);
+    CHECK(st.rows[0].error.end > 0);
+  }
+  SECTION("an engine with 0.1 % more inertia is refused (exit status 1)") {
+    EngineOptions wrong;
+    wrong.test_inertia_scale = 1.001;
+    o.reference_engines = {{"kane", "kane", {}}, {"kane*1.001", "kane", wrong}};
+    try {
+      study_scene(s, o);
+      FAIL("the study accepted a reference the engines disagree on");
+    } catch (const StudyRefused& r) {
+      const std::string what = r.what();
+      CHECK(r.exit_status() == kExitCheckFailed);
+      CHECK(what.find("do not agree") != std::string::npos);
+      CHECK(what.find("kane*1.001 + rkf78 at 1e-13 vs kane + rkf78 at 1e-13") != std::string::npos);
+      CHECK(what.find("> 1.00e-11") != std::string::npos);
+    }
+  }
+}
+
+TEST_CASE("study: on the analytic torque-free scenes rk4's error falls 16-fold when its step "
+          "halves (order 4)") {
+  for (const char* name : {"torque_free_asymmetric", "torque_free_axisymmetric"}) {
+    CAPTURE(name);
+    const System s = scene(name, 10, 0.5);
+    StudyOptions o;
+    o.engines = {"kane", "newton-euler"};
+    o.integrators = {"rk4"};
+    o.dts = {0.1, 0.05, 0.025};
+    o.repeat = 1;
+    const SceneStudy st = study_scene(s, o);
+    CHECK(st.reference.kind == "analytic");
+    REQUIRE(st.rows.size() == 6);
+    for (std::size_t k = 0; k < st.rows.size(); ++k) REQUIRE(st.rows[k].ok);
+    for (std::size_t e = 0; e < 2; ++e)
+      for (std::size_t k = 0; k + 1 < 3; ++k) {
+        const StudyRow& a = st.rows[3 * e + k];
+        const StudyRow& b = st.rows[3 * e + k + 1];
+        CAPTURE(a.engine, a.dt, a.error.history, b.error.history);
+        CHECK(b.dt == Approx(a.dt / 2));
+        const double ratio = a.error.history / b.error.history;
+        CHECK(ratio > 12);
+        CHECK(ratio < 21);
+        CHECK(b.rhs_calls == Approx(2.0 * static_cast<double>(a.rhs_calls)).epsilon(0.01));
+      }
+  }
+}
+
+TEST_CASE("study: an adaptive method's error falls with its tolerance, decade by decade") {
+  // dopri5 (dense output: its steps are not cut at the output times). rkf78 and bulirsch-stoer
+  // step to every output time today, so at loose tolerances their error is that of one step per
+  // output interval, whatever the tolerance (issue 12 item 3; the study shows it).
+  const System s = scene("torque_free_asymmetric", 20, 0.5);
+  StudyOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"dopri5"};
+  o.tolerances = parse_values("1e-5..1e-10", "--tolerances", true);
+  o.repeat = 1;
+  const SceneStudy st = study_scene(s, o);
+  REQUIRE(st.rows.size() == 6);
+  for (std::size_t k = 0; k < 6; ++k) {
+    const StudyRow& r = st.rows[k];
+    CAPTURE(r.integrator, r.tolerance, r.error.end, r.error.history);
+    REQUIRE(r.ok);
+    // Roughly tracks the tolerance: within three decades of it either way.
+    CHECK(r.error.history < 1e3 * r.tolerance);
+    CHECK(r.error.history > 1e-3 * r.tolerance);
+    if (k > 0) {
+      CHECK(r.error.history < st.rows[k - 1].error.history);
+      CHECK(r.rhs_calls > st.rows[k - 1].rhs_calls);
+    }
+  }
+  // Over five decades of tolerance the error falls by at least three decades.
+  CHECK(st.rows[0].error.history / st.rows[5].error.history > 1e3);
+}
+
+TEST_CASE("study: the error metric") {
+  System s = read_scene(test::scene_path("torque_free_asymmetric"));
+  // Columns t, body.wx wy wz, body.qw qx qy qz, H, E.
+  History ref, run;
+  ref.columns = run.columns = 10;
+  const double angle = 1e-3;
+  ref.data = {0, 3, 0, 4, 1, 0, 0, 0, 10, 20,   //
+              1, 3, 0, 4, 1, 0, 0, 0, 10, 20};
+  run.data = {0, 3, 0, 4, 1, 0, 0, 0, 10, 20,   //
+              1, 3, 0.05, 4, std::cos(angle / 2), std::sin(angle / 2), 0, 0, 10, 20.2};
+  const ErrorMetric m(s, ref);
+  const StudyError e = m.error(run);
+  // w: 0.05 / |w| = 0.05 / 5; E: 0.2 / 20; attitude: 1e-3 rad.
+  CHECK(e.end == Approx(0.01));
+  CHECK(e.history == Approx(0.01));
+  CHECK((e.end_quantity == "body.wy" || e.end_quantity == "E"));
+  run.data[12] = 0;     // wy as the reference's
+  run.data[19] = 19.0;  // E off by 5 % at the end
+  CHECK(m.error(run).end == Approx(0.05));
+  CHECK(m.error(run).end_quantity == "E");
+  run.data[19] = 20;  // E back: the attitude's 1e-3 rad is the largest
+  CHECK(m.error(run).end == Approx(angle));
+  CHECK(m.error(run).end_quantity == "body.attitude");
+  CHECK(m.error(ref).history == 0);
+}
+
+TEST_CASE("study: the Pareto front of hand-made points") {
+  // (cost, error): a is fastest; b is slower but more accurate; c is dominated by b; d is the most
+  // accurate; e ties b's cost with a larger error; f failed (NaN); g equals a (neither dominates).
+  const std::vector<double> cost{1, 2, 3, 5, 2, std::nan(""), 1};
+  const std::vector<double> error{1e-3, 1e-6, 1e-5, 1e-9, 1e-4, 1e-12, 1e-3};
+  const std::vector<bool> f = pareto_front(cost, error);
+  CHECK(f == std::vector<bool>{true, true, false, true, false, false, true});
+  // Errors below the floor are equal: the slower of two "exact" points is not on the front.
+  CHECK(pareto_front({1, 2}, {0, 1e-18}) == std::vector<bool>{true, false});
+
+  SceneStudy st;
+  st.scene = "hand";
+  for (std::size_t i = 0; i < 5; ++i) {
+    StudyRow r;
+    r.engine = "e" + std::to_string(i);
+    r.integrator = "dopri5";
+    r.tolerance = 1e-6;
+    r.ok = true;
+    r.cpu_median = cost[i] * 1e-3;
+    r.error.end = r.error.history = error[i];
+    st.rows.push_back(r);
+  }
+  mark_fronts(st);
+  CHECK(st.rows[0].front_end);
+  CHECK_FALSE(st.rows[2].front_end);
+  REQUIRE(cheapest_within(st, 1e-5));
+  CHECK(*cheapest_within(st, 1e-5) == 1);
+  CHECK(*cheapest_within(st, 1e-8) == 3);
+  CHECK_FALSE(cheapest_within(st, 1e-10));
+  CHECK(recommendation(st, 1e-8) ==
+        "for 1e-08 end-state error on hand use e3 + dopri5 at rtol 1e-06: 5 ms of integration CPU "
+        "(end-state error 1.0e-09, 0 right-hand sides)");
+  CHECK(recommendation(st, 1e-10).find("no configuration reached") == 0);
+}
+
+TEST_CASE("study: the fitted exponent uses the upper half of N") {
+  std::vector<double> n, y;
+  for (int k : scaling_links(128)) {
+    n.push_back(k);
+    // N^2.5 above N = 12, a constant overhead below (the lower half does not count).
+    y.push_back(k >= 16 ? 3e-7 * std::pow(k, 2.5) : 1.0);
+  }
+  CHECK(scaling_links(128).front() == 2);
+  CHECK(scaling_links(128).back() == 128);
+  CHECK(scaling_links(128).size() == 13);
+  CHECK(fit_exponent(n, y) == Approx(2.5).epsilon(1e-9));
+  CHECK(std::isnan(fit_exponent({4}, {1})));
+  // The chainN text reads to N bodies and N joints.
+  const System c = read_scene_text(chain_scene_text(7), "chain7");
+  CHECK(c.bodies.size() == 7);
+  CHECK(c.joints.size() == 7);
+}
+
+TEST_CASE("study: --tolerances ranges and lists") {
+  CHECK(parse_values("1e-4..1e-13", "--tolerances", true).size() == 10);
+  CHECK(parse_values("1e-4..1e-13", "--tolerances", true)[9] == Approx(1e-13));
+  CHECK(parse_values("1e-8..1e-6", "--tolerances", true) == std::vector<double>{1e-8, 1e-7, 1e-6});
+  CHECK(parse_values("0.1,0.05", "--dts", false) == std::vector<double>{0.1, 0.05});
+  CHECK_THROWS_WITH(parse_values("1e-4..3e-9", "--tolerances", true), Catch::Contains("one value per decade"));
+  CHECK_THROWS_WITH(parse_values("1e-4,-1", "--tolerances", true), Catch::Contains("positive"));
+  CHECK_THROWS_WITH(parse_values("abc", "--dts", false), Catch::Contains("'abc' is not a number"));
+  CHECK_THROWS_WITH(parse_values("0.1..0.01", "--dts", false), Catch::Contains("not a range"));
+}
+
+TEST_CASE("study: bad arguments exit 2 with a clear message") {
+  const struct {
+    const char* args;
+    const char* message;
+  } cases[] = {
+      {"study", "give at least one scene, or --scaling"},
+      {"study torque_free_asymmetric --integrators rk45", "--integrators: unknown integrator 'rk45'"},
+      {"study torque_free_asymmetric --engines kane,foo", "--engines: unknown engine 'foo'"},
+      {"study torque_free_asymmetric --tolerances 1e-4..2e-9", "one value per decade"},
+      {"study torque_free_asymmetric --repeat 0", "--repeat: must be from 1 to 1000"},
+      {"study no_such_scene_here", "no_such_scene_here"},
+      {"study --scaling --max-links 1", "--max-links: must be from 2 to 1024"},
+  };
+  for (const auto& c : cases) {
+    CAPTURE(c.args);
+    const test::ProgramResult r = test::run_crossdyn(std::string(c.args) + " -q");
+    CAPTURE(r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.find(c.message) != std::string::npos);
+  }
+}
+
+TEST_CASE("study: a tiny study writes its table, CSV and report (pages, PNG, CSV, links)") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn_study_test_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string csv = (dir / "all.csv").string();
+  const std::string report = (dir / "report").string();
+  const test::ProgramResult r = test::run_crossdyn(
+      "study torque_free_axisymmetric --engines kane --integrators dopri5,rk4 --tolerances "
+      "1e-4..1e-6 --dts 0.5,0.25 --repeat 1 -q --csv '" + csv + "' --report '" + report +
+      "' --scaling --max-links 3 --budget 0.002");
+  CAPTURE(r.output);
+  REQUIRE(r.status == 0);
+  CHECK(r.output.find("for 1e-04 end-state error on torque_free_axisymmetric use kane + ") !=
+        std::string::npos);
+  std::istringstream lines(r.output);
+  for (std::string line; std::getline(lines, line);) {
+    CAPTURE(line);
+    CHECK(line.size() <= 100);
+  }
+  const std::string table = slurp(csv);
+  CHECK(table.rfind(study_csv_header(), 0) == 0);
+  CHECK(std::count(table.begin(), table.end(), '\n') == 1 + 5);
+  for (const char* f : {"index.html", "torque_free_axisymmetric-study.html", "torque_free_axisymmetric-study.png",
+                        "torque_free_axisymmetric-study.csv", "scaling.html", "scaling.png", "scaling.csv",
+                        "study.json"}) {
+    CAPTURE(f);
+    CHECK(fs::is_regular_file(fs::path(report) / f));
+  }
+  const std::string index = slurp(report + "/index.html");
+  CHECK(index.find("href=\"torque_free_axisymmetric-study.html\"") != std::string::npos);
+  CHECK(index.find("href=\"scaling.html\"") != std::string::npos);
+  const std::string page = slurp(report + "/torque_free_axisymmetric-study.html");
+  CHECK(page.find("src=\"torque_free_axisymmetric-study.png\"") != std::string::npos);
+  CHECK(page.find("href=\"torque_free_axisymmetric-study.csv\"") != std::string::npos);
+  // A second study may replace the report; a folder of other files is refused (exit 2).
+  CHECK(test::run_crossdyn("study torque_free_axisymmetric --engines kane --integrators dopri5 "
+                           "--tolerances 1e-4 --repeat 1 -q --report '" + report + "'").status == 0);
+  const test::ProgramResult other = test::run_crossdyn(
+      "study torque_free_axisymmetric --engines kane --integrators dopri5 --tolerances 1e-4 "
+      "--repeat 1 -q --report '" + dir.string() + "'");
+  CHECK(other.status == 2);
+  CHECK(other.output.find("neither empty nor a crossdyn study report") != std::string::npos);
+  fs::remove_all(dir);
+}
