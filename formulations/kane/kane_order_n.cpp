@@ -63,6 +63,23 @@ namespace {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
+// Inverse of the symmetric 3 x 3 matrix D (its upper triangle read) by cofactors; false unless D is
+// positive definite (Sylvester's criterion: the leading minors D00, D00 D11 - D01^2 and det D > 0).
+bool symmetric_inverse(const Matrix3d& D, Matrix3d& D_inv) {
+  const double a = D(0, 0), b = D(0, 1), c = D(0, 2), d = D(1, 1), e = D(1, 2), f = D(2, 2);
+  const double c00 = d * f - e * e, c01 = c * e - b * f, c02 = b * e - c * d;
+  const double det = a * c00 + b * c01 + c * c02;
+  if (!(a > 0) || !(a * d - b * b > 0) || !(det > 0)) return false;
+  const double s = 1.0 / det;
+  D_inv(0, 0) = c00 * s;
+  D_inv(0, 1) = D_inv(1, 0) = c01 * s;
+  D_inv(0, 2) = D_inv(2, 0) = c02 * s;
+  D_inv(1, 1) = (a * f - c * c) * s;
+  D_inv(1, 2) = D_inv(2, 1) = (b * c - a * e) * s;
+  D_inv(2, 2) = (a * d - b * b) * s;
+  return true;
+}
+
 }  // namespace
 
 // q, u, alpha_t, a_t, loads => per node I^A (about Ok), Z, and for joints U, D^-1, g.
@@ -127,12 +144,10 @@ void KaneEngine::articulated_pass(double t, const double* x) {
       a.U_F_N.noalias() = a.Iwv_N.transpose() * W;
       Matrix3d D;
       D.noalias() = W.transpose() * a.U_M_N;
-      const Eigen::LLT<Matrix3d> llt(0.5 * (D + D.transpose()));
-      if (llt.info() != Eigen::Success)
+      if (!symmetric_inverse(D, a.D_inv))
         throw RunFailure("kane", t, "articulated inertia",
                          "not positive definite at joint '" +
                              system_.joints[kk].name + "'");
-      a.D_inv = llt.solve(Matrix3d::Identity());
       a.g.noalias() = W.transpose() * a.Z_M_N;
       a.g += hinge_torque_spherical(n, t, x);
       Matrix3d K_M, K_F;
