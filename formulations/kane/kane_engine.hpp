@@ -115,7 +115,8 @@
 //              articulated-body recursion (kane_order_n.cpp gives the derivation and its sources).
 //              O(n_bodies).  Rigid bodies only; a scene with any flexible body uses composite.
 //   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
-//   least kOrderNMinDepth generalised speeds (the base's 6 included), composite otherwise.
+//   least KaneEngine::kOrderNMinDepth = 12 generalised speeds (the base's 6 included; chain3),
+//   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
 //
 // Bibliography
 //   [KLL]  T. R. Kane, P. W. Likins, D. A. Levinson, Spacecraft Dynamics, McGraw-Hill, 1983.
@@ -287,12 +288,9 @@ struct BodyMotion {
 
 class KaneEngine final : public Engine {
  public:
-  // Crossover of KaneSolver::Automatic, in speeds on the deepest root-to-leaf path.  Measured on
-  // chainN (6 + 3 (N - 1) speeds) with `crossdyn_bench --benchmark_filter='kane_(composite|
-  // order_n)/chain'` (CPU ns per rhs, Release, 2026-11-23): chain3 (12 speeds) composite 1214,
-  // order-N 1271; chain4 (15) composite 2803, order-N 2107; chain5 3693 against 3044; chain80
-  // 5.7 ms against 54 us.  So order-N from chain4 on: 15 speeds.
-  static constexpr int kOrderNMinDepth = 15;
+  // Crossover of KaneSolver::Automatic, in speeds on the deepest root-to-leaf path: order-N at
+  // and above it (kane_order_n.cpp gives the measurement).
+  static const int kOrderNMinDepth;
 
   // solver: Automatic in every real run; Composite or OrderN force a path (tests, benchmarks).
   // OrderN on a scene with a flexible body is refused with InputError.

@@ -43,10 +43,17 @@
 //   The u' solve the same equations F_r + F_r* = 0 as M u' = f: tests/kane compares the paths.
 //
 // Cost: O(1) 3 x 3 work per node, so O(n_bodies) for any tree.  Crossover against the composite
-// path: chain4 (15 speeds on its one path; composite is faster up to chain3, 12 speeds), measured
-// with `crossdyn_bench --benchmark_filter='kane_(composite|order_n)/chain'` (figures at
-// KaneEngine::kOrderNMinDepth, the automatic choice's threshold).
-//
+// path (KaneEngine::kOrderNMinDepth below), measured with
+//   build/crossdyn_bench --benchmark_filter='^kane_(composite|order_n)/'
+//     --benchmark_min_time=0.3 --benchmark_repetitions=5   (one command line)
+// (Release, CPU ns per rhs, medians, 2026-11-23, a loaded 2-core machine), composite / order-N,
+// with the speeds on the deepest path:
+//   spear1_case1 (7) 973 / 1078;  hub_two_panels (7) 1030 / 1064;  dual_spin 727 / 850;
+//   basilisk_hinged_panels 1021 / 1171;  chain_motor 1018 / 1140;  chain2 (9) 907 / 1029;
+//   chain3 (12) 1692 / 1405;  chain4 (15) 2624 / 1645;  chain5 (18) 3406 / 2124;
+//   chain20 (63) 105696 / 6706;  chain80 (243) 5957471 / 28121;  chain128 (387) 23.8e6 / 56629;
+// so composite up to 9 speeds (every committed rigid scene but chain5), order-N from 12 (chain3).
+
 // Bibliography: kane_engine.hpp ([KLL], [Feath], [Ban93]).
 #include "formulations/kane/kane_engine.hpp"
 
@@ -57,6 +64,8 @@
 #include <Eigen/Cholesky>
 
 namespace crossdyn::kane {
+
+const int KaneEngine::kOrderNMinDepth = 12;
 
 namespace {
 
