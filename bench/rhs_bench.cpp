@@ -8,11 +8,15 @@
 #include "harness/engines.hpp"
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
+#include "formulations/kane/kane_engine.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <deque>
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace {
@@ -29,6 +33,69 @@ void bench_rhs(benchmark::State& state, const crossdyn::System& system, const st
     benchmark::ClobberMemory();
   }
   state.counters["states"] = static_cast<double>(x.size());
+}
+
+// The Kane engine with each of its solvers forced (formulations/kane/kane_engine.hpp, "Two
+// solvers"): kane_composite/SCENE and kane_order_n/SCENE, on every committed rigid scene and on
+// chainN as scripts/make_chain.py N writes it (N = 2 ... 128; the crossover of the automatic
+// choice, KaneEngine::kOrderNMinDepth, is read from these):
+//   build/crossdyn_bench --benchmark_filter='kane_(composite|order_n)/chain'
+void bench_kane_solver(benchmark::State& state, const crossdyn::System& system,
+                       crossdyn::kane::KaneSolver solver) {
+  crossdyn::kane::KaneEngine engine(system, {}, solver);
+  std::vector<double> x(static_cast<std::size_t>(engine.state_size()));
+  std::vector<double> xdot(x.size());
+  engine.pack(crossdyn::TreeState::initial(system), x.data());
+  for (auto _ : state) {
+    engine.rhs(0.0, x.data(), xdot.data());
+    benchmark::DoNotOptimize(xdot.data());
+    benchmark::ClobberMemory();
+  }
+  state.counters["states"] = static_cast<double>(x.size());
+}
+
+// chainN from scripts/make_chain.py (run with /usr/bin/python3); throws InputError when it fails.
+crossdyn::System make_chain(int n) {
+  const std::string command = "/usr/bin/python3 '" + std::string(CROSSDYN_SOURCE_DIR) +
+                              "/scripts/make_chain.py' " + std::to_string(n);
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) throw crossdyn::InputError("cannot run " + command);
+  std::string text;
+  char buffer[4096];
+  for (std::size_t got; (got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;)
+    text.append(buffer, got);
+  if (pclose(pipe) != 0) throw crossdyn::InputError(command + " failed");
+  return crossdyn::read_scene_text(text, "chain" + std::to_string(n) + " (scripts/make_chain.py)");
+}
+
+void register_kane_solvers(const std::vector<crossdyn::System>& committed) {
+  static std::deque<crossdyn::System> systems;  // outlives the registered benchmarks
+  for (const crossdyn::System& s : committed) systems.push_back(s);
+  for (int n : {2, 3, 4, 5, 20, 40, 80, 128}) {
+    try {
+      systems.push_back(make_chain(n));
+    } catch (const crossdyn::InputError& e) {
+      std::cerr << "skipping chain" << n << ": " << e.what() << '\n';
+    }
+  }
+  std::vector<std::string> seen;
+  for (const crossdyn::System& system : systems) {
+    if (std::find(seen.begin(), seen.end(), system.name) != seen.end())
+      continue;  // chain5 is committed and generated
+    seen.push_back(system.name);
+    if (std::any_of(system.bodies.begin(), system.bodies.end(),
+                    [](const crossdyn::Body& b) { return b.flex; }))
+      continue;  // the order-N solver is for rigid bodies only
+    for (const auto solver : {crossdyn::kane::KaneSolver::Composite,
+                              crossdyn::kane::KaneSolver::OrderN}) {
+      const std::string name = solver == crossdyn::kane::KaneSolver::OrderN ? "kane_order_n/"
+                                                                             : "kane_composite/";
+      benchmark::RegisterBenchmark((name + system.name).c_str(),
+                                   [&system, solver](benchmark::State& s) {
+                                     bench_kane_solver(s, system, solver);
+                                   });
+    }
+  }
 }
 
 }  // namespace
@@ -59,6 +126,7 @@ int main(int argc, char** argv) {
       benchmark::RegisterBenchmark((name + "/" + system.name).c_str(),
                                    [&system, name](benchmark::State& s) { bench_rhs(s, system, name); });
     }
+  register_kane_solvers(systems);
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

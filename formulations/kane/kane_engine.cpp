@@ -8,6 +8,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -237,7 +238,7 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
 // ------------------------------------------------------------------------------------------------
 // Construction: validate the tree, build the node tables, size the workspace.
 
-KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
+KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneSolver solver)
     : system_(system), layout_(system_) {
   const std::string file = where(system_);
   const std::size_t nj = system_.joints.size(), nb = system_.bodies.size();
@@ -460,6 +461,45 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options)
       lambda_[static_cast<std::size_t>(n.u0 + i)] = i == 0 ? parent_speed : n.u0 + i - 1;
   }
   q_N_.assign(nj, Quaterniond::Identity());
+
+  // Solver (kane_engine.hpp, "Two solvers"): the speeds on the deepest root-to-leaf path decide.
+  std::vector<int> depth(nj, 0);
+  for (std::size_t k = 0; k < nj; ++k) {
+    const Node& n = nodes_[k];
+    depth[k] = n.nu + (n.parent >= 0 ? depth[static_cast<std::size_t>(n.parent)] : 0);
+    max_speed_depth_ = std::max(max_speed_depth_, depth[k]);
+  }
+  const bool rigid = flex_.empty();
+  if (solver == KaneSolver::OrderN && !rigid) {
+    std::string flexible;
+    for (const Body& b : system_.bodies)
+      if (b.flex && flexible.empty()) flexible = b.name;
+    throw InputError(file + ": the kane engine's order-N solver handles rigid bodies only (body '" +
+                     flexible + "' is flexible); use the composite solver");
+  }
+  if (solver == KaneSolver::Automatic)
+    solver = rigid && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
+                                                          : KaneSolver::Composite;
+  solver_ = solver;
+  if (solver_ == KaneSolver::OrderN) {
+    art_.resize(nj);
+    for (ArticulatedWork& a : art_) {
+      for (Matrix3d* M : {&a.Iww_N, &a.Iwv_N, &a.Ivv_N, &a.U_M_N, &a.U_F_N, &a.D_inv}) M->setZero();
+      for (Vector3d* v : {&a.Z_M_N, &a.Z_F_N, &a.g, &a.dalpha_N, &a.da_Ok_N}) v->setZero();
+    }
+  }
+}
+
+const char* kane_solver_name(KaneSolver s) {
+  switch (s) {
+    case KaneSolver::Automatic:
+      return "automatic";
+    case KaneSolver::Composite:
+      return "composite";
+    case KaneSolver::OrderN:
+      return "order-n";
+  }
+  return "?";
 }
 
 std::string KaneEngine::state_label(int i) const {
@@ -1045,6 +1085,11 @@ void KaneEngine::dynamics(double t, const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
+  if (solver_ == KaneSolver::OrderN) {
+    articulated_pass(t, x);
+    articulated_solve(t);
+    return;
+  }
   subtree_pass(t);
   mass_matrix_pass();
   generalized_force_pass(t, x);

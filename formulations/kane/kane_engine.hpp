@@ -105,6 +105,19 @@
 //   body is the acceleration of its frame origin Bo (the undeformed CM), as TreeState's velocities
 //   are; body torques given in the inertial frame act on the body frame likewise.
 //
+// Two solvers for u' (KaneSolver below; both solve the same Kane's equations F_r + F_r* = 0 with
+// the same partial velocities, the same remainder accelerations and the same loads):
+//   composite  forms M and f by the composite-body sums above and solves M u' = f by the sparse
+//              L^T D L.  Every scene (flexible bodies too).  Cost: forming M is O(n_bodies * depth)
+//              and the factorisation fills the ancestor band, O(sum over speeds of depth^2); on a
+//              serial chain of N spherical joints that is O(N^3) (4.25 ms at chain80).
+//   order-N    eliminates Kane's equations along the tree, leaves first, without forming M: the
+//              articulated-body recursion (kane_order_n.cpp gives the derivation and its sources).
+//              O(n_bodies).  Rigid bodies only; a scene with any flexible body uses composite.
+//   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
+//   least KaneEngine::kOrderNMinDepth = 12 generalised speeds (the base's 6 included; chain3),
+//   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
+//
 // Bibliography
 //   [KLL]  T. R. Kane, P. W. Likins, D. A. Levinson, Spacecraft Dynamics, McGraw-Hill, 1983.
 //   [Feath] R. Featherstone, Rigid Body Dynamics Algorithms, Springer, 2008.
@@ -113,6 +126,8 @@
 //   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
 //   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
 //           using TREETOPS and model-specific computer codes", 1990 (docs/references.md).
+//   [Ban93] A. K. Banerjee, "Block-diagonal equations for multibody elastodynamics with geometric
+//           stiffness and constraints", J. Guidance, Control, and Dynamics 16(6), 1993.
 #pragma once
 
 #include "core/engine.hpp"
@@ -233,6 +248,23 @@ struct FlexWork {
   Eigen::Matrix3Xd pm_N, hm_N;       // 3 x n: momenta of S(k) about Ok per modal speed
 };
 
+// Per-node workspace of the order-N solver (kane_order_n.cpp); N components, about Ok.
+// The articulated inertia of S(k) about Ok maps the acceleration increments (alpha, a_Ok) of
+// node k's body frame to the subtree's inertia forces: M_Ok = Iww alpha + Iwv a_Ok,
+// F = Iwv^T alpha + Ivv a_Ok (Iww, Ivv symmetric).
+struct ArticulatedWork {
+  Eigen::Matrix3d Iww_N, Iwv_N, Ivv_N;  // articulated inertia of S(k) about Ok
+  Eigen::Vector3d Z_M_N, Z_F_N;         // bias loads of S(k): moment about Ok and resultant
+  Eigen::Matrix3d U_M_N, U_F_N;         // U = I^A S (moment and force rows; nuj columns used)
+  Eigen::Matrix3d D_inv;                // (S^T I^A S)^-1 (nuj x nuj block used)
+  Eigen::Vector3d g;                    // tau + S^T Z (nuj entries used)
+  Eigen::Vector3d dalpha_N, da_Ok_N;    // acceleration increments of k's body frame at Ok
+};
+
+// Which solver forms u' (see "Two solvers" above).
+enum class KaneSolver { Automatic, Composite, OrderN };
+const char* kane_solver_name(KaneSolver s);  // "automatic", "composite", "order-n"
+
 // One mass point (a node of a flexible body, or a rigid body's CM with its inertia), computed
 // point by point from the body frames, for tests (no modal integrals).
 struct MassPoint {
@@ -256,7 +288,14 @@ struct BodyMotion {
 
 class KaneEngine final : public Engine {
  public:
-  KaneEngine(const System& system, const EngineOptions& options);
+  // Crossover of KaneSolver::Automatic, in speeds on the deepest root-to-leaf path: order-N at
+  // and above it (kane_order_n.cpp gives the measurement).
+  static const int kOrderNMinDepth;
+
+  // solver: Automatic in every real run; Composite or OrderN force a path (tests, benchmarks).
+  // OrderN on a scene with a flexible body is refused with InputError.
+  KaneEngine(const System& system, const EngineOptions& options,
+             KaneSolver solver = KaneSolver::Automatic);
   KaneEngine(const KaneEngine&) = delete;
   KaneEngine& operator=(const KaneEngine&) = delete;
 
@@ -284,6 +323,8 @@ class KaneEngine final : public Engine {
   std::vector<MassPoint> mass_points(const double* x);     // every node and rigid CM, in N
   std::vector<JointFrames> joint_frames(const double* x);  // per joint (System order)
   const std::vector<FlexModel>& flex_models() const { return flex_; }
+  KaneSolver solver() const { return solver_; }  // the path in use (never Automatic)
+  int max_speed_depth() const { return max_speed_depth_; }  // speeds on the deepest path
 
  private:
   // Named passes; "=>" reads inputs => writes outputs (all into work_ / M_ / f_).
@@ -298,6 +339,11 @@ class KaneEngine final : public Engine {
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   bool solve();                                // (M_, f_) => udot_ (false: M not positive definite)
+  // Order-N solver (kane_order_n.cpp), after the remainder pass:
+  //   q, u, alpha_t, a_t, loads => per node I^A, Z, U, D^-1, g      (backward, leaves first)
+  void articulated_pass(double t, const double* x);
+  //   I^A, Z, U, D^-1, g => udot_, increments dalpha, da_Ok          (forward, base first)
+  void articulated_solve(double t);
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
   void dynamics(double t, const double* x);    // all of the above up to udot_
   // The remainder (udot == nullptr) or full accelerations, into alpha_t/a_t or alpha/a.
@@ -327,6 +373,9 @@ class KaneEngine final : public Engine {
   // Workspace, sized in the constructor; rhs() never allocates.
   std::vector<NodeWork> work_;
   std::vector<FlexWork> flex_work_;  // per flexible body (Node::flex)
+  KaneSolver solver_ = KaneSolver::Composite;
+  int max_speed_depth_ = 0;
+  std::vector<ArticulatedWork> art_;  // order-N workspace (sized only when solver_ == OrderN)
   std::vector<int> lambda_;          // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // Mass matrix (lower triangle, row major); after solve() its factors L and D.
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;

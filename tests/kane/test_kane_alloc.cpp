@@ -92,8 +92,17 @@ TEST_CASE("kane: rhs performs no heap allocation") {
   loaded.bodies[0].torque.values = {Eigen::Vector3d(1, 0, 0)};
   // Flexible bodies everywhere, every load, deformed and moving.
   const System flexible = flex_tree(true);
-  for (const System& s : {spear1_case1(), chain(5), loaded, flexible}) {
-    kane::KaneEngine e(s, {});
+  struct Case {
+    System system;
+    kane::KaneSolver solver;
+  };
+  const std::vector<Case> cases = {
+      {spear1_case1(), kane::KaneSolver::Composite}, {chain(5), kane::KaneSolver::Composite},
+      {loaded, kane::KaneSolver::Composite},         {flexible, kane::KaneSolver::Composite},
+      {spear1_case1(), kane::KaneSolver::OrderN},    {chain(30), kane::KaneSolver::OrderN},
+      {loaded, kane::KaneSolver::OrderN}};
+  for (const auto& [s, solver] : cases) {
+    kane::KaneEngine e(s, {}, solver);
     std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());
     e.pack(flex_state(s, 0.1, 0.5), x.data());
     g_calls = 0;
@@ -101,7 +110,7 @@ TEST_CASE("kane: rhs performs no heap allocation") {
     for (int i = 0; i < 10; ++i) e.rhs(0.25 * i, x.data(), xdot.data());
     const bool renormalised = e.after_step(1.0, x.data());
     g_armed = false;
-    INFO(s.name << ": heap allocations in 10 rhs calls and one after_step: " << g_calls);
+    INFO(s.name << " (" << kane::kane_solver_name(e.solver()) << "): heap allocations in 10 rhs calls and one after_step: " << g_calls);
     CHECK(g_calls == 0);
     CHECK_FALSE(renormalised);
   }
