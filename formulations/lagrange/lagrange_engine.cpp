@@ -2,15 +2,16 @@
 //
 // Passes of one right-hand-side evaluation, (t, x = (q*, pi')) => (q*', pi''):
 //   charts        (q*) => A, B = A^-1 per Euler set; q*' = B pi'                  (Eqs. 16, 22)
-//   pose          (q*) => R_NB, R_PC, p_NoBo_N per body; node frames (r, exp([psi x]),
-//                 Jl(psi) Psi) of joints at nodes; I_w, s, H of flexible bodies
+//   pose          (q*) => R_NB, R_PC, p_NoBo_N (double pass only) per body; node frames
+//                 (r, exp([psi x]), Jl(psi) Psi) of joints at nodes; I_w, s, H of flexible bodies
 //                                                                    [templated on the scalar]
 //   twist         (pose, pi') => w_NB_B, v_NBo_N (and v_NBo_B of flexible bodies) per body
 //                                                                    [templated on the scalar]
 //   energy        (twists) => T,  (q*) => V                           [templated on the scalar]
 //   mass pass     Dual<1> seeded with the motion q*' (time derivative at fixed pi'), twists for
 //                 every unit seed pi' = e_i. T is quadratic in pi', so its derivatives in pi' are
-//                 the symmetric bilinear form T(xi, eta) of the seeds (polarisation):
+//                 the symmetric bilinear form T(xi, eta) of the seeds (polarisation; the base
+//                 translation seeds' twists are known, (0, e_a), and written without a pass):
 //                   M_ij = d2T/dpi_i dpi_j = T(e_i, e_j),   p_i = dT/dpi_i = T(e_i, pi'),
 //                 and the Dual<1> parts give d/dt p at pi'' = 0, i.e. (dM/dt) pi'.
 //                 A rigid body's bilinear form is w_a . I w_b + m v_a . v_b (paper Eq. 26); a
@@ -32,6 +33,7 @@
 #include <cstdio>
 #include <numbers>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 
 #include "core/cancel.hpp"
@@ -226,8 +228,12 @@ void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eig
 // R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, R_NC = R_NP R_PC,
 // p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
 // (psi, u zero at a rigid attachment).
+// The positions p_NoBo_N are computed in the double pass only (outputs and momenta): neither T nor
+// V depends on them (T through the twists, which need R_NB, r_P and r_C but not p_NoBo_N), so the
+// dual-number passes skip them.
 template <class S>
 void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
+  constexpr bool kPositions = std::is_same_v<S, double>;
   for (const Model::JointM& J : m.joints) {
     const auto c = static_cast<std::size_t>(J.child);
     const S* q = k.q.data() + J.i0;
@@ -236,7 +242,7 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
       const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
       k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
       k.R_PC[c] = k.R_NB[c];
-      k.p_NoBo_N[c] = Vec3<S>(q[0], q[1], q[2]);
+      if constexpr (kPositions) k.p_NoBo_N[c] = Vec3<S>(q[0], q[1], q[2]);
       if (C.flex >= 0)
         flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
       continue;
@@ -268,11 +274,13 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
     }
     const auto P = static_cast<std::size_t>(J.parent);
     k.R_NB[c] = k.R_NB[P] * R_PC;
-    const Vec3<S> to_joint =
-        J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
-    const Vec3<S> from_joint =
-        J.child_node >= 0 ? Vec3<S>(k.R_NB[c] * k.r_C[c]) : times_const(k.R_NB[c], J.p_CoJ_C);
-    k.p_NoBo_N[c] = k.p_NoBo_N[P] + to_joint - from_joint;
+    if constexpr (kPositions) {
+      const Vec3<S> to_joint =
+          J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
+      const Vec3<S> from_joint =
+          J.child_node >= 0 ? Vec3<S>(k.R_NB[c] * k.r_C[c]) : times_const(k.R_NB[c], J.p_CoJ_C);
+      k.p_NoBo_N[c] = k.p_NoBo_N[P] + to_joint - from_joint;
+    }
     if (C.flex >= 0)
       flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
   }
@@ -967,6 +975,28 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     cancel::poll();
     const Model::JointM& Ji =
         m.joints[static_cast<std::size_t>(m.coordinate_joint[static_cast<std::size_t>(i)])];
+    if (Ji.type == JointType::Free && i - Ji.i0 < 3) {
+      // A base translation seed v_NBo_N = e_a moves every body with w = 0 and v_NBo_N = e_a
+      // (twist_pass with this seed gives exactly these values: every other term is a product
+      // with a zero twist or a zero rate), so its columns are filled without the pass: (0, e_a),
+      // constant, for a rigid body; (0, R_NB^T e_a) with the Dual<1> rate of R_NB for a flexible
+      // body, whose twist holds v_NBo_B.
+      const int a0 = i - Ji.i0;
+      for (int j : Ji.subtree) {
+        const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(j)].child);
+        w.Xi[b].col(i).setZero();
+        w.Xi_dot[b].col(i).setZero();
+        if (m.bodies[b].flex < 0) {
+          w.Xi[b](3 + a0, i) = 1.0;
+          continue;
+        }
+        for (int a = 0; a < 3; ++a) {
+          w.Xi[b](3 + a, i) = w.k1.R_NB[b](a0, a).v;
+          w.Xi_dot[b](3 + a, i) = w.k1.R_NB[b](a0, a).d[0];
+        }
+      }
+      continue;
+    }
     if (Ji.parent >= 0) {
       w.k1.w_NB_B[static_cast<std::size_t>(Ji.parent)].setZero();
       w.k1.v_NBo_N[static_cast<std::size_t>(Ji.parent)].setZero();
