@@ -30,7 +30,7 @@
 //                   continuous extension: Hairer et al. I, Sec. II.6)
 //   rkf78           controlled runge_kutta_fehlberg78                  (Fehlberg 1968, NASA TR R-287)
 //   bulirsch-stoer  bulirsch_stoer_dense_out, interpolation error      (Hairer et al. I, Sec. II.9,
-//                   controlled                                          dense output: Sec. II.9, (9.34)-(9.40))
+//                   controlled                                          "Dense output for the GBS method")
 #include "core/integrate.hpp"
 
 #include "core/cancel.hpp"

@@ -6,9 +6,9 @@
 //                solver and CVODE's difference-quotient Jacobian: stiff problems
 // Both are described in Hindmarsh et al., "SUNDIALS: Suite of nonlinear and differential/algebraic
 // equation solvers" (ACM TOMS 31(3), 2005), Sec. 3, and the CVODE User Documentation (v6.4.1),
-// Sec. 2.1 (the methods, the local error test in the weighted RMS norm with weights
-// 1 / (rtol |y_i| + atol)) and Sec. 2.2 (dense output: CVodeGetDky interpolates the Nordsieck
-// history of the last step, Sec. 4.5.8.1).
+// Ch. 2 (the methods; the local error test in the weighted RMS norm with weights
+// 1 / (rtol |y_i| + atol); dense output: CVodeGetDky interpolates the Nordsieck history of the
+// last step) and Ch. 4 (CVodeSetStopTime, CVodeGetDky, recoverable right-hand-side errors).
 //
 // How the run is driven: CVode in CV_ONE_STEP mode, one internal step a call, so that every
 // accepted step passes through Runner::guard() (cancellation, step limit) and Runner::accepted()
@@ -21,9 +21,10 @@
 //
 // Right-hand-side failures: a non-finite or diverged derivative in a trial evaluation returns
 // CVODE's "recoverable" status (> 0), on which CVODE retries with a step 4 times shorter
-// (User Documentation Sec. 4.6.1); any other exception (the engine's RunFailure, a bad derivative
-// at the accepted state, cancellation) is kept, CVODE is stopped with an unrecoverable status (< 0),
-// and the exception is rethrown here: no C++ exception crosses the C library.
+// (User Documentation Ch. 4, the CVRhsFn return values); any other exception (the engine's
+// RunFailure, a bad derivative at the accepted state, cancellation) is kept, CVODE is stopped
+// with an unrecoverable status (< 0), and the exception is rethrown here: no C++ exception
+// crosses the C library.
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/integrate_runner.hpp"
