@@ -15,9 +15,9 @@
 // (the after_step() hook). Output times inside the last step come from CVodeGetDky; the next load
 // breakpoint (or the duration) is CVODE's stop time (CVodeSetStopTime), so no step straddles it,
 // and the history is restarted there (CVodeReInit: a multistep history must not span a jump in
-// the right-hand side). When after_step() changes the state the history is restarted likewise:
-// each restart sets the method back to order 1 (costly when an engine changes the state at
-// every step: README "Integrators").
+// the right-hand side). When after_step() changes the state by more than the error CVODE accepts
+// in one step the history is restarted likewise; a smaller change is not applied (see below:
+// each restart sets the method back to order 1).
 //
 // Right-hand-side failures: a non-finite or diverged derivative in a trial evaluation returns
 // CVODE's "recoverable" status (> 0), on which CVODE retries with a step 4 times shorter
@@ -37,6 +37,7 @@
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
 #include <algorithm>
+#include <cmath>
 #include <exception>
 #include <string>
 
@@ -102,6 +103,16 @@ void cvode_message(int /*code*/, const char* module, const char* function, char*
 }
 
 }  // namespace
+
+// CVODE's norm of a change from y to x: sqrt(mean(((x_i - y_i) / (rtol |y_i| + atol))^2)).
+double Runner::weighted_rms_change(const double* y, const State& x) const {
+  double sum = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const double e = (x[i] - y[i]) / (s_.rtol * std::abs(y[i]) + s_.atol);
+    sum += e * e;
+  }
+  return x.empty() ? 0.0 : std::sqrt(sum / static_cast<double>(x.size()));
+}
 
 void Runner::cvode(State& x) {
   const bool bdf = s_.method == Integrator::CvodeBdf;
@@ -197,7 +208,19 @@ void Runner::cvode(State& x) {
     const bool changed = accepted(t, x);
     const bool at_stop = flag == CV_TSTOP_RETURN;
     if (k >= outputs_.size()) break;
-    if (changed || at_stop) {
+    // A change smaller than the error CVODE accepts in one step (weighted RMS norm <= 1, the norm
+    // of its error test) is not worth a restart to order 1: the history continues from CVODE's
+    // own state. Otherwise an engine that renormalises or projects at every step (kane at loose
+    // tolerances, newton-euler) would restart CVODE at every step and crawl at order 1; the
+    // engine sees the unchanged state again after the next step and changes it once it matters.
+    bool restart = at_stop;
+    if (changed) {
+      if (weighted_rms_change(y, x) > 1.0)
+        restart = true;
+      else
+        x.assign(y, y + n);
+    }
+    if (restart) {
       // Restart the history from (t, x): order 1, with CVODE's own estimate of the first step.
       std::copy(x.begin(), x.end(), N_VGetArrayPointer(cv.y));
       rejected_before = result_.stats.rejected;

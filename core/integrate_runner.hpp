@@ -71,6 +71,7 @@ class Runner {
   template <class Stepper>
   void dense(Stepper& stepper, State& x, int stages_per_rejection);
   void cvode(State& x);
+  double weighted_rms_change(const double* y, const State& x) const;
 
   // Computes, checks and stores (or hands on) the output row at t.
   void emit(double t, const double* x);
