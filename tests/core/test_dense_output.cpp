@@ -96,7 +96,7 @@ TEST_CASE("dense output at an output time matches a run whose duration ends ther
 }
 
 TEST_CASE("the dense-output methods' steps and right-hand sides do not grow with the number of "
-          "output rows; rkf78's do (it lands on every output time)") {
+          "output rows, and rkf78's do (it lands on every output time)") {
   const System s = toy(false);
   for (const std::string& m : kAdaptive) {
     Oscillator e10(s), e2000(s);
