@@ -20,15 +20,37 @@
 #include <cstdio>
 #include <limits>
 
+// Integrator plumbing with Boost.Odeint (see integrate.hpp for the contract; the SUNDIALS CVODE
+// methods are in integrate_cvode.cpp, the Runner they share in integrate_runner.hpp).
+//
+// Steppers, used as Odeint's examples use them (docs/style.md item 11): a system object that
+// holds the engine, the stepper chosen explicitly, and right-hand-side calls counted here.
+//   rk4             runge_kutta4                                       (Hairer et al. I, Table 1.2)
+//   dopri5          dense_output of controlled runge_kutta_dopri5      (Dormand & Prince 1980;
+//                   continuous extension: Hairer et al. I, Sec. II.6)
+//   rkf78           controlled runge_kutta_fehlberg78                  (Fehlberg 1968, NASA TR R-287)
+//   bulirsch-stoer  bulirsch_stoer_dense_out, interpolation error      (Hairer et al. I, Sec. II.9,
+//                   controlled                                          "Dense output for the GBS method")
+#include "core/integrate.hpp"
+
+#include "core/cancel.hpp"
+#include "core/errors.hpp"
+#include "core/integrate_runner.hpp"
+
+#include <boost/numeric/odeint.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
 namespace crossdyn {
 
 namespace odeint = boost::numeric::odeint;
-using State = std::vector<double>;
 
-namespace {
-
-// Largest magnitude we accept in a state or derivative before calling the run diverged.
-constexpr double kDiverged = 1e100;
+namespace integrate_detail {
 
 std::string fmt(double v) {
   char b[64];
@@ -36,46 +58,25 @@ std::string fmt(double v) {
   return b;
 }
 
-// A stage of an adaptive trial step produced a non-finite or diverged derivative: the trial is
-// rejected (integrate.hpp), not the run.
-struct TrialRejected {
-  std::string quantity, reason;  // "d/dt main.wx", "non-finite derivative"
-};
+void OdeSystem::eval(const double* x, double* dxdt, std::size_t n, double t_stage) const {
+  ++stats->rhs_calls;
+  const double t = t_stage >= interval_end
+                       ? std::nextafter(interval_end, -std::numeric_limits<double>::infinity())
+                       : t_stage;
+  engine->rhs(t, x, dxdt);
+  for (std::size_t i = 0; i < n; ++i)
+    if (!std::isfinite(dxdt[i]) || std::abs(dxdt[i]) > kDiverged) {
+      std::string quantity = "d/dt " + engine->state_label(static_cast<int>(i));
+      std::string reason = std::isfinite(dxdt[i]) ? "derivative diverged (" + fmt(dxdt[i]) + ")"
+                                                  : "non-finite derivative";
+      const bool at_start = t_stage == start_t && start_x != nullptr &&
+                            start_x->size() == n && std::equal(x, x + n, start_x->begin());
+      if (trial_steps && !at_start) throw TrialRejected{std::move(quantity), std::move(reason)};
+      throw RunFailure(engine->name(), t, quantity, reason);
+    }
+}
 
-// The Odeint system: (x, t) => dxdt through the engine, counted and checked.
-// Loads are right-continuous (value(t) switches at t = breakpoint), but a step that ends on a
-// breakpoint must see the load of the interval it integrates: stage times at or past the end of the
-// current load interval are evaluated just before it.
-// A bad derivative ends the run when the method has no trial steps (rk4) or when it is the
-// derivative at the accepted state itself (no shorter step can avoid it); otherwise it rejects
-// the trial step.
-struct OdeSystem {
-  Engine* engine;
-  RunStats* stats;
-  bool trial_steps = false;      // adaptive method
-  double start_t = 0;            // the accepted state the current step starts from
-  const State* start_x = nullptr;
-  double interval_end = std::numeric_limits<double>::infinity();
-  void operator()(const State& x, State& dxdt, double t_stage) const {
-    ++stats->rhs_calls;
-    const double t = t_stage >= interval_end
-                         ? std::nextafter(interval_end, -std::numeric_limits<double>::infinity())
-                         : t_stage;
-    engine->rhs(t, x.data(), dxdt.data());
-    for (std::size_t i = 0; i < dxdt.size(); ++i)
-      if (!std::isfinite(dxdt[i]) || std::abs(dxdt[i]) > kDiverged) {
-        std::string quantity = "d/dt " + engine->state_label(static_cast<int>(i));
-        std::string reason = std::isfinite(dxdt[i]) ? "derivative diverged (" + fmt(dxdt[i]) + ")"
-                                                    : "non-finite derivative";
-        const bool at_start = t_stage == start_t && start_x != nullptr && x == *start_x;
-        if (trial_steps && !at_start) throw TrialRejected{std::move(quantity), std::move(reason)};
-        throw RunFailure(engine->name(), t, quantity, reason);
-      }
-  }
-};
-
-// A trial step that blew up is retried this much shorter.
-constexpr double kBlowUpShrink = 0.25;
+namespace {
 
 void check_state(const Engine& engine, double t, const State& x) {
   for (std::size_t i = 0; i < x.size(); ++i)
@@ -94,221 +95,219 @@ std::vector<double> output_times(double duration, double step) {
   return t;
 }
 
-class Runner {
- public:
-  Runner(Engine& engine, const System& system, const IntegratorSettings& s, RunResult& result,
-         const RowCallback& on_row, const StepCallback& on_step, RowStore* rows)
-      : engine_(engine), s_(s), result_(result), on_row_(on_row), on_step_(on_step), rows_(rows),
-        sys_{&engine, &result.stats}, outputs_(output_times(s.duration, s.output_step)),
-        breaks_(system.breakpoints()), row_(engine.columns().size()) {
-    sys_.trial_steps = s.method != Integrator::Rk4;
-    sys_.start_x = &start_x_;
-  }
+}  // namespace
 
-  void run(State& x) {
-    check_state(engine_, 0.0, x);
-    emit(0.0, x);
-    if (on_step_) on_step_(0.0, result_.stats);
-    switch (s_.method.value()) {
-      case Integrator::Rk4: fixed_rk4(x); break;
-      case Integrator::Dopri5: dense_dopri5(x); break;
-      case Integrator::Rkf78: {
-        auto stepper = odeint::make_controlled(s_.atol, s_.rtol, odeint::runge_kutta_fehlberg78<State>());
-        controlled(stepper, x);
-        break;
-      }
-      case Integrator::BulirschStoer: {
-        odeint::bulirsch_stoer<State> stepper(s_.atol, s_.rtol);
-        controlled(stepper, x);
-        break;
-      }
+Runner::Runner(Engine& engine, const System& system, const IntegratorSettings& s, RunResult& result,
+               const RowCallback& on_row, const StepCallback& on_step, RowStore* rows)
+    : engine_(engine), s_(s), result_(result), on_row_(on_row), on_step_(on_step), rows_(rows),
+      sys_{&engine, &result.stats}, outputs_(output_times(s.duration, s.output_step)),
+      breaks_(system.breakpoints()), row_(engine.columns().size()) {
+  sys_.trial_steps = s.method != Integrator::Rk4;
+  sys_.start_x = &start_x_;
+}
+
+void Runner::run(State& x) {
+  check_state(engine_, 0.0, x);
+  emit(0.0, x.data());
+  if (on_step_) on_step_(0.0, result_.stats);
+  switch (s_.method.value()) {
+    case Integrator::Rk4: fixed_rk4(x); break;
+    case Integrator::Dopri5: {
+      auto stepper = odeint::make_dense_output(s_.atol, s_.rtol, odeint::runge_kutta_dopri5<State>());
+      dense(stepper, x, 6);  // a rejected trial step of dopri5 costs 6 new stages (FSAL)
+      break;
+    }
+    case Integrator::Rkf78: {
+      auto stepper = odeint::make_controlled(s_.atol, s_.rtol, odeint::runge_kutta_fehlberg78<State>());
+      controlled(stepper, x);
+      break;
+    }
+    case Integrator::BulirschStoer: {
+      // Arguments: eps_abs, eps_rel, factor_x, factor_dxdt (Odeint's defaults, as make_controlled
+      // uses), no largest step, and control_interpolation = true: the interpolation error enters
+      // the step-size control, so that the values between steps keep the tolerance too.
+      odeint::bulirsch_stoer_dense_out<State> stepper(s_.atol, s_.rtol, 1.0, 1.0, 0.0, true);
+      dense(stepper, x, 0);  // its rejected trial steps are internal: only blow-ups are counted
+      break;
+    }
+    case Integrator::CvodeAdams:
+    case Integrator::CvodeBdf: cvode(x); break;
+  }
+}
+
+void Runner::emit(double t, const double* x) {
+  engine_.output_row(t, x, row_.data());
+  for (std::size_t i = 0; i < row_.size(); ++i)
+    if (!std::isfinite(row_[i]))
+      throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
+  if (rows_) {
+    try {
+      rows_->append(row_.data());
+    } catch (const RowStorageError& e) {
+      throw RunFailure(engine_.name(), t, "", e.what());
     }
   }
+  if (on_row_) on_row_(row_.data());
+}
 
- private:
-  void emit(double t, const State& x) {
-    engine_.output_row(t, x.data(), row_.data());
-    for (std::size_t i = 0; i < row_.size(); ++i)
-      if (!std::isfinite(row_[i]))
-        throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
-    if (rows_) {
-      try {
-        rows_->append(row_.data());
-      } catch (const RowStorageError& e) {
-        throw RunFailure(engine_.name(), t, "", e.what());
-      }
-    }
-    if (on_row_) on_row_(row_.data());
-  }
+void Runner::guard(double t, const State& x) {
+  last_t_ = t;
+  sys_.interval_end = next_break(t);
+  sys_.start_t = t;
+  start_x_ = x;
+  cancel::poll();
+  if (result_.stats.steps + result_.stats.rejected >= s_.max_steps)
+    throw RunFailure(engine_.name(), t, "",
+                     "step limit reached (" + std::to_string(s_.max_steps) + " steps)");
+}
 
-  // Called before every step attempt from the accepted state (t, x): cancellation, step limit.
-  void guard(double t, const State& x) {
-    last_t_ = t;
-    sys_.interval_end = next_break(t);
-    sys_.start_t = t;
-    start_x_ = x;
-    cancel::poll();
-    if (result_.stats.steps + result_.stats.rejected >= s_.max_steps)
-      throw RunFailure(engine_.name(), t, "",
-                       "step limit reached (" + std::to_string(s_.max_steps) + " steps)");
-  }
+void Runner::underflow(double t, double dt) const {
+  if (dt < s_.min_step) underflow_failure(t, dt, "below");
+}
 
-  // An adaptive step below min_step ends the run. When the last rejection was a blow-up, the
-  // failure names its quantity and reason: no step, however short, got past it.
-  void underflow(double t, double dt) const {
-    if (dt >= s_.min_step) return;
-    const std::string what = "step-size underflow (step " + fmt(dt) + " s below " + fmt(s_.min_step) + " s)";
-    if (blow_up_)
-      throw RunFailure(engine_.name(), t, blow_up_->quantity,
-                       blow_up_->reason + " in every trial step down to the minimum step; " + what);
-    throw RunFailure(engine_.name(), t, "", what);
-  }
+void Runner::underflow_failure(double t, double dt, const char* relation) const {
+  const std::string what = "step-size underflow (step " + fmt(dt) + " s " + relation + " " +
+                           fmt(s_.min_step) + " s)";
+  if (blow_up_)
+    throw RunFailure(engine_.name(), t, blow_up_->quantity,
+                     blow_up_->reason + " in every trial step down to the minimum step; " + what);
+  throw RunFailure(engine_.name(), t, "", what);
+}
 
-  // The next time a step must land on: the target output time or an earlier load breakpoint.
-  double next_stop(double t, double target) const { return std::min(next_break(t), target); }
+double Runner::next_stop(double t, double target) const { return std::min(next_break(t), target); }
 
-  // The first load breakpoint after t (infinity if none). Within 1e-12 relative of t counts as
-  // reached, so that rounding never asks for a vanishing step.
-  double next_break(double t) const {
-    for (double b : breaks_)
-      if (b > t + 1e-12 * std::max(1.0, std::abs(t))) return b;
-    return std::numeric_limits<double>::infinity();
-  }
+double Runner::next_break(double t) const {
+  for (double b : breaks_)
+    if (b > t + 1e-12 * std::max(1.0, std::abs(t))) return b;
+  return std::numeric_limits<double>::infinity();
+}
 
-  // After an accepted step: state check, then the engine's projection or re-charting.
-  bool accepted(double t, State& x) {
-    ++result_.stats.steps;
+bool Runner::accepted(double t, State& x) {
+  ++result_.stats.steps;
+  check_state(engine_, t, x);
+  bool changed = false;
+  if (engine_.after_step(t, x.data())) {
+    ++result_.stats.restarts;
     check_state(engine_, t, x);
-    bool changed = false;
-    if (engine_.after_step(t, x.data())) {
-      ++result_.stats.restarts;
-      check_state(engine_, t, x);
-      changed = true;
-    }
-    if (on_step_) on_step_(t, result_.stats);
-    return changed;
+    changed = true;
   }
+  if (on_step_) on_step_(t, result_.stats);
+  return changed;
+}
 
-  void fixed_rk4(State& x) {
-    odeint::runge_kutta4<State> stepper;
-    double t = 0;
-    for (std::size_t k = 1; k < outputs_.size(); ++k) {
-      while (t < outputs_[k]) {
-        guard(t, x);
-        const double stop = next_stop(t, outputs_[k]);
-        const bool last = stop - t <= s_.dt * (1 + 1e-9);
-        const double h = last ? stop - t : s_.dt;
-        stepper.do_step(sys_, x, t, h);
-        t = last ? stop : t + h;
-        accepted(t, x);
-      }
-      emit(outputs_[k], x);
+void Runner::fixed_rk4(State& x) {
+  odeint::runge_kutta4<State> stepper;
+  double t = 0;
+  for (std::size_t k = 1; k < outputs_.size(); ++k) {
+    while (t < outputs_[k]) {
+      guard(t, x);
+      const double stop = next_stop(t, outputs_[k]);
+      const bool last = stop - t <= s_.dt * (1 + 1e-9);
+      const double h = last ? stop - t : s_.dt;
+      stepper.do_step(sys_, x, t, h);
+      t = last ? stop : t + h;
+      accepted(t, x);
     }
+    emit(outputs_[k], x.data());
   }
+}
 
-  template <class Stepper>
-  void controlled(Stepper& stepper, State& x) {
-    double t = 0, dt = s_.dt;
-    for (std::size_t k = 1; k < outputs_.size(); ++k) {
-      while (t < outputs_[k]) {
-        guard(t, x);
-        const double stop = next_stop(t, outputs_[k]);
-        const bool clipped = dt >= stop - t;
-        double h = clipped ? stop - t : dt;
-        const double t_before = t, attempted = h;
-        odeint::controlled_step_result result = odeint::fail;
-        bool blew_up = false;
-        try {
-          result = stepper.try_step(sys_, x, t, h);  // x, t unchanged unless it succeeds
-        } catch (TrialRejected& blow_up) {
-          blow_up_ = std::move(blow_up);
-          blew_up = true;
-          h = attempted * kBlowUpShrink;
-          t = t_before;
-          if constexpr (requires { stepper.reset(); }) stepper.reset();  // Bulirsch-Stoer tables
-        }
-        if (result == odeint::success) {
-          blow_up_.reset();
-          // A clipped step's suggestion reflects the short step; keep the longer accepted one.
-          dt = clipped ? std::max(dt, h) : h;
-          if (clipped) t = stop;  // land exactly, free of rounding
-          if (accepted(t, x)) {
-            if constexpr (requires { stepper.reset(); }) stepper.reset();  // Bulirsch-Stoer state
-          }
-        } else {
-          if (!blew_up) blow_up_.reset();
-          ++result_.stats.rejected;
-          dt = h;
-          underflow(t_before, dt);
-        }
-      }
-      emit(outputs_[k], x);
-    }
-  }
-
-  void dense_dopri5(State& x) {
-    auto stepper = odeint::make_dense_output(s_.atol, s_.rtol, odeint::runge_kutta_dopri5<State>());
-    stepper.initialize(x, 0.0, s_.dt);
-    std::size_t k = 1;
-    State xo(x.size());
-    while (k < outputs_.size()) {
-      const double t = stepper.current_time();
-      guard(t, stepper.current_state());
-      // Do not straddle a load breakpoint: restart with a step that ends on it.
-      const double stop = next_break(t);
-      if (stop < outputs_.back() && t + stepper.current_time_step() > stop)
-        stepper.initialize(State(stepper.current_state()), t, stop - t);
-      const long rhs_before = result_.stats.rhs_calls;
-      std::pair<double, double> step;
+// rkf78 has no continuous extension in Odeint (nor an accepted one of its order in the
+// literature that Odeint implements): its steps land on every output time, so it takes at least
+// one step per output interval (README "Integrators").
+template <class Stepper>
+void Runner::controlled(Stepper& stepper, State& x) {
+  double t = 0, dt = s_.dt;
+  for (std::size_t k = 1; k < outputs_.size(); ++k) {
+    while (t < outputs_[k]) {
+      guard(t, x);
+      const double stop = next_stop(t, outputs_[k]);
+      const bool clipped = dt >= stop - t;
+      double h = clipped ? stop - t : dt;
+      const double t_before = t, attempted = h;
+      odeint::controlled_step_result result = odeint::fail;
+      bool blew_up = false;
       try {
-        step = stepper.do_step(sys_);  // the current state is unchanged unless it succeeds
+        result = stepper.try_step(sys_, x, t, h);  // x, t unchanged unless it succeeds
       } catch (TrialRejected& blow_up) {
         blow_up_ = std::move(blow_up);
+        blew_up = true;
+        h = attempted * kBlowUpShrink;
+        t = t_before;
+      }
+      if (result == odeint::success) {
+        blow_up_.reset();
+        // A clipped step's suggestion reflects the short step; keep the longer accepted one.
+        dt = clipped ? std::max(dt, h) : h;
+        if (clipped) t = stop;  // land exactly, free of rounding
+        accepted(t, x);
+      } else {
+        if (!blew_up) blow_up_.reset();
         ++result_.stats.rejected;
-        const double h = stepper.current_time_step() * kBlowUpShrink;
-        underflow(t, h);
-        stepper.initialize(State(stepper.current_state()), t, h);
-        continue;
+        dt = h;
+        underflow(t_before, dt);
       }
-      const double t1 = step.second;
-      blow_up_.reset();
-      // Each rejected trial step of dopri5 costs 6 new stages (FSAL reuses the seventh).
-      result_.stats.rejected += std::max(0L, (result_.stats.rhs_calls - rhs_before) / 6 - 1);
-      if (stepper.current_time_step() < s_.min_step)
-        throw RunFailure(engine_.name(), t1, "",
-                         "step-size underflow (step " + fmt(stepper.current_time_step()) + " s)");
-      while (k < outputs_.size() && outputs_[k] <= t1 * (1 + 1e-14)) {
-        stepper.calc_state(outputs_[k], xo);
-        emit(outputs_[k], xo);
-        ++k;
-      }
-      State xn = stepper.current_state();
-      if (accepted(t1, xn)) stepper.initialize(xn, t1, stepper.current_time_step());
     }
-    x = stepper.current_state();
+    emit(outputs_[k], x.data());
   }
+}
 
-  double last_t_ = 0;
-  State start_x_;
-  std::optional<TrialRejected> blow_up_;  // the last rejection, when it was a blow-up
+// A dense-output stepper (dopri5, Bulirsch-Stoer) takes the steps its tolerance allows and
+// interpolates the output times in between; only load breakpoints and the duration end a step.
+// `stages_per_rejection`: right-hand sides a rejected trial step costs, to count the rejections
+// hidden inside do_step() (0: not counted).
+template <class Stepper>
+void Runner::dense(Stepper& stepper, State& x, int stages_per_rejection) {
+  stepper.initialize(x, 0.0, s_.dt);
+  std::size_t k = 1;
+  State xo(x.size());
+  const double end = outputs_.back();
+  while (k < outputs_.size()) {
+    const double t = stepper.current_time();
+    guard(t, stepper.current_state());
+    // Do not straddle a load breakpoint or the duration: restart with a step that ends on it.
+    const double stop = next_stop(t, end);
+    if (t + stepper.current_time_step() > stop)
+      stepper.initialize(State(stepper.current_state()), t, stop - t);
+    const long rhs_before = result_.stats.rhs_calls;
+    std::pair<double, double> step;
+    try {
+      step = stepper.do_step(sys_);  // the current state is unchanged unless it succeeds
+    } catch (TrialRejected& blow_up) {
+      blow_up_ = std::move(blow_up);
+      ++result_.stats.rejected;
+      const double h = stepper.current_time_step() * kBlowUpShrink;
+      underflow(t, h);
+      stepper.initialize(State(stepper.current_state()), t, h);
+      continue;
+    }
+    double t1 = step.second;
+    blow_up_.reset();
+    if (stages_per_rejection > 0)
+      result_.stats.rejected +=
+          std::max(0L, (result_.stats.rhs_calls - rhs_before) / stages_per_rejection - 1);
+    if (stepper.current_time_step() < s_.min_step)
+      throw RunFailure(engine_.name(), t1, "",
+                       "step-size underflow (step " + fmt(stepper.current_time_step()) + " s)");
+    // A step meant to end on a breakpoint or the duration ends there, free of rounding.
+    const bool landed = std::abs(t1 - stop) <= 1e-12 * std::max(1.0, std::abs(stop));
+    while (k < outputs_.size() && (outputs_[k] <= t1 || (landed && outputs_[k] <= stop))) {
+      if (outputs_[k] >= t1) {
+        emit(outputs_[k], stepper.current_state().data());
+      } else {
+        stepper.calc_state(outputs_[k], xo);
+        emit(outputs_[k], xo.data());
+      }
+      ++k;
+    }
+    if (landed) t1 = stop;
+    State xn = stepper.current_state();
+    if (accepted(t1, xn) || landed) stepper.initialize(xn, t1, stepper.current_time_step());
+  }
+  x = stepper.current_state();
+}
 
- public:
-  double last_time() const { return last_t_; }
-
- private:
-  Engine& engine_;
-  const IntegratorSettings& s_;
-  RunResult& result_;
-  const RowCallback& on_row_;
-  const StepCallback& on_step_;
-  RowStore* rows_;
-  OdeSystem sys_;
-  std::vector<double> outputs_;
-  std::vector<double> breaks_;
-  std::vector<double> row_;
-};
-
-}  // namespace
+}  // namespace integrate_detail
 
 IntegratorSettings IntegratorSettings::from(const RunSpec& run) {
   IntegratorSettings s;
@@ -360,7 +359,7 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
                    const StepCallback& on_step) {
   auto positive = [](double v, const char* what) {
     if (!(v > 0) || !std::isfinite(v))
-      throw InputError(std::string(what) + " must be a positive number, got " + fmt(v));
+      throw InputError(std::string(what) + " must be a positive number, got " + integrate_detail::fmt(v));
   };
   positive(s.duration, "duration");
   positive(s.output_step, "output step");
@@ -370,6 +369,8 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
     positive(s.atol, "atol");
   }
 
+  using integrate_detail::Runner;
+  using integrate_detail::State;
   RunResult result;
   result.engine = engine.name();
   result.columns = engine.columns();

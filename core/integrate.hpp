@@ -1,17 +1,25 @@
-// Integrator plumbing (Boost.Odeint): runs one engine on one scene from t = 0 to the scene's
-// duration and samples the engine's output row at every output time.
+// Integrator plumbing (Boost.Odeint, SUNDIALS CVODE): runs one engine on one scene from t = 0 to
+// the scene's duration and samples the engine's output row at every output time.
 //
 // Methods, chosen explicitly (README "Integrators"):
 //   rk4              classical Runge-Kutta, fixed step dt (clipped to land on output times)
 //   dopri5           Dormand-Prince 5(4), adaptive, dense output at the output times
 //   rkf78            Runge-Kutta-Fehlberg 7(8), adaptive, steps clipped to land on output times
-//   bulirsch-stoer   Bulirsch-Stoer extrapolation, adaptive, steps clipped likewise
-// Adaptive steps are also clipped at the scene's load breakpoints (System::breakpoints()).
+//                    (no continuous extension of its order in Odeint)
+//   bulirsch-stoer   Bulirsch-Stoer extrapolation, adaptive, dense output (interpolation error
+//                    controlled)
+//   cvode-adams      CVODE Adams-Moulton, orders 1-12, fixed-point iteration, dense output
+//   cvode-bdf        CVODE BDF, orders 1-5, Newton with dense linear solver and difference-
+//                    quotient Jacobian, dense output
+// Adaptive steps also end exactly at the scene's load breakpoints (System::breakpoints()) and at
+// the duration: no step straddles a change of load (a CVODE history restarts there).
 // After every accepted step the engine's after_step() runs; when it changes the state the stepper
-// is restarted. Every right-hand-side call is counted and its result checked for non-finite values.
+// is restarted (CVODE: only when the change exceeds the error it accepts in one step, weighted RMS
+// norm > 1; a smaller change is dropped, since a restart costs it its order). Every right-hand-side call is counted and its result checked for non-finite values.
+// The dense methods' steps and right-hand-side calls do not depend on the number of output rows.
 //
 // What ends a run (RunResult::failure), and what does not:
-//   * A trial step of an adaptive method (dopri5, rkf78, bulirsch-stoer) in which any stage's
+//   * A trial step of an adaptive method (all but rk4) in which any stage's
 //     derivative is non-finite or diverged (|value| > 1e100) is a rejected step, like one whose
 //     error estimate is too large: the step is retried 4 times shorter. Only these end the run:
 //     a non-finite or diverged derivative at an accepted state, a non-finite or diverged accepted
@@ -49,7 +57,10 @@ struct IntegratorSettings {
   static IntegratorSettings from(const RunSpec& run);
 };
 
-std::vector<std::string> integrator_names();  // all_names<Integrator>(): rk4, dopri5, rkf78, bulirsch-stoer
+std::vector<std::string> integrator_names();  // all_names<Integrator>(): rk4, dopri5, ..., cvode-bdf
+// The names, each with what it does ("rk4 (fixed step --dt), dopri5 (adaptive, dense output), ..."):
+// command-line help.
+std::string integrator_help();
 
 struct RunStats {
   long rhs_calls = 0;

@@ -7,11 +7,11 @@
 //   Names<E>::table             {name, value} in documentation order
 //   name_of(e)                  "rk4"
 //   parse_name<E>("rk4")        optional<E>
-//   known_names<E>()            "rk4, dopri5, rkf78, bulirsch-stoer"
+//   known_names<E>()            "rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
 //   all_names<E>()              {"rk4", "dopri5", ...}
 //   unknown_name_message<E>(s)  "unknown integrator 'rk45' (did you mean 'rk4'?); known: rk4, dopri5,
-//                               rkf78, bulirsch-stoer"
-//   kNameWords<E>               "rk4|dopri5|rkf78|bulirsch-stoer" (compile time: the scene schema)
+//                               rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
+//   kNameWords<E>               "rk4|dopri5|...|cvode-bdf" (compile time: the scene schema)
 //
 // Choice<E> holds a value of E that may also be given by its name: settings structs use it so that
 // `settings.method = "rk4"` (tests, tools) parses through the table (an unknown name throws
@@ -31,7 +31,7 @@
 namespace crossdyn {
 
 // Integration methods (core/integrate.hpp describes each).
-enum class Integrator { Rk4, Dopri5, Rkf78, BulirschStoer };
+enum class Integrator { Rk4, Dopri5, Rkf78, BulirschStoer, CvodeAdams, CvodeBdf };
 
 // Newton-Euler constraint stabilisation (formulations/newton_euler/newton_euler.hpp).
 enum class ConstraintStabilization { Projection, Baumgarte, None };
@@ -48,11 +48,13 @@ struct Names;  // specialised once per enum, below
 template <>
 struct Names<Integrator> {
   static constexpr std::string_view noun = "integrator";
-  static constexpr std::array<NamedValue<Integrator>, 4> table{{
+  static constexpr std::array<NamedValue<Integrator>, 6> table{{
       {"rk4", Integrator::Rk4},
       {"dopri5", Integrator::Dopri5},
       {"rkf78", Integrator::Rkf78},
       {"bulirsch-stoer", Integrator::BulirschStoer},
+      {"cvode-adams", Integrator::CvodeAdams},
+      {"cvode-bdf", Integrator::CvodeBdf},
   }};
 };
 
@@ -87,7 +89,7 @@ std::vector<std::string> all_names() {
   return out;
 }
 
-// The names joined by `separator`: "rk4, dopri5, rkf78, bulirsch-stoer".
+// The names joined by `separator`: "rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf".
 template <class E>
 std::string known_names(std::string_view separator = ", ") {
   std::string out;
@@ -129,7 +131,7 @@ template <class E>
 inline constexpr auto kJoinedNames = joined_names<E>();
 }  // namespace detail
 
-// "rk4|dopri5|rkf78|bulirsch-stoer": the form of the scene schema's word lists.
+// "rk4|dopri5|rkf78|bulirsch-stoer|cvode-adams|cvode-bdf": the form of the scene schema's word lists.
 template <class E>
 inline constexpr std::string_view kNameWords{detail::kJoinedNames<E>.data(),
                                              detail::joined_size<E>() - 1};

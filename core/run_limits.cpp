@@ -41,6 +41,23 @@ std::string positive_time(const char* what, double x) {
 namespace crossdyn {
 // Declared in core/integrate.hpp; the names come from the one table, core/names.hpp.
 std::vector<std::string> integrator_names() { return all_names<Integrator>(); }
+
+std::string integrator_help() {
+  std::string out;
+  for (const auto& n : Names<Integrator>::table) {
+    const char* what = "";
+    switch (n.value) {
+      case Integrator::Rk4: what = "fixed step --dt"; break;
+      case Integrator::Dopri5: what = "adaptive, dense output"; break;
+      case Integrator::Rkf78: what = "adaptive, steps land on every output time"; break;
+      case Integrator::BulirschStoer: what = "adaptive, dense output"; break;
+      case Integrator::CvodeAdams: what = "adaptive multistep, nonstiff, dense output"; break;
+      case Integrator::CvodeBdf: what = "adaptive multistep, stiff, dense output"; break;
+    }
+    out += (out.empty() ? "" : ", ") + std::string(n.name) + " (" + what + ")";
+  }
+  return out;
+}
 }  // namespace crossdyn
 
 namespace crossdyn::run_limits {

@@ -8,7 +8,8 @@
 //   dt            positive, finite, at most 1e12 s; with rk4 (fixed step) duration / dt at most the
 //                 step limit, since such a run could only end by hitting it
 //   rtol, atol    positive and finite
-//   integrator    rk4, dopri5, rkf78 or bulirsch-stoer
+//   integrator    a name of core/names.hpp's table (rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams,
+//                 cvode-bdf)
 //   max_steps     at least 1
 // Every check returns "" when the value is acceptable, else what is wrong, without the key or the
 // option (the caller adds "run.dt" or "--dt").

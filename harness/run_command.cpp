@@ -99,7 +99,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
       ->required();
   sub->add_option("--engine", o->engine, "Engine: kane, lagrange or newton-euler (default kane)");
   sub->add_option("--integrator", o->overrides.integrator,
-                  known_names<Integrator>() + " (rk4: fixed step --dt; default: the scene's)");
+                  integrator_help() + "; default: the scene's (README \"Integrators\")");
   sub->add_option("--rtol", o->overrides.rtol, "Relative tolerance of adaptive integrators (> 0)");
   sub->add_option("--atol", o->overrides.atol, "Absolute tolerance of adaptive integrators (> 0)");
   sub->add_option("--dt", o->overrides.dt, "rk4 step, or first trial step of adaptive integrators, s");
