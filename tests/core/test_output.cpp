@@ -96,7 +96,7 @@ TEST_CASE("every value is written in the shortest text that reads back as the sa
     const int n = significant_digits(text);
     CHECK(n <= 17);
     if (n > 1) {
-      char shorter[64];
+      char shorter[400];  // %g of the largest double in fixed notation: 309 digits
       std::snprintf(shorter, sizeof shorter, "%.*g", n - 1, v);
       if (std::strtod(shorter, nullptr) == v && ++failures <= 5)
         FAIL_CHECK("'" << text << "' is not the shortest: '" << shorter << "' reads back too");
@@ -125,7 +125,7 @@ TEST_CASE("CSV numbers: shortest text, fixed or scientific, signs and non-finite
   for (const double v : test_values()) {
     char b[kMaxValueChars + 1];
     b[kMaxValueChars] = '#';
-    const char* end = format_value_to(b, v);
+    char* const end = format_value_to(b, v);
     REQUIRE(end - b <= 24);
     CHECK(std::string(b, end) == format_value(v));
     CHECK(b[kMaxValueChars] == '#');
