@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <charconv>
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
@@ -106,10 +107,14 @@ OutputError::OutputError(const std::string& target, int error_number)
 
 bool OutputError::broken_pipe() const { return errno_ == EPIPE; }
 
+char* format_value_to(char* first, double v) {
+  // Shortest round trip (C++17 [charconv.to.chars]/2); kMaxValueChars always suffices.
+  return std::to_chars(first, first + kMaxValueChars, v).ptr;
+}
+
 std::string format_value(double v) {
-  char b[40];
-  std::snprintf(b, sizeof b, "%.17g", v);
-  return b;
+  char b[kMaxValueChars];
+  return std::string(b, format_value_to(b, v));
 }
 
 void write_csv_header(std::ostream& out, const std::vector<std::string>& columns) {
@@ -118,8 +123,21 @@ void write_csv_header(std::ostream& out, const std::vector<std::string>& columns
 }
 
 void write_csv_row(std::ostream& out, const double* row, std::size_t n) {
-  for (std::size_t i = 0; i < n; ++i) out << (i ? "," : "") << format_value(row[i]);
-  out << '\n';
+  // Formatted into a local block and handed to the stream in one write per block (one per row
+  // up to ~150 columns); a failed write sets the stream's badbit as before.
+  char block[4096];
+  char* const end = block + sizeof block;
+  char* p = block;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (static_cast<std::size_t>(end - p) < kMaxValueChars + 2) {
+      out.write(block, p - block);
+      p = block;
+    }
+    if (i) *p++ = ',';
+    p = format_value_to(p, row[i]);
+  }
+  *p++ = '\n';
+  out.write(block, p - block);
 }
 
 // ---------------------------------------------------------------- FdStreamBuf

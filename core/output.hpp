@@ -21,6 +21,7 @@
 // longer exists.
 #pragma once
 
+#include <cstddef>
 #include <memory>
 #include <ostream>
 #include <stdexcept>
@@ -44,7 +45,13 @@ class OutputError : public std::runtime_error {
   int errno_;
 };
 
-// 17 significant digits, so a value read back is the same double ("%.17g").
+// CSV numbers: the shortest text that reads back as the same double (std::to_chars without a
+// precision: the fewest characters, scientific notation with at most 17 significant digits or
+// fixed notation when that is no longer; "0.05" rather than %.17g's "0.050000000000000003", "-0",
+// "1e-300", "inf", "nan"). strtod, Python's float() and numpy read every value back bit for bit.
+inline constexpr std::size_t kMaxValueChars = 32;  // the longest is 24 ("-2.2250738585072014e-308")
+// Writes v at `first` (room for kMaxValueChars) and returns the end; no terminating NUL.
+char* format_value_to(char* first, double v);
 std::string format_value(double v);
 
 void write_csv_header(std::ostream& out, const std::vector<std::string>& columns);

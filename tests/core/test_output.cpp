@@ -4,23 +4,182 @@
 #include "core/errors.hpp"
 #include "core/output.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <random>
 #include <sstream>
+#include <string>
+#include <vector>
 
 using namespace crossdyn;
 namespace fs = std::filesystem;
 
-TEST_CASE("values are written with 17 significant digits and read back exactly") {
-  for (double v : {M_PI, -1.0 / 3.0, 6.02214076e23, 5e-324, 0.1}) {
-    CHECK(std::strtod(format_value(v).c_str(), nullptr) == v);
+namespace {
+
+// The bits of a double (so -0 and 0, and NaN payloads, are told apart).
+std::uint64_t bits_of(double v) {
+  std::uint64_t b;
+  std::memcpy(&b, &v, sizeof b);
+  return b;
+}
+
+double double_of(std::uint64_t b) {
+  double v;
+  std::memcpy(&v, &b, sizeof v);
+  return v;
+}
+
+// Significant digits of a formatted finite value ("-1.25e-07" -> 3, "0.05" -> 1, "100" -> 1).
+int significant_digits(const std::string& text) {
+  std::string mantissa = text.substr(0, text.find_first_of("eE"));
+  std::string digits;
+  for (char c : mantissa)
+    if (c >= '0' && c <= '9') digits += c;
+  const auto first = digits.find_first_not_of('0');
+  if (first == std::string::npos) return 1;
+  digits = digits.substr(first);
+  // Trailing zeros of an integer written in fixed notation ("100") are not significant.
+  while (digits.size() > 1 && digits.back() == '0') digits.pop_back();
+  return static_cast<int>(digits.size());
+}
+
+// Finite doubles from random bit patterns (every exponent, subnormals included), plus the edges.
+std::vector<double> test_values() {
+  std::vector<double> values = {0.0, -0.0, 0.1, 0.05, -1.0 / 3.0, M_PI, 6.02214076e23, 1e-300, 1e300,
+                                5e-324, -5e-324,
+                                std::numeric_limits<double>::min(),
+                                std::numeric_limits<double>::max(),
+                                std::numeric_limits<double>::lowest(),
+                                std::numeric_limits<double>::denorm_min(),
+                                std::nextafter(std::numeric_limits<double>::min(), 0.0),
+                                std::nextafter(1.0, 2.0), std::nextafter(1.0, 0.0), 9007199254740993.0,
+                                123456789012345680000.0, 1e21, 1e22, 1e23, 2.2250738585072014e-308};
+  std::mt19937_64 random(20261123);
+  for (int i = 0; i < 100000; ++i) {
+    const double v = double_of(random());
+    if (std::isfinite(v)) values.push_back(v);
   }
+  // Subnormals and values of simulation-like magnitude.
+  std::uniform_int_distribution<std::uint64_t> subnormal(1, (std::uint64_t{1} << 52) - 1);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int i = 0; i < 20000; ++i) {
+    values.push_back(double_of(subnormal(random)));
+    values.push_back(-double_of(subnormal(random)));
+    values.push_back(normal(random) * std::pow(10.0, static_cast<int>(random() % 13) - 6));
+  }
+  return values;
+}
+
+// The fewest significant digits D (1 to 17) with which "%.{D-1}e" reads back as v: that text.
+std::string shortest_scientific(double v) {
+  char b[512];  // %e of a double with 16 decimals fits in 32; the compiler cannot tell
+  for (int digits = 1; digits <= 17; ++digits) {
+    std::snprintf(b, sizeof b, "%.*e", digits - 1, v);
+    if (std::strtod(b, nullptr) == v) break;
+  }
+  return b;
+}
+
+}  // namespace
+
+TEST_CASE("every value is written in the shortest text that reads back as the same double") {
+  std::size_t checked = 0, failures = 0;
+  for (const double v : test_values()) {
+    const std::string text = format_value(v);
+    const double back = std::strtod(text.c_str(), nullptr);
+    // Exact round trip, bit for bit (the sign of zero included).
+    if (bits_of(back) != bits_of(v)) {
+      if (++failures <= 5) FAIL_CHECK("'" << text << "' reads back as a different double");
+      continue;
+    }
+    // Shortest: no longer than the scientific form with the fewest digits that reads back, and
+    // in scientific notation no more digits than it. (Fixed notation wins when it is no longer,
+    // and may then show more digits: 1.2345678901234568e+20 is written 123456789012345683968,
+    // the exact integer, as C++17 to_chars specifies.)
+    const std::string sci = shortest_scientific(v);
+    const int n = significant_digits(text);
+    if (text.size() > sci.size() ||
+        (text.find('e') != std::string::npos && n > significant_digits(sci))) {
+      if (++failures <= 5) FAIL_CHECK("'" << text << "' is not the shortest: '" << sci << "' reads back too");
+      continue;
+    }
+    if (text.find('e') != std::string::npos) CHECK(n <= 17);
+    ++checked;
+  }
+  CHECK(failures == 0);
+  CHECK(checked > 100000);
+}
+
+TEST_CASE("CSV numbers: shortest text, fixed or scientific, signs and non-finite values") {
+  CHECK(format_value(0.05) == "0.05");  // "%.17g" wrote 0.050000000000000003
+  CHECK(format_value(0.1) == "0.1");
+  CHECK(format_value(0.0) == "0");
+  CHECK(format_value(-0.0) == "-0");
+  CHECK(format_value(5.0) == "5");
+  CHECK(format_value(-2.25) == "-2.25");
+  CHECK(format_value(1e-300) == "1e-300");
+  CHECK(format_value(5e-324) == "5e-324");
+  CHECK(format_value(1e22) == "1e+22");
+  CHECK(format_value(std::numeric_limits<double>::max()) == "1.7976931348623157e+308");
+  CHECK(format_value(-2.2250738585072014e-308).size() == 24);  // the longest, < kMaxValueChars
+  CHECK(format_value(std::numeric_limits<double>::infinity()) == "inf");
+  CHECK(format_value(-std::numeric_limits<double>::infinity()) == "-inf");
+  CHECK(format_value(std::numeric_limits<double>::quiet_NaN()) == "nan");
+  for (const double v : test_values()) {
+    char b[kMaxValueChars + 1];
+    b[kMaxValueChars] = '#';
+    char* const end = format_value_to(b, v);
+    REQUIRE(end - b <= 24);
+    CHECK(std::string(b, end) == format_value(v));
+    CHECK(b[kMaxValueChars] == '#');
+  }
+}
+
+TEST_CASE("the pinned CSV layout: header, commas, one line per row, nothing else") {
   std::ostringstream s;
   const double row[3] = {0.0, 1.5, -2.25};
   write_csv_header(s, {"t", "a", "b"});
   write_csv_row(s, row, 3);
   CHECK(s.str() == "t,a,b\n0,1.5,-2.25\n");
+  // A row wider than write_csv_row's block (4096 bytes) is written whole and in order.
+  std::mt19937_64 random(7);
+  std::vector<double> wide(700);
+  for (double& v : wide) v = double_of(random() & ~(std::uint64_t{1} << 62));  // finite, varied
+  std::ostringstream w;
+  write_csv_row(w, wide.data(), wide.size());
+  std::string expected;
+  for (std::size_t i = 0; i < wide.size(); ++i) expected += (i ? "," : "") + format_value(wide[i]);
+  expected += '\n';
+  CHECK(w.str().size() > 8192);
+  CHECK(w.str() == expected);
+  std::ostringstream empty;
+  write_csv_row(empty, nullptr, 0);
+  CHECK(empty.str() == "\n");
+}
+
+TEST_CASE("a CSV row written to a full device fails the stream (the run then exits 3)") {
+  const int fd = ::open("/dev/full", O_WRONLY | O_CLOEXEC);
+  if (fd < 0) return;  // no /dev/full here: nothing to check
+  {
+    FdStreamBuf buf(fd, "'/dev/full'");
+    std::ostream out(&buf);
+    const double row[2] = {1.0, 2.0};
+    for (int i = 0; i < 100000 && out; ++i) write_csv_row(out, row, 2);
+    CHECK_FALSE(out);
+    CHECK(buf.error() == ENOSPC);
+    CHECK_THROWS_AS(check_written(out), OutputError);
+  }
+  ::close(fd);
 }
 
 TEST_CASE("an AtomicFile appears only on commit and an abandoned one leaves the old file") {
