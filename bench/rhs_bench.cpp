@@ -6,6 +6,7 @@
 
 #include "core/engine.hpp"
 #include "harness/engines.hpp"
+#include "harness/study.hpp"
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
 #include "formulations/kane/kane_engine.hpp"
@@ -54,18 +55,10 @@ void bench_kane_solver(benchmark::State& state, const crossdyn::System& system,
   state.counters["states"] = static_cast<double>(x.size());
 }
 
-// chainN from scripts/make_chain.py (run with /usr/bin/python3); throws InputError when it fails.
+// chainN, generated in-process by the harness (harness/study.hpp chain_scene_text: the same text as
+// scripts/make_chain.py N).
 crossdyn::System make_chain(int n) {
-  const std::string command = "/usr/bin/python3 '" + std::string(CROSSDYN_SOURCE_DIR) +
-                              "/scripts/make_chain.py' " + std::to_string(n);
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) throw crossdyn::InputError("cannot run " + command);
-  std::string text;
-  char buffer[4096];
-  for (std::size_t got; (got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;)
-    text.append(buffer, got);
-  if (pclose(pipe) != 0) throw crossdyn::InputError(command + " failed");
-  return crossdyn::read_scene_text(text, "chain" + std::to_string(n) + " (scripts/make_chain.py)");
+  return crossdyn::read_scene_text(crossdyn::harness::chain_scene_text(n), "chain" + std::to_string(n) + " (generated)");
 }
 
 void register_kane_solvers(const std::vector<crossdyn::System>& committed) {

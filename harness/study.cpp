@@ -5,6 +5,7 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output_layout.hpp"
+#include "core/output.hpp"
 #include "core/progress.hpp"
 #include "core/rotation.hpp"
 #include "core/scene/scene.hpp"
@@ -607,12 +608,9 @@ std::string format_study(const SceneStudy& s) {
 }
 
 namespace {
-std::string csv_number(double v) {
-  if (!std::isfinite(v)) return "";
-  char b[64];
-  std::snprintf(b, sizeof b, "%.6g", v);
-  return b;
-}
+// Empty for a value that does not exist; otherwise the project's CSV number (core/output.hpp:
+// shortest text that reads back exactly).
+std::string csv_number(double v) { return std::isfinite(v) ? format_value(v) : std::string(); }
 std::string csv_text(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;
   std::string q = "\"";
