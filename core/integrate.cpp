@@ -28,12 +28,15 @@
 //   rk4             runge_kutta4                                       (Hairer et al. I, Table 1.2)
 //   dopri5          dense_output of controlled runge_kutta_dopri5      (Dormand & Prince 1980;
 //                   continuous extension: Hairer et al. I, Sec. II.6)
+//   dop853          Dormand-Prince 8(5,3) with its order-7 continuous  (Hairer et al. I, Sec. II.10;
+//                   extension: core/dop853.cpp (Odeint has none)        dop853.f)
 //   rkf78           controlled runge_kutta_fehlberg78                  (Fehlberg 1968, NASA TR R-287)
 //   bulirsch-stoer  bulirsch_stoer_dense_out, interpolation error      (Hairer et al. I, Sec. II.9,
 //                   controlled                                          "Dense output for the GBS method")
 #include "core/integrate.hpp"
 
 #include "core/cancel.hpp"
+#include "core/dop853.hpp"
 #include "core/errors.hpp"
 #include "core/integrate_runner.hpp"
 
@@ -117,6 +120,19 @@ void Runner::run(State& x) {
       dense(stepper, x, 6);  // a rejected trial step of dopri5 costs 6 new stages (FSAL)
       break;
     }
+    case Integrator::Dop853: {
+      // Its rejected trial steps are inside do_step(): each is counted here and passes the checks
+      // every trial step passes (cancellation, the step limit, step-size underflow).
+      Dop853 stepper(s_.atol, s_.rtol);
+      stepper.set_reject_hook([this](double t, double next_dt) {
+        blow_up_.reset();
+        ++result_.stats.rejected;
+        limits(t);
+        underflow(t, next_dt);
+      });
+      dense(stepper, x, 0);
+      break;
+    }
     case Integrator::Rkf78: {
       auto stepper = odeint::make_controlled(s_.atol, s_.rtol, odeint::runge_kutta_fehlberg78<State>());
       controlled(stepper, x);
@@ -155,6 +171,10 @@ void Runner::guard(double t, const State& x) {
   sys_.interval_end = next_break(t);
   sys_.start_t = t;
   start_x_ = x;
+  limits(t);
+}
+
+void Runner::limits(double t) {
   cancel::poll();
   if (result_.stats.steps + result_.stats.rejected >= s_.max_steps)
     throw RunFailure(engine_.name(), t, "",
@@ -252,7 +272,7 @@ void Runner::controlled(Stepper& stepper, State& x) {
   }
 }
 
-// A dense-output stepper (dopri5, Bulirsch-Stoer) takes the steps its tolerance allows and
+// A dense-output stepper (dopri5, dop853, Bulirsch-Stoer) takes the steps its tolerance allows and
 // interpolates the output times in between; only load breakpoints and the duration end a step.
 // `stages_per_rejection`: right-hand sides a rejected trial step costs, to count the rejections
 // hidden inside do_step() (0: not counted).
@@ -295,7 +315,12 @@ void Runner::dense(Stepper& stepper, State& x, int stages_per_rejection) {
       if (outputs_[k] >= t1) {
         emit(outputs_[k], stepper.current_state().data());
       } else {
-        stepper.calc_state(outputs_[k], xo);
+        try {
+          stepper.calc_state(outputs_[k], xo);  // dop853 evaluates its extension's stages here
+        } catch (TrialRejected& bad) {
+          throw RunFailure(engine_.name(), outputs_[k], bad.quantity,
+                           bad.reason + " in a stage of the dense output");
+        }
         emit(outputs_[k], xo.data());
       }
       ++k;

@@ -4,6 +4,7 @@
 // Methods, chosen explicitly (README "Integrators"):
 //   rk4              classical Runge-Kutta, fixed step dt (clipped to land on output times)
 //   dopri5           Dormand-Prince 5(4), adaptive, dense output at the output times
+//   dop853           Dormand-Prince 8(5,3), adaptive, dense output of order 7 (core/dop853.hpp)
 //   rkf78            Runge-Kutta-Fehlberg 7(8), adaptive, steps clipped to land on output times
 //                    (no continuous extension of its order in Odeint)
 //   bulirsch-stoer   Bulirsch-Stoer extrapolation, adaptive, dense output (interpolation error

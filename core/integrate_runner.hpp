@@ -77,6 +77,8 @@ class Runner {
   void emit(double t, const double* x);
   // Called before every step attempt from the accepted state (t, x): cancellation, step limit.
   void guard(double t, const State& x);
+  // Cancellation and the step limit (guard(), and each trial step retried inside a stepper).
+  void limits(double t);
   // An adaptive step below min_step ends the run (underflow() only then; underflow_failure()
   // always). When the last rejection was a blow-up, the failure names its quantity and reason:
   // no step, however short, got past it.

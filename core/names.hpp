@@ -7,10 +7,10 @@
 //   Names<E>::table             {name, value} in documentation order
 //   name_of(e)                  "rk4"
 //   parse_name<E>("rk4")        optional<E>
-//   known_names<E>()            "rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
+//   known_names<E>()            "rk4, dopri5, dop853, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
 //   all_names<E>()              {"rk4", "dopri5", ...}
 //   unknown_name_message<E>(s)  "unknown integrator 'rk45' (did you mean 'rk4'?); known: rk4, dopri5,
-//                               rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
+//                               dop853, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf"
 //   kNameWords<E>               "rk4|dopri5|...|cvode-bdf" (compile time: the scene schema)
 //
 // Choice<E> holds a value of E that may also be given by its name: settings structs use it so that
@@ -31,7 +31,7 @@
 namespace crossdyn {
 
 // Integration methods (core/integrate.hpp describes each).
-enum class Integrator { Rk4, Dopri5, Rkf78, BulirschStoer, CvodeAdams, CvodeBdf };
+enum class Integrator { Rk4, Dopri5, Dop853, Rkf78, BulirschStoer, CvodeAdams, CvodeBdf };
 
 // Newton-Euler constraint stabilisation (formulations/newton_euler/newton_euler.hpp).
 enum class ConstraintStabilization { Projection, Baumgarte, None };
@@ -48,9 +48,10 @@ struct Names;  // specialised once per enum, below
 template <>
 struct Names<Integrator> {
   static constexpr std::string_view noun = "integrator";
-  static constexpr std::array<NamedValue<Integrator>, 6> table{{
+  static constexpr std::array<NamedValue<Integrator>, 7> table{{
       {"rk4", Integrator::Rk4},
       {"dopri5", Integrator::Dopri5},
+      {"dop853", Integrator::Dop853},
       {"rkf78", Integrator::Rkf78},
       {"bulirsch-stoer", Integrator::BulirschStoer},
       {"cvode-adams", Integrator::CvodeAdams},
@@ -89,7 +90,7 @@ std::vector<std::string> all_names() {
   return out;
 }
 
-// The names joined by `separator`: "rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf".
+// The names joined by `separator`: "rk4, dopri5, dop853, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf".
 template <class E>
 std::string known_names(std::string_view separator = ", ") {
   std::string out;
@@ -131,7 +132,7 @@ template <class E>
 inline constexpr auto kJoinedNames = joined_names<E>();
 }  // namespace detail
 
-// "rk4|dopri5|rkf78|bulirsch-stoer|cvode-adams|cvode-bdf": the form of the scene schema's word lists.
+// "rk4|dopri5|dop853|rkf78|bulirsch-stoer|cvode-adams|cvode-bdf": the form of the scene schema's word lists.
 template <class E>
 inline constexpr std::string_view kNameWords{detail::kJoinedNames<E>.data(),
                                              detail::joined_size<E>() - 1};

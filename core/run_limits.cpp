@@ -49,6 +49,7 @@ std::string integrator_help() {
     switch (n.value) {
       case Integrator::Rk4: what = "fixed step --dt"; break;
       case Integrator::Dopri5: what = "adaptive, dense output"; break;
+      case Integrator::Dop853: what = "adaptive, order 8, dense output of order 7"; break;
       case Integrator::Rkf78: what = "adaptive, steps land on every output time"; break;
       case Integrator::BulirschStoer: what = "adaptive, dense output"; break;
       case Integrator::CvodeAdams: what = "adaptive multistep, nonstiff, dense output"; break;

@@ -8,7 +8,7 @@
 //   dt            positive, finite, at most 1e12 s; with rk4 (fixed step) duration / dt at most the
 //                 step limit, since such a run could only end by hitting it
 //   rtol, atol    positive and finite
-//   integrator    a name of core/names.hpp's table (rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams,
+//   integrator    a name of core/names.hpp's table (rk4, dopri5, dop853, rkf78, bulirsch-stoer, cvode-adams,
 //                 cvode-bdf)
 //   max_steps     at least 1
 // Every check returns "" when the value is acceptable, else what is wrong, without the key or the

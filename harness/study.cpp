@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <set>
@@ -298,7 +299,16 @@ std::vector<double> parse_values(const std::string& text, const std::string& opt
       throw InputError(option + ": a range runs from one power of ten to another, one value per "
                        "decade (e.g. 1e-4..1e-13); got '" + text + "'");
     const double step = lb >= la ? 1.0 : -1.0;
-    for (long k = 0; k <= n; ++k) out.push_back(a * std::pow(10.0, step * static_cast<double>(k)));
+    // Each value is the double nearest its decimal spelling (1e-11, not 1e-6 * 1e-5 =
+    // 1.0000000000000001e-11): mantissa and exponent of a, read back as text.
+    const long e0 = std::lround(std::floor(la + 1e-9));
+    char mantissa[32];
+    std::snprintf(mantissa, sizeof mantissa, "%.14g", a / std::pow(10.0, static_cast<double>(e0)));
+    for (long k = 0; k <= n; ++k) {
+      const std::string spelled = std::string(mantissa) + "e" +
+                                  std::to_string(e0 + static_cast<long>(step) * k);
+      out.push_back(std::strtod(spelled.c_str(), nullptr));
+    }
   } else {
     std::stringstream in(text);
     std::string item;

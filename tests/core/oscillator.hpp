@@ -13,6 +13,21 @@
 
 namespace crossdyn::test {
 
+// The adaptive methods: every integrator name but rk4 (fixed step).
+inline std::vector<std::string> adaptive_methods() {
+  std::vector<std::string> out;
+  for (const std::string& m : integrator_names())
+    if (m != "rk4") out.push_back(m);
+  return out;
+}
+// The adaptive methods with dense output: all but rkf78, which lands on every output time.
+inline std::vector<std::string> dense_methods() {
+  std::vector<std::string> out;
+  for (const std::string& m : adaptive_methods())
+    if (m != "rkf78") out.push_back(m);
+  return out;
+}
+
 constexpr double kOmega = 2.0;  // rad/s
 
 // x'' = -omega^2 x + F(t), x(0) = 1, v(0) = 0.

@@ -48,9 +48,9 @@ TEST_CASE("rk4 converges at order 4: halving the step divides the error by 16 +-
 
 TEST_CASE("adaptive methods land on output times and on load breakpoints") {
   const System s = toy(true);
-  for (const char* m : {"dopri5", "rkf78", "bulirsch-stoer", "cvode-adams", "cvode-bdf"}) {
+  for (const std::string& m : test::adaptive_methods()) {
     Oscillator e(s);
-    const RunResult r = simulate(e, s, TreeState{}, settings(std::string(m), 1e-12, 1e-3));
+    const RunResult r = simulate(e, s, TreeState{}, settings(m, 1e-12, 1e-3));
     REQUIRE_FALSE(r.failure);
     REQUIRE(r.rows() == 21);
     for (std::size_t i = 0; i < r.rows(); ++i) CHECK(r.at(i, 0) == Approx(0.1 * i).margin(1e-15));
@@ -107,10 +107,10 @@ TEST_CASE("a state change reported by after_step restarts the stepper without lo
   // restart; the CVODE methods restart only for a change beyond their one-step error
   // (integrate_cvode.cpp), so they keep their order and their accuracy.
   const System s = toy(true);
-  for (const char* m : {"dopri5", "rkf78", "bulirsch-stoer", "cvode-adams", "cvode-bdf"}) {
+  for (const std::string& m : test::adaptive_methods()) {
     Oscillator e(s);
     e.report_change = true;
-    const RunResult r = simulate(e, s, TreeState{}, settings(std::string(m), 1e-12, 1e-3));
+    const RunResult r = simulate(e, s, TreeState{}, settings(m, 1e-12, 1e-3));
     REQUIRE_FALSE(r.failure);
     INFO(m << " steps " << r.stats.steps << " error " << max_error(s, r));
     CHECK(r.stats.restarts == r.stats.steps);

@@ -36,18 +36,18 @@ void check_table() {
 TEST_CASE("names: each table maps names to values one to one") {
   check_table<Integrator>();
   check_table<ConstraintStabilization>();
-  CHECK(Names<Integrator>::table.size() == 6);
+  CHECK(Names<Integrator>::table.size() == 7);
   CHECK(Names<ConstraintStabilization>::table.size() == 3);
   CHECK_FALSE(parse_name<Integrator>("RK4"));  // names are exact: no case folding
   CHECK_FALSE(parse_name<Integrator>(""));
 }
 
 TEST_CASE("names: the lists made from a table") {
-  CHECK(kNameWords<Integrator> == "rk4|dopri5|rkf78|bulirsch-stoer|cvode-adams|cvode-bdf");
+  CHECK(kNameWords<Integrator> == "rk4|dopri5|dop853|rkf78|bulirsch-stoer|cvode-adams|cvode-bdf");
   CHECK(kNameWords<ConstraintStabilization> == "projection|baumgarte|none");
-  CHECK(known_names<Integrator>() == "rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf");
-  CHECK(integrator_names() == std::vector<std::string>{"rk4", "dopri5", "rkf78", "bulirsch-stoer",
-                                                       "cvode-adams", "cvode-bdf"});
+  CHECK(known_names<Integrator>() == "rk4, dopri5, dop853, rkf78, bulirsch-stoer, cvode-adams, cvode-bdf");
+  CHECK(integrator_names() == std::vector<std::string>{"rk4", "dopri5", "dop853", "rkf78",
+                                                       "bulirsch-stoer", "cvode-adams", "cvode-bdf"});
   CHECK(all_names<ConstraintStabilization>() ==
         std::vector<std::string>{"projection", "baumgarte", "none"});
   // The defaults, by value.
@@ -58,10 +58,10 @@ TEST_CASE("names: the lists made from a table") {
 
 TEST_CASE("names: an unknown name is refused, with the close one suggested") {
   CHECK(unknown_name_message<Integrator>("rk45") ==
-        "unknown integrator 'rk45' (did you mean 'rk4'?); known: rk4, dopri5, rkf78, bulirsch-stoer, "
+        "unknown integrator 'rk45' (did you mean 'rk4'?); known: rk4, dopri5, dop853, rkf78, bulirsch-stoer, "
         "cvode-adams, cvode-bdf");
   CHECK(unknown_name_message<Integrator>("euler") ==
-        "unknown integrator 'euler'; known: rk4, dopri5, rkf78, bulirsch-stoer, cvode-adams, "
+        "unknown integrator 'euler'; known: rk4, dopri5, dop853, rkf78, bulirsch-stoer, cvode-adams, "
         "cvode-bdf");
   CHECK(unknown_name_message<ConstraintStabilization>("baumgart") ==
         "unknown stabilization 'baumgart' (did you mean 'baumgarte'?); known: projection, "

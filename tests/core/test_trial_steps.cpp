@@ -10,6 +10,7 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output_layout.hpp"
+#include "tests/core/oscillator.hpp"
 
 #include <cmath>
 
@@ -66,7 +67,7 @@ IntegratorSettings settings(const std::string& method) {
 // x < 0 (where the first trial step's predictor lands) makes them meet a non-finite derivative.
 TEST_CASE("every adaptive method rejects trial steps that blow up and still solves the system") {
   System system;
-  for (const char* m : {"dopri5", "rkf78", "bulirsch-stoer", "cvode-adams", "cvode-bdf"}) {
+  for (const std::string& m : test::adaptive_methods()) {
     for (const bool nan_below_zero : {false, true}) {
       Cubic e;
       e.nan_below_zero = nan_below_zero;

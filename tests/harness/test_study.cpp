@@ -211,6 +211,11 @@ TEST_CASE("study: the fitted exponent uses the upper half of N") {
 TEST_CASE("study: --tolerances ranges and lists") {
   CHECK(parse_values("1e-4..1e-13", "--tolerances", true).size() == 10);
   CHECK(parse_values("1e-4..1e-13", "--tolerances", true)[9] == Approx(1e-13));
+  // Every value of a range is the double its decimal spelling names, so it prints as written.
+  CHECK(parse_values("1e-4..1e-13", "--tolerances", true) ==
+        std::vector<double>{1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11, 1e-12, 1e-13});
+  CHECK(parse_values("2e-3..2e-7", "--tolerances", true) ==
+        std::vector<double>{2e-3, 2e-4, 2e-5, 2e-6, 2e-7});
   CHECK(parse_values("1e-8..1e-6", "--tolerances", true) == std::vector<double>{1e-8, 1e-7, 1e-6});
   CHECK(parse_values("0.1,0.05", "--dts", false) == std::vector<double>{0.1, 0.05});
   CHECK_THROWS_WITH(parse_values("1e-4..3e-9", "--tolerances", true), Catch::Contains("one value per decade"));
