@@ -76,6 +76,7 @@ class Dop853 {
                                   // stages are kept for its continuous extension
   bool dense_ready_ = false;      // the last step's extension is computed
   bool last_rejected_ = false;
+  double facold_ = 1e-4;          // max(err, 1e-4) of the last accepted step (PI control)
   State x_, x_old_, x_trial_, x_stage_;
   std::vector<State> k_;          // 16 stages (12 of the step, k_[12] = f at the new point, 3 extra)
   std::vector<State> r_;          // the extension's 7 coefficient vectors
