@@ -110,8 +110,8 @@ bool OutputError::broken_pipe() const { return errno_ == EPIPE; }
 // ---------------------------------------------------------------- FdStreamBuf
 
 FdStreamBuf::FdStreamBuf(int fd, std::string name)
-    : fd_(fd), name_(std::move(name)), buffer_(kBufferBytes) {
-  setp(buffer_.data(), buffer_.data() + buffer_.size());
+    : fd_(fd), name_(std::move(name)), buffer_(new char[kBufferBytes]) {
+  setp(buffer_.get(), buffer_.get() + kBufferBytes);
 }
 
 FdStreamBuf::~FdStreamBuf() { flush_buffer(); }
@@ -138,7 +138,7 @@ bool FdStreamBuf::write_all(const char* p, std::size_t n) {
 bool FdStreamBuf::flush_buffer() {
   const std::size_t n = static_cast<std::size_t>(pptr() - pbase());
   const bool ok = write_all(pbase(), n);
-  setp(buffer_.data(), buffer_.data() + buffer_.size());
+  setp(buffer_.get(), buffer_.get() + kBufferBytes);
   return ok;
 }
 
@@ -160,7 +160,7 @@ std::streamsize FdStreamBuf::xsputn(const char* s, std::streamsize n) {
     return n;
   }
   if (!flush_buffer()) return 0;
-  if (n >= static_cast<std::streamsize>(buffer_.size()))
+  if (n >= static_cast<std::streamsize>(kBufferBytes))
     return write_all(s, static_cast<std::size_t>(n)) ? n : 0;
   std::memcpy(pptr(), s, static_cast<std::size_t>(n));
   pbump(static_cast<int>(n));
