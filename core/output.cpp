@@ -13,7 +13,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <charconv>
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
@@ -98,7 +97,8 @@ bool process_exists(long pid) {
 
 }  // namespace
 
-// ---------------------------------------------------------------- errors, formatting
+// ---------------------------------------------------------------- errors
+// (CSV numbers and rows: csv_format.cpp)
 
 OutputError::OutputError(const std::string& target, int error_number)
     : std::runtime_error("cannot write " + target + ": " +
@@ -107,44 +107,11 @@ OutputError::OutputError(const std::string& target, int error_number)
 
 bool OutputError::broken_pipe() const { return errno_ == EPIPE; }
 
-char* format_value_to(char* first, double v) {
-  // Shortest round trip (C++17 [charconv.to.chars]/2); kMaxValueChars always suffices.
-  return std::to_chars(first, first + kMaxValueChars, v).ptr;
-}
-
-std::string format_value(double v) {
-  char b[kMaxValueChars];
-  return std::string(b, format_value_to(b, v));
-}
-
-void write_csv_header(std::ostream& out, const std::vector<std::string>& columns) {
-  for (std::size_t i = 0; i < columns.size(); ++i) out << (i ? "," : "") << columns[i];
-  out << '\n';
-}
-
-void write_csv_row(std::ostream& out, const double* row, std::size_t n) {
-  // Formatted into a local block and handed to the stream in one write per block (one per row
-  // up to ~150 columns); a failed write sets the stream's badbit as before.
-  char block[4096];
-  char* const end = block + sizeof block;
-  char* p = block;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (static_cast<std::size_t>(end - p) < kMaxValueChars + 2) {
-      out.write(block, p - block);
-      p = block;
-    }
-    if (i) *p++ = ',';
-    p = format_value_to(p, row[i]);
-  }
-  *p++ = '\n';
-  out.write(block, p - block);
-}
-
 // ---------------------------------------------------------------- FdStreamBuf
 
 FdStreamBuf::FdStreamBuf(int fd, std::string name)
-    : fd_(fd), name_(std::move(name)), buffer_(kBufferBytes) {
-  setp(buffer_.data(), buffer_.data() + buffer_.size());
+    : fd_(fd), name_(std::move(name)), buffer_(new char[kBufferBytes]) {
+  setp(buffer_.get(), buffer_.get() + kBufferBytes);
 }
 
 FdStreamBuf::~FdStreamBuf() { flush_buffer(); }
@@ -171,7 +138,7 @@ bool FdStreamBuf::write_all(const char* p, std::size_t n) {
 bool FdStreamBuf::flush_buffer() {
   const std::size_t n = static_cast<std::size_t>(pptr() - pbase());
   const bool ok = write_all(pbase(), n);
-  setp(buffer_.data(), buffer_.data() + buffer_.size());
+  setp(buffer_.get(), buffer_.get() + kBufferBytes);
   return ok;
 }
 
@@ -193,7 +160,7 @@ std::streamsize FdStreamBuf::xsputn(const char* s, std::streamsize n) {
     return n;
   }
   if (!flush_buffer()) return 0;
-  if (n >= static_cast<std::streamsize>(buffer_.size()))
+  if (n >= static_cast<std::streamsize>(kBufferBytes))
     return write_all(s, static_cast<std::size_t>(n)) ? n : 0;
   std::memcpy(pptr(), s, static_cast<std::size_t>(n));
   pbump(static_cast<int>(n));

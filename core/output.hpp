@@ -49,8 +49,12 @@ class OutputError : public std::runtime_error {
 // precision: the fewest characters, scientific notation with at most 17 significant digits or
 // fixed notation when that is no longer; "0.05" rather than %.17g's "0.050000000000000003", "-0",
 // "1e-300", "inf", "nan"). strtod, Python's float() and numpy read every value back bit for bit.
-inline constexpr std::size_t kMaxValueChars = 32;  // the longest is 24 ("-2.2250738585072014e-308")
-// Writes v at `first` (room for kMaxValueChars) and returns the end; no terminating NUL.
+// The digits come from fmt's Dragonbox and the text is byte for byte std::to_chars's (csv_format.cpp).
+// The longest value is 24 characters ("-2.2250738585072014e-308"); the formatter writes with
+// fixed-size stores that may reach past the value's end, so it needs 48 bytes of room.
+inline constexpr std::size_t kMaxValueChars = 48;
+// Writes v at `first` (room for kMaxValueChars: bytes past the returned end may be overwritten)
+// and returns the end; no terminating NUL.
 char* format_value_to(char* first, double v);
 std::string format_value(double v);
 
@@ -78,7 +82,9 @@ class FdStreamBuf : public std::streambuf {
   int fd_;
   std::string name_;
   int error_ = 0;
-  std::vector<char> buffer_;
+  // Not zeroed (a std::vector<char> of 64 KiB was: 2 x 65 k instructions and the page faults of
+  // a `crossdyn run`'s start-up, for the checked stdout and the output file).
+  std::unique_ptr<char[]> buffer_;
 };
 
 // Throws OutputError when a write to `out` has failed (after flushing it). The message names the

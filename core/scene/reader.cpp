@@ -97,6 +97,28 @@ struct DocumentStarts : YAML::EventHandler {
   void OnMapEnd() override {}
 };
 
+// True when `doc`, the first document of `text`, is certainly the only one, so that the second
+// parse below (a third of a small run's start-up) can be skipped. yaml-cpp 0.7's scanner ends a
+// block mapping whose keys start in column 0 only at the end of the stream or at a line that
+// begins a directive ('%'), a document ("---") or a document end ("..."): its indentation cannot
+// drop below column 0 (Scanner::PopIndentToHere), so nothing can follow it in the same stream.
+// Any other shape (a flow or indented root, a scalar, a sequence), or any line beginning with one
+// of those three (even inside a block scalar), or a byte-order mark, takes the full check.
+bool only_document(const YAML::Node& doc, const std::string& text) {
+  if (!doc.IsMap() || doc.Style() != YAML::EmitterStyle::Block || doc.Mark().is_null() ||
+      doc.Mark().column != 0)
+    return false;
+  if (text.size() >= 3 && static_cast<unsigned char>(text[0]) == 0xEF) return false;  // a BOM
+  for (std::size_t at = 0; at < text.size();) {
+    const char c = text[at];
+    if (c == '%' || text.compare(at, 3, "---") == 0 || text.compare(at, 3, "...") == 0) return false;
+    const std::size_t end = text.find_first_of("\r\n", at);
+    if (end == std::string::npos) break;
+    at = end + 1;
+  }
+  return true;
+}
+
 Val parse_yaml(const Reader& r, const std::string& text) {
   YAML::Node doc;
   try {
@@ -104,6 +126,7 @@ Val parse_yaml(const Reader& r, const std::string& text) {
     // One document only. Not YAML::LoadAll: yaml-cpp 0.7's document loop never ends when junk
     // follows a document's top-level scalar ("\"a\", b" yields empty documents forever; found by
     // the fuzzer, tests/scene/fuzz_regressions/loadall-hang-*.yaml). Two calls are bounded.
+    if (only_document(doc, text)) return Val{doc, "", doc.Mark()};
     std::istringstream in(text);
     YAML::Parser parser(in);
     DocumentStarts starts;

@@ -6,6 +6,8 @@
 
 #include <array>
 #include <stdexcept>
+#include <unordered_map>
+#include <vector>
 
 namespace crossdyn::scene {
 namespace {
@@ -352,10 +354,45 @@ const JointTypeInfo& joint_type(JointType t) {
   throw std::logic_error("scene schema: joint type without a row");
 }
 
+namespace {
+
+// The rows by path, for find(): a pattern without a "<...>" component matches exactly its own
+// path, so those rows are found by hashing; the few wildcard rows are matched one by one. (The
+// reader asks a few hundred times per scene; a scan of the whole table each time was a sixth of
+// a short `crossdyn run`.)
+struct RowIndex {
+  std::unordered_map<std::string_view, std::vector<std::size_t>> exact;  // rows in table order
+  std::vector<std::size_t> wildcard;                                     // rows in table order
+  RowIndex() {
+    for (std::size_t i = 0; i < kKeys.size(); ++i) {
+      if (kKeys[i].path.find('<') == std::string_view::npos)
+        exact[kKeys[i].path].push_back(i);
+      else
+        wildcard.push_back(i);
+    }
+  }
+};
+
+}  // namespace
+
 const Key* find(std::string_view path, unsigned joints) {
-  for (const Key& k : kKeys)
-    if ((k.joints & joints) != 0 && matches(k.path, path)) return &k;
-  return nullptr;
+  static const RowIndex index;
+  // The first row in table order that applies to `joints` and matches, as a scan would find.
+  std::size_t best = kKeys.size();
+  if (const auto it = index.exact.find(path); it != index.exact.end())
+    for (const std::size_t i : it->second)
+      if ((kKeys[i].joints & joints) != 0) {
+        best = i;
+        break;
+      }
+  for (const std::size_t i : index.wildcard) {
+    if (i > best) break;
+    if ((kKeys[i].joints & joints) != 0 && matches(kKeys[i].path, path)) {
+      best = i;
+      break;
+    }
+  }
+  return best < kKeys.size() ? &kKeys[best] : nullptr;
 }
 
 std::vector<std::string> child_names(std::string_view parent, unsigned joints) {

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -145,6 +146,98 @@ TEST_CASE("CSV numbers: shortest text, fixed or scientific, signs and non-finite
   }
 }
 
+namespace {
+
+// std::to_chars's own spelling of v (the formatter before issue 12's fast path: the reference).
+std::string to_chars_text(double v) {
+  char b[64];
+  return std::string(b, std::to_chars(b, b + sizeof b, v).ptr);
+}
+
+// Doubles of every kind for the comparison with std::to_chars: random bit patterns (every
+// exponent, mostly 16-17 significant digits), short decimals of 1 to 17 digits at every exponent
+// (the fixed/scientific choice: 1e-05 against 0.0001, 1e+21 against 100000000000000000000),
+// integers below and above 2^53, powers of two and of ten with their neighbours, subnormals.
+std::vector<double> spelling_values() {
+  std::vector<double> values = test_values();
+  std::mt19937_64 random(1212);
+  for (int i = 0; i < 1000000; ++i) values.push_back(double_of(random()));
+  // Short decimals: d digits, decimal exponent e, over the whole range.
+  std::uniform_int_distribution<int> digits(1, 17), exponent(-340, 310), small_exponent(-30, 30);
+  for (int i = 0; i < 600000; ++i) {
+    const int d = digits(random);
+    std::uint64_t m = random() % 9 + 1;
+    for (int k = 1; k < d; ++k) m = m * 10 + random() % 10;
+    const std::string text =
+        std::to_string(m) + "e" + std::to_string(i % 2 ? exponent(random) : small_exponent(random));
+    values.push_back(std::strtod(text.c_str(), nullptr));
+  }
+  for (int k = -325; k <= 309; ++k) {
+    const double p = std::pow(10.0, k);
+    for (double v : {p, std::nextafter(p, 0.0), std::nextafter(p, HUGE_VAL), 1.5 * p, 9.99 * p})
+      values.push_back(v);
+  }
+  for (int k = -1074; k <= 1023; ++k) {
+    const double p = std::ldexp(1.0, k);
+    for (double v : {p, std::nextafter(p, 0.0), std::nextafter(p, HUGE_VAL)}) values.push_back(v);
+  }
+  for (std::uint64_t i = 0; i <= 100000; ++i) values.push_back(static_cast<double>(i));
+  for (int i = 0; i < 200000; ++i) {
+    values.push_back(static_cast<double>(random() >> (random() % 64)));  // integers to 2^64
+    values.push_back(std::ldexp(static_cast<double>(random() >> 11), static_cast<int>(random() % 30)));
+  }
+  std::uniform_int_distribution<std::uint64_t> subnormal(1, (std::uint64_t{1} << 52) - 1);
+  for (int i = 0; i < 100000; ++i) values.push_back(double_of(subnormal(random)));
+  const std::size_t count = values.size();
+  for (std::size_t i = 0; i < count; ++i) values.push_back(-values[i]);
+  for (double v : {HUGE_VAL, -HUGE_VAL, std::nan(""), -std::nan(""), 0.0, -0.0}) values.push_back(v);
+  return values;
+}
+
+}  // namespace
+
+TEST_CASE("CSV numbers are spelled exactly as std::to_chars spells them and read back bit for bit") {
+  std::size_t compared = 0, mismatches = 0, fixed = 0, scientific = 0, subnormals = 0;
+  for (const double v : spelling_values()) {
+    char b[kMaxValueChars];
+    const std::string text(b, format_value_to(b, v));
+    const std::string expected = to_chars_text(v);
+    if (text != expected) {
+      if (++mismatches <= 10)
+        FAIL_CHECK("bits " << bits_of(v) << ": '" << text << "', std::to_chars '" << expected << "'");
+      continue;
+    }
+    if (std::isfinite(v)) {
+      const double back = std::strtod(text.c_str(), nullptr);
+      if (bits_of(back) != bits_of(v)) {
+        if (++mismatches <= 10) FAIL_CHECK("'" << text << "' reads back as a different double");
+        continue;
+      }
+      (text.find('e') == std::string::npos ? fixed : scientific) += 1;
+      if (v != 0 && std::fabs(v) < std::numeric_limits<double>::min()) ++subnormals;
+    }
+    ++compared;
+  }
+  CHECK(mismatches == 0);
+  // Every family above was reached: both notations, subnormals.
+  CHECK(compared > 4000000);
+  CHECK(fixed > 500000);
+  CHECK(scientific > 500000);
+  CHECK(subnormals > 100000);
+  // Spot checks of the boundaries between the notations.
+  CHECK(format_value(1e-5) == "1e-05");
+  CHECK(format_value(1e-4) == "1e-04");     // 5 characters against 6
+  CHECK(format_value(0.001) == "0.001");     // a tie: fixed
+  CHECK(format_value(1.5e-5) == "1.5e-05");
+  CHECK(format_value(1.25e-4) == "0.000125");  // a tie with 1.25e-04: fixed
+  CHECK(format_value(1e21) == "1e+21");
+  CHECK(format_value(123456789012345680000.0) == "123456789012345683968");
+  CHECK(format_value(1e15) == "1e+15");
+  CHECK(format_value(100000.0) == "1e+05");
+  CHECK(format_value(10000.0) == "10000");
+  CHECK(format_value(-std::nan("")) == to_chars_text(-std::nan("")));
+}
+
 TEST_CASE("the pinned CSV layout: header, commas, one line per row, nothing else") {
   std::ostringstream s;
   const double row[3] = {0.0, 1.5, -2.25};
@@ -162,6 +255,23 @@ TEST_CASE("the pinned CSV layout: header, commas, one line per row, nothing else
   expected += '\n';
   CHECK(w.str().size() > 8192);
   CHECK(w.str() == expected);
+  // Rows mix zeros, non-finite values, integers and every notation (the row writer finds the
+  // digits of a batch of values first, then lays them out): the same text as value by value.
+  std::vector<double> mixed;
+  std::vector<double> spelled = spelling_values();
+  for (std::size_t i = 0; i < spelled.size(); i += 997) mixed.push_back(spelled[i]);
+  for (double v : {0.0, -0.0, HUGE_VAL, -HUGE_VAL, std::nan(""), 1.0, -1e-5, 1e21, 0.1})
+    mixed.insert(mixed.begin() + static_cast<long>(mixed.size() / 2), v);
+  for (std::size_t columns : {1u, 15u, 16u, 17u, 37u, 100u}) {
+    std::ostringstream rows;
+    std::string expected_rows;
+    for (std::size_t k = 0; k + columns <= mixed.size(); k += columns) {
+      write_csv_row(rows, mixed.data() + k, columns);
+      for (std::size_t c = 0; c < columns; ++c) expected_rows += (c ? "," : "") + to_chars_text(mixed[k + c]);
+      expected_rows += '\n';
+    }
+    CHECK(rows.str() == expected_rows);
+  }
   std::ostringstream empty;
   write_csv_row(empty, nullptr, 0);
   CHECK(empty.str() == "\n");

@@ -346,6 +346,32 @@ TEST_CASE("errors: motor and torque profiles") {
                     "bodies[1].torque.frame", "unknown torque frame 'world'", "    torque");
 }
 
+// The reader skips its second YAML pass when the first document is certainly the only one (a
+// block mapping in column 0 and no line that starts a directive, a document or a document end):
+// every other way a second document can follow must still be refused where it starts.
+TEST_CASE("errors: a second YAML document in every form, with or without the quick check") {
+  const std::string phrase = "a second YAML document";
+  // A document start, a document end followed by more text, a directive.
+  expect_error(kBase + "---\nname: other\n", 26, "bad.yaml", phrase);
+  expect_error(kBase + "...\nname: other\n", 27, "bad.yaml", phrase);
+  expect_error(kBase + "%YAML 1.2\n---\nname: other\n", 27, "bad.yaml", phrase);
+  // The whole scene indented: a key in column 0 after it ends the first document.
+  std::string indented;
+  for (std::size_t at = 0; at < kBase.size();) {
+    const std::size_t end = kBase.find('\n', at);
+    indented += "  " + kBase.substr(at, end - at + 1);
+    at = end + 1;
+  }
+  expect_error(indented + "extra: 1\n", 26, "bad.yaml", phrase);
+  // A flow mapping at the top, then another.
+  expect_error("{name: tiny}\n{name: other}\n", 2, "bad.yaml", phrase);
+  // Not a second document: an end marker alone, a "---" or "%" that is not at a line's start.
+  CHECK(read_scene_text(kBase + "...\n", "bad.yaml").joints.size() == 2);
+  CHECK(read_scene_text("---\n" + kBase, "bad.yaml").joints.size() == 2);
+  CHECK(read_scene_text(edit("name: tiny", "name: tiny  # --- 100%"), "bad.yaml").joints.size() == 2);
+  CHECK(read_scene_text(indented, "bad.yaml").joints.size() == 2);
+}
+
 TEST_CASE("errors: text-level guards before parsing") {
   expect_error(kBase + "---\nname: other\n", 26, "bad.yaml", "a second YAML document");
   expect_error(std::string("name: ti\xffny\n"), 1, "bad.yaml", "not valid UTF-8");

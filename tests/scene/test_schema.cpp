@@ -272,3 +272,48 @@ TEST_CASE("schema: fuzz/scene.dict is generated from the schema") {
     CHECK(committed.find("\"" + std::string(name) + ":\"") != std::string::npos);
   }
 }
+
+// scene::find looks rows up by hashing (wildcard rows one by one): it must give what a scan of
+// the table in order gives, for every row's path, every set of joint types, wildcard paths and
+// paths that are not in the table.
+TEST_CASE("schema: find gives the first matching row in table order, as a scan does") {
+  auto component_match = [](std::string_view pattern, std::string_view path) {
+    while (true) {
+      const std::size_t pd = pattern.find('.'), qd = path.find('.');
+      const std::string_view a = pattern.substr(0, pd), b = path.substr(0, qd);
+      if (!(a == b || (a.starts_with('<') && a.ends_with('>') && !b.empty()))) return false;
+      if (pd == std::string_view::npos || qd == std::string_view::npos)
+        return pd == std::string_view::npos && qd == std::string_view::npos;
+      pattern.remove_prefix(pd + 1);
+      path.remove_prefix(qd + 1);
+    }
+  };
+  auto scan = [&](std::string_view path, unsigned joints) -> const Key* {
+    for (const Key& k : scene::keys())
+      if ((k.joints & joints) != 0 && component_match(k.path, path)) return &k;
+    return nullptr;
+  };
+  std::vector<std::string> paths;
+  for (const Key& k : scene::keys()) {
+    std::string p(k.path);
+    for (std::size_t at; (at = p.find("<quantity>")) != std::string::npos;) p.replace(at, 10, "spin");
+    paths.push_back(std::string(k.path));
+    paths.push_back(p);
+    paths.push_back(p + ".nope");
+    paths.push_back(p + "x");
+  }
+  for (const char* p : {"", "compare.tolerances", "compare.tolerances.a.atol", "compare.tolerances..atol",
+                        "joints[].initial.angle", "joints[].nope", "nope"})
+    paths.emplace_back(p);
+  std::size_t found = 0, wildcard = 0;
+  for (const std::string& path : paths)
+    for (unsigned joints = 0; joints <= scene::kAnyJoint; ++joints) {
+      const Key* expected = scan(path, joints);
+      INFO(path << " joints " << joints);
+      CHECK(scene::find(path, joints) == expected);
+      found += expected != nullptr;
+      wildcard += expected != nullptr && expected->path.find('<') != std::string_view::npos;
+    }
+  CHECK(found > 500);
+  CHECK(wildcard > 20);
+}
