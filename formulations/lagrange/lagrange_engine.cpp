@@ -23,7 +23,7 @@
 //                 Generalised forces of body torques: N_i = tau . w(e_i) (virtual power).
 //   gradient      Dual<K> (chunks of K <= 8) seeded with the quasi-displacements dq* = B e_r:
 //                 L = T - V => B^T dL/dq* at fixed pi'.
-//   hamel         Dual<3> on A(a) per Euler set => W, B^T W^T p.
+//   hamel         Dual<2> on A(a2, a3) per Euler set => W, B^T W^T p.
 //   solve         M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p   (Cholesky, M is SPD).
 // All scratch lives in the Workspace, sized in the constructor: rhs() does not allocate.
 #include "formulations/lagrange/lagrange_engine.hpp"
@@ -445,8 +445,9 @@ struct LagrangeEngine::Workspace {
   Eigen::VectorXd he0, unit;             // flexible mass pass: a seed's modal momentum; e_k
   Eigen::MatrixXd M;
   Eigen::MatrixXd U;  // Cholesky factor of M (upper triangle), solve
+  Eigen::Matrix<double, 6, Eigen::Dynamic> DX;  // rigid mass pass: D times the seed twists
 
-  Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed;
+  Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
   std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
 };
 
@@ -716,8 +717,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
   w->M = Eigen::MatrixXd::Zero(n, n);
   w->U = Eigen::MatrixXd::Zero(n, n);
+  w->DX = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n);
   for (Eigen::VectorXd* v :
-       {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed})
+       {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed,
+        &w->inv_diag})
     *v = Eigen::VectorXd::Zero(n);
   model_ = std::move(m);
   ws_ = std::move(w);
@@ -951,39 +954,83 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
   }
 }
 
+// Mass pass of one rigid body (see the file comment): D = diag(I_BBo_B, m 1) the body's inertia
+// for the twist (w_NB_B, v_NBo_B) (paper Eq. 26), Y_i the seed twists (columns of X, 6 x n, and of
+// their rates Xd), xi = sum Y_i pi'_i:
+//   M_ij += Y_i . D Y_j (j >= i, upper triangle),   p_i += D Y_i . xi,
+//   (dM/dt pi')_i += Ydot_i . D xi + D Y_i . xidot.
+// Only the supporting columns sup are visited; DY is scratch for 6 x |sup| values.
+inline void apply_rigid_inertia(const Model::BodyM& B, const double* y, double* Dy) {
+  const Eigen::Matrix3d& I = B.I_BBo_B;
+  for (int a = 0; a < 3; ++a) {
+    Dy[a] = I(a, 0) * y[0] + I(a, 1) * y[1] + I(a, 2) * y[2];
+    Dy[3 + a] = B.mass * y[3 + a];
+  }
+}
+inline double dot6(const double* a, const double* b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5];
+}
+void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
+                     const double* Xd, const double* u, double* DY, Eigen::MatrixXd& M, double* p,
+                     double* Mdot_u) {
+  double xi[6] = {0, 0, 0, 0, 0, 0}, xid[6] = {0, 0, 0, 0, 0, 0}, Dxi[6];
+  for (int i : sup) {
+    const double* y = X + 6 * i;
+    const double* yd = Xd + 6 * i;
+    for (int a = 0; a < 6; ++a) {
+      xi[a] += y[a] * u[i];
+      xid[a] += yd[a] * u[i];
+    }
+  }
+  apply_rigid_inertia(B, xi, Dxi);
+  const std::size_t ns = sup.size();
+  for (std::size_t ii = 0; ii < ns; ++ii) apply_rigid_inertia(B, X + 6 * sup[ii], DY + 6 * ii);
+  for (std::size_t ii = 0; ii < ns; ++ii) {
+    const int i = sup[ii];
+    const double* Dy = DY + 6 * ii;
+    for (std::size_t jj = ii; jj < ns; ++jj) M(i, sup[jj]) += dot6(Dy, X + 6 * sup[jj]);
+    p[i] += dot6(Dy, xi);
+    Mdot_u[i] += dot6(Xd + 6 * i, Dxi) + dot6(Dy, xid);
+  }
+}
+
 // solve: M x = b for symmetric positive definite M (upper triangle read), by Cholesky M = U^T U
 // (Golub & Van Loan 2013, "Matrix Computations", 4th ed., Alg. 4.2.1, in its column (gaxpy) form:
 // every inner product runs down two contiguous columns of U), then U^T y = b and U x = y.
-// b => x in place; U is scratch of M's size. Returns false when M is not positive definite (a
-// pivot <= 0, or NaN). A plain loop: at this engine's sizes (n up to a few dozen) it is faster
-// than a blocked, dynamically dispatched factorisation.
-bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& x) {
+// b => x in place; U is scratch of M's size and inv_diag of its diagonal's (the reciprocals of
+// U's diagonal: one division per column, the rest multiplications). Returns false when M is not
+// positive definite (a pivot <= 0, or NaN). A plain loop: at this engine's sizes (n up to a few
+// dozen) it is faster than a blocked, dynamically dispatched factorisation.
+bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
+                    Eigen::VectorXd& x) {
   const Eigen::Index n = M.rows();
+  double* r = inv_diag.data();
   for (Eigen::Index j = 0; j < n; ++j) {
     double* uj = &U(0, j);
     const double* mj = &M(0, j);
+    double d = mj[j];
     for (Eigen::Index i = 0; i < j; ++i) {
       const double* ui = &U(0, i);
       double s = mj[i];
       for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
-      uj[i] = s / ui[i];
+      uj[i] = s * r[i];
+      d -= uj[i] * uj[i];
     }
-    double d = mj[j];
-    for (Eigen::Index k = 0; k < j; ++k) d -= uj[k] * uj[k];
     if (!(d > 0.0)) return false;
     uj[j] = std::sqrt(d);
+    r[j] = 1.0 / uj[j];
   }
   double* v = x.data();
   for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j of U
     const double* uj = &U(0, j);
     double s = v[j];
     for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
-    v[j] = s / uj[j];
+    v[j] = s * r[j];
   }
   for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
     const double* uj = &U(0, j);
-    v[j] /= uj[j];
-    const double vj = v[j];
+    const double vj = v[j] * r[j];
+    v[j] = vj;
     for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
   }
   return true;
@@ -1071,25 +1118,8 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     if (B.flex >= 0) {
       flex_mass_pass(m, w, b);
     } else {
-      auto D = [&B](const Eigen::Matrix<double, 6, 1>& xi) {
-        Eigen::Matrix<double, 6, 1> r;
-        r << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
-        return r;
-      };
-      Eigen::Matrix<double, 6, 1> xi = Eigen::Matrix<double, 6, 1>::Zero(), xid = xi;
-      for (int i : sup) {
-        xi += X.col(i) * w.u(i);
-        xid += Xd.col(i) * w.u(i);
-      }
-      const Eigen::Matrix<double, 6, 1> Dxi = D(xi);
-      for (std::size_t ii = 0; ii < sup.size(); ++ii) {
-        const int i = sup[ii];
-        const Eigen::Matrix<double, 6, 1> Dxi_i = D(X.col(i));
-        for (std::size_t jj = ii; jj < sup.size(); ++jj)
-          w.M(i, sup[jj]) += Dxi_i.dot(X.col(sup[jj]));
-        w.p(i) += Dxi_i.dot(xi);
-        w.Mdot_u(i) += Xd.col(i).dot(Dxi) + Dxi_i.dot(xid);
-      }
+      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w.DX.data(), w.M, w.p.data(),
+                      w.Mdot_u.data());
     }
     // Body torque (on the body frame): virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
     if (!B.torque.empty()) {
@@ -1142,16 +1172,18 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   for (std::size_t s = 0; s < m.euler_sets.size(); ++s) {
     const int i0 = m.euler_sets[s].i0;
     const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[s])];
-    const Dual<3> a2 = Dual<3>::variable(x[i0 + 1], 1), a3 = Dual<3>::variable(x[i0 + 2], 2);
-    const Mat3<Dual<3>> A = euler_rate_matrix(seq, a2, a3);
+    // A depends on a2 and a3 only (euler_chart.hpp): Dual<2> seeded on them, dA/da1 = 0.
+    const Dual<2> a2 = Dual<2>::variable(x[i0 + 1], 0), a3 = Dual<2>::variable(x[i0 + 2], 1);
+    const Mat3<Dual<2>> A = euler_rate_matrix(seq, a2, a3);
     const Eigen::Vector3d ad = w.qdot.segment<3>(i0);
+    auto dA = [&A](int l, int kk, int j) {  // dA_lk/da_j
+      return j == 0 ? 0.0 : A(l, kk).d[static_cast<std::size_t>(j - 1)];
+    };
     Eigen::Matrix3d W;
     for (int l = 0; l < 3; ++l)
       for (int kk = 0; kk < 3; ++kk) {
         double v = 0.0;
-        for (int j = 0; j < 3; ++j)
-          v += (A(l, kk).d[static_cast<std::size_t>(j)] - A(l, j).d[static_cast<std::size_t>(kk)]) *
-               ad(j);
+        for (int j = 0; j < 3; ++j) v += (dA(l, kk, j) - dA(l, j, kk)) * ad(j);
         W(l, kk) = v;
       }
     w.hamel.segment<3>(i0) = w.B[s].transpose() * (W.transpose() * w.p.segment<3>(i0));
@@ -1160,7 +1192,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   // solve: M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p.
   w.f = w.N + w.dL - w.Mdot_u - w.hamel;
   w.udot = w.f;
-  if (!cholesky_solve(w.M, w.U, w.udot))
+  if (!cholesky_solve(w.M, w.U, w.inv_diag, w.udot))
     throw RunFailure("lagrange", t, "", "mass matrix is not positive definite");
 }
 
