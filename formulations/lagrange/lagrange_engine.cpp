@@ -234,17 +234,23 @@ void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eig
 // relative rotations R_PC and the base's R_NB only: the attitudes R_NB of the other bodies are
 // computed when `absolute` (double pass: outputs and momenta; mass pass: the base translation
 // seeds' twists R_NB^T e_a and torques given in N), not in the gradient pass.
+// R_base, when given, is the base's R_NB with its derivatives (base_attitude), used instead of
+// differentiating the Euler-angle product.
 template <class S>
-void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute) {
+void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
+               const Mat3<S>* R_base = nullptr) {
   constexpr bool kPositions = std::is_same_v<S, double>;
   for (const Model::JointM& J : m.joints) {
     const auto c = static_cast<std::size_t>(J.child);
     const S* q = k.q.data() + J.i0;
     const Model::BodyM& C = m.bodies[c];
     if (J.type == JointType::Free) {
-      const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
-      k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
-      k.R_PC[c] = k.R_NB[c];
+      if (R_base != nullptr) {
+        k.R_NB[c] = *R_base;
+      } else {
+        const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
+        k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
+      }
       if constexpr (kPositions) k.p_NoBo_N[c] = Vec3<S>(q[0], q[1], q[2]);
       if (C.flex >= 0)
         flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
@@ -435,6 +441,7 @@ struct LagrangeEngine::Workspace {
   long recharts = 0;
   long wraps = 0;
   std::vector<Eigen::Matrix3d> A, B;  // per Euler set at the current q*
+  Eigen::Matrix3d R_NB0;              // the base's attitude at the current q*
   Kin<double> k0;
   Kin<Dual<1>> k1;
   GradientKins kg;
@@ -857,6 +864,25 @@ void LagrangeEngine::prepare_charts(double t, const double* x) {
 // ------------------------------------------------------------------------------------------------
 namespace {
 
+// The base's attitude R_NB (value R) as Dual<K> for the derivative directions theta_c, each an
+// angular displacement in body axes (w_NB_B = A(a) a', paper Eq. 16, so a displacement of the
+// Euler angles da turns the base by A da in body axes): R_NB(theta) = R (I + [theta x]) + O(theta^2)
+// (Poisson's kinematic equation dR_NB/dt = R_NB [w_NB_B x]), so dR_NB/dtheta_c = R [theta_c x].
+// Exact, and without differentiating the three rotations of the Euler product.
+template <int K>
+Mat3<Dual<K>> base_attitude(const Eigen::Matrix3d& R, const std::array<Eigen::Vector3d, K>& theta) {
+  Mat3<Dual<K>> D;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) D(r, col) = Dual<K>(R(r, col));
+  for (int c = 0; c < K; ++c) {
+    if (theta[static_cast<std::size_t>(c)].isZero(0.0)) continue;
+    const Eigen::Matrix3d dR = R * rot::skew(theta[static_cast<std::size_t>(c)]);
+    for (int r = 0; r < 3; ++r)
+      for (int col = 0; col < 3; ++col) D(r, col).d[static_cast<std::size_t>(c)] = dR(r, col);
+  }
+  return D;
+}
+
 template <int K>
 void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* chart, const double* x,
                     const int* dirs) {
@@ -876,7 +902,17 @@ void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* cha
       k.q[static_cast<std::size_t>(r)].d[static_cast<std::size_t>(c)] = 1.0;
     }
   }
-  pose_pass(m, chart, k, false);
+  // The base's quasi-displacement e_r of its rotation block turns it by e_r in body axes (dq* =
+  // B e_r, so A dq* = e_r).
+  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
+  std::array<Eigen::Vector3d, K> theta;
+  for (int c = 0; c < K; ++c) {
+    const int a = dirs[c] - b0;
+    theta[static_cast<std::size_t>(c)] = Eigen::Vector3d::Zero();
+    if (a >= 0 && a < 3) theta[static_cast<std::size_t>(c)](a) = 1.0;
+  }
+  const Mat3<Dual<K>> R_base = base_attitude<K>(w.R_NB0, theta);
+  pose_pass(m, chart, k, false, &R_base);
   twist_pass(m, k, x + n, m.all_joints);
   const Dual<K> L = kinetic_energy_of(m, k, x + n) - potential_energy_of(m, chart, k.q.data());
   for (int c = 0; c < K; ++c) w.dL(dirs[c]) = L.d[static_cast<std::size_t>(c)];
@@ -1059,7 +1095,13 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     qi = Dual<1>(x[i]);
     qi.d[0] = w.qdot(i);
   }
-  pose_pass(m, chart, w.k1, true);
+  // The base's attitude and its rate along the motion, R_NB [w_NB_B x] (base_attitude).
+  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
+  w.R_NB0 = euler_rotation(kSequences[static_cast<std::size_t>(chart[m.joints[0].euler_set])],
+                           x[b0], x[b0 + 1], x[b0 + 2]);
+  const Mat3<Dual<1>> R_base =
+      base_attitude<1>(w.R_NB0, {Eigen::Vector3d(w.u(b0), w.u(b0 + 1), w.u(b0 + 2))});
+  pose_pass(m, chart, w.k1, true, &R_base);
   // Twists of the unit seeds pi' = e_i: nonzero only in the subtree of the joint of i (the
   // columns of other bodies stay zero from construction).
   w.seed.setZero();
