@@ -199,6 +199,19 @@ Vec3<S> times_const(const Mat3<S>& M, const Eigen::Vector3d& v) {
                  M(2, 0) * v.x() + M(2, 1) * v.y() + M(2, 2) * v.z());
 }
 
+// R^T v and A B, written out: Eigen's generic products on a custom scalar build more temporaries.
+template <class S>
+Vec3<S> transpose_times(const Mat3<S>& R, const Vec3<S>& v) {
+  Vec3<S> r;
+  for (int a = 0; a < 3; ++a) r(a) = R(0, a) * v(0) + R(1, a) * v(1) + R(2, a) * v(2);
+  return r;
+}
+template <class S>
+void product(const Mat3<S>& A, const Mat3<S>& B, Mat3<S>& C) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) C(r, c) = A(r, 0) * B(0, c) + A(r, 1) * B(1, c) + A(r, 2) * B(2, c);
+}
+
 // A node of a flexible body at eta (docs/flexible-bodies.md "Joints at nodes"):
 //   r = p + Phi eta (deformed position), E = exp([psi x]) with psi = Psi eta (the node frame in the
 //   body frame), G = Jl(psi) Psi (node frame's angular velocity relative to the body per unit eta',
@@ -282,7 +295,7 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
       R_PC = R_PC * k.E_C[c].transpose();
     }
     const auto P = static_cast<std::size_t>(J.parent);
-    if (absolute) k.R_NB[c] = k.R_NB[P] * R_PC;
+    if (absolute) product(k.R_NB[P], R_PC, k.R_NB[c]);
     if constexpr (kPositions) {
       const Vec3<S> to_joint =
           J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
@@ -325,13 +338,13 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     if (J.parent_node < 0 && J.child_node < 0) {  // rigid attachments on both sides
       const Vec3<S>& w_P = k.w_NB_B[P];
       const Vec3<S> v_J = k.v_NBo_B[P] + cross(w_P, J.p_PoJ_P);
-      Vec3<S> w = R_PC.transpose() * w_P;
+      Vec3<S> w = transpose_times(R_PC, w_P);
       if (J.type == JointType::Revolute) {
         for (int a = 0; a < 3; ++a) w(a) += J.axis_J(a) * uj[0];
       } else if (J.type == JointType::Spherical) {
         for (int a = 0; a < 3; ++a) w(a) += uj[a];
       }
-      k.v_NBo_B[c] = R_PC.transpose() * v_J - cross(w, J.p_CoJ_C);
+      k.v_NBo_B[c] = transpose_times(R_PC, v_J) - cross(w, J.p_CoJ_C);
       k.w_NB_B[c] = w;
       continue;
     }
@@ -351,7 +364,7 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     } else {
       v_J = k.v_NBo_B[P] + cross(w_J, J.p_PoJ_P);
     }
-    Vec3<S> w = R_PC.transpose() * w_J;
+    Vec3<S> w = transpose_times(R_PC, w_J);
     Eigen::Vector3d w_rel = Eigen::Vector3d::Zero();
     if (J.type == JointType::Revolute) w_rel = J.axis_J * uj[0];
     if (J.type == JointType::Spherical) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
@@ -370,7 +383,7 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       v_C = cross(w, J.p_CoJ_C);
     }
     k.w_NB_B[c] = w;
-    k.v_NBo_B[c] = R_PC.transpose() * v_J - v_C;
+    k.v_NBo_B[c] = transpose_times(R_PC, v_J) - v_C;
   }
 }
 
@@ -452,7 +465,8 @@ struct LagrangeEngine::Workspace {
   Eigen::VectorXd he0, unit;             // flexible mass pass: a seed's modal momentum; e_k
   Eigen::MatrixXd M;
   Eigen::MatrixXd U;  // Cholesky factor of M (upper triangle), solve
-  Eigen::Matrix<double, 6, Eigen::Dynamic> DX;  // rigid mass pass: D times the seed twists
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Y, Yd, DX;  // rigid mass pass: gathered seed twists,
+                                                       // their rates, D times them
 
   Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
   std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
@@ -725,6 +739,8 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->M = Eigen::MatrixXd::Zero(n, n);
   w->U = Eigen::MatrixXd::Zero(n, n);
   w->DX = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n);
+  w->Y = w->DX;
+  w->Yd = w->DX;
   for (Eigen::VectorXd* v :
        {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed,
         &w->inv_diag})
@@ -995,40 +1011,9 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
 // their rates Xd), xi = sum Y_i pi'_i:
 //   M_ij += Y_i . D Y_j (j >= i, upper triangle),   p_i += D Y_i . xi,
 //   (dM/dt pi')_i += Ydot_i . D xi + D Y_i . xidot.
-// Only the supporting columns sup are visited; DY is scratch for 6 x |sup| values.
-inline void apply_rigid_inertia(const Model::BodyM& B, const double* y, double* Dy) {
-  const Eigen::Matrix3d& I = B.I_BBo_B;
-  for (int a = 0; a < 3; ++a) {
-    Dy[a] = I(a, 0) * y[0] + I(a, 1) * y[1] + I(a, 2) * y[2];
-    Dy[3 + a] = B.mass * y[3 + a];
-  }
-}
-inline double dot6(const double* a, const double* b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5];
-}
+// Only the supporting columns sup are visited. Defined after the Workspace.
 void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
-                     const double* Xd, const double* u, double* DY, Eigen::MatrixXd& M, double* p,
-                     double* Mdot_u) {
-  double xi[6] = {0, 0, 0, 0, 0, 0}, xid[6] = {0, 0, 0, 0, 0, 0}, Dxi[6];
-  for (int i : sup) {
-    const double* y = X + 6 * i;
-    const double* yd = Xd + 6 * i;
-    for (int a = 0; a < 6; ++a) {
-      xi[a] += y[a] * u[i];
-      xid[a] += yd[a] * u[i];
-    }
-  }
-  apply_rigid_inertia(B, xi, Dxi);
-  const std::size_t ns = sup.size();
-  for (std::size_t ii = 0; ii < ns; ++ii) apply_rigid_inertia(B, X + 6 * sup[ii], DY + 6 * ii);
-  for (std::size_t ii = 0; ii < ns; ++ii) {
-    const int i = sup[ii];
-    const double* Dy = DY + 6 * ii;
-    for (std::size_t jj = ii; jj < ns; ++jj) M(i, sup[jj]) += dot6(Dy, X + 6 * sup[jj]);
-    p[i] += dot6(Dy, xi);
-    Mdot_u[i] += dot6(Xd + 6 * i, Dxi) + dot6(Dy, xid);
-  }
-}
+                     const double* Xd, const double* u, LagrangeEngine::Workspace& w);
 
 // solve: M x = b for symmetric positive definite M (upper triangle read), by Cholesky M = U^T U
 // (Golub & Van Loan 2013, "Matrix Computations", 4th ed., Alg. 4.2.1, in its column (gaxpy) form:
@@ -1070,6 +1055,42 @@ bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorX
     for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
   }
   return true;
+}
+
+}  // namespace
+
+namespace {
+
+// Mass pass of one rigid body (declared above): the supporting columns are gathered into Y (6 x s)
+// and their rates into Yd, then DY = D Y, G = Y^T D Y (s x s; its upper triangle goes into M),
+// p_S += DY^T xi, (dM/dt pi')_S += Yd^T D xi + DY^T xidot. Fixed 6-row blocks, so every product
+// is a vectorised 6-term inner product.
+void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
+                     const double* Xd, const double* u, LagrangeEngine::Workspace& w) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  const auto s = static_cast<Eigen::Index>(sup.size());
+  auto Y = w.Y.leftCols(s);
+  auto Yd = w.Yd.leftCols(s);
+  auto DY = w.DX.leftCols(s);
+  Vec6 xi = Vec6::Zero(), xid = Vec6::Zero();
+  for (Eigen::Index k = 0; k < s; ++k) {
+    const int i = sup[static_cast<std::size_t>(k)];
+    Y.col(k) = Eigen::Map<const Vec6>(X + 6 * i);
+    Yd.col(k) = Eigen::Map<const Vec6>(Xd + 6 * i);
+    xi += Y.col(k) * u[i];
+    xid += Yd.col(k) * u[i];
+  }
+  DY.topRows<3>().noalias() = B.I_BBo_B * Y.topRows<3>();
+  DY.bottomRows<3>() = B.mass * Y.bottomRows<3>();
+  Vec6 Dxi;
+  Dxi << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
+  for (Eigen::Index a = 0; a < s; ++a) {
+    const int i = sup[static_cast<std::size_t>(a)];
+    const auto Dya = DY.col(a);
+    for (Eigen::Index b = a; b < s; ++b) w.M(i, sup[static_cast<std::size_t>(b)]) += Dya.dot(Y.col(b));
+    w.p(i) += Dya.dot(xi);
+    w.Mdot_u(i) += Yd.col(a).dot(Dxi) + Dya.dot(xid);
+  }
 }
 
 }  // namespace
@@ -1160,8 +1181,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     if (B.flex >= 0) {
       flex_mass_pass(m, w, b);
     } else {
-      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w.DX.data(), w.M, w.p.data(),
-                      w.Mdot_u.data());
+      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w);
     }
     // Body torque (on the body frame): virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
     if (!B.torque.empty()) {
