@@ -23,7 +23,7 @@
 //                 Generalised forces of body torques: N_i = tau . w(e_i) (virtual power).
 //   gradient      Dual<K> (chunks of K <= 8) seeded with the quasi-displacements dq* = B e_r:
 //                 L = T - V => B^T dL/dq* at fixed pi'.
-//   hamel         Dual<2> on A(a2, a3) per Euler set => W, B^T W^T p.
+//   hamel         A(a2, a3) on Dual<2> per Euler set (charts) => W, B^T W^T p.
 //   solve         M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p   (Cholesky, M is SPD).
 // All scratch lives in the Workspace, sized in the constructor: rhs() does not allocate.
 #include "formulations/lagrange/lagrange_engine.hpp"
@@ -454,6 +454,7 @@ struct LagrangeEngine::Workspace {
   long recharts = 0;
   long wraps = 0;
   std::vector<Eigen::Matrix3d> A, B;  // per Euler set at the current q*
+  std::vector<Mat3<Dual<2>>> A_dual;  // per Euler set: A with dA/da2, dA/da3 (charts, hamel)
   Eigen::Matrix3d R_NB0;              // the base's attitude at the current q*
   Kin<double> k0;
   Kin<Dual<1>> k1;
@@ -724,6 +725,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   const std::size_t ns = m->euler_sets.size();
   w->chart.assign(ns, kDefaultChart);
   w->A.assign(ns, Eigen::Matrix3d::Identity());
+  w->A_dual.assign(ns, Mat3<Dual<2>>::Identity());
   w->B.assign(ns, Eigen::Matrix3d::Identity());
   w->k0.resize(*m);
   w->k1.resize(*m);
@@ -870,7 +872,11 @@ void LagrangeEngine::prepare_charts(double t, const double* x) {
       throw RunFailure("lagrange", t, state_label(m.euler_sets[s].i0 + 1),
                        m.euler_sets[s].what + " is at the singularity of its " + seq.name +
                            " Euler angles (second angle " + format_number(a[1] / kDeg) + " deg)");
-    w.A[s] = euler_rate_matrix(seq, a[1], a[2]);
+    // A depends on a2 and a3 only (euler_chart.hpp): Dual<2> seeded on them (dA/da1 = 0), its
+    // derivatives kept for Hamel's term.
+    w.A_dual[s] = euler_rate_matrix(seq, Dual<2>::variable(a[1], 0), Dual<2>::variable(a[2], 1));
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) w.A[s](r, c) = w.A_dual[s](r, c).v;
     w.B[s] = w.A[s].inverse();
   }
 }
@@ -1233,10 +1239,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   w.hamel.setZero();
   for (std::size_t s = 0; s < m.euler_sets.size(); ++s) {
     const int i0 = m.euler_sets[s].i0;
-    const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[s])];
-    // A depends on a2 and a3 only (euler_chart.hpp): Dual<2> seeded on them, dA/da1 = 0.
-    const Dual<2> a2 = Dual<2>::variable(x[i0 + 1], 0), a3 = Dual<2>::variable(x[i0 + 2], 1);
-    const Mat3<Dual<2>> A = euler_rate_matrix(seq, a2, a3);
+    const Mat3<Dual<2>>& A = w.A_dual[s];  // charts: A and its derivatives in a2, a3
     const Eigen::Vector3d ad = w.qdot.segment<3>(i0);
     auto dA = [&A](int l, int kk, int j) {  // dA_lk/da_j
       return j == 0 ? 0.0 : A(l, kk).d[static_cast<std::size_t>(j - 1)];
