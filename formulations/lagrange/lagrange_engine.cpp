@@ -314,8 +314,8 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
 // with w_rel the joint's relative angular velocity in child-side joint-frame components
 // (revolute: axis_J rate; spherical: w_PC_C), and the joint point has one velocity seen from both
 // bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C') in N
-// (Kane & Levinson 1985, "Dynamics: Theory and Applications", Eq. 2.7.1, two points of one body,
-// plus the nodes' elastic velocities), i.e. in C components (R_CN = R_PC^T R_PN):
+// (Kane & Levinson 1985, "Dynamics: Theory and Applications", Sec. 2.7, two points fixed on a
+// rigid body, plus the nodes' elastic velocities), i.e. in C components (R_CN = R_PC^T R_PN):
 //   v_Co_C = R_PC^T (v_Po_P + w_P x r_P + Phi_P eta_P') - (w_C x r_C + Phi_C eta_C').
 // The base's v_NBo_B = R_NB^T v_NBo_N (its quasi-velocities are N components, Eq. 17).
 // Only the joints in `joints` (topological order) are visited: a seed's twists are zero outside the
@@ -889,7 +889,10 @@ namespace {
 // The base's attitude R_NB (value R) as Dual<K> for the derivative directions theta_c, each an
 // angular displacement in body axes (w_NB_B = A(a) a', paper Eq. 16, so a displacement of the
 // Euler angles da turns the base by A da in body axes): R_NB(theta) = R (I + [theta x]) + O(theta^2)
-// (Poisson's kinematic equation dR_NB/dt = R_NB [w_NB_B x]), so dR_NB/dtheta_c = R [theta_c x].
+// (Poisson's kinematic equation dR_NB/dt = R_NB [w_NB_B x], the angular velocity in body axes of
+// Kane, Likins & Levinson 1983, Ch. 1), so dR_NB/dtheta_c = R [theta_c x]. The identity in the
+// charts' terms, R^T dR = [(A da) x] for every sequence, is checked to 1e-14 against AD of the
+// Euler product in tests/lagrange/test_euler_chart.cpp.
 // Exact, and without differentiating the three rotations of the Euler product.
 template <int K>
 Mat3<Dual<K>> base_attitude(const Eigen::Matrix3d& R, const std::array<Eigen::Vector3d, K>& theta) {
@@ -1457,7 +1460,7 @@ void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
     a.wdot_NB_B[b] = xid.head<3>();
     const Model::BodyM& B = m.bodies[b];
     // The twist holds v_NBo_B, so a_NBo_N = R_NB (v_NBo_B' + w x v_NBo_B) (Kane & Levinson 1985,
-    // Eq. 2.6.2, the derivative of a vector in two frames).
+    // Sec. 2.3, differentiation in two reference frames).
     const Eigen::Matrix<double, 6, 1> xi = w.Xi[b] * w.u;
     Eigen::Matrix3d R;
     for (int r = 0; r < 3; ++r)
