@@ -8,7 +8,7 @@
 //
 // Used for the time derivative along the motion (K = 1, seed q*' = B(q*) pi'), the gradient of the
 // Lagrangian with respect to the quasi-coordinates (K <= 8 per chunk, seeds B(q*) e_r) and the
-// derivatives of the Euler-angle kinematic matrix A (K = 3).
+// derivatives of the Euler-angle kinematic matrix A (K = 2).
 //
 // Why not Eigen's AutoDiffScalar (unsupported/Eigen/AutoDiff)? It was this engine's first scalar;
 // its expression templates made the right-hand side about twice as slow, and its atan2 returns a
@@ -22,10 +22,14 @@
 
 namespace crossdyn::lagrange {
 
+// Layout: the derivatives first, then the value, so that the derivative pairs the compiler moves
+// with 16-byte loads start where whole-object copies put their 16-byte stores (with the value first,
+// every d[0..1] load straddled two stores of a fresh copy: a store-forwarding stall per operation,
+// most of the right-hand side's time in the Dual<5> gradient pass).
 template <int K>
 struct Dual {
-  double v = 0.0;
   std::array<double, K> d{};
+  double v = 0.0;
 
   constexpr Dual() = default;
   constexpr Dual(double value) : v(value) {}  // NOLINT: a constant converts implicitly

@@ -109,12 +109,17 @@ Eigen::Matrix<S, 4, 1> euler_quaternion(const EulerSequence& q, const S& a1, con
 // A(a): w = A(a) a' (header comment; Kane, Likins & Levinson 1983, Sec. 1.16 for 3-2-1).
 template <class S>
 Mat3<S> euler_rate_matrix(const EulerSequence& q, const S& a2, const S& a3) {
-  const Mat3<S> Rk_T = axis_rotation(q.k, a3).transpose();
-  const Mat3<S> Rj_T = axis_rotation(q.j, a2).transpose();
+  // Written out (Eigen's products on a dual-number scalar build temporaries): with R_k = R_k(a3),
+  // R_j = R_j(a2), column 0 is R_k^T R_j^T e_i (row i of R_j, turned by R_k^T), column 1
+  // R_k^T e_j (row j of R_k), column 2 e_k.
+  const Mat3<S> Rk = axis_rotation(q.k, a3);
+  const Mat3<S> Rj = axis_rotation(q.j, a2);
   Mat3<S> A;
-  A.col(0) = Rk_T * Rj_T.col(q.i);  // R_k^T R_j^T e_i
-  A.col(1) = Rk_T.col(q.j);         // R_k^T e_j
-  A.col(2) = Vec3<S>::Unit(q.k);
+  for (int a = 0; a < 3; ++a) {
+    A(a, 0) = Rk(0, a) * Rj(q.i, 0) + Rk(1, a) * Rj(q.i, 1) + Rk(2, a) * Rj(q.i, 2);
+    A(a, 1) = Rk(q.j, a);
+    A(a, 2) = S(a == q.k ? 1.0 : 0.0);
+  }
   return A;
 }
 

@@ -2,30 +2,32 @@
 //
 // Passes of one right-hand-side evaluation, (t, x = (q*, pi')) => (q*', pi''):
 //   charts        (q*) => A, B = A^-1 per Euler set; q*' = B pi'                  (Eqs. 16, 22)
-//   pose          (q*) => R_NB, R_PC, p_NoBo_N (double pass only) per body; node frames
-//                 (r, exp([psi x]), Jl(psi) Psi) of joints at nodes; I_w, s, H of flexible bodies
+//   pose          (q*) => R_PC per body, R_NB (the base's always; every body's in the double and
+//                 mass passes) and p_NoBo_N (double pass only); node frames (r, exp([psi x]),
+//                 Jl(psi) Psi) of joints at nodes; I_w, s, H of flexible bodies
 //                                                                    [templated on the scalar]
-//   twist         (pose, pi') => w_NB_B, v_NBo_N (and v_NBo_B of flexible bodies) per body
-//                                                                    [templated on the scalar]
+//   twist         (pose, pi') => w_NB_B, v_NBo_B per body (body components: only the relative
+//                 rotations R_PC enter, and the base's R_NB)          [templated on the scalar]
 //   energy        (twists) => T,  (q*) => V                           [templated on the scalar]
 //   mass pass     Dual<1> seeded with the motion q*' (time derivative at fixed pi'), twists for
 //                 every unit seed pi' = e_i. T is quadratic in pi', so its derivatives in pi' are
 //                 the symmetric bilinear form T(xi, eta) of the seeds (polarisation; the base
-//                 translation seeds' twists are known, (0, e_a), and written without a pass):
+//                 translation seeds' twists are known, (0, R_NB^T e_a), and written without a
+//                 pass):
 //                   M_ij = d2T/dpi_i dpi_j = T(e_i, e_j),   p_i = dT/dpi_i = T(e_i, pi'),
 //                 and the Dual<1> parts give d/dt p at pi'' = 0, i.e. (dM/dt) pi'.
-//                 A rigid body's bilinear form is w_a . I w_b + m v_a . v_b (paper Eq. 26); a
+//                 A rigid body's bilinear form is w_a . I w_b + m v_a . v_b (paper Eq. 26, with
+//                 v in body components: the dot product does not depend on the frame); a
 //                 flexible body's is Y_a . M_B(eta) Y_b with Y = (w, v_B, eta'), M_B applied by
 //                 flex_momentum (flex_body.hpp).
 //                 Generalised forces of body torques: N_i = tau . w(e_i) (virtual power).
 //   gradient      Dual<K> (chunks of K <= 8) seeded with the quasi-displacements dq* = B e_r:
 //                 L = T - V => B^T dL/dq* at fixed pi'.
-//   hamel         Dual<3> on A(a) per Euler set => W, B^T W^T p.
+//   hamel         A(a2, a3) on Dual<2> per Euler set (charts) => W, B^T W^T p.
 //   solve         M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p   (Cholesky, M is SPD).
 // All scratch lives in the Workspace, sized in the constructor: rhs() does not allocate.
 #include "formulations/lagrange/lagrange_engine.hpp"
 
-#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -144,9 +146,8 @@ struct Kin {
   std::vector<S> q;                      // q* as S, size n
   std::vector<Mat3<S>> R_NB, R_PC;       // per body (R_PC of the body's own joint)
   std::vector<Vec3<S>> p_NoBo_N;         // per body
-  std::vector<Vec3<S>> w_NB_B, v_NBo_N;  // per body (twist pass)
+  std::vector<Vec3<S>> w_NB_B, v_NBo_B;  // per body (twist pass), body components
   // Flexible bodies (per body) and joints at nodes (per body, for the body's own joint).
-  std::vector<Vec3<S>> v_NBo_B;       // flexible body: v_NBo_N in body components (twist pass)
   std::vector<FlexInertia<S>> fi;     // flexible body: I_w, s, H at its eta (pose pass)
   std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position
   std::vector<Mat3<S>> E_C;           // joint at a child node: exp([psi_C x])
@@ -159,7 +160,6 @@ struct Kin {
     R_PC.resize(nb);
     p_NoBo_N.resize(nb);
     w_NB_B.resize(nb);
-    v_NBo_N.resize(nb);
     v_NBo_B.resize(nb);
     fi.resize(nb);
     r_P.resize(nb);
@@ -199,6 +199,19 @@ Vec3<S> times_const(const Mat3<S>& M, const Eigen::Vector3d& v) {
                  M(2, 0) * v.x() + M(2, 1) * v.y() + M(2, 2) * v.z());
 }
 
+// R^T v and A B, written out: Eigen's generic products on a custom scalar build more temporaries.
+template <class S>
+Vec3<S> transpose_times(const Mat3<S>& R, const Vec3<S>& v) {
+  Vec3<S> r;
+  for (int a = 0; a < 3; ++a) r(a) = R(0, a) * v(0) + R(1, a) * v(1) + R(2, a) * v(2);
+  return r;
+}
+template <class S>
+void product(const Mat3<S>& A, const Mat3<S>& B, Mat3<S>& C) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) C(r, c) = A(r, 0) * B(0, c) + A(r, 1) * B(1, c) + A(r, 2) * B(2, c);
+}
+
 // A node of a flexible body at eta (docs/flexible-bodies.md "Joints at nodes"):
 //   r = p + Phi eta (deformed position), E = exp([psi x]) with psi = Psi eta (the node frame in the
 //   body frame), G = Jl(psi) Psi (node frame's angular velocity relative to the body per unit eta',
@@ -229,19 +242,28 @@ void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eig
 // p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
 // (psi, u zero at a rigid attachment).
 // The positions p_NoBo_N are computed in the double pass only (outputs and momenta): neither T nor
-// V depends on them (T through the twists, which need R_NB, r_P and r_C but not p_NoBo_N), so the
-// dual-number passes skip them.
+// V depends on them (T through the twists, which need r_P and r_C but not p_NoBo_N), so the
+// dual-number passes skip them. The twists are in body components (twist_pass), so they need the
+// relative rotations R_PC and the base's R_NB only: the attitudes R_NB of the other bodies are
+// computed when `absolute` (double pass: outputs and momenta; mass pass: the base translation
+// seeds' twists R_NB^T e_a and torques given in N), not in the gradient pass.
+// R_base, when given, is the base's R_NB with its derivatives (base_attitude), used instead of
+// differentiating the Euler-angle product.
 template <class S>
-void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
+void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
+               const Mat3<S>* R_base = nullptr) {
   constexpr bool kPositions = std::is_same_v<S, double>;
   for (const Model::JointM& J : m.joints) {
     const auto c = static_cast<std::size_t>(J.child);
     const S* q = k.q.data() + J.i0;
     const Model::BodyM& C = m.bodies[c];
     if (J.type == JointType::Free) {
-      const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
-      k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
-      k.R_PC[c] = k.R_NB[c];
+      if (R_base != nullptr) {
+        k.R_NB[c] = *R_base;
+      } else {
+        const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[J.euler_set])];
+        k.R_NB[c] = euler_rotation(seq, q[3], q[4], q[5]);
+      }
       if constexpr (kPositions) k.p_NoBo_N[c] = Vec3<S>(q[0], q[1], q[2]);
       if (C.flex >= 0)
         flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
@@ -273,7 +295,7 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
       R_PC = R_PC * k.E_C[c].transpose();
     }
     const auto P = static_cast<std::size_t>(J.parent);
-    k.R_NB[c] = k.R_NB[P] * R_PC;
+    if (absolute) product(k.R_NB[P], R_PC, k.R_NB[c]);
     if constexpr (kPositions) {
       const Vec3<S> to_joint =
           J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
@@ -286,12 +308,16 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k) {
   }
 }
 
-// twist: (pose, pi') => w_NB_B, v_NBo_N (and v_NBo_B of flexible bodies). Angular velocities add
-// along the tree through the joint frames (docs/flexible-bodies.md "Joints at nodes"):
+// twist: (pose, pi') => w_NB_B, v_NBo_B, both in body components. Angular velocities add along
+// the tree through the joint frames (docs/flexible-bodies.md "Joints at nodes"):
 //   w_C = R_PC^T (w_P + G_P eta_P') + E_C w_rel - G_C eta_C'     (C components)
 // with w_rel the joint's relative angular velocity in child-side joint-frame components
 // (revolute: axis_J rate; spherical: w_PC_C), and the joint point has one velocity seen from both
-// bodies: v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C').
+// bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C') in N
+// (Kane & Levinson 1985, "Dynamics: Theory and Applications", Sec. 2.7, two points fixed on a
+// rigid body, plus the nodes' elastic velocities), i.e. in C components (R_CN = R_PC^T R_PN):
+//   v_Co_C = R_PC^T (v_Po_P + w_P x r_P + Phi_P eta_P') - (w_C x r_C + Phi_C eta_C').
+// The base's v_NBo_B = R_NB^T v_NBo_N (its quasi-velocities are N components, Eq. 17).
 // Only the joints in `joints` (topological order) are visited: a seed's twists are zero outside the
 // subtree of its joint, whose parent twist the caller sets to zero.
 template <class S>
@@ -301,61 +327,63 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     const auto c = static_cast<std::size_t>(J.child);
     const double* uj = u + J.i0;
     if (J.type == JointType::Free) {
-      k.v_NBo_N[c] = Vec3<S>(S(uj[0]), S(uj[1]), S(uj[2]));
+      const Mat3<S>& R = k.R_NB[c];
+      for (int a = 0; a < 3; ++a)
+        k.v_NBo_B[c](a) = R(0, a) * uj[0] + R(1, a) * uj[1] + R(2, a) * uj[2];
       k.w_NB_B[c] = Vec3<S>(S(uj[3]), S(uj[4]), S(uj[5]));
-      if (m.bodies[c].flex >= 0) k.v_NBo_B[c] = k.R_NB[c].transpose() * k.v_NBo_N[c];
       continue;
     }
     const auto P = static_cast<std::size_t>(J.parent);
+    const Mat3<S>& R_PC = k.R_PC[c];
     if (J.parent_node < 0 && J.child_node < 0) {  // rigid attachments on both sides
-      Vec3<S> w = k.R_PC[c].transpose() * k.w_NB_B[P];
+      const Vec3<S>& w_P = k.w_NB_B[P];
+      const Vec3<S> v_J = k.v_NBo_B[P] + cross(w_P, J.p_PoJ_P);
+      Vec3<S> w = transpose_times(R_PC, w_P);
       if (J.type == JointType::Revolute) {
         for (int a = 0; a < 3; ++a) w(a) += J.axis_J(a) * uj[0];
       } else if (J.type == JointType::Spherical) {
         for (int a = 0; a < 3; ++a) w(a) += uj[a];
       }
+      k.v_NBo_B[c] = transpose_times(R_PC, v_J) - cross(w, J.p_CoJ_C);
       k.w_NB_B[c] = w;
-      k.v_NBo_N[c] = k.v_NBo_N[P] + k.R_NB[P] * cross(k.w_NB_B[P], J.p_PoJ_P) -
-                     k.R_NB[c] * cross(w, J.p_CoJ_C);
-    } else {
-      // Parent side: the joint point's velocity relative to Po and the parent-side joint frame's
-      // angular velocity, both in P components.
-      Vec3<S> w_J = k.w_NB_B[P];
-      Vec3<S> v_P;
-      if (J.parent_node >= 0) {
-        const double* ed = u + J.parent_e0;
-        v_P = w_J.cross(k.r_P[c]);
-        const Mat3X<S>& G = k.G_P[c];
-        for (Eigen::Index l = 0; l < G.cols(); ++l)
-          for (int a = 0; a < 3; ++a) {
-            v_P(a) += J.Phi_P(a, l) * ed[l];
-            w_J(a) += G(a, l) * ed[l];
-          }
-      } else {
-        v_P = cross(w_J, J.p_PoJ_P);
-      }
-      Vec3<S> w = k.R_PC[c].transpose() * w_J;
-      Eigen::Vector3d w_rel = Eigen::Vector3d::Zero();
-      if (J.type == JointType::Revolute) w_rel = J.axis_J * uj[0];
-      if (J.type == JointType::Spherical) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
-      Vec3<S> v_C;
-      if (J.child_node >= 0) {
-        const double* ed = u + J.child_e0;
-        w += times_const(k.E_C[c], w_rel);
-        const Mat3X<S>& G = k.G_C[c];
-        for (Eigen::Index l = 0; l < G.cols(); ++l)
-          for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
-        v_C = w.cross(k.r_C[c]);
-        for (Eigen::Index l = 0; l < G.cols(); ++l)
-          for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
-      } else {
-        for (int a = 0; a < 3; ++a) w(a) += w_rel(a);
-        v_C = cross(w, J.p_CoJ_C);
-      }
-      k.w_NB_B[c] = w;
-      k.v_NBo_N[c] = k.v_NBo_N[P] + k.R_NB[P] * v_P - k.R_NB[c] * v_C;
+      continue;
     }
-    if (m.bodies[c].flex >= 0) k.v_NBo_B[c] = k.R_NB[c].transpose() * k.v_NBo_N[c];
+    // Parent side: the joint point's velocity (v_Po + w_P x r_P + Phi_P eta_P') and the
+    // parent-side joint frame's angular velocity, both in P components.
+    Vec3<S> w_J = k.w_NB_B[P];
+    Vec3<S> v_J;
+    if (J.parent_node >= 0) {
+      const double* ed = u + J.parent_e0;
+      v_J = k.v_NBo_B[P] + w_J.cross(k.r_P[c]);
+      const Mat3X<S>& G = k.G_P[c];
+      for (Eigen::Index l = 0; l < G.cols(); ++l)
+        for (int a = 0; a < 3; ++a) {
+          v_J(a) += J.Phi_P(a, l) * ed[l];
+          w_J(a) += G(a, l) * ed[l];
+        }
+    } else {
+      v_J = k.v_NBo_B[P] + cross(w_J, J.p_PoJ_P);
+    }
+    Vec3<S> w = transpose_times(R_PC, w_J);
+    Eigen::Vector3d w_rel = Eigen::Vector3d::Zero();
+    if (J.type == JointType::Revolute) w_rel = J.axis_J * uj[0];
+    if (J.type == JointType::Spherical) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
+    Vec3<S> v_C;
+    if (J.child_node >= 0) {
+      const double* ed = u + J.child_e0;
+      w += times_const(k.E_C[c], w_rel);
+      const Mat3X<S>& G = k.G_C[c];
+      for (Eigen::Index l = 0; l < G.cols(); ++l)
+        for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
+      v_C = w.cross(k.r_C[c]);
+      for (Eigen::Index l = 0; l < G.cols(); ++l)
+        for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+    } else {
+      for (int a = 0; a < 3; ++a) w(a) += w_rel(a);
+      v_C = cross(w, J.p_CoJ_C);
+    }
+    k.w_NB_B[c] = w;
+    k.v_NBo_B[c] = transpose_times(R_PC, v_J) - v_C;
   }
 }
 
@@ -372,7 +400,7 @@ S kinetic_energy_of(const Model& m, Kin<S>& k, const double* u) {
       continue;
     }
     const Vec3<S> Iw = const_times(B.I_BBo_B, k.w_NB_B[b]);
-    T += 0.5 * (k.w_NB_B[b].dot(Iw) + B.mass * k.v_NBo_N[b].squaredNorm());
+    T += 0.5 * (k.w_NB_B[b].dot(Iw) + B.mass * k.v_NBo_B[b].squaredNorm());
   }
   return T;
 }
@@ -426,18 +454,22 @@ struct LagrangeEngine::Workspace {
   long recharts = 0;
   long wraps = 0;
   std::vector<Eigen::Matrix3d> A, B;  // per Euler set at the current q*
+  std::vector<Mat3<Dual<2>>> A_dual;  // per Euler set: A with dA/da2, dA/da3 (charts, hamel)
+  Eigen::Matrix3d R_NB0;              // the base's attitude at the current q*
   Kin<double> k0;
   Kin<Dual<1>> k1;
   GradientKins kg;
-  // Per body: twists of the seeds (w_NB_B; v_NBo_N, or v_NBo_B for a flexible body) and their
-  // time derivatives at fixed pi'.
+  // Per body: twists of the seeds (w_NB_B, v_NBo_B) and their time derivatives at fixed pi'.
   std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> Xi, Xi_dot;
   std::vector<FlexInertia<double>> fi0;  // per body: values of k1.fi (flexible bodies)
   std::vector<Dual<1>> he1;              // flexible mass pass: modal momentum and its rate
   Eigen::VectorXd he0, unit;             // flexible mass pass: a seed's modal momentum; e_k
   Eigen::MatrixXd M;
-  Eigen::LLT<Eigen::MatrixXd> llt;
-  Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed;
+  Eigen::MatrixXd U;  // Cholesky factor of M (upper triangle), solve
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Y, Yd, DX;  // rigid mass pass: gathered seed twists,
+                                                       // their rates, D times them
+
+  Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
   std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
 };
 
@@ -693,6 +725,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   const std::size_t ns = m->euler_sets.size();
   w->chart.assign(ns, kDefaultChart);
   w->A.assign(ns, Eigen::Matrix3d::Identity());
+  w->A_dual.assign(ns, Mat3<Dual<2>>::Identity());
   w->B.assign(ns, Eigen::Matrix3d::Identity());
   w->k0.resize(*m);
   w->k1.resize(*m);
@@ -706,11 +739,13 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->unit = Eigen::VectorXd::Zero(m->max_modes);
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
   w->M = Eigen::MatrixXd::Zero(n, n);
-  // Size the factorisation's storage by factorising once (assigning LLT(n) would copy Eigen's
-  // uninitialised m_info member, which UBSan reports as an invalid enum load).
-  w->llt.compute(Eigen::MatrixXd::Identity(n, n));
+  w->U = Eigen::MatrixXd::Zero(n, n);
+  w->DX = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n);
+  w->Y = w->DX;
+  w->Yd = w->DX;
   for (Eigen::VectorXd* v :
-       {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed})
+       {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed,
+        &w->inv_diag})
     *v = Eigen::VectorXd::Zero(n);
   model_ = std::move(m);
   ws_ = std::move(w);
@@ -837,7 +872,11 @@ void LagrangeEngine::prepare_charts(double t, const double* x) {
       throw RunFailure("lagrange", t, state_label(m.euler_sets[s].i0 + 1),
                        m.euler_sets[s].what + " is at the singularity of its " + seq.name +
                            " Euler angles (second angle " + format_number(a[1] / kDeg) + " deg)");
-    w.A[s] = euler_rate_matrix(seq, a[1], a[2]);
+    // A depends on a2 and a3 only (euler_chart.hpp): Dual<2> seeded on them (dA/da1 = 0), its
+    // derivatives kept for Hamel's term.
+    w.A_dual[s] = euler_rate_matrix(seq, Dual<2>::variable(a[1], 0), Dual<2>::variable(a[2], 1));
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) w.A[s](r, c) = w.A_dual[s](r, c).v;
     w.B[s] = w.A[s].inverse();
   }
 }
@@ -846,6 +885,28 @@ void LagrangeEngine::prepare_charts(double t, const double* x) {
 // evaluate: (t, x) => M, p, (dM/dt) pi', B^T W^T p, B^T dL/dq*, N, q*', pi''.
 // ------------------------------------------------------------------------------------------------
 namespace {
+
+// The base's attitude R_NB (value R) as Dual<K> for the derivative directions theta_c, each an
+// angular displacement in body axes (w_NB_B = A(a) a', paper Eq. 16, so a displacement of the
+// Euler angles da turns the base by A da in body axes): R_NB(theta) = R (I + [theta x]) + O(theta^2)
+// (Poisson's kinematic equation dR_NB/dt = R_NB [w_NB_B x], the angular velocity in body axes of
+// Kane, Likins & Levinson 1983, Ch. 1), so dR_NB/dtheta_c = R [theta_c x]. The identity in the
+// charts' terms, R^T dR = [(A da) x] for every sequence, is checked to 1e-14 against AD of the
+// Euler product in tests/lagrange/test_euler_chart.cpp.
+// Exact, and without differentiating the three rotations of the Euler product.
+template <int K>
+Mat3<Dual<K>> base_attitude(const Eigen::Matrix3d& R, const std::array<Eigen::Vector3d, K>& theta) {
+  Mat3<Dual<K>> D;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col) D(r, col) = Dual<K>(R(r, col));
+  for (int c = 0; c < K; ++c) {
+    if (theta[static_cast<std::size_t>(c)].isZero(0.0)) continue;
+    const Eigen::Matrix3d dR = R * rot::skew(theta[static_cast<std::size_t>(c)]);
+    for (int r = 0; r < 3; ++r)
+      for (int col = 0; col < 3; ++col) D(r, col).d[static_cast<std::size_t>(c)] = dR(r, col);
+  }
+  return D;
+}
 
 template <int K>
 void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* chart, const double* x,
@@ -866,7 +927,17 @@ void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* cha
       k.q[static_cast<std::size_t>(r)].d[static_cast<std::size_t>(c)] = 1.0;
     }
   }
-  pose_pass(m, chart, k);
+  // The base's quasi-displacement e_r of its rotation block turns it by e_r in body axes (dq* =
+  // B e_r, so A dq* = e_r).
+  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
+  std::array<Eigen::Vector3d, K> theta;
+  for (int c = 0; c < K; ++c) {
+    const int a = dirs[c] - b0;
+    theta[static_cast<std::size_t>(c)] = Eigen::Vector3d::Zero();
+    if (a >= 0 && a < 3) theta[static_cast<std::size_t>(c)](a) = 1.0;
+  }
+  const Mat3<Dual<K>> R_base = base_attitude<K>(w.R_NB0, theta);
+  pose_pass(m, chart, k, false, &R_base);
   twist_pass(m, k, x + n, m.all_joints);
   const Dual<K> L = kinetic_energy_of(m, k, x + n) - potential_energy_of(m, chart, k.q.data());
   for (int c = 0; c < K; ++c) w.dL(dirs[c]) = L.d[static_cast<std::size_t>(c)];
@@ -944,6 +1015,93 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
   }
 }
 
+// Mass pass of one rigid body (see the file comment): D = diag(I_BBo_B, m 1) the body's inertia
+// for the twist (w_NB_B, v_NBo_B) (paper Eq. 26), Y_i the seed twists (columns of X, 6 x n, and of
+// their rates Xd), xi = sum Y_i pi'_i:
+//   M_ij += Y_i . D Y_j (j >= i, upper triangle),   p_i += D Y_i . xi,
+//   (dM/dt pi')_i += Ydot_i . D xi + D Y_i . xidot.
+// Only the supporting columns sup are visited. Defined after the Workspace.
+void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
+                     const double* Xd, const double* u, LagrangeEngine::Workspace& w);
+
+// solve: M x = b for symmetric positive definite M (upper triangle read), by Cholesky M = U^T U
+// (Golub & Van Loan 2013, "Matrix Computations", 4th ed., Alg. 4.2.1, in its column (gaxpy) form:
+// every inner product runs down two contiguous columns of U), then U^T y = b and U x = y.
+// b => x in place; U is scratch of M's size and inv_diag of its diagonal's (the reciprocals of
+// U's diagonal: one division per column, the rest multiplications). Returns false when M is not
+// positive definite (a pivot <= 0, or NaN). A plain loop: at this engine's sizes (n up to a few
+// dozen) it is faster than a blocked, dynamically dispatched factorisation.
+bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
+                    Eigen::VectorXd& x) {
+  const Eigen::Index n = M.rows();
+  double* r = inv_diag.data();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    double* uj = &U(0, j);
+    const double* mj = &M(0, j);
+    double d = mj[j];
+    for (Eigen::Index i = 0; i < j; ++i) {
+      const double* ui = &U(0, i);
+      double s = mj[i];
+      for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
+      uj[i] = s * r[i];
+      d -= uj[i] * uj[i];
+    }
+    if (!(d > 0.0)) return false;
+    uj[j] = std::sqrt(d);
+    r[j] = 1.0 / uj[j];
+  }
+  double* v = x.data();
+  for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j of U
+    const double* uj = &U(0, j);
+    double s = v[j];
+    for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
+    v[j] = s * r[j];
+  }
+  for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
+    const double* uj = &U(0, j);
+    const double vj = v[j] * r[j];
+    v[j] = vj;
+    for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
+  }
+  return true;
+}
+
+}  // namespace
+
+namespace {
+
+// Mass pass of one rigid body (declared above): the supporting columns are gathered into Y (6 x s)
+// and their rates into Yd, then DY = D Y, G = Y^T D Y (s x s; its upper triangle goes into M),
+// p_S += DY^T xi, (dM/dt pi')_S += Yd^T D xi + DY^T xidot. Fixed 6-row blocks, so every product
+// is a vectorised 6-term inner product.
+void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
+                     const double* Xd, const double* u, LagrangeEngine::Workspace& w) {
+  using Vec6 = Eigen::Matrix<double, 6, 1>;
+  const auto s = static_cast<Eigen::Index>(sup.size());
+  auto Y = w.Y.leftCols(s);
+  auto Yd = w.Yd.leftCols(s);
+  auto DY = w.DX.leftCols(s);
+  Vec6 xi = Vec6::Zero(), xid = Vec6::Zero();
+  for (Eigen::Index k = 0; k < s; ++k) {
+    const int i = sup[static_cast<std::size_t>(k)];
+    Y.col(k) = Eigen::Map<const Vec6>(X + 6 * i);
+    Yd.col(k) = Eigen::Map<const Vec6>(Xd + 6 * i);
+    xi += Y.col(k) * u[i];
+    xid += Yd.col(k) * u[i];
+  }
+  DY.topRows<3>().noalias() = B.I_BBo_B * Y.topRows<3>();
+  DY.bottomRows<3>() = B.mass * Y.bottomRows<3>();
+  Vec6 Dxi;
+  Dxi << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
+  for (Eigen::Index a = 0; a < s; ++a) {
+    const int i = sup[static_cast<std::size_t>(a)];
+    const auto Dya = DY.col(a);
+    for (Eigen::Index b = a; b < s; ++b) w.M(i, sup[static_cast<std::size_t>(b)]) += Dya.dot(Y.col(b));
+    w.p(i) += Dya.dot(xi);
+    w.Mdot_u(i) += Yd.col(a).dot(Dxi) + Dya.dot(xid);
+  }
+}
+
 }  // namespace
 
 void LagrangeEngine::evaluate(double t, const double* x) {
@@ -967,7 +1125,13 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     qi = Dual<1>(x[i]);
     qi.d[0] = w.qdot(i);
   }
-  pose_pass(m, chart, w.k1);
+  // The base's attitude and its rate along the motion, R_NB [w_NB_B x] (base_attitude).
+  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
+  w.R_NB0 = euler_rotation(kSequences[static_cast<std::size_t>(chart[m.joints[0].euler_set])],
+                           x[b0], x[b0 + 1], x[b0 + 2]);
+  const Mat3<Dual<1>> R_base =
+      base_attitude<1>(w.R_NB0, {Eigen::Vector3d(w.u(b0), w.u(b0 + 1), w.u(b0 + 2))});
+  pose_pass(m, chart, w.k1, true, &R_base);
   // Twists of the unit seeds pi' = e_i: nonzero only in the subtree of the joint of i (the
   // columns of other bodies stay zero from construction).
   w.seed.setZero();
@@ -978,19 +1142,14 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     if (Ji.type == JointType::Free && i - Ji.i0 < 3) {
       // A base translation seed v_NBo_N = e_a moves every body with w = 0 and v_NBo_N = e_a
       // (twist_pass with this seed gives exactly these values: every other term is a product
-      // with a zero twist or a zero rate), so its columns are filled without the pass: (0, e_a),
-      // constant, for a rigid body; (0, R_NB^T e_a) with the Dual<1> rate of R_NB for a flexible
-      // body, whose twist holds v_NBo_B.
+      // with a zero twist or a zero rate), so its columns are filled without the pass:
+      // (0, R_NB^T e_a) in body components, with the Dual<1> rate of R_NB.
       const int a0 = i - Ji.i0;
       for (int j : Ji.subtree) {
         const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(j)].child);
-        w.Xi[b].col(i).setZero();
-        w.Xi_dot[b].col(i).setZero();
-        if (m.bodies[b].flex < 0) {
-          w.Xi[b](3 + a0, i) = 1.0;
-          continue;
-        }
         for (int a = 0; a < 3; ++a) {
+          w.Xi[b](a, i) = 0.0;
+          w.Xi_dot[b](a, i) = 0.0;
           w.Xi[b](3 + a, i) = w.k1.R_NB[b](a0, a).v;
           w.Xi_dot[b](3 + a, i) = w.k1.R_NB[b](a0, a).d[0];
         }
@@ -999,14 +1158,14 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     }
     if (Ji.parent >= 0) {
       w.k1.w_NB_B[static_cast<std::size_t>(Ji.parent)].setZero();
-      w.k1.v_NBo_N[static_cast<std::size_t>(Ji.parent)].setZero();
+      w.k1.v_NBo_B[static_cast<std::size_t>(Ji.parent)].setZero();
     }
     w.seed(i) = 1.0;
     twist_pass(m, w.k1, w.seed.data(), Ji.subtree);
     w.seed(i) = 0.0;
     for (int j : Ji.subtree) {
       const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(j)].child);
-      const Vec3<Dual<1>>& v = m.bodies[b].flex >= 0 ? w.k1.v_NBo_B[b] : w.k1.v_NBo_N[b];
+      const Vec3<Dual<1>>& v = w.k1.v_NBo_B[b];
       for (int a = 0; a < 3; ++a) {
         w.Xi[b](a, i) = w.k1.w_NB_B[b](a).v;
         w.Xi[b](3 + a, i) = v(a).v;
@@ -1031,25 +1190,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     if (B.flex >= 0) {
       flex_mass_pass(m, w, b);
     } else {
-      auto D = [&B](const Eigen::Matrix<double, 6, 1>& xi) {
-        Eigen::Matrix<double, 6, 1> r;
-        r << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
-        return r;
-      };
-      Eigen::Matrix<double, 6, 1> xi = Eigen::Matrix<double, 6, 1>::Zero(), xid = xi;
-      for (int i : sup) {
-        xi += X.col(i) * w.u(i);
-        xid += Xd.col(i) * w.u(i);
-      }
-      const Eigen::Matrix<double, 6, 1> Dxi = D(xi);
-      for (std::size_t ii = 0; ii < sup.size(); ++ii) {
-        const int i = sup[ii];
-        const Eigen::Matrix<double, 6, 1> Dxi_i = D(X.col(i));
-        for (std::size_t jj = ii; jj < sup.size(); ++jj)
-          w.M(i, sup[jj]) += Dxi_i.dot(X.col(sup[jj]));
-        w.p(i) += Dxi_i.dot(xi);
-        w.Mdot_u(i) += Xd.col(i).dot(Dxi) + Dxi_i.dot(xid);
-      }
+      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w);
     }
     // Body torque (on the body frame): virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
     if (!B.torque.empty()) {
@@ -1072,7 +1213,6 @@ void LagrangeEngine::evaluate(double t, const double* x) {
       }
     }
   }
-  w.M.triangularView<Eigen::StrictlyLower>() = w.M.transpose();
 
   // Joint dampers and motors: the torque tau acts on the child-side joint frame and -tau on the
   // parent-side one, so its virtual power is tau . (w_Jc - w_Jp) = tau . w_rel, and w_rel is the
@@ -1102,17 +1242,16 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   w.hamel.setZero();
   for (std::size_t s = 0; s < m.euler_sets.size(); ++s) {
     const int i0 = m.euler_sets[s].i0;
-    const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[s])];
-    const Dual<3> a2 = Dual<3>::variable(x[i0 + 1], 1), a3 = Dual<3>::variable(x[i0 + 2], 2);
-    const Mat3<Dual<3>> A = euler_rate_matrix(seq, a2, a3);
+    const Mat3<Dual<2>>& A = w.A_dual[s];  // charts: A and its derivatives in a2, a3
     const Eigen::Vector3d ad = w.qdot.segment<3>(i0);
+    auto dA = [&A](int l, int kk, int j) {  // dA_lk/da_j
+      return j == 0 ? 0.0 : A(l, kk).d[static_cast<std::size_t>(j - 1)];
+    };
     Eigen::Matrix3d W;
     for (int l = 0; l < 3; ++l)
       for (int kk = 0; kk < 3; ++kk) {
         double v = 0.0;
-        for (int j = 0; j < 3; ++j)
-          v += (A(l, kk).d[static_cast<std::size_t>(j)] - A(l, j).d[static_cast<std::size_t>(kk)]) *
-               ad(j);
+        for (int j = 0; j < 3; ++j) v += (dA(l, kk, j) - dA(l, j, kk)) * ad(j);
         W(l, kk) = v;
       }
     w.hamel.segment<3>(i0) = w.B[s].transpose() * (W.transpose() * w.p.segment<3>(i0));
@@ -1120,11 +1259,9 @@ void LagrangeEngine::evaluate(double t, const double* x) {
 
   // solve: M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p.
   w.f = w.N + w.dL - w.Mdot_u - w.hamel;
-  w.llt.compute(w.M);
-  if (w.llt.info() != Eigen::Success)
-    throw RunFailure("lagrange", t, "", "mass matrix is not positive definite");
   w.udot = w.f;
-  w.llt.solveInPlace(w.udot);
+  if (!cholesky_solve(w.M, w.U, w.inv_diag, w.udot))
+    throw RunFailure("lagrange", t, "", "mass matrix is not positive definite");
 }
 
 void LagrangeEngine::rhs(double t, const double* x, double* xdot) {
@@ -1142,7 +1279,9 @@ void LagrangeEngine::rhs(double t, const double* x, double* xdot) {
 LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
   evaluate(t, x);
   const Workspace& w = *ws_;
-  return Terms{w.M, w.p, w.Mdot_u, w.hamel, w.dL, w.N, w.qdot, w.udot};
+  Eigen::MatrixXd M = w.M;  // evaluate() fills the upper triangle only
+  M.triangularView<Eigen::StrictlyLower>() = M.transpose();
+  return Terms{M, w.p, w.Mdot_u, w.hamel, w.dL, w.N, w.qdot, w.udot};
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -1192,7 +1331,7 @@ bool LagrangeEngine::after_step(double t, double* x) {
 double LagrangeEngine::kinetic_energy(const double* x) {
   Workspace& w = *ws_;
   for (int i = 0; i < model_->n; ++i) w.k0.q[static_cast<std::size_t>(i)] = x[i];
-  pose_pass(*model_, w.chart.data(), w.k0);
+  pose_pass(*model_, w.chart.data(), w.k0, true);
   twist_pass(*model_, w.k0, x + model_->n, model_->all_joints);
   return kinetic_energy_of(*model_, w.k0, x + model_->n);
 }
@@ -1213,7 +1352,8 @@ struct BodyMomenta {
 BodyMomenta body_momenta(const Model& m, Kin<double>& k, const double* u, std::size_t b) {
   const Model::BodyM& B = m.bodies[b];
   if (B.flex < 0)
-    return {B.mass * k.v_NBo_N[b], k.R_NB[b] * (B.I_BBo_B * k.w_NB_B[b]), B.mass * k.p_NoBo_N[b]};
+    return {k.R_NB[b] * (B.mass * k.v_NBo_B[b]), k.R_NB[b] * (B.I_BBo_B * k.w_NB_B[b]),
+            B.mass * k.p_NoBo_N[b]};
   Eigen::Vector3d hw, hv;
   flex_momentum(m.flex[static_cast<std::size_t>(B.flex)], k.fi[b], k.w_NB_B[b], k.v_NBo_B[b],
                 u + B.e0, hw, hv, static_cast<double*>(nullptr));
@@ -1319,17 +1459,14 @@ void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
     const Eigen::Matrix<double, 6, 1> xid = w.Xi[b] * w.udot + w.Xi_dot[b] * w.u;
     a.wdot_NB_B[b] = xid.head<3>();
     const Model::BodyM& B = m.bodies[b];
-    if (B.flex < 0) {
-      a.a_NBo_N[b] = xid.tail<3>();
-      continue;
-    }
-    // Flexible: the twist holds v_NBo_B, so a_NBo_N = R_NB (v_NBo_B' + w x v_NBo_B).
+    // The twist holds v_NBo_B, so a_NBo_N = R_NB (v_NBo_B' + w x v_NBo_B) (Kane & Levinson 1985,
+    // Sec. 2.3, differentiation in two reference frames).
     const Eigen::Matrix<double, 6, 1> xi = w.Xi[b] * w.u;
     Eigen::Matrix3d R;
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) R(r, c) = w.k1.R_NB[b](r, c).v;
     a.a_NBo_N[b] = R * (xid.tail<3>() + xi.head<3>().cross(xi.tail<3>()));
-    a.eta_ddot[b] = w.udot.segment(B.e0, B.nm);
+    if (B.flex >= 0) a.eta_ddot[b] = w.udot.segment(B.e0, B.nm);
   }
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];

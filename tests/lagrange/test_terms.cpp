@@ -158,6 +158,12 @@ TEST_CASE(
       const Eigen::VectorXd lambda =
           Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(t.M).eigenvalues();
       CHECK(lambda.minCoeff() > 0);
+      // The solve (the engine's own Cholesky factorisation): pi'' satisfies
+      // M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p, checked against an independent LDLT.
+      const Eigen::VectorXd f = t.N + t.dL - t.Mdot_u - t.hamel;
+      const Eigen::VectorXd udot_ref = t.M.ldlt().solve(f);
+      CHECK(all_close(t.udot, udot_ref, 1e-10 * (1 + udot_ref.norm()), 0));
+      CHECK(all_close(t.M * t.udot, f, 1e-12 * scale * (1 + t.udot.norm()), 0));
     }
   }
 }
