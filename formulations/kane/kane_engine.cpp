@@ -22,10 +22,13 @@ using Eigen::Vector3d;
 
 std::string where(const System& s) { return s.file.empty() ? "scene '" + s.name + "'" : s.file; }
 
-// Rotation matrix of a rotation by `angle` about the unit vector k (Rodrigues' formula, the
-// "simple rotation" of [KLL] Ch. 1): R = I + sin(a) [k x] + (1 - cos(a)) [k x]^2.
-Matrix3d axis_angle_matrix(const Vector3d& k, double angle) {
-  const double s = std::sin(angle), c = std::cos(angle), v = 1.0 - c;
+// Rotation matrix of a rotation about the unit vector k by the angle whose half has sine sh and
+// cosine ch (Rodrigues' formula, the "simple rotation" of [KLL] Ch. 1):
+// R = I + sin(a) [k x] + (1 - cos(a)) [k x]^2, with sin(a) = 2 sh ch and 1 - cos(a) = 2 sh^2
+// (the half angle is what the attitude quaternion (ch, sh k) of output_row needs; 2 sh^2 also
+// keeps 1 - cos(a) accurate at small angles).
+Matrix3d axis_angle_matrix(const Vector3d& k, double sh, double ch) {
+  const double s = 2.0 * sh * ch, v = 2.0 * sh * sh, c = 1.0 - v;
   Matrix3d R;
   R << c + v * k.x() * k.x(), v * k.x() * k.y() - s * k.z(), v * k.x() * k.z() + s * k.y(),
       v * k.y() * k.x() + s * k.z(), c + v * k.y() * k.y(), v * k.y() * k.z() - s * k.x(),
@@ -33,21 +36,35 @@ Matrix3d axis_angle_matrix(const Vector3d& k, double angle) {
   return R;
 }
 
+// The symmetric inertia matrices below are formed entry by entry on the lower triangle and
+// mirrored (J_ji = J_ij): half the products of the full matrix expressions, no temporaries.
+
 // Inertia about a point O of a mass m whose centre is at d from O, plus its central inertia:
 // J = I + m (|d|^2 1 - d d^T)  (the parallel-axis or transfer theorem for inertia dyadics).
-Matrix3d shifted_inertia(const Matrix3d& I, double m, const Vector3d& d) {
-  Matrix3d J = I - m * d * d.transpose();
-  J.diagonal().array() += m * d.squaredNorm();
-  return J;
+// Adds J to acc.
+void add_shifted_inertia(Matrix3d& acc, const Matrix3d& I, double m, const Vector3d& d) {
+  const double md2 = m * d.squaredNorm();
+  for (int j = 0; j < 3; ++j)
+    for (int i = j; i < 3; ++i) {
+      const double v = I(i, j) - m * d(i) * d(j) + (i == j ? md2 : 0.0);
+      acc(i, j) += v;
+      if (i != j) acc(j, i) += v;
+    }
 }
 
 // The first moment s about O of a mass m moved to the point O' = O - e:  s' = s + m e, and its
 // inertia J_O' = J_O + (2 s.e + m |e|^2) 1 - s e^T - e s^T - m e e^T (the transfer theorem for
-// a mass distribution whose centre is not at O; [KLL] Sec. 3.4).
-Matrix3d moved_inertia(const Matrix3d& J, double m, const Vector3d& s, const Vector3d& e) {
-  Matrix3d Jm = J - s * e.transpose() - e * s.transpose() - m * e * e.transpose();
-  Jm.diagonal().array() += 2.0 * s.dot(e) + m * e.squaredNorm();
-  return Jm;
+// a mass distribution whose centre is not at O; [KLL] Sec. 3.4).  Adds J_O' to acc.
+void add_moved_inertia(Matrix3d& acc, const Matrix3d& J, double m, const Vector3d& s,
+                       const Vector3d& e) {
+  const double c = 2.0 * s.dot(e) + m * e.squaredNorm();
+  for (int j = 0; j < 3; ++j)
+    for (int i = j; i < 3; ++i) {
+      const double v =
+          J(i, j) - s(i) * e(j) - e(i) * s(j) - m * e(i) * e(j) + (i == j ? c : 0.0);
+      acc(i, j) += v;
+      if (i != j) acc(j, i) += v;
+    }
 }
 
 // sum_l A.col(l) c[l] for a 3 x n matrix and n coefficients (explicit loop: no temporaries).
@@ -410,6 +427,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     w.p_B0oBo_N.setZero();
     w.p_B0oOk_N.setZero();
     w.w_NB_N.setZero();
+    w.w_NB_B.setZero();
     w.v_NBo_N.setZero();
     w.w_PC_N.setZero();
     w.w_NJp_N.setZero();
@@ -522,7 +540,7 @@ Quaterniond KaneEngine::read_quat(const double* x, int i) const {
 //   Child side (w_C = w_Jc + Wm eta_C', v_Co = v_Ok + w_C x (p_Co - p_Ok) + Vm eta_C'):
 //     Wm = -R_NC Jl(psi_Cj) Psi_Cj,  Vm = -R_NC Phi_Cj   (kane_engine.hpp, partial velocities).
 
-void KaneEngine::position_pass(const double* x) {
+void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
@@ -561,7 +579,13 @@ void KaneEngine::position_pass(const double* x) {
       Matrix3d& R_NJc = n.child_attach ? R_NJc_node : w.R_NB;
       switch (n.type) {
         case JointType::Revolute:
-          R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, x[n.q0]);
+        {
+          const double half = 0.5 * x[n.q0];
+          const double sh = std::sin(half), ch = std::cos(half);  // one sincos
+          w.sin_half = sh;
+          w.cos_half = ch;
+          R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, sh, ch);
+        }
           w.W_N.col(0).noalias() = *R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
           break;
         case JointType::Spherical:
@@ -589,7 +613,7 @@ void KaneEngine::position_pass(const double* x) {
     }
     if (n.flex >= 0)
       flex_position(n, w, x + n.q0 + n.nqj);
-    else
+    else if (rigid_inertia)
       w.I_BBo_N.noalias() = w.R_NB * n.I_BBo_B * w.R_NB.transpose();
   }
 }
@@ -782,8 +806,8 @@ void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
 //     R_B = -(m a_t + alpha_t x c + w x (w x c) + 2 w x cdot),
 //     T_B = T_ext - c x a_t - I alpha_t - w x I w - 2 R (w_B tr L - L^T w_B)   (about Bo);
 //   F_sub = sum R_B,  M_sub = sum T_B + (p_Bo - p_Ok) x R_B.
-// A child's sums move to its parent's point Op with e = p_Ok - p_Op (moved_inertia); M' = M + e x
-// F.
+// A child's sums move to its parent's point Op with e = p_Ok - p_Op (add_moved_inertia);
+// M' = M + e x F.
 
 void KaneEngine::subtree_pass(double t) {
   for (NodeWork& w : work_) {
@@ -804,7 +828,7 @@ void KaneEngine::subtree_pass(double t) {
     Vector3d R_B, T_B;
     if (n.flex < 0) {
       w.s_sub_N += n.mass * d;
-      w.J_sub_N += shifted_inertia(w.I_BBo_N, n.mass, d);
+      add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d);
       R_B = -n.mass * w.a_t_N;
       T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
     } else {
@@ -812,7 +836,7 @@ void KaneEngine::subtree_pass(double t) {
       const Vector3d& c = fw.c_N;
       const Vector3d& wN = w.w_NB_N;
       w.s_sub_N += n.mass * d + c;
-      w.J_sub_N += moved_inertia(w.I_BBo_N, n.mass, c, d);
+      add_moved_inertia(w.J_sub_N, w.I_BBo_N, n.mass, c, d);
       R_B = -(n.mass * w.a_t_N + w.alpha_t_N.cross(c) + wN.cross(wN.cross(c)) +
               2.0 * wN.cross(fw.cdot_N));
       const Vector3d w_B = w.R_NB.transpose() * wN;
@@ -836,7 +860,7 @@ void KaneEngine::subtree_pass(double t) {
     const Vector3d e = w.p_B0oOk_N - P.p_B0oOk_N;
     P.m_sub += w.m_sub;
     P.s_sub_N += w.s_sub_N + w.m_sub * e;
-    P.J_sub_N += moved_inertia(w.J_sub_N, w.m_sub, w.s_sub_N, e);
+    add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e);
     P.F_sub_N += w.F_sub_N;
     P.M_sub_N += w.M_sub_N + e.cross(w.F_sub_N);
   }
@@ -1054,31 +1078,161 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
 // ([Feath] Sec. 6.5, Table 6.3 "LTDL"; the square-root-free form of the Cholesky factorisation).
 // Then u' = L^-1 D^-1 L^-T f (Table 6.4).  M is positive definite exactly when every pivot D_kk
 // is positive.  In place: M_ holds L below its diagonal and D on it afterwards.
+//
+// The base's speeds 0 ... nb-1 (nb = the base node's speed count) are ancestors of every other
+// speed and form a dense block; the chain of any other speed ends with nb-1, nb-2, ..., 0.  So
+// each chain is walked through lambda down to nb and then over the base block as plain loops:
+// the same operations as walking lambda throughout.  For a rigid base (nb = 6) the base-block
+// kernels have constant sizes (B = 6) and unroll; B = 0 takes nb at run time (a flexible base).
+// Both give the same u' (tests/kane).
+namespace {
 
-bool KaneEngine::solve() {
-  double* H = M_.data();
-  const Eigen::Index ld = M_.outerStride();
-  auto h = [H, ld](int i, int j) -> double& { return H[i * ld + j]; };  // row major (row i, col j)
-  const int* lambda = lambda_.data();
-  for (int k = n_u_ - 1; k >= 0; --k) {
-    cancel::poll();
-    const double d = h(k, k);
-    if (!(d > 0)) return false;
-    const double inv_d = 1.0 / d;
-    for (int i = lambda[k]; i >= 0; i = lambda[i]) {
-      const double a = h(k, i) * inv_d;
-      for (int j = i; j >= 0; j = lambda[j]) h(i, j) -= a * h(k, j);
-      h(k, i) = a;
+// The base-block kernels: N = their size at compile time (unrolled), or N = 0 and n at run time.
+// H_ij -= a_i c_j for 0 <= j <= i < n (a rank-1 update of a lower triangle; a, c not in H).
+template <int N>
+void lower_rank1(double* H, Eigen::Index ld, const double* a, const double* c, int n) {
+  if constexpr (N > 0) {
+    lower_rank1<N - 1>(H, ld, a, c, N - 1);
+    double* Hi = H + (N - 1) * ld;
+    for (int j = 0; j < N; ++j) Hi[j] -= a[N - 1] * c[j];
+  } else {
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j <= i; ++j) H[i * ld + j] -= a[i] * c[j];
+  }
+}
+
+// Eliminates row k against the base block's columns 0..n-1 (all of them ancestors of k):
+// a_i = H_ki / H_kk, H_ij -= a_i H_kj (j <= i < n), H_ki = a_i.
+template <int N>
+void eliminate_base(double* H, Eigen::Index ld, int k, double inv_d, int n) {
+  constexpr int kMax = N > 0 ? N : 1;
+  double c_fixed[kMax], a_fixed[kMax];
+  double* Hk = H + k * ld;
+  if constexpr (N > 0) {
+    for (int j = 0; j < N; ++j) {
+      c_fixed[j] = Hk[j];
+      a_fixed[j] = c_fixed[j] * inv_d;
+    }
+    lower_rank1<N>(H, ld, a_fixed, c_fixed, N);
+    for (int j = 0; j < N; ++j) Hk[j] = a_fixed[j];
+  } else {
+    for (int i = n - 1; i >= 0; --i) {
+      const double a = Hk[i] * inv_d;
+      double* Hi = H + i * ld;
+      for (int j = i; j >= 0; --j) Hi[j] -= a * Hk[j];
+      Hk[i] = a;
     }
   }
-  double* x = udot_.data();
-  for (int i = 0; i < n_u_; ++i) x[i] = f_(i);
-  for (int i = n_u_ - 1; i >= 0; --i)  // L^T z = f
-    for (int j = lambda[i]; j >= 0; j = lambda[j]) x[j] -= h(i, j) * x[i];
-  for (int i = 0; i < n_u_; ++i) x[i] /= h(i, i);  // y = D^-1 z
-  for (int i = 0; i < n_u_; ++i)                   // L u' = y
-    for (int j = lambda[i]; j >= 0; j = lambda[j]) x[i] -= h(i, j) * x[j];
+}
+
+// The base block's own factorisation, rows K-1 ... 0 (K = N, or n at run time).
+template <int K>
+bool factor_base(double* H, Eigen::Index ld, int n) {
+  if constexpr (K > 0) {
+    const double d = H[(K - 1) * ld + (K - 1)];
+    if (!(d > 0)) return false;
+    eliminate_base<K - 1>(H, ld, K - 1, 1.0 / d, K - 1);
+    return factor_base<K - 1>(H, ld, K - 1);
+  } else {
+    for (int k = n - 1; k >= 0; --k) {
+      const double d = H[k * ld + k];
+      if (!(d > 0)) return false;
+      eliminate_base<0>(H, ld, k, 1.0 / d, k);
+    }
+    return true;
+  }
+}
+
+// x_j -= H_ij x_i for j < i, i = K-1 ... 0 (L^T z = f on the base block).
+template <int K>
+void base_transpose_solve(const double* H, Eigen::Index ld, double* x, int n) {
+  if constexpr (K > 0) {
+    const double* Hi = H + (K - 1) * ld;
+    for (int j = 0; j < K - 1; ++j) x[j] -= Hi[j] * x[K - 1];
+    base_transpose_solve<K - 1>(H, ld, x, K - 1);
+  } else {
+    for (int i = n - 1; i >= 0; --i)
+      for (int j = i - 1; j >= 0; --j) x[j] -= H[i * ld + j] * x[i];
+  }
+}
+
+// x_i -= sum_{j < i} H_ij x_j, i = 0 ... K-1 (L u' = y on the base block).
+template <int K>
+void base_solve(const double* H, Eigen::Index ld, double* x, int n) {
+  if constexpr (K > 0) {
+    base_solve<K - 1>(H, ld, x, K - 1);
+    const double* Hi = H + (K - 1) * ld;
+    double xi = x[K - 1];
+    for (int j = K - 2; j >= 0; --j) xi -= Hi[j] * x[j];
+    x[K - 1] = xi;
+  } else {
+    for (int i = 0; i < n; ++i)
+      for (int j = i - 1; j >= 0; --j) x[i] -= H[i * ld + j] * x[j];
+  }
+}
+
+template <int B>
+bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb_run_time,
+                const double* f, double* x) {
+  const int nb = B > 0 ? B : nb_run_time;
+  // Speeds above the base block, last first.
+  for (int k = n - 1; k >= nb; --k) {
+    cancel::poll();
+    double* Hk = H + k * ld;
+    const double d = Hk[k];
+    if (!(d > 0)) return false;
+    const double inv_d = 1.0 / d;
+    for (int i = lambda[k]; i >= nb; i = lambda[i]) {
+      const double a = Hk[i] * inv_d;
+      double* Hi = H + i * ld;
+      for (int j = i; j >= nb; j = lambda[j]) Hi[j] -= a * Hk[j];
+      for (int j = nb - 1; j >= 0; --j) Hi[j] -= a * Hk[j];
+      Hk[i] = a;
+    }
+    eliminate_base<B>(H, ld, k, inv_d, nb);
+  }
+  if (!factor_base<B>(H, ld, nb)) return false;
+  for (int i = 0; i < n; ++i) x[i] = f[i];
+  for (int i = n - 1; i >= nb; --i) {  // L^T z = f
+    const double* Hi = H + i * ld;
+    const double xi = x[i];
+    for (int j = lambda[i]; j >= nb; j = lambda[j]) x[j] -= Hi[j] * xi;
+    for (int j = nb - 1; j >= 0; --j) x[j] -= Hi[j] * xi;
+  }
+  base_transpose_solve<B>(H, ld, x, nb);
+  for (int i = 0; i < n; ++i) x[i] /= H[i * ld + i];  // y = D^-1 z
+  base_solve<B>(H, ld, x, nb);                         // L u' = y
+  for (int i = nb; i < n; ++i) {
+    const double* Hi = H + i * ld;
+    double xi = x[i];
+    for (int j = lambda[i]; j >= nb; j = lambda[j]) xi -= Hi[j] * x[j];
+    for (int j = nb - 1; j >= 0; --j) xi -= Hi[j] * x[j];
+    x[i] = xi;
+  }
   return true;
+}
+
+}  // namespace
+
+bool KaneEngine::solve(bool fixed_base_block) {
+  const int nb = nodes_[0].nu;
+  if (fixed_base_block && nb == 6)
+    return ltdl_solve<6>(M_.data(), M_.outerStride(), lambda_.data(), n_u_, nb, f_.data(),
+                         udot_.data());
+  return ltdl_solve<0>(M_.data(), M_.outerStride(), lambda_.data(), n_u_, nb, f_.data(),
+                       udot_.data());
+}
+
+Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed_base_block) {
+  position_pass(x);
+  velocity_pass(x + n_q_);
+  remainder_pass();
+  subtree_pass(t);
+  mass_matrix_pass();
+  generalized_force_pass(t, x);
+  if (!solve(fixed_base_block))
+    throw RunFailure("kane", t, "mass matrix", "not positive definite (a pivot of L^T D L <= 0)");
+  return udot_;
 }
 
 void KaneEngine::dynamics(double t, const double* x) {
@@ -1212,7 +1366,7 @@ void KaneEngine::pack(const TreeState& s, double* x) {
     for (int i = 0; i < 3; ++i) u[nodes_[0].u0 + 3 + i] = 0.0;
     position_pass(x);
     velocity_pass(u);
-    const Vector3d v = -sum_linear_momentum() / total_mass_;
+    const Vector3d v = -sum_momenta(u).P / total_mass_;
     for (int i = 0; i < 3; ++i) u[nodes_[0].u0 + 3 + i] = v(i);
   }
 }
@@ -1249,62 +1403,52 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // ------------------------------------------------------------------------------------------------
 // Energies and momenta (after position_pass and velocity_pass).
 
+// One pass over the bodies (docs/flexible-bodies.md "Energy" for the flexible terms):
 // T = sum over rigid bodies 1/2 m v.v + 1/2 w.I w, and over flexible bodies, from the nodes'
-// velocities v_i = v_Bo + w x R r_i + R Phi_i eta' (docs/flexible-bodies.md "Energy") summed with
-// the modal integrals:  1/2 m v.v + v.(w x c + cdot) + 1/2 w.I w + w.hdef + 1/2 eta'^T Mm eta'.
-double KaneEngine::sum_kinetic_energy(const double* u) const {
-  double T = 0;
+// velocities v_i = v_Bo + w x R r_i + R Phi_i eta' summed with the modal integrals:
+//   1/2 m v.v + v.(w x c + cdot) + 1/2 w.I w + w.hdef + 1/2 eta'^T Mm eta';
+// P = sum P_B, with P_B = m v_Bo for a rigid body and sum m_i v_i = m v_Bo + w x c + cdot for a
+// flexible one;
+// H about the system CM c_sys: sum over bodies of h_Bo + (p_Bo - c_sys) x P_B (sum m_i (x_i -
+// c_sys) = 0 over the system) = sum (h_Bo + p_Bo x P_B) - c_sys x P, with h_Bo = I w for a rigid
+// body and, for a flexible one, sum m_i (x_i - p_Bo) x v_i + sum J_i w = c x v_Bo + I w + hdef.
+// A rigid body's I w is taken in body components, h_Bo = R_NB (I_BBo_B w_NB_B) (output_row's
+// position pass skips I_BBo_N); w_NB_B is kept in NodeWork for output_row.
+KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
+  Momenta m;
+  m.T = 0;
+  m.P.setZero();
+  m.H.setZero();
+  Vector3d first_moment = Vector3d::Zero();
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
-    const NodeWork& w = work_[k];
-    T += 0.5 * n.mass * w.v_NBo_N.squaredNorm() + 0.5 * w.w_NB_N.dot(w.I_BBo_N * w.w_NB_N);
-    if (n.flex < 0) continue;
-    const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
-    const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
-    const Eigen::Map<const Eigen::VectorXd> eta_rate(u + n.u0 + n.nuj, n.nm);
-    T += w.v_NBo_N.dot(w.w_NB_N.cross(fw.c_N) + fw.cdot_N) + w.w_NB_N.dot(fw.hdef_N) +
-         0.5 * eta_rate.dot(F.Mm * eta_rate);
-  }
-  return T;
-}
-
-// Flexible body: sum m_i v_i = m v_Bo + w x c + cdot.
-Vector3d KaneEngine::sum_linear_momentum() const {
-  Vector3d P = Vector3d::Zero();
-  for (std::size_t k = 0; k < nodes_.size(); ++k) {
-    const NodeWork& w = work_[k];
-    P += nodes_[k].mass * w.v_NBo_N;
-    if (nodes_[k].flex >= 0) {
-      const FlexWork& fw = flex_work_[static_cast<std::size_t>(nodes_[k].flex)];
-      P += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
+    NodeWork& w = work_[k];
+    w.w_NB_B.noalias() = w.R_NB.transpose() * w.w_NB_N;
+    Vector3d P_B = n.mass * w.v_NBo_N;
+    Vector3d h_Bo;
+    double T = 0.5 * n.mass * w.v_NBo_N.squaredNorm();
+    first_moment += n.mass * w.p_B0oBo_N;
+    if (n.flex < 0) {
+      const Vector3d h_B = n.I_BBo_B * w.w_NB_B;
+      T += 0.5 * w.w_NB_B.dot(h_B);
+      h_Bo.noalias() = w.R_NB * h_B;
+    } else {
+      const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
+      const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
+      const Eigen::Map<const Eigen::VectorXd> eta_rate(u + n.u0 + n.nuj, n.nm);
+      const Vector3d Iw = w.I_BBo_N * w.w_NB_N;
+      T += 0.5 * w.w_NB_N.dot(Iw) + w.v_NBo_N.dot(w.w_NB_N.cross(fw.c_N) + fw.cdot_N) +
+           w.w_NB_N.dot(fw.hdef_N) + 0.5 * eta_rate.dot(F.Mm * eta_rate);
+      h_Bo = fw.c_N.cross(w.v_NBo_N) + Iw + fw.hdef_N;
+      P_B += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
+      first_moment += fw.c_N;
     }
+    m.T += T;
+    m.P += P_B;
+    m.H += h_Bo + w.p_B0oBo_N.cross(P_B);
   }
-  return P;
-}
-
-// H about the system CM c: sum over bodies of h_Bo + (p_Bo - c) x P_B (sum m_i (x_i - c) =
-// 0 over the system), with h_Bo = I w for a rigid body and, for a flexible one,
-// sum m_i (x_i - p_Bo) x v_i + sum J_i w = c x v_Bo + I w + hdef (docs "Energy").
-Vector3d KaneEngine::sum_angular_momentum() const {
-  Vector3d c = Vector3d::Zero();
-  for (std::size_t k = 0; k < nodes_.size(); ++k) {
-    c += nodes_[k].mass * work_[k].p_B0oBo_N;
-    if (nodes_[k].flex >= 0) c += flex_work_[static_cast<std::size_t>(nodes_[k].flex)].c_N;
-  }
-  c /= total_mass_;
-  Vector3d H = Vector3d::Zero();
-  for (std::size_t k = 0; k < nodes_.size(); ++k) {
-    const NodeWork& w = work_[k];
-    Vector3d P = nodes_[k].mass * w.v_NBo_N;
-    H += w.I_BBo_N * w.w_NB_N;
-    if (nodes_[k].flex >= 0) {
-      const FlexWork& fw = flex_work_[static_cast<std::size_t>(nodes_[k].flex)];
-      H += fw.c_N.cross(w.v_NBo_N) + fw.hdef_N;
-      P += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
-    }
-    H += (w.p_B0oBo_N - c).cross(P);
-  }
-  return H;
+  m.H -= (first_moment / total_mass_).cross(m.P);
+  return m;
 }
 
 double KaneEngine::potential_energy(const double* x) const {
@@ -1331,19 +1475,19 @@ double KaneEngine::potential_energy(const double* x) const {
 double KaneEngine::kinetic_energy(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
-  return sum_kinetic_energy(x + n_q_);
+  return sum_momenta(x + n_q_).T;
 }
 
 Vector3d KaneEngine::linear_momentum_N(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
-  return sum_linear_momentum();
+  return sum_momenta(x + n_q_).P;
 }
 
 Vector3d KaneEngine::angular_momentum_N(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
-  return sum_angular_momentum();
+  return sum_momenta(x + n_q_).H;
 }
 
 std::vector<BodyMotion> KaneEngine::body_motion(const double* x) {
@@ -1459,7 +1603,7 @@ Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
 // (t, x) => one output row (columns() order).
 
 void KaneEngine::output_row(double t, const double* x, double* row) {
-  position_pass(x);
+  position_pass(x, /*rigid_inertia=*/false);  // the sums below use I_BBo_B for rigid bodies
   velocity_pass(x + n_q_);
   const double* u = x + n_q_;
 
@@ -1476,7 +1620,11 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       continue;
     }
     Quaterniond q_J = Quaterniond::Identity();
-    if (n.type == JointType::Revolute) q_J = Quaterniond(Eigen::AngleAxisd(x[n.q0], n.axis_J));
+    if (n.type == JointType::Revolute) {  // (cos a/2, sin a/2 k), half angle from position_pass
+      const NodeWork& w = work_[k];
+      q_J = Quaterniond(w.cos_half, w.sin_half * n.axis_J.x(), w.sin_half * n.axis_J.y(),
+                        w.sin_half * n.axis_J.z());
+    }
     if (n.type == JointType::Spherical) {
       const Quaterniond q(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]);
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
@@ -1484,16 +1632,20 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     }
     Quaterniond q_NJp = q_N[static_cast<std::size_t>(n.parent)];
     if (n.parent_attach) q_NJp = q_NJp * rot::from_rotation_vector(work_[k].rot_P.psi);
-    Quaterniond q = q_NJp * n.q_PJ0 * q_J;
+    Quaterniond q = n.has_offset ? q_NJp * n.q_PJ0 * q_J : q_NJp * q_J;
     if (n.child_attach) q = q * rot::from_rotation_vector(work_[k].rot_C.psi).conjugate();
     q_N[k] = q.normalized();
   }
 
+  const Momenta m = sum_momenta(u);  // also w_NB_B of every body
+  const Vector3d& H = m.H;
+  const Vector3d& P = m.P;
+  const double T = m.T, V = potential_energy(x);
   RowWriter out(layout_, row);
   out.time(t);
   for (std::size_t b = 0; b < system_.bodies.size(); ++b) {
     const std::size_t k = static_cast<std::size_t>(system_.joint_of_body(static_cast<int>(b)));
-    out.body(static_cast<int>(b), work_[k].R_NB.transpose() * work_[k].w_NB_N, q_N[k]);
+    out.body(static_cast<int>(b), work_[k].w_NB_B, q_N[k]);
   }
   for (const Node& n : nodes_) {
     if (n.type == JointType::Revolute) out.revolute(n.joint, x[n.q0], u[n.u0]);
@@ -1503,9 +1655,6 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       out.modal(n.body, Eigen::Map<const Eigen::VectorXd>(x + n.q0 + n.nqj, n.nm),
                 Eigen::Map<const Eigen::VectorXd>(u + n.u0 + n.nuj, n.nm));
   }
-  const Vector3d H = sum_angular_momentum();
-  const double T = sum_kinetic_energy(u), V = potential_energy(x);
-  const Vector3d P = sum_linear_momentum();
   out.momentum(H.norm());
   out.energy(T + V);
   int c = extra0_;

@@ -209,9 +209,11 @@ struct NodeWork {
   Eigen::Matrix3d R_NB;       // attitude of the node's body
   Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
   Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
+  double sin_half = 0, cos_half = 1;  // revolute: sine and cosine of half the joint angle
   Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
   Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
   Eigen::Vector3d w_NB_N, v_NBo_N;
+  Eigen::Vector3d w_NB_B;            // w_NB_N in body components (sum_momenta only)
   Eigen::Vector3d w_PC_N;            // relative angular velocity of the joint (Jc in Jp)
   Eigen::Vector3d w_NJp_N;           // angular velocity of Jp
   Eigen::Vector3d alpha_t_N, a_t_N;  // remainder accelerations (all u' = 0)
@@ -323,6 +325,10 @@ class KaneEngine final : public Engine {
   std::vector<MassPoint> mass_points(const double* x);     // every node and rigid CM, in N
   std::vector<JointFrames> joint_frames(const double* x);  // per joint (System order)
   const std::vector<FlexModel>& flex_models() const { return flex_; }
+  // u' by the composite solver (formed M and f, sparse L^T D L), with the base block's loops of
+  // constant size 6 (fixed_base_block, a rigid base: the path of every run) or of its size read
+  // at run time: tests check that the two agree.
+  Eigen::VectorXd composite_udot(double t, const double* x, bool fixed_base_block);
   KaneSolver solver() const { return solver_; }  // the path in use (never Automatic)
   int max_speed_depth() const { return max_speed_depth_; }  // speeds on the deepest path
 
@@ -330,7 +336,9 @@ class KaneEngine final : public Engine {
   // Named passes; "=>" reads inputs => writes outputs (all into work_ / M_ / f_).
   // q => R_NB, I_BBo_N, W_N, p_B0oBo_N, p_B0oOk_N; attachment twists Wp, Vp, Wm, Vm;
   //   flexible bodies' integrals at eta (flex_position)
-  void position_pass(const double* x);
+  // rigid_inertia false (output_row): I_BBo_N of rigid bodies is not formed (the energy and
+  // momentum sums use I_BBo_B); everything else reads it.
+  void position_pass(const double* x, bool rigid_inertia = true);
   // (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N, w_att, v_att, w_m, v_m, Jl-rate terms;
   //   flexible bodies' rate terms (flex_velocity)
   void velocity_pass(const double* u);
@@ -338,7 +346,9 @@ class KaneEngine final : public Engine {
   void subtree_pass(double t);                             // => m_sub, s_sub, J_sub, F_sub, M_sub
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
-  bool solve();                                // (M_, f_) => udot_ (false: M not positive definite)
+  // (M_, f_) => udot_ (false: M not positive definite).  fixed_base_block: a rigid base's 6 x 6
+  // block with constant loop bounds (every real run); false: its size read at run time (tests).
+  bool solve(bool fixed_base_block = true);
   // Order-N solver (kane_order_n.cpp), after the remainder pass:
   //   q, u, alpha_t, a_t, loads => per node I^A, Z, U, D^-1, g      (backward, leaves first)
   void articulated_pass(double t, const double* x);
@@ -358,9 +368,13 @@ class KaneEngine final : public Engine {
   double hinge_torque_revolute(const Node& n, double t, const double* x) const;
   Eigen::Vector3d hinge_torque_spherical(const Node& n, double t, const double* x) const;
   Eigen::Quaterniond read_quat(const double* x, int i) const;
-  double sum_kinetic_energy(const double* u) const;  // after position and velocity passes
-  Eigen::Vector3d sum_linear_momentum() const;
-  Eigen::Vector3d sum_angular_momentum() const;
+  // Kinetic energy, linear momentum and angular momentum about the system CM, after the position
+  // (with or without rigid_inertia) and velocity passes; writes every NodeWork::w_NB_B.
+  struct Momenta {
+    double T;
+    Eigen::Vector3d P, H;
+  };
+  Momenta sum_momenta(const double* u);
 
   const System system_;  // the engine's own copy (loads are read from it)
   std::vector<Node> nodes_;
