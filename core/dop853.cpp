@@ -212,18 +212,13 @@ std::pair<double, double> Dop853::step(Rhs f) {
     if (!(denominator > 0)) denominator = 1;
     const double err = std::abs(h) * e5 / std::sqrt(static_cast<double>(n) * denominator);
 
-    if (!std::isfinite(err)) {
-      // A finite derivative can still give an overflowing estimate: a rejection, like err > 1.
-      dt_ = h * kShrink;
-      last_rejected_ = true;
-      if (on_reject_) on_reject_(t_, dt_);
-      continue;
-    }
-    // h_new = h * safety * err^-(1/8 - 0.2 beta) * err_old^beta (err_old: the last accepted step's)
+    // h_new = h * safety * err^-(1/8 - 0.2 beta) * err_old^beta (err_old: the last accepted step's).
+    // A non-finite estimate (finite derivatives can still overflow it) gives kShrink, like a large
+    // one: std::max(kShrink, NaN) is kShrink.
     const double factor =
         std::min(kGrow, std::max(kShrink, kSafety * std::pow(err, -(1.0 / 8.0 - 0.2 * kBeta)) *
                                                std::pow(facold_, kBeta)));
-    if (err > 1.0) {
+    if (!(err <= 1.0)) {  // rejected (err > 1 or not finite): retried shorter
       dt_ = h * std::min(1.0, factor);
       last_rejected_ = true;
       if (on_reject_) on_reject_(t_, dt_);
