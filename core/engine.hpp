@@ -23,7 +23,9 @@ namespace crossdyn {
 // Engine-neutral generalised state of a tree of rigid and flexible bodies.
 // joints[j] describes System::joints[j]; only the fields of that joint's type are used.
 struct TreeState {
-  // Base (the free joint, joints[0]).
+  // Base (the free joint, joints[0]). When the base is a prescribed revolute joint to N
+  // (System::base_is_free() false), these follow from its prescribed angle: initial() sets them
+  // at t = 0 and pack() ignores them.
   Eigen::Vector3d p_NoBo_N = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_NB = Eigen::Quaterniond::Identity();
   Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();
@@ -49,7 +51,8 @@ struct TreeState {
 struct TreeAccel {
   std::vector<Eigen::Vector3d> wdot_NB_B;  // per body: d/dt of w_NB_B components (rad/s^2)
   std::vector<Eigen::Vector3d> a_NBo_N;    // per body: CM acceleration in N (m/s^2)
-  std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (else 0)
+  std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (else 0;
+                                           // a prescribed joint's theta''(t))
   std::vector<Eigen::Vector3d> wdot_PC_C;  // per joint: spherical d/dt of w_PC_C components
   std::vector<Eigen::VectorXd> eta_ddot;   // per body: modal accelerations (size 0: rigid)
 };

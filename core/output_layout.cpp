@@ -29,6 +29,7 @@ OutputLayout::OutputLayout(const System& s)
       joint_[j] = static_cast<int>(columns_.size());
       push({J.name + ".angle", ColumnKind::RevoluteAngle, J.child, ji, 0, "rad"});
       push({J.name + ".rate", ColumnKind::RevoluteRate, J.child, ji, 0, "rad/s"});
+      if (J.prescribed) push({J.name + ".torque", ColumnKind::JointTorque, J.child, ji, 0, "N m"});
     } else if (J.type == JointType::Spherical) {
       joint_[j] = static_cast<int>(columns_.size());
       for (int i = 0; i < 3; ++i)
@@ -75,6 +76,10 @@ void RowWriter::revolute(int joint, double angle, double rate) {
   double* r = row_ + layout_.joint_first(joint);
   r[0] = angle;
   r[1] = rate;
+}
+
+void RowWriter::joint_torque(int joint, double torque) {
+  row_[layout_.joint_first(joint) + 2] = torque;
 }
 
 void RowWriter::spherical(int joint, const Eigen::Vector3d& w_PC_C) {

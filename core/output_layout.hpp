@@ -6,6 +6,8 @@
 //   per body (System order)       <body>.wx .wy .wz   w_NB_B, rad/s
 //                                 <body>.qw .qx .qy .qz  q_NB, scalar first, qw >= 0 (canonical)
 //   per joint (System order)      revolute:  <joint>.angle (rad) <joint>.rate (rad/s)
+//                                   prescribed revolute: then <joint>.torque (N m), the torque
+//                                   about the axis the joint applies to its child
 //                                 spherical: <joint>.wx .wy .wz  w_PC_C, rad/s
 //   per flexible body             <body>.<mode> for every mode, then <body>.<mode>_rate
 //   H                             |angular momentum about the system CM|, kg m^2/s
@@ -32,6 +34,7 @@ enum class ColumnKind {
   BodyQ,           // <body>.qw/qx/qy/qz    component 0..3
   RevoluteAngle,   // <joint>.angle
   RevoluteRate,    // <joint>.rate
+  JointTorque,     // <joint>.torque       (prescribed revolute joints)
   SphericalW,      // <joint>.wx/wy/wz      component 0..2
   Modal,           // <body>.<mode>         component = mode index
   ModalRate,       // <body>.<mode>_rate    component = mode index
@@ -91,6 +94,8 @@ class RowWriter {
   // same attitude, and one sign makes engines' columns directly comparable).
   void body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterniond& q_NB);
   void revolute(int joint, double angle, double rate);
+  // A prescribed revolute joint's torque about its axis on the child (N m).
+  void joint_torque(int joint, double torque);
   void spherical(int joint, const Eigen::Vector3d& w_PC_C);
   // A flexible body's modal coordinates and their rates (sizes: the body's mode count).
   void modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,

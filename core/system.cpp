@@ -3,8 +3,30 @@
 #include "core/engine.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
 
 namespace crossdyn {
+
+// Kane, Ryan and Banerjee 1987, Eq. (61) (see system.hpp).
+double PrescribedMotion::angle(double t) const {
+  const double T = ramp_time;
+  if (t > T) return rate * (t - T / 2);
+  const double c = T / (2 * std::numbers::pi);
+  return (rate / T) * (t * t / 2 + c * c * (std::cos(t / c) - 1));
+}
+double PrescribedMotion::velocity(double t) const {
+  const double T = ramp_time;
+  if (t > T) return rate;
+  const double c = T / (2 * std::numbers::pi);
+  return (rate / T) * (t - c * std::sin(t / c));
+}
+double PrescribedMotion::accel(double t) const {
+  const double T = ramp_time;
+  if (t > T) return 0;
+  const double c = T / (2 * std::numbers::pi);
+  return (rate / T) * (1 - std::cos(t / c));
+}
 
 std::vector<double> System::breakpoints() const {
   std::vector<double> t;
@@ -13,6 +35,7 @@ std::vector<double> System::breakpoints() const {
   for (const Joint& j : joints) {
     add(j.motor_revolute.times);
     add(j.motor_spherical.times);
+    if (j.prescribed) add(j.prescribed->breakpoints());
   }
   std::sort(t.begin(), t.end());
   t.erase(std::unique(t.begin(), t.end()), t.end());
@@ -34,7 +57,17 @@ TreeState TreeState::initial(const System& system) {
         break;
       case JointType::Revolute:
         s.joints[j].angle = J.angle0;
-        s.joints[j].rate = J.rate0;
+        s.joints[j].rate = J.prescribed ? J.prescribed->velocity(0) : J.rate0;
+        if (j == 0) {
+          // A prescribed base turning about an axis fixed in N (system.hpp): R_NB = R_NJ0
+          // Rot(axis_J, angle), axis_J = R_NJ0^T axis_N; the joint point is fixed in N.
+          const Eigen::Vector3d axis_J = J.q_PJ0.conjugate() * J.axis_P;
+          s.q_NB = (J.q_PJ0 * Eigen::Quaterniond(Eigen::AngleAxisd(J.angle0, axis_J))).normalized();
+          s.w_NB_B = s.joints[j].rate * axis_J;
+          const Eigen::Vector3d p_JBo_N = -(s.q_NB * J.p_CoJ_C);
+          s.p_NoBo_N = J.p_PoJ_P + p_JBo_N;
+          s.v_NBo_N = (s.q_NB * s.w_NB_B).cross(p_JBo_N);
+        }
         break;
       case JointType::Spherical:
         s.joints[j].q_J = J.q_J0.normalized();

@@ -32,6 +32,15 @@
 //              the generalised force of V for any choice of coordinates.)
 //   body       external torque, piecewise constant in time, in the body frame or in N.
 //
+// Prescribed motion (docs/prescribed-motion.md; issue 13): a revolute joint with `prescribed` set
+// is not a degree of freedom: its angle is angle0 + theta(t), a given smooth function of time
+// (PrescribedMotion below), and every engine reports the torque about the axis that the joint
+// must apply to the child to make it so (output column <joint>.torque; springs, dampers and
+// motors are not allowed on a prescribed joint, so it is the whole joint torque). The base
+// joint (joints[0]) is either the free joint or such a prescribed revolute joint whose parent is
+// N (Joint::parent = -1): the base then turns about an axis fixed in N through a point fixed in N
+// (Kane, Ryan and Banerjee 1987: a hub driven through a prescribed spin-up).
+//
 // Everything is SI (kg, m, s, rad, N, N m); the reader converts units.
 #pragma once
 
@@ -62,6 +71,26 @@ struct PiecewiseConstant {
   }
 };
 
+// A prescribed joint angle theta(t) (added to the joint's initial angle), its rate and its
+// acceleration; C^3 in t. The one profile so far is Kane, Ryan and Banerjee's spin-up
+// (J. Guidance 10(2), 1987, Eq. (61)), reaching the rate Omega_s = `rate` at T = `ramp_time`:
+//   t <= T:  theta = (Omega_s / T) (t^2 / 2 + (T / (2 pi))^2 (cos(2 pi t / T) - 1))
+//   t >  T:  theta = Omega_s (t - T / 2)
+// so theta' = (Omega_s / T) (t - (T / (2 pi)) sin(2 pi t / T)) and
+// theta'' = (Omega_s / T) (1 - cos(2 pi t / T)) up to T, then Omega_s and 0.
+struct PrescribedMotion {
+  enum class Profile { SpinUp };
+  Profile profile = Profile::SpinUp;
+  double rate = 0;        // Omega_s, rad/s
+  double ramp_time = 1;   // T, s, > 0
+
+  double angle(double t) const;     // theta(t), rad (0 at t = 0)
+  double velocity(double t) const;  // theta'(t), rad/s
+  double accel(double t) const;     // theta''(t), rad/s^2
+  // Times where the profile changes formula (integrators stop there): {T}.
+  std::vector<double> breakpoints() const { return {ramp_time}; }
+};
+
 // A flexible body: the modal model every engine implements exactly, with no term dropped
 // (docs/conventions.md "Flexible bodies"; reference paper Eqs. (3)-(6) and (39)-(40), Example 2).
 //
@@ -78,6 +107,15 @@ struct PiecewiseConstant {
 //   m = sum m_i,  I = sum_i (J_i + m_i (|p_i|^2 1 - p_i p_i^T))   (the reader sets them).
 //   A joint attached at node i (Joint::parent_node / child_node) has its point at p_i + u_i and
 //   its frame turned from the body frame by the rotation exp([psi_i x]) (exact, so orthonormal).
+//
+//   Geometric stiffening (FlexBody::geometric_stiffening; docs/flexible-bodies.md "Geometric
+//   stiffening"): the displacement gains a term second order in eta, the foreshortening of a
+//   bent beam (Kane, Ryan and Banerjee 1987, Eq. (8); Sharf 1995):
+//      u_i = Phi_i eta + e_i (1/2 eta^T G_i eta)
+//   with e_i a unit vector (body frame) and G_i a symmetric n x n matrix per node. Every engine
+//   keeps this term exactly in positions, velocities (du_i/dt = Phi_i eta' + e_i eta^T G_i eta')
+//   and accelerations; the slopes psi_i stay linear. Without it (G_i empty) the model is the
+//   linear one above.
 struct FlexNode {
   std::string name;
   double mass = 0;                                        // m_i, kg
@@ -85,6 +123,10 @@ struct FlexNode {
   Eigen::Matrix3d J_Ni_B = Eigen::Matrix3d::Zero();       // rigid inertia about the node, kg m^2
   Eigen::Matrix3Xd Phi_B;                                 // 3 x n mode shapes, m per unit eta
   Eigen::Matrix3Xd Psi_B;                                 // 3 x n mode slopes, rad per unit eta
+  // Geometric stiffening only (else e_B zero and G empty): second-order displacement
+  // e_B (1/2 eta^T G eta), m per unit eta^2.
+  Eigen::Vector3d e_B = Eigen::Vector3d::Zero();          // unit direction, body frame
+  Eigen::MatrixXd G;                                      // n x n symmetric (0 x 0 when off)
 };
 
 struct FlexBody {
@@ -92,6 +134,8 @@ struct FlexBody {
   std::vector<FlexNode> nodes;
   Eigen::MatrixXd K;                    // n x n modal stiffness (symmetric, positive semi-definite)
   Eigen::MatrixXd D;                    // n x n modal damping (symmetric, positive semi-definite)
+  // Every node carries the second-order displacement e_i (1/2 eta^T G_i eta) (see above).
+  bool geometric_stiffening = false;
   std::string origin;                   // where the data came from ("beam generator: ...", a file)
   // The scene's `flexible:` block this body was read from, in the canonical form the scene
   // writer writes back (YAML, SI units, every key; core/scene/flex_block.hpp). Empty when built
@@ -142,6 +186,10 @@ struct Joint {
   PiecewiseConstant<1> motor_revolute;   // N m
   PiecewiseConstant<3> motor_spherical;  // N m, child frame
 
+  // Revolute only: the angle is prescribed, angle0 + prescribed->angle(t) (see the header);
+  // then rate0 is prescribed->velocity(0) and the joint has no degree of freedom (dof() 0).
+  std::optional<PrescribedMotion> prescribed;
+
   // Initial conditions.
   double angle0 = 0, rate0 = 0;                                  // revolute, rad, rad/s
   Eigen::Quaterniond q_J0 = Eigen::Quaterniond::Identity();      // spherical joint attitude
@@ -152,11 +200,12 @@ struct Joint {
   Eigen::Vector3d w_NB_B0 = Eigen::Vector3d::Zero();             // rad/s
   Eigen::Vector3d v_NBo_N0 = Eigen::Vector3d::Zero();            // m/s (see zero_linear_momentum)
 
-  // Number of generalised speeds this joint contributes (free 6, revolute 1, spherical 3, fixed 0).
+  // Number of generalised speeds this joint contributes (free 6, revolute 1 (0 when
+  // prescribed), spherical 3, fixed 0).
   int dof() const {
     switch (type) {
       case JointType::Free: return 6;
-      case JointType::Revolute: return 1;
+      case JointType::Revolute: return prescribed ? 0 : 1;
       case JointType::Spherical: return 3;
       case JointType::Fixed: return 0;
     }
@@ -192,8 +241,9 @@ struct System {
   std::string description;
   std::string source;
   std::vector<Body> bodies;     // bodies[joints[j].child] ...
-  // Joints in topological order: joints[0] is the free joint of the base body, and every joint's
-  // parent appears as the child of an earlier joint. Exactly one joint per body.
+  // Joints in topological order: joints[0] is the base body's joint (the free joint, or a
+  // prescribed revolute joint whose parent is N: parent -1, parent point, axis and offset in N),
+  // and every joint's parent appears as the child of an earlier joint. Exactly one joint per body.
   std::vector<Joint> joints;
   bool zero_linear_momentum = true;  // base CM velocity chosen so total linear momentum is zero
   std::string analytic;              // "" or "torque-free" (single free rigid body, no loads)
@@ -201,6 +251,9 @@ struct System {
   CompareSpec compare;
 
   int base_body() const { return joints.empty() ? -1 : joints[0].child; }
+  // The base moves freely (joints[0] is free), or its motion is prescribed (a prescribed
+  // revolute joint to N).
+  bool base_is_free() const { return !joints.empty() && joints[0].type == JointType::Free; }
   int joint_of_body(int b) const {
     for (std::size_t j = 0; j < joints.size(); ++j)
       if (joints[j].child == b) return static_cast<int>(j);

@@ -51,6 +51,7 @@ std::vector<Quantity> pinned_quantities(const System& s) {
         break;
       case ColumnKind::RevoluteAngle: q.push_back({c.name, "angle", "", {c.name}, false}); break;
       case ColumnKind::RevoluteRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
+      case ColumnKind::JointTorque: q.push_back({c.name, "torque", "", {c.name}, false}); break;
       case ColumnKind::SphericalW: q.push_back({c.name, "rate", joint + ".w", {c.name}, false}); break;
       case ColumnKind::Modal:
       case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
@@ -371,6 +372,8 @@ std::string energy_not_conserved_reason(const System& s) {
   if (has_dampers(s)) why.push_back("dampers");
   if (has_motors(s)) why.push_back("motors");
   if (has_external_torques(s)) why.push_back("external torques");
+  if (std::any_of(s.joints.begin(), s.joints.end(), [](const Joint& j) { return j.prescribed.has_value(); }))
+    why.push_back("prescribed joints");
   if (why.empty()) return "";
   std::string r = "scene has ";
   for (std::size_t i = 0; i < why.size(); ++i)
@@ -379,7 +382,9 @@ std::string energy_not_conserved_reason(const System& s) {
 }
 
 std::string momentum_not_conserved_reason(const System& s) {
-  return has_external_torques(s) ? "scene has external torques" : "";
+  if (has_external_torques(s)) return "scene has external torques";
+  if (!s.joints.empty() && !s.base_is_free()) return "scene has a prescribed base";
+  return "";
 }
 
 std::vector<double> output_times(const IntegratorSettings& settings) {

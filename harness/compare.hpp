@@ -9,6 +9,7 @@
 //   <joint>.rate      rate       |a - b|, rad/s               (revolute joints)
 //   <joint>.wx/wy/wz  rate       |a - b|, rad/s               (spherical joints)
 //   <body>.<mode>     modal      |a - b| (and <mode>_rate)    (flexible bodies)
+//   <joint>.torque    torque     |a - b|, N m                 (prescribed revolute joints)
 //   H, E              H, E       |a - b|
 //   other columns     extra      only when the scene's tolerances name them
 // and for every engine alone (not the analytic solution):
@@ -28,8 +29,9 @@
 // look up "H.drift" / "E.drift" only and default to atol = rtol = 1e-9. Exclusions match the same
 // keys and carry their reason into every table.
 //
-// E drift is not checked when the scene has dampers, motors or external torques (not conserved);
-// H drift is not checked when it has external torques. Engine runs that fail are recorded as a
+// E drift is not checked when the scene has dampers, motors, external torques or prescribed
+// joints (not conserved); H drift is not checked when it has external torques or a prescribed
+// base (a prescribed joint inside the tree is internal: H stays). Engine runs that fail are recorded as a
 // failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
 // that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
 //

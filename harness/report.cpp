@@ -324,7 +324,7 @@ std::string describe_failure(const Check& c) {
 
 const std::vector<std::string>& group_order() {
   static const std::vector<std::string> order{"run", "t",  "w",       "attitude", "rate",   "angle",
-                                              "modal", "H", "E", "H.drift",  "E.drift", "extra"};
+                                              "modal", "torque", "H", "E", "H.drift", "E.drift", "extra"};
   return order;
 }
 

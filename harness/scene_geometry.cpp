@@ -1,6 +1,7 @@
 // Drawing geometry of a scene (see scene_geometry.hpp). Drawing code only: no engine uses it.
 #include "harness/scene_geometry.hpp"
 
+#include "core/engine.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 
@@ -147,10 +148,11 @@ Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_
 Configuration initial_configuration(const System& system) {
   std::vector<Matrix3d> R_NB(system.bodies.size(), Matrix3d::Identity());
   Vector3d p_base = Vector3d::Zero();
+  const TreeState s0 = TreeState::initial(system);  // a prescribed base's pose at t = 0
   for (const Joint& J : system.joints) {
     if (J.type == JointType::Free || J.parent < 0) {
-      R_NB[J.child] = J.q_NB0.normalized().toRotationMatrix();
-      p_base = J.p_NoBo_N0;
+      R_NB[J.child] = s0.q_NB.normalized().toRotationMatrix();
+      p_base = s0.p_NoBo_N;
     } else {
       // R_NC = R_NP R_PC (parents come first in tree order).
       R_NB[J.child] = R_NB[J.parent] * joint_rotation(J, J.angle0, J.q_J0);

@@ -201,6 +201,7 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
       case ColumnKind::RevoluteAngle: break;
       case ColumnKind::RevoluteRate:
       case ColumnKind::SphericalW: group[c] = "rate"; break;
+      case ColumnKind::JointTorque: group[c] = "torque"; break;
       case ColumnKind::Modal: group[c] = "modal:" + std::to_string(col.body); break;
       case ColumnKind::ModalRate: group[c] = "modal_rate:" + std::to_string(col.body); break;
       case ColumnKind::MomentumH: group[c] = "H"; break;

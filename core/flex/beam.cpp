@@ -2,6 +2,7 @@
 // centres and ends.
 #include "core/flex/beam.hpp"
 
+#include <boost/math/quadrature/gauss.hpp>
 #include <boost/math/tools/roots.hpp>
 
 #include <algorithm>
@@ -66,6 +67,66 @@ struct Mode {
     return {grow + decay + eps * (c - sigma * s), lambda * (grow - decay - eps * (s + sigma * c))};
   }
 };
+
+// Geometric stiffening (beam.hpp BeamSpec::geometric_stiffening): per node, e = the long axis
+// from the clamp to the free end and G_kl = -integral_0^{s} phi_k' phi_l' ds for modes k, l of
+// one plane, with phi_k = c_k shape_k(s / L), so phi_k' = (c_k / L) dshape_k/dxi and
+// G_kl = -(c_k c_l / L) integral_0^{xi} dshape_k dshape_l dxi. The integral runs node to node
+// (xi sorted from the clamp), 16-point Gauss-Legendre on each interval.
+void add_foreshortening(const BeamSpec& s, const std::array<int, 2>& across,
+                        const std::vector<double>& c, const std::vector<double>& xi, FlexBody& f) {
+  const bool from_top = s.boundary == BeamBoundary::ClampedTop;
+  Eigen::Vector3d e = Eigen::Vector3d::Zero();
+  e(s.axis) = from_top ? -1.0 : 1.0;
+  const int n = f.modes();
+  // Mode columns per plane, with their Mode objects.
+  std::vector<std::vector<int>> plane_cols;
+  std::vector<Mode> modes;
+  modes.reserve(static_cast<std::size_t>(n));
+  for (int d : across) {
+    std::vector<int> cols;
+    for (int k = 1; k <= s.bending[static_cast<std::size_t>(d)].modes; ++k) {
+      cols.push_back(static_cast<int>(modes.size()));
+      modes.emplace_back(true, clamped_root(k));
+    }
+    plane_cols.push_back(std::move(cols));
+  }
+  // Nodes in order of xi (distance from the clamp).
+  std::vector<std::size_t> order(xi.size());
+  for (std::size_t j = 0; j < order.size(); ++j) order[j] = j;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return xi[a] < xi[b]; });
+  using Gauss = boost::math::quadrature::gauss<double, 16>;
+  Eigen::MatrixXd running = Eigen::MatrixXd::Zero(n, n);  // integral_0^{xi} dshape_k dshape_l
+  Eigen::VectorXd d(n);
+  double prev = 0;
+  for (std::size_t j : order) {
+    const double a = prev, b = xi[j];
+    if (b > a) {
+      const double half = (b - a) / 2, mid = (a + b) / 2;
+      const auto& abscissa = Gauss::abscissa();
+      const auto& weights = Gauss::weights();
+      for (std::size_t q = 0; q < abscissa.size(); ++q)
+        for (int sign : {-1, 1}) {
+          if (abscissa[q] == 0 && sign < 0) continue;
+          const double point = mid + sign * half * abscissa[q], w = half * weights[q];
+          for (const auto& cols : plane_cols)
+            for (int k : cols) d(k) = modes[static_cast<std::size_t>(k)].at(point).dphi;
+          for (const auto& cols : plane_cols)
+            for (int k : cols)
+              for (int l : cols) running(k, l) += w * d(k) * d(l);
+        }
+      prev = b;
+    }
+    FlexNode& node = f.nodes[j];
+    node.e_B = e;
+    node.G.resize(n, n);
+    for (int k = 0; k < n; ++k)
+      for (int l = 0; l < n; ++l)
+        node.G(k, l) = -(c[static_cast<std::size_t>(k)] * c[static_cast<std::size_t>(l)] / s.length) *
+                       running(k, l);
+  }
+  f.geometric_stiffening = true;
+}
 
 std::string join_problem(const SpecProblem& p) { return p.key + ": " + p.what; }
 
@@ -156,6 +217,19 @@ std::vector<SpecProblem> beam_spec_problems(const BeamSpec& s) {
     if (!std::isfinite(dmp.beta) || dmp.beta < 0)
       bad("damping.beta", "Rayleigh beta must be >= 0, found " + shortest(dmp.beta) + " s");
   }
+  if (s.geometric_stiffening) {
+    const double entries = static_cast<double>(s.slices + 2) * total_modes * total_modes;
+    if (s.boundary == BeamBoundary::FreeFree)
+      bad("geometric_stiffening",
+          "geometric stiffening needs a clamped beam (boundary clamped-bottom or clamped-top): "
+          "the foreshortening is measured from the clamp");
+    else if (total_modes == 0)
+      bad("geometric_stiffening", "geometric stiffening needs bending modes");
+    else if (entries > kMaxStiffeningEntries)
+      bad("geometric_stiffening", "geometric stiffening stores (slices + 2) x modes^2 = " +
+                                      shortest(entries) + " numbers, more than the limit " +
+                                      shortest(kMaxStiffeningEntries) + ": use fewer slices or modes");
+  }
   return out;
 }
 
@@ -225,6 +299,7 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
   const int ref_node = at_top ? n_nodes - 1 : 0;
 
   std::vector<double> phi(x.size()), dphi(x.size());
+  std::vector<double> norm_constants;  // c per mode column, for the foreshortening
   int col = 0;
   for (int d : across) {
     const BeamPlane& plane = s.bending[static_cast<std::size_t>(d)];
@@ -242,6 +317,7 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
       const double c = norm == BeamNormalisation::Mass
                            ? std::copysign(1.0 / std::sqrt(sum_m_phi2), end_value)
                            : 1.0 / end_value;
+      norm_constants.push_back(c);
       double M_k = 0;
       for (std::size_t j = 0; j < x.size(); ++j) {
         FlexNode& node = f.nodes[j];
@@ -266,6 +342,8 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
       f.mode_names.push_back("q" + axis_name(d) + std::to_string(k));
     }
   }
+
+  if (s.geometric_stiffening) add_foreshortening(s, across, norm_constants, xi, f);
 
   static constexpr const char* kBoundary[] = {"free-free", "clamped at the bottom",
                                               "clamped at the top"};

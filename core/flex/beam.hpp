@@ -84,6 +84,15 @@ struct BeamSpec {
   int slices = 100;                     // N
   BeamNormalisation normalisation = BeamNormalisation::Auto;
   BeamDamping damping;
+  // Geometric stiffening (clamped beams only): every node carries the foreshortening
+  // e (1/2 eta^T G eta) of system.hpp's FlexNode, with e the unit long axis pointing from the
+  // clamp to the free end and, for node i at distance s_i from the clamp,
+  //   G_i,kl = - integral_0^{s_i} phi_k'(s) phi_l'(s) ds       (modes k, l of one plane; 0 across
+  //   planes), phi_k the normalised shape of mode k: the centre line's length is kept to second
+  //   order, so a node moves towards the clamp by 1/2 integral_0^{s_i} |u'|^2 ds (Kane, Ryan and
+  //   Banerjee 1987, Eq. (8)). Integrated by 16-point Gauss-Legendre (Boost.Math) between
+  //   consecutive nodes, to rounding.
+  bool geometric_stiffening = false;
 };
 
 // What is wrong with a spec: the key (relative to the beam block of a scene, as in
@@ -99,6 +108,8 @@ std::vector<SpecProblem> beam_spec_problems(const BeamSpec& spec);
 // highest mode k (two nodes per half-wave); at most kMaxBeamModes modes per plane.
 inline constexpr int kMaxSlices = 100000;
 inline constexpr int kMaxBeamModes = 100;
+// Geometric stiffening stores an n x n matrix per node: at most this many entries in all.
+inline constexpr double kMaxStiffeningEntries = 4e6;
 
 // The beam's nodes, modes, K and D, with its rigid mass and inertia. Throws InputError
 // "<context>: <key>: <what>" for the first of beam_spec_problems(); validate_flex passes on the

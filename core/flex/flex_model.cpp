@@ -173,6 +173,21 @@ void validate_flex(const FlexBody& f, const std::string& context) {
       if (!all_finite(node.Psi_B.col(k)))
         fail(at + "mode '" + f.mode_names[static_cast<std::size_t>(k)] + "': slope is not finite");
     }
+    if (f.geometric_stiffening) {
+      if (node.G.rows() != n || node.G.cols() != n)
+        fail(at + "geometric stiffening: G is " + std::to_string(node.G.rows()) + " x " +
+             std::to_string(node.G.cols()) + ", expected " + std::to_string(n) + " x " +
+             std::to_string(n));
+      if (!node.G.allFinite() || !node.e_B.allFinite())
+        fail(at + "geometric stiffening: G or e is not finite");
+      if (std::abs(node.e_B.norm() - 1) > 1e-12)
+        fail(at + "geometric stiffening: e is not a unit vector");
+      if ((node.G - node.G.transpose()).cwiseAbs().maxCoeff() >
+          1e-12 * std::max(1.0, node.G.cwiseAbs().maxCoeff()))
+        fail(at + "geometric stiffening: G is not symmetric");
+    } else if (node.G.size() != 0) {
+      fail(at + "G is set but the body has no geometric stiffening");
+    }
     extent = std::max(extent, node.p_BoNi_B.norm());
   }
 

@@ -63,6 +63,7 @@ std::string beam_form(const BeamSpec& s) {
   y << YAML::Key << "slices" << YAML::Value << s.slices;
   y << YAML::Key << "normalisation" << YAML::Value
     << kNormalisations[static_cast<int>(s.normalisation)];
+  if (s.geometric_stiffening) y << YAML::Key << "geometric_stiffening" << YAML::Value << true;
   if (s.damping.kind != BeamDamping::Kind::None) {
     y << YAML::Key << "damping" << YAML::Value << YAML::BeginMap;
     if (s.damping.kind == BeamDamping::Kind::Ratio) {
@@ -139,6 +140,10 @@ flex::FlexModel read_beam(const Reader& r, const Field& f) {
   if (auto n = m.get("normalisation")) {
     note("normalisation", *n);
     s.normalisation = static_cast<BeamNormalisation>(index_of(kNormalisations, r.word(*n)));
+  }
+  if (auto g = m.get("geometric_stiffening")) {
+    note("geometric_stiffening", *g);
+    s.geometric_stiffening = r.boolean(*g);
   }
   if (auto df = m.get("damping")) {
     note("damping", *df);

@@ -317,6 +317,36 @@ void read_loads(const Reader& r, const MapView& m, const std::string& type, Join
   }
 }
 
+// A prescribed revolute joint (docs/prescribed-motion.md): the profile, and no loads of its own
+// (its torque is whatever the motion takes) and no initial rate (the profile gives it).
+void read_prescribed(const Reader& r, const MapView& m, const Field& f, const std::string& type,
+                     Joint& J) {
+  const MapView pm(r, f.val, "joints[].prescribed", joint_type(J.type).bit, type);
+  PrescribedMotion p;
+  (void)r.word(pm.at("profile"));  // "spin-up", the one profile (checked against the schema)
+  p.profile = PrescribedMotion::Profile::SpinUp;
+  const Field rate = pm.at("rate");
+  p.rate = r.number(rate);
+  if (!std::isfinite(p.rate) || std::abs(p.rate) > 1e4)
+    r.fail(rate.val, "the prescribed rate must be finite and at most 1e4 rad/s in size, found " +
+                         shortest(p.rate) + " rad/s");
+  const Field ramp = pm.at("ramp_time");
+  p.ramp_time = r.number(ramp);
+  if (!std::isfinite(p.ramp_time) || p.ramp_time <= 0 || p.ramp_time > 1e9)
+    r.fail(ramp.val, "the ramp time must be positive and at most 1e9 s, found " +
+                         shortest(p.ramp_time) + " s");
+  for (const char* load : {"spring", "damper", "motor"})
+    if (auto l = m.get(load))
+      r.fail(l->val, std::string("a prescribed joint takes no ") + load +
+                         ": its motion is given, and its torque (output <joint>.torque) is what "
+                         "that motion takes");
+  if (auto ic = m.get("initial"))
+    if (auto rt = MapView(r, ic->val, "joints[].initial", joint_type(J.type).bit, type).get("rate"))
+      r.fail(rt->val, "a prescribed joint's rate is its profile's (0 at t = 0 for spin-up); "
+                      "remove initial.rate");
+  J.prescribed = p;
+}
+
 void read_initial(const Reader& r, const MapView& m, const std::string& type, RawJoint& raw) {
   Joint& J = raw.joint;
   const auto f = m.get("initial");
@@ -396,15 +426,30 @@ RawJoint read_joint(const Reader& r, const Val& item, const System& s, const Bod
   RawJoint raw{J, item, type.val, m.at("child").val, std::nullopt, std::nullopt};
   Joint& j = raw.joint;
   j.child = bodies.find(r, m.at("child"));
+  const auto prescribed = j.type == JointType::Revolute ? m.get("prescribed") : std::nullopt;
   if (j.type != JointType::Free) {
-    const Field parent = m.at("parent");
-    raw.parent_val = parent.val;
-    j.parent = bodies.find(r, parent);
-    j.p_PoJ_P = joint_point(r, m, s, j.parent, "parent", j.parent_node);
+    if (const auto parent = m.get("parent")) {
+      raw.parent_val = parent->val;
+      j.parent = bodies.find(r, *parent);
+      j.p_PoJ_P = joint_point(r, m, s, j.parent, "parent", j.parent_node);
+    } else {
+      // Only a prescribed revolute joint may leave out its parent: it then holds the base and
+      // turns it about an axis fixed in N (docs/prescribed-motion.md).
+      if (!prescribed)
+        r.fail(m.self(), "missing required key 'parent' in a joint (only a revolute joint with a "
+                         "`prescribed` motion may leave it out, to turn the base about an axis "
+                         "fixed in N)");
+      if (auto pn = m.get("parent_node"))
+        r.fail(pn->val, "this joint has no parent body (its parent is the inertial frame N, which "
+                        "has no nodes); give parent_point, a point in N");
+      j.parent = -1;
+      if (auto pp = m.get("parent_point")) j.p_PoJ_P = r.vector(*pp);
+    }
     j.p_CoJ_C = joint_point(r, m, s, j.child, "child", j.child_node);
     if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
   }
   if (j.type == JointType::Revolute) j.axis_P = r.direction(m.at("axis"));
+  if (prescribed) read_prescribed(r, m, *prescribed, type_word, j);
   if (j.type == JointType::Revolute || j.type == JointType::Spherical)
     read_loads(r, m, type_word, j);
   read_initial(r, m, type_word, raw);
@@ -432,7 +477,8 @@ void shift_points(std::vector<RawJoint>& raw, const BodyIndex& bodies) {
   for (RawJoint& r : raw) {
     Joint& J = r.joint;
     if (J.type == JointType::Free) continue;
-    if (const auto c = com(J.parent)) J.p_PoJ_P -= *c;
+    if (J.parent >= 0)
+      if (const auto c = com(J.parent)) J.p_PoJ_P -= *c;
     if (const auto c = com(J.child)) J.p_CoJ_C -= *c;
   }
 }
@@ -444,7 +490,8 @@ void order(const Reader& r, const Val& joints_val, std::vector<RawJoint>& raw,
   std::vector<JointEdge> edges;
   std::vector<std::string> joint_names;
   for (const RawJoint& j : raw) {
-    edges.push_back({j.joint.type == JointType::Free, j.joint.parent, j.joint.child});
+    edges.push_back({j.joint.type == JointType::Free || j.joint.parent == -1, j.joint.parent,
+                     j.joint.child});
     joint_names.push_back(j.joint.name);
   }
   const TopologyResult t = order_joints(static_cast<int>(s.bodies.size()), edges);

@@ -120,6 +120,12 @@ constexpr std::array kKeys = std::to_array<Key>({
  .words = "auto|top|bottom|mass", .noun = "normalisation",
  .doc = "Each shape scaled to unit displacement at the `top` end (`auto`: top, or bottom when "
         "clamped at the top), at the `bottom` end, or to unit modal mass (1 kg)."},
+{.path = "bodies[].flexible.beam.geometric_stiffening", .type = Bool, .default_value = "false",
+ .doc = "Geometric stiffening (clamped beams only): every node also moves towards the clamp by the "
+        "foreshortening of the bent centre line, 1/2 integral_0^s |u'|^2 (docs/flexible-bodies.md "
+        "\"Geometric stiffening\"), which gives a spinning beam its centrifugal stiffness (Kane, Ryan "
+        "and Banerjee 1987). false: the linear modal model, which softens without bound when spun "
+        "fast."},
 {.path = "bodies[].flexible.beam.damping", .type = Map, .noun = "a modal damping",
  .doc = "Modal damping: EITHER `ratios` OR Rayleigh `alpha`, `beta`; none when not given."},
 {.path = "bodies[].flexible.beam.damping.ratios", .type = List, .noun = "a list of damping ratios",
@@ -165,9 +171,11 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "joints[].type", .type = Word, .required = true, .words = "free|revolute|spherical|fixed",
  .noun = "joint type",
  .doc = "The joint type (table \"Joint types\" below)."},
-{.path = "joints[].parent", .type = Name, .required = true, .joints = kJointed,
+{.path = "joints[].parent", .type = Name, .joints = kJointed,
  .noun = "parent body name",
- .doc = "The parent body's name."},
+ .doc = "The parent body's name. Required, except on a prescribed revolute joint that holds the "
+        "base: without a parent its parent is the inertial frame N (then `parent_point`, `axis` and "
+        "`offset` are in N), and it replaces the free joint (docs/prescribed-motion.md)."},
 {.path = "joints[].child", .type = Name, .required = true, .noun = "child body name",
  .doc = "The child body's name; a body is the child of exactly one joint."},
 {.path = "joints[].parent_point", .type = Vector, .dimension = Dimension::Length,
@@ -194,6 +202,21 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "The child frame's attitude in the parent frame at joint coordinate zero, R_PJ0 (v_P = "
         "R_PJ0 v_C): a quaternion, an axis-angle, or a rotation matrix whose columns are the "
         "child's axes in the parent frame."},
+{.path = "joints[].prescribed", .type = Map, .joints = kRevolute, .noun = "a prescribed motion",
+ .doc = "The joint's angle is prescribed: initial.angle + theta(t) (docs/prescribed-motion.md); the "
+        "joint is then no degree of freedom, the output gains `<joint>.torque` (the torque it takes), "
+        "and `spring`, `damper`, `motor` and `initial.rate` are not allowed."},
+{.path = "joints[].prescribed.profile", .type = Word, .required = true, .joints = kRevolute,
+ .words = "spin-up", .noun = "a motion profile",
+ .doc = "`spin-up`: Kane, Ryan and Banerjee's (1987) smooth spin-up from rest to `rate` over "
+        "`ramp_time`, theta = (rate/T) (t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)) up to T, then "
+        "constant rate."},
+{.path = "joints[].prescribed.rate", .type = Quantity, .dimension = Dimension::AngularRate,
+ .required = true, .joints = kRevolute,
+ .doc = "The final rate Omega_s, finite, |rate| at most 1e4 rad/s."},
+{.path = "joints[].prescribed.ramp_time", .type = Quantity, .dimension = Dimension::Time,
+ .required = true, .joints = kRevolute,
+ .doc = "The spin-up time T, > 0."},
 {.path = "joints[].spring", .type = Map, .joints = kMoving, .noun = "a {type} joint's spring",
  .doc = "A torsional spring: revolute tau = -stiffness (angle - neutral_angle); spherical tau_C = "
         "-stiffness phi, phi the joint's rotation vector."},

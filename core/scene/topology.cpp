@@ -17,12 +17,14 @@ std::string TopologyProblem::describe(const std::vector<std::string>& body_names
       return "joint " + joint(this->joint) + " connects body " + body(this->body) + " to itself";
     case Kind::SecondFree:
       return "a second free joint (the first is " + joint(other) +
-             "); exactly one joint, the base body's, is free";
+             "); exactly one joint, the base body's, is free (or a prescribed revolute joint "
+             "without a parent)";
     case Kind::SecondParent:
       return "body " + body(this->body) + " already has a parent joint " + joint(other) +
              "; a body has exactly one parent";
     case Kind::NoFree:
-      return "no free joint: exactly one joint must be of type free (it holds the base body)";
+      return "no free joint: exactly one joint must be of type free (it holds the base body), or "
+             "a prescribed revolute joint without a parent (a base turned about an axis fixed in N)";
     case Kind::NoJoint:
       return "body " + body(this->body) +
              " has no joint: every body is the child of exactly one joint";
@@ -114,7 +116,10 @@ void check_topology(const System& s) {
   std::vector<JointEdge> edges;
   for (std::size_t k = 0; k < s.joints.size(); ++k) {
     const Joint& j = s.joints[k];
-    const bool free = j.type == JointType::Free;
+    // The base joint: the free joint, or a prescribed revolute joint whose parent is N.
+    const bool prescribed_base =
+        j.type == JointType::Revolute && j.prescribed.has_value() && j.parent == -1;
+    const bool free = j.type == JointType::Free || prescribed_base;
     if (j.child < 0 || j.child >= nb)
       fail_joint(k, "child body index " + std::to_string(j.child) + " is out of range (" +
                         std::to_string(nb) + " bodies)");
@@ -135,8 +140,11 @@ void check_topology(const System& s) {
   }
   // Tree order: the free joint first; every other joint's parent is an earlier joint's child.
   for (std::size_t k = 0; k < s.joints.size(); ++k) {
-    if (k == 0 && s.joints[0].type != JointType::Free)
-      fail_joint(0, "the first joint must be the free joint of the base body (tree order)");
+    if (k == 0 && s.joints[0].parent != -1)
+      fail_joint(0, "the first joint must be the free joint of the base body, or a prescribed "
+                    "revolute joint without a parent (tree order)");
+    if (k == 0 && s.joints[0].parent_node >= 0)
+      fail_joint(0, "the base joint's parent is N, which has no nodes");
     if (k == 0) continue;
     bool placed = false;
     for (std::size_t e = 0; e < k && !placed; ++e) placed = s.joints[e].child == s.joints[k].parent;

@@ -1,7 +1,8 @@
 // The joint tree's topology, checked in one place for the reader and for engines.
 //
 // A scene's joints must form a tree rooted in the inertial frame N:
-//   - exactly one free joint (its child is the base body);
+//   - exactly one base joint, the free joint or a prescribed revolute joint whose parent is N
+//     (its child is the base body; `free` below means either);
 //   - every body is the child of exactly one joint (one parent per body, no body left out);
 //   - no joint joins a body to itself, and no chain of parents is a cycle (so every body is
 //     connected to the base);
@@ -20,7 +21,7 @@
 
 namespace crossdyn {
 
-// One joint as the topology sees it: parent -1 means N (only for the free joint).
+// One joint as the topology sees it: parent -1 means N (only for the base joint).
 struct JointEdge {
   bool free = false;
   int parent = -1;

@@ -138,7 +138,7 @@ void write_initial(Out& o, const System& s, const Joint& j, unsigned bit) {
     case JointType::Revolute:
       o.key("joints[].initial", bit) << YAML::Flow << YAML::BeginMap;
       o.number("joints[].initial.angle", j.angle0, bit);
-      o.number("joints[].initial.rate", j.rate0, bit);
+      if (!j.prescribed) o.number("joints[].initial.rate", j.rate0, bit);
       y << YAML::EndMap;
       break;
     case JointType::Spherical:
@@ -162,7 +162,8 @@ void write_joint(Out& o, const System& s, const Joint& j) {
   y << YAML::BeginMap;
   o.key("joints[].name", bit) << j.name;
   o.key("joints[].type", bit) << std::string(type.name);
-  if (j.type != JointType::Free) o.key("joints[].parent", bit) << body_name(j.parent);
+  if (j.type != JointType::Free && j.parent >= 0)
+    o.key("joints[].parent", bit) << body_name(j.parent);
   o.key("joints[].child", bit) << body_name(j.child);
   if (j.type != JointType::Free) {
     auto node_name = [&s](int b, int node) {
@@ -189,6 +190,13 @@ void write_joint(Out& o, const System& s, const Joint& j) {
   if (j.type == JointType::Revolute) {
     o.key("joints[].axis", bit);
     o.flow(j.axis_P);
+    if (j.prescribed) {
+      o.key("joints[].prescribed", bit) << YAML::Flow << YAML::BeginMap;
+      o.key("joints[].prescribed.profile", bit) << "spin-up";
+      o.number("joints[].prescribed.rate", j.prescribed->rate, bit);
+      o.number("joints[].prescribed.ramp_time", j.prescribed->ramp_time, bit);
+      y << YAML::EndMap;
+    }
   }
   if (j.type == JointType::Revolute || j.type == JointType::Spherical) {
     if (j.stiffness != 0 || (j.type == JointType::Revolute && j.neutral_angle != 0)) {

@@ -66,6 +66,8 @@ bodies:
         mass_per_length: 2
         section: [0.1, 0.1, 0]
         bending: {x: {modes: 1, EI: 20}, y: {modes: 0}}
+        boundary: clamped-bottom
+        geometric_stiffening: true
         damping: {ratios: [0.02]}
   - name: panel
     flexible:
@@ -125,6 +127,7 @@ joints:
     child: mast
     child_node: bottom
     axis: [0, 0, 1]
+    prescribed: {profile: spin-up, rate: 1 rad/s, ramp_time: 2 s}
   - name: panel_root
     type: fixed
     parent: mast

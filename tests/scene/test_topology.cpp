@@ -83,7 +83,8 @@ TEST_CASE("check_topology names the joint and what is wrong, one case per class"
     s.joints[3].type = JointType::Free;
     s.joints[3].parent = -1;
     CHECK(problem_of(s) == "tree.yaml: joints[3] 'hip': a second free joint (the first is "
-                           "'base'); exactly one joint, the base body's, is free");
+                           "'base'); exactly one joint, the base body's, is free (or a prescribed "
+                           "revolute joint without a parent)");
   }
   SECTION("joints out of tree order") {
     std::swap(s.joints[1], s.joints[2]);  // wrist (parent arm) before shoulder (child arm)
