@@ -49,6 +49,7 @@ inline std::string system_difference(const System& a, const System& b) {
         eq(p + "flex.D", f.D.rows() == g.D.rows() && f.D.cols() == g.D.cols() && f.D == g.D);
         eq(p + "flex.origin", f.origin == g.origin);
         eq(p + "flex.scene_form", f.scene_form == g.scene_form);
+        eq(p + "flex.geometric_stiffening", f.geometric_stiffening == g.geometric_stiffening);
         if (eq(p + "flex.nodes.size", f.nodes.size() == g.nodes.size()))
           for (std::size_t k = 0; k < f.nodes.size(); ++k) {
             const FlexNode& u = f.nodes[k];
@@ -60,6 +61,8 @@ inline std::string system_difference(const System& a, const System& b) {
             eq(q + "J_Ni_B", u.J_Ni_B == v.J_Ni_B);
             eq(q + "Phi_B", u.Phi_B.cols() == v.Phi_B.cols() && u.Phi_B == v.Phi_B);
             eq(q + "Psi_B", u.Psi_B.cols() == v.Psi_B.cols() && u.Psi_B == v.Psi_B);
+            eq(q + "e_B", u.e_B == v.e_B);
+            eq(q + "G", u.G.rows() == v.G.rows() && u.G.cols() == v.G.cols() && u.G == v.G);
           }
       }
       eq(p + "torque_frame", x.torque_frame == y.torque_frame);
@@ -85,6 +88,10 @@ inline std::string system_difference(const System& a, const System& b) {
       eq(p + "damping", x.damping == y.damping);
       eq(p + "motor_revolute", pc1(x.motor_revolute, y.motor_revolute));
       eq(p + "motor_spherical", pc3(x.motor_spherical, y.motor_spherical));
+      eq(p + "prescribed", x.prescribed.has_value() == y.prescribed.has_value() &&
+                               (!x.prescribed || (x.prescribed->profile == y.prescribed->profile &&
+                                                  x.prescribed->rate == y.prescribed->rate &&
+                                                  x.prescribed->ramp_time == y.prescribed->ramp_time)));
       eq(p + "angle0", x.angle0 == y.angle0);
       eq(p + "rate0", x.rate0 == y.rate0);
       eq(p + "q_J0", q_eq(x.q_J0, y.q_J0));

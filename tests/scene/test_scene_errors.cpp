@@ -3,6 +3,7 @@
 // "bad.yaml:<line>:" (the line of the offending text), names the key path and says what is wrong.
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
+#include "tests/scene/system_equal.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>
@@ -418,4 +419,83 @@ TEST_CASE("errors: a scene file over the size limit") {
     CHECK(std::string(e.what()).rfind(path + ":1:1: the scene is larger than the limit", 0) == 0);
   }
   std::remove(path.c_str());
+}
+
+// Prescribed joints (docs/prescribed-motion.md): one case per class of mistake.
+TEST_CASE("errors: prescribed joints name the key and what is wrong") {
+  const std::string prescribed = "    prescribed: {profile: spin-up, rate: 2 rad/s, ramp_time: 5 s}\n";
+  const std::string with = edit("    initial: {angle: 0, rate: 0.1}\n", prescribed);
+  CHECK(read_scene_text(with, "bad.yaml").joints[1].prescribed.has_value());
+  // Loads on a prescribed joint: its torque is what the motion takes.
+  for (const std::string load : {"spring: {stiffness: 1}", "damper: {damping: 1}",
+                                 "motor: {profile: [{t: 0, value: 1}]}"}) {
+    const std::string text = edit(prescribed, prescribed + "    " + load + "\n", with);
+    expect_error(text, line_of(text, "    " + load), load.substr(0, load.find(':')),
+                 "a prescribed joint takes no");
+  }
+  {  // An initial rate: the profile gives it.
+    const std::string text = edit(prescribed, prescribed + "    initial: {rate: 1}\n", with);
+    expect_error(text, line_of(text, "    initial: {rate: 1}"), "rate", "remove initial.rate");
+  }
+  {  // Bad profile values.
+    const std::string text = edit("ramp_time: 5 s", "ramp_time: 0 s", with);
+    expect_error(text, line_of(text, "ramp_time: 0 s"), "ramp_time", "must be positive");
+    const std::string fast = edit("rate: 2 rad/s", "rate: 2e5 rad/s", with);
+    expect_error(fast, line_of(fast, "rate: 2e5"), "rate", "at most 1e4 rad/s");
+    const std::string word = edit("profile: spin-up", "profile: spin-down", with);
+    expect_error(word, line_of(word, "spin-down"), "profile", "spin-up");
+  }
+  // A joint without a parent must be prescribed (it then holds the base, replacing the free
+  // joint); a missing parent on any other joint is the old error with the reason.
+  expect_edit_error("    parent: hub\n", "", "joints[1]", "missing required key 'parent'",
+                    "  - name: hinge");
+}
+
+TEST_CASE("a prescribed base: a revolute joint without a parent replaces the free joint") {
+  const std::string base = R"(name: spin
+bodies:
+  - name: hub
+    mass: 100 kg
+    inertia: [10, 10, 10]
+  - name: arm
+    mass: 5 kg
+    inertia: [1, 1, 1]
+joints:
+  - name: spin
+    type: revolute
+    child: hub
+    parent_point: [0, 0, 1]
+    axis: [0, 0, 1]
+    child_point: [0, 0, 0]
+    prescribed: {profile: spin-up, rate: 10 rad/s, ramp_time: 15 s}
+  - name: hinge
+    type: revolute
+    parent: hub
+    child: arm
+    parent_point: [1, 0, 0]
+    child_point: [-1, 0, 0]
+    axis: [0, 0, 1]
+run:
+  duration: 10 s
+  output_step: 0.1 s
+)";
+  const System s = read_scene_text(base, "bad.yaml");
+  CHECK_FALSE(s.base_is_free());
+  CHECK(s.joints[0].parent == -1);
+  CHECK(s.joints[0].p_PoJ_P == Eigen::Vector3d(0, 0, 1));
+  CHECK(s.breakpoints() == std::vector<double>{15.0});
+  // Round trip: the writer leaves out the parent and writes the profile.
+  const std::string written = write_scene_text(s);
+  CHECK(written.find("prescribed") != std::string::npos);
+  CHECK(test::system_difference(read_scene_text(written, "bad.yaml"), s).empty());
+  // Not prescribed: a parent is required.
+  {
+    const std::string text = edit("    prescribed: {profile: spin-up, rate: 10 rad/s, ramp_time: 15 s}\n", "", base);
+    expect_error(text, line_of(text, "  - name: spin"), "joints[0]", "missing required key 'parent'");
+  }
+  // Its parent is N, without nodes.
+  {
+    const std::string text = edit("    parent_point: [0, 0, 1]\n", "    parent_node: top\n", base);
+    expect_error(text, line_of(text, "    parent_node: top"), "parent_node", "no nodes");
+  }
 }
