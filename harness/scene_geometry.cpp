@@ -108,9 +108,21 @@ Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_
     const Joint& J = system.joints[j];
     BodyPose& C = c.bodies[J.child];
     JointPose& out = c.joints[j];
-    if (J.type == JointType::Free || J.parent < 0) {
+    if (J.type == JointType::Free) {
       C.p_NoBo_N = p_NoBo_N_base;
       out.p_NoJ_N_parent = out.p_NoJ_N_child = C.p_NoBo_N;
+      continue;
+    }
+    if (J.parent < 0) {
+      // A prescribed base (docs/prescribed-motion.md): the joint point and axis are fixed in N.
+      C.p_NoBo_N = p_NoBo_N_base;
+      const NodeMotion mc = node_motion(system.bodies[J.child], J.child_node, eta, J.child);
+      out.p_NoJ_N_parent = J.p_PoJ_P;
+      out.p_NoJ_N_child = C.p_NoBo_N + C.R_NB * (J.p_CoJ_C + mc.u);
+      out.axis_N_parent = J.axis_P.normalized();
+      out.axis_N_child = C.R_NB * mc.turn * revolute_axis_in_child(J);
+      const Matrix3d R_NJ0 = J.q_PJ0.normalized().toRotationMatrix();
+      out.phi_J = rot::rotation_vector(Quaterniond(R_NJ0.transpose() * C.R_NB * mc.turn));
       continue;
     }
     const BodyPose& P = c.bodies[J.parent];
@@ -321,7 +333,7 @@ std::string geometry_json(const System& system, const Configuration& initial,
     json j = {{"name", J.name},
               {"type", type_name(J.type)},
               {"dof", J.dof()},
-              {"prescribed", false},
+              {"prescribed", J.prescribed.has_value()},
               {"parent", J.parent},
               {"child", J.child},
               {"parent_node", J.parent_node},

@@ -428,7 +428,8 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
                              weight="bold", ha="center", va="center")
         painter.marker(p, s=10 if detail else 5, color="black")
         if labels is not None:
-            labels.add(p, b["name"] + (" (base, free joint)" if b.get("is_base") else ""),
+            labels.add(p, b["name"] + ((" (base, free joint)" if base_joint_free(geom) else " (base, prescribed)")
+                                       if b.get("is_base") else ""),
                        colour=darker(cols[i], 0.5), size=9.5 if detail else 7.5, weight="bold", priority=3)
         nodes = pose.get("nodes_N") or [p + R @ np.asarray(n["p_BoN_B"], float) for n in b.get("nodes", [])]
         for q in nodes:
@@ -485,6 +486,11 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
                 label += ", prescribed"
             labels.add(pp, label, colour=AXIS_ARROW if joint["type"] == "revolute" else "black",
                        size=8.5 if detail else 7, priority=2)
+
+
+def base_joint_free(geom):
+    """Whether the base body's joint is the free joint (else a prescribed revolute joint to N)."""
+    return all(j["type"] == "free" for j in geom["joints"] if j["parent"] < 0)
 
 
 def swing(painter, frame, joint, js, half, detail, labels):
@@ -605,6 +611,10 @@ def joint_notes(geom, frame):
             continue
         d = positive_direction(frame, joint, js)
         child = geom["bodies"][joint["child"]]["name"]
+        if joint["parent"] < 0:  # a prescribed base: its axis is given in N
+            notes.append("%s: axis %s in N, fixed; the angle is prescribed%s" % (
+                joint["name"], _v(js["axis_N_parent"]), " (offset)" if joint.get("has_offset") else ""))
+            continue
         parent = geom["bodies"][joint["parent"]]["name"]
         notes.append("%s: axis %s in %s, %s in N%s; + angle moves %s %s" % (
             joint["name"], _v(joint["axis_P"]), parent, _v(js["axis_N_parent"]),
