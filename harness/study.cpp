@@ -132,6 +132,18 @@ TimedRun timed_run(const std::string& label, const std::string& engine_name, con
   return out;
 }
 
+// max_t |X(t) - X(0)| / max(|X(0)|, 1e-300) of column c (StudyRow::drift_H, drift_E).
+double relative_drift(const History& h, std::size_t c) {
+  if (h.rows() == 0) return kNaN;
+  const double x0 = h.row(0)[c];
+  double worst = 0;
+  for (std::size_t k = 0; k < h.rows(); ++k) {
+    const double d = std::abs(h.row(k)[c] - x0);
+    if (!(d <= worst)) worst = d;  // NaN propagates
+  }
+  return worst / std::max(std::abs(x0), 1e-300);
+}
+
 std::string run_label(const std::string& engine, const std::string& integrator, double tol) {
   return engine + " + " + integrator + " at " + setting_text(tol);
 }
@@ -334,7 +346,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
   s.duration = base.duration;
   s.output_step = base.output_step;
   const std::vector<double> times = output_times(base);
-  const std::size_t pinned = pinned_columns(system).size();
+  const OutputLayout layout(system);
+  const std::size_t pinned = layout.pinned_size();
   Progress progress{options.progress};
   if (options.progress) options.progress->start(system.name, base.duration);
 
@@ -391,6 +404,7 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
         IntegratorSettings rs = settings;
         rs.method = integ;
         rs.rtol = rs.atol = options.reference_tolerance;
+        if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
         const std::string label = run_label(spec.label, integ, options.reference_tolerance);
         progress.show(system.name + ": reference run " + label, true);
         TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs, options.timeout,
@@ -486,6 +500,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
         }
         row.ok = true;
         row.error = metric.error(r.history);
+        row.drift_H = relative_drift(r.history, static_cast<std::size_t>(layout.H()));
+        row.drift_E = relative_drift(r.history, static_cast<std::size_t>(layout.E()));
       }
       cpu[i].push_back(r.cpu);
     }

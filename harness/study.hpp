@@ -109,6 +109,7 @@ struct StudyOptions {
   std::vector<std::string> reference_integrators{"rkf78", "dopri5"};
   double reference_tolerance = 1e-13;
   double reference_agreement = 1e-11;
+  std::optional<long> reference_max_steps;  // the reference runs' step limit (empty: max_steps)
   bool use_analytic = true;
   ProgressLine* progress = nullptr;      // optional progress display
 };
@@ -129,6 +130,10 @@ struct StudyRow {
   int repeats = 0;
   long rhs_calls = 0, steps = 0, rejected = 0;
   StudyError error;
+  // Conservation drift of the run itself: max_t |X(t) - X(0)| / max(|X(0)|, 1e-300) for X = H
+  // and E (NaN when the run failed). Meaningful only where the scene conserves X.
+  double drift_H = std::numeric_limits<double>::quiet_NaN();
+  double drift_E = std::numeric_limits<double>::quiet_NaN();
   bool front_end = false, front_history = false;  // on the Pareto front (cpu, error)
   std::string setting() const;  // "rtol 1e-08" or "dt 0.0125"
 };

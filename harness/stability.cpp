@@ -1,0 +1,523 @@
+// `crossdyn stability`: where each method fails (see stability.hpp).
+#include "harness/stability.hpp"
+
+#include "core/engine.hpp"
+#include "core/errors.hpp"
+#include "core/output.hpp"
+#include "core/progress.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/compare.hpp"
+#include "harness/engines.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace crossdyn::harness {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+std::string g3(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+bool contains(const std::string& text, const char* what) { return text.find(what) != std::string::npos; }
+
+// rk4's stability boundary along the imaginary axis is 2 sqrt(2) = 2.83, along the real axis 2.79
+// (Hairer and Wanner, Solving ODEs II, Sec. IV.2, Fig. 2.1): 2.8 for a mixed spectrum.
+constexpr double kRk4Limit = 2.8;
+
+}  // namespace
+
+const char* class_name(StabilityClass c) {
+  switch (c) {
+    case StabilityClass::Accurate: return "accurate";
+    case StabilityClass::Inaccurate: return "inaccurate";
+    case StabilityClass::Drift: return "drift";
+    case StabilityClass::Diverged: return "diverged";
+    case StabilityClass::Singular: return "singular";
+    case StabilityClass::TooCostly: return "too costly";
+    case StabilityClass::NoReference: return "no reference";
+  }
+  return "?";
+}
+
+Classified classify(const CellFacts& f, const ClassLimits& lim) {
+  if (!f.reference) return {StabilityClass::NoReference, "no reference at this parameter value"};
+  if (!f.ok) {
+    const std::string& w = f.failure;
+    if (contains(w, "singularity")) return {StabilityClass::Singular, w};
+    if (contains(w, "step limit") || contains(w, "time limit") || contains(w, "timed out") ||
+        contains(w, "deadline"))
+      return {StabilityClass::TooCostly, w};
+    return {StabilityClass::Diverged, w.empty() ? "the run failed" : w};
+  }
+  const double e = f.history_error;
+  if (!std::isfinite(e) || e > lim.diverged_error)
+    return {StabilityClass::Diverged,
+            "history error " + sci(e, 2) + " > " + sci(lim.diverged_error, 2) + " (as large as the motion)"};
+  const bool drift_H = f.H_conserved && !(f.drift_H <= lim.drift_limit);
+  const bool drift_E = f.E_conserved && !(f.drift_E <= lim.drift_limit);
+  if (drift_H || drift_E) {
+    std::string why;
+    if (drift_H) why += "H drifts by " + sci(f.drift_H, 2);
+    if (drift_E) why += std::string(why.empty() ? "" : ", ") + "E drifts by " + sci(f.drift_E, 2);
+    return {StabilityClass::Drift, why + " (relative) > " + sci(lim.drift_limit, 2)};
+  }
+  if (e <= lim.tolerance)
+    return {StabilityClass::Accurate, "history error " + sci(e, 2) + " <= " + sci(lim.tolerance, 2)};
+  return {StabilityClass::Inaccurate, "history error " + sci(e, 2) + " > " + sci(lim.tolerance, 2)};
+}
+
+// ---- knobs -----------------------------------------------------------------------------------
+
+std::vector<std::string> available_knobs(const System& s) {
+  std::vector<std::string> k;
+  for (const Joint& j : s.joints) {
+    if (j.type == JointType::Revolute && j.prescribed) k.push_back(j.name + ".prescribed_rate");
+    else if (j.type == JointType::Revolute) k.push_back(j.name + ".rate");
+    if ((j.type == JointType::Revolute || j.type == JointType::Spherical) && !j.prescribed)
+      k.push_back(j.name + ".stiffness");
+  }
+  for (const Body& b : s.bodies)
+    if (b.flex && b.flex->modes() > 0) k.push_back(b.name + ".modal_stiffness");
+  k.push_back("duration");
+  if (s.name.rfind("chain", 0) == 0) k.push_back("links");
+  return k;
+}
+
+Knob parse_knob(const System& s, const std::string& spec) {
+  Knob k;
+  k.spec = spec;
+  auto fail = [&](const std::string& what) {
+    std::string list;
+    for (const std::string& x : available_knobs(s)) list += (list.empty() ? "" : ", ") + x;
+    throw InputError("--vary '" + spec + "': " + what + " (this scene offers: " + list + ")");
+  };
+  if (spec == "duration") {
+    k.kind = Knob::Kind::Duration;
+    k.unit = "s";
+    k.description = "the run's duration (horizon)";
+    return k;
+  }
+  if (spec == "links") {
+    if (s.name.rfind("chain", 0) != 0) fail("`links` needs a chainN scene");
+    k.kind = Knob::Kind::Links;
+    k.description = "the number of links of chainN";
+    return k;
+  }
+  const std::size_t dot = spec.rfind('.');
+  if (dot == std::string::npos || dot == 0) fail("expected <joint or body>.<what>, duration or links");
+  const std::string name = spec.substr(0, dot), what = spec.substr(dot + 1);
+  int joint = -1;
+  for (std::size_t j = 0; j < s.joints.size(); ++j)
+    if (s.joints[j].name == name) joint = static_cast<int>(j);
+  const int body = s.body_index(name);
+  if (joint >= 0) {
+    const Joint& J = s.joints[static_cast<std::size_t>(joint)];
+    k.index = joint;
+    if (what == "stiffness" && (J.type == JointType::Revolute || J.type == JointType::Spherical) &&
+        !J.prescribed) {
+      k.kind = Knob::Kind::JointStiffness;
+      k.unit = "N m/rad";
+      k.description = "the spring stiffness of joint '" + name + "'";
+      return k;
+    }
+    if (what == "rate" && J.type == JointType::Revolute && !J.prescribed) {
+      k.kind = Knob::Kind::JointRate;
+      k.unit = "rad/s";
+      k.description = "the initial rate of joint '" + name + "'";
+      return k;
+    }
+    if (what == "prescribed_rate" && J.prescribed) {
+      k.kind = Knob::Kind::PrescribedRate;
+      k.unit = "rad/s";
+      k.description = "the final prescribed rate of joint '" + name + "'";
+      return k;
+    }
+    fail("joint '" + name + "' has no '" + what + "' to vary");
+  }
+  if (body >= 0) {
+    if (what == "modal_stiffness" && s.bodies[static_cast<std::size_t>(body)].flex) {
+      k.kind = Knob::Kind::ModalStiffness;
+      k.index = body;
+      k.description = "the modal stiffness of body '" + name + "' (scale on K)";
+      return k;
+    }
+    fail("body '" + name + "' has no '" + what + "' to vary");
+  }
+  fail("no joint or body '" + name + "'");
+  return k;
+}
+
+System apply_knob(const System& s, const Knob& k, double v) {
+  auto bad = [&](const std::string& what) {
+    throw InputError("--values: " + g3(v) + " for " + k.spec + ": " + what);
+  };
+  if (!std::isfinite(v)) bad("not a finite number");
+  if (k.kind == Knob::Kind::Links) {
+    if (v < 1 || v > 512 || v != std::floor(v)) bad("the number of links must be a whole number from 1 to 512");
+    System c = read_scene_text(chain_scene_text(static_cast<int>(v)),
+                               "chain" + std::to_string(static_cast<int>(v)) + " (generated)");
+    c.run = s.run;
+    c.compare = s.compare;
+    return c;
+  }
+  System c = s;
+  switch (k.kind) {
+    case Knob::Kind::JointStiffness:
+      if (v < 0) bad("a stiffness must be >= 0");
+      c.joints[static_cast<std::size_t>(k.index)].stiffness = v;
+      break;
+    case Knob::Kind::JointRate:
+      c.joints[static_cast<std::size_t>(k.index)].rate0 = v;
+      break;
+    case Knob::Kind::PrescribedRate:
+      if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
+      c.joints[static_cast<std::size_t>(k.index)].prescribed->rate = v;
+      break;
+    case Knob::Kind::ModalStiffness: {
+      if (!(v > 0)) bad("the scale must be positive");
+      FlexBody& f = *c.bodies[static_cast<std::size_t>(k.index)].flex;
+      f.K *= v;
+      break;
+    }
+    case Knob::Kind::Duration:
+      if (!(v > 0) || v > 1e7) bad("the duration must be positive and at most 1e7 s");
+      c.run.duration = v;
+      if (c.run.output_step > v) c.run.output_step = v;
+      // At most 2000 output rows: a long horizon keeps the map's runs comparable.
+      c.run.output_step = std::max(c.run.output_step, v / 2000);
+      break;
+    case Knob::Kind::Links: break;
+  }
+  return c;
+}
+
+// ---- the sweep ---------------------------------------------------------------------------------
+
+std::string StabilityCell::setting_text() const {
+  return (fixed_step ? "dt " : "rtol ") + g3(setting);
+}
+
+double jacobian_spectral_radius(const System& system, const std::string& engine_name) {
+  try {
+    std::unique_ptr<Engine> e = make_engine(engine_name, system, {});
+    const int n = e->state_size();
+    if (n <= 0 || n > 400) return kNaN;
+    Eigen::VectorXd x(n), xp(n), xm(n), fp(n), fm(n);
+    e->pack(TreeState::initial(system), x.data());
+    Eigen::MatrixXd J(n, n);
+    for (int j = 0; j < n; ++j) {
+      const double h = 1e-6 * (1 + std::abs(x(j)));
+      xp = x;
+      xm = x;
+      xp(j) += h;
+      xm(j) -= h;
+      e->rhs(0.0, xp.data(), fp.data());
+      e->rhs(0.0, xm.data(), fm.data());
+      J.col(j) = (fp - fm) / (2 * h);
+    }
+    if (!J.allFinite()) return kNaN;
+    const Eigen::VectorXcd ev = Eigen::EigenSolver<Eigen::MatrixXd>(J, false).eigenvalues();
+    double r = 0;
+    for (Eigen::Index i = 0; i < ev.size(); ++i) r = std::max(r, std::abs(ev(i)));
+    return r;
+  } catch (const std::exception&) {
+    return kNaN;
+  }
+}
+
+StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
+                             const StabilityOptions& o) {
+  if (values.empty()) throw InputError("--values: give at least one value");
+  StabilityMap m;
+  m.scene = system.name;
+  m.file = system.file;
+  m.knob = knob;
+  m.engines = o.engines.empty() ? engine_names() : o.engines;
+  m.integrators = o.integrators.empty()
+                      ? std::vector<std::string>{"rk4", "dopri5", "dop853", "cvode-bdf"}
+                      : o.integrators;
+  m.limits.tolerance = o.tolerance ? *o.tolerance
+                                   : system.compare.default_tolerance.atol +
+                                         system.compare.default_tolerance.rtol;
+  m.limits.drift_limit = o.drift_limit;
+
+  StudyOptions so;
+  so.engines = m.engines;
+  so.integrators = m.integrators;
+  so.tolerances = o.tolerances.empty() ? std::vector<double>{1e-3, 1e-6, 1e-9, 1e-12} : o.tolerances;
+  so.dts = o.dts;
+  so.repeat = 1;
+  so.max_steps = o.max_steps;
+  so.reference_max_steps = 20000000;  // the reference may be costly; the timeout still holds
+  so.timeout = o.timeout;
+  so.progress = o.progress;
+  // The reference must be well inside the accuracy limit, not at the study's 1e-11: a map of
+  // 1e-8 accuracy needs a reference good to 1e-10.
+  so.reference_agreement = std::max(so.reference_agreement, 1e-2 * m.limits.tolerance);
+
+  for (double v : values) {
+    const System s = apply_knob(system, knob, v);
+    StabilityColumn col;
+    col.value = v;
+    col.lambda_max = jacobian_spectral_radius(s, m.engines.front());
+    const std::size_t c = m.columns.size();
+    const bool H_conserved = momentum_not_conserved_reason(s).empty();
+    const bool E_conserved = energy_not_conserved_reason(s).empty();
+    StudyOptions sv = so;
+    if (sv.dts.empty())
+      for (int k = 0; k <= 6; ++k) sv.dts.push_back(s.run.output_step / std::pow(2.0, k));
+    try {
+      const SceneStudy st = study_scene(s, sv);
+      col.reference_note = st.reference.description;
+      for (const std::string& n : st.notes)
+        if (std::find(m.notes.begin(), m.notes.end(), n) == m.notes.end()) m.notes.push_back(n);
+      for (const StudyRow& r : st.rows) {
+        StabilityCell cell;
+        cell.engine = r.engine;
+        cell.integrator = r.integrator;
+        cell.fixed_step = r.fixed_step;
+        cell.setting = r.fixed_step ? r.dt : r.tolerance;
+        cell.column = c;
+        cell.cpu = r.cpu_median;
+        cell.rhs_calls = r.rhs_calls;
+        cell.steps = r.steps;
+        cell.history_error = r.error.history;
+        if (r.fixed_step) cell.h_lambda = r.dt * col.lambda_max;
+        CellFacts f;
+        f.ok = r.ok;
+        f.failure = r.failure;
+        f.history_error = r.error.history;
+        f.drift_H = r.drift_H;
+        f.drift_E = r.drift_E;
+        f.H_conserved = H_conserved;
+        f.E_conserved = E_conserved;
+        cell.result = classify(f, m.limits);
+        m.cells.push_back(cell);
+      }
+    } catch (const StudyRefused& r) {
+      col.reference = false;
+      col.reference_note = r.what();
+      m.notes.push_back("at " + knob.spec + " = " + g3(v) + ": " + r.what());
+      for (const std::string& e : m.engines)
+        for (const std::string& i : m.integrators) {
+          const bool fixed = Choice<Integrator>(i) == Integrator::Rk4;
+          for (double x : fixed ? sv.dts : sv.tolerances) {
+            StabilityCell cell;
+            cell.engine = e;
+            cell.integrator = i;
+            cell.fixed_step = fixed;
+            cell.setting = x;
+            cell.column = c;
+            CellFacts f;
+            f.reference = false;
+            cell.result = classify(f, m.limits);
+            m.cells.push_back(cell);
+          }
+        }
+    }
+    m.columns.push_back(col);
+  }
+  m.findings = stability_findings(m);
+  return m;
+}
+
+// ---- findings ------------------------------------------------------------------------------------
+
+namespace {
+
+std::string remedy(StabilityClass c, bool fixed_step, const std::string& engine) {
+  switch (c) {
+    case StabilityClass::Diverged:
+      return fixed_step
+                 ? "take h |lambda|max below 2.8 (rk4's stability limit), or an adaptive method, "
+                   "which shortens its steps by itself"
+                 : "tighten the tolerance; if every method diverges the model itself is unstable "
+                   "(look at the reference)";
+    case StabilityClass::Singular:
+      return "turn Euler-angle re-charting on (lagrange's default) or use an engine with "
+             "quaternions (kane, newton-euler)";
+    case StabilityClass::TooCostly:
+      return "the scene is stiff for an explicit method: use the implicit cvode-bdf, or leave out "
+             "the fast modes or stiff springs that do not change the answer";
+    case StabilityClass::Drift:
+      return engine == "newton-euler"
+                 ? "tighten the tolerance, and keep newton-euler's projection stabilisation on"
+                 : "tighten the tolerance (or a shorter step)";
+    case StabilityClass::Inaccurate:
+      return fixed_step ? "a shorter step" : "a tighter tolerance";
+    case StabilityClass::NoReference:
+      return "no remedy here: the engines disagree or fail at their tightest settings; see the notes";
+    case StabilityClass::Accurate: return "";
+  }
+  return "";
+}
+
+}  // namespace
+
+std::vector<std::string> stability_findings(const StabilityMap& m) {
+  std::vector<std::string> out;
+  const std::string unit = m.knob.unit.empty() ? "" : " " + m.knob.unit;
+  for (const std::string& e : m.engines)
+    for (const std::string& i : m.integrators) {
+      std::vector<const StabilityCell*> cells;
+      for (const StabilityCell& c : m.cells)
+        if (c.engine == e && c.integrator == i) cells.push_back(&c);
+      if (cells.empty()) continue;
+      const bool fixed = cells.front()->fixed_step;
+      // Per column: the coarsest accurate setting, and the failure classes of coarser ones.
+      std::ostringstream where;
+      std::map<StabilityClass, int> how;
+      int failing_columns = 0;
+      std::string h_lambda_note;
+      for (std::size_t c = 0; c < m.columns.size(); ++c) {
+        double coarsest = kNaN;
+        std::set<std::string> fails;
+        for (const StabilityCell* x : cells) {
+          if (x->column != c) continue;
+          if (x->result.cls == StabilityClass::Accurate) {
+            if (std::isnan(coarsest) || x->setting > coarsest) coarsest = x->setting;
+          } else {
+            fails.insert(class_name(x->result.cls));
+            ++how[x->result.cls];
+            if (x->result.cls == StabilityClass::Diverged && fixed && std::isfinite(x->h_lambda) &&
+                h_lambda_note.empty())
+              h_lambda_note = "first diverging step has h |lambda|max = " + g3(x->h_lambda);
+          }
+        }
+        if (!fails.empty()) ++failing_columns;
+        where << (c ? "; " : "") << m.knob.spec << " " << g3(m.columns[c].value) << unit << ": ";
+        if (!m.columns[c].reference) {
+          where << "no reference";
+          continue;
+        }
+        if (std::isnan(coarsest)) where << "never accurate";
+        else where << "accurate up to " << (fixed ? "dt " : "rtol ") << g3(coarsest);
+        if (!fails.empty()) {
+          where << ", else ";
+          bool first = true;
+          for (const std::string& f : fails) {
+            where << (first ? "" : "/") << f;
+            first = false;
+          }
+        }
+      }
+      std::string sentence = e + " + " + i + ": ";
+      if (failing_columns == 0) {
+        sentence += "accurate at every setting and value tried.";
+      } else {
+        // The most severe way it fails (diverged, singular, too costly, drift, inaccurate).
+        StabilityClass most = StabilityClass::Inaccurate;
+        for (StabilityClass c : {StabilityClass::Drift, StabilityClass::TooCostly,
+                                 StabilityClass::Singular, StabilityClass::Diverged})
+          if (how.count(c)) most = c;
+        sentence += where.str() + ". Fails mostly as " + class_name(most) +
+                    (h_lambda_note.empty() ? "" : " (" + h_lambda_note + ")") +
+                    ". Remedy: " + remedy(most, fixed, e) + ".";
+      }
+      out.push_back(sentence);
+    }
+  return out;
+}
+
+// ---- text and CSV ------------------------------------------------------------------------------
+
+namespace {
+
+char class_letter(StabilityClass c) {
+  switch (c) {
+    case StabilityClass::Accurate: return '.';
+    case StabilityClass::Inaccurate: return 'i';
+    case StabilityClass::Drift: return 'd';
+    case StabilityClass::Diverged: return 'X';
+    case StabilityClass::Singular: return 'S';
+    case StabilityClass::TooCostly: return 'C';
+    case StabilityClass::NoReference: return '?';
+  }
+  return ' ';
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return q + "\"";
+}
+
+}  // namespace
+
+std::string format_stability(const StabilityMap& m) {
+  std::ostringstream o;
+  o << "Stability map of " << m.scene << " against " << m.knob.description << " ("
+    << m.knob.spec << (m.knob.unit.empty() ? "" : ", " + m.knob.unit) << ")\n";
+  o << "accurate: history error <= " << sci(m.limits.tolerance, 2) << "; drift: relative H or E drift > "
+    << sci(m.limits.drift_limit, 2) << " where conserved\n";
+  o << "legend: . accurate  i inaccurate  d drift  X diverged  S singular  C too costly  ? no reference\n";
+  o << "|lambda|max (1/s, Jacobian of " << m.engines.front() << " at t = 0):";
+  for (const StabilityColumn& c : m.columns) o << ' ' << g3(c.lambda_max);
+  o << "\n\n";
+  for (const std::string& e : m.engines) {
+    o << e << "\n" << std::string(24, ' ');
+    for (const StabilityColumn& c : m.columns) {
+      std::string v = g3(c.value);
+      v.resize(9, ' ');
+      o << v;
+    }
+    o << '\n';
+    for (const std::string& i : m.integrators) {
+      std::vector<double> settings;
+      for (const StabilityCell& c : m.cells)
+        if (c.engine == e && c.integrator == i &&
+            std::find(settings.begin(), settings.end(), c.setting) == settings.end())
+          settings.push_back(c.setting);
+      for (double st : settings) {
+        std::string label = "  " + i + (Choice<Integrator>(i) == Integrator::Rk4 ? " dt " : " tol ") + g3(st);
+        label.resize(24, ' ');
+        o << label;
+        for (std::size_t c = 0; c < m.columns.size(); ++c) {
+          char ch = ' ';
+          for (const StabilityCell& x : m.cells)
+            if (x.engine == e && x.integrator == i && x.setting == st && x.column == c)
+              ch = class_letter(x.result.cls);
+          o << ch << std::string(8, ' ');
+        }
+        o << '\n';
+      }
+    }
+    o << '\n';
+  }
+  o << "Findings:\n";
+  for (const std::string& f : m.findings) o << "- " << f << '\n';
+  for (const std::string& n : m.notes) o << "note: " << n << '\n';
+  return o.str();
+}
+
+std::string stability_csv(const StabilityMap& m) {
+  std::ostringstream o;
+  o << "scene,parameter,value,lambda_max,engine,integrator,setting_kind,setting,class,why,history_error,"
+       "cpu_ms,rhs_calls,steps,h_lambda\n";
+  auto num = [](double v) { return std::isfinite(v) ? sci(v, 4) : std::string(); };
+  for (const StabilityCell& c : m.cells) {
+    const StabilityColumn& col = m.columns[c.column];
+    o << m.scene << ',' << m.knob.spec << ',' << sci(col.value, 6) << ',' << num(col.lambda_max) << ','
+      << c.engine << ',' << c.integrator << ',' << (c.fixed_step ? "dt" : "tolerance") << ','
+      << sci(c.setting, 6) << ',' << class_name(c.result.cls) << ',' << csv_field(c.result.why) << ','
+      << num(c.history_error) << ',' << (c.result.cls == StabilityClass::NoReference ? "" : num(1e3 * c.cpu))
+      << ',' << c.rhs_calls << ',' << c.steps << ',' << num(c.h_lambda) << '\n';
+  }
+  return o.str();
+}
+
+}  // namespace crossdyn::harness

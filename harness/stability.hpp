@@ -1,0 +1,162 @@
+// Where each method fails (issue 13, `crossdyn stability`): a map of engine x integrator x step
+// size (or tolerance) against one scene parameter, each cell classified, with the findings in
+// words: where it fails, how, and the remedy.
+//
+// The sweep. For each value v of the parameter (a Knob: a hinge spring's stiffness, a joint's
+// initial rate (a rotor speed), a prescribed joint's final rate, a flexible body's modal-stiffness
+// scale, the run's duration, or the number of links of chainN), the scene with that value is
+// studied exactly as `crossdyn study` does (harness/study.hpp, one timed run per configuration):
+// the same reference (analytic, or the engines' agreement at 1e-13), the same error metric
+// (history error: max over quantities and output times of |x - r| / the quantity's scale).
+//
+// The classes (classify(); first match wins):
+//   no reference  the reference could not be made at this value (the study refused it)
+//   singular      the run stopped at an Euler-angle singularity (lagrange without re-charting)
+//   too costly    the run hit the step limit or the time limit
+//   diverged      the run stopped on a non-finite or exploding state, a non-positive-definite
+//                 mass matrix or a step-size underflow; or it finished with a history error above
+//                 ClassLimits::diverged_error (the error as large as the motion itself)
+//   drift         finished, but the relative drift of H or E, where the scene conserves it, is
+//                 above ClassLimits::drift_limit (while the error may still be small)
+//   accurate      history error <= ClassLimits::tolerance (default: the scene's default compare
+//                 tolerance, atol + rtol)
+//   inaccurate    anything else that finished
+//
+// The stiffness of each column. |lambda|max, the spectral radius of the Jacobian d xdot / dx of the
+// first engine's right-hand side at the initial state (central differences, step 1e-6 (1 + |x_j|)),
+// is the rate the fastest motion sets: rk4's stability region reaches |h lambda| ~ 2.8 (2.83 on
+// the imaginary axis, 2.79 on the real one; Hairer and Wanner, Solving ODEs II, Sec. IV.2), so
+// a step above 2.8 / |lambda|max diverges. The findings quote h |lambda|max for every rk4 cell.
+#pragma once
+
+#include "core/system.hpp"
+#include "harness/study.hpp"
+
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace crossdyn {
+class ProgressLine;
+}
+
+namespace crossdyn::harness {
+
+enum class StabilityClass { Accurate, Inaccurate, Drift, Diverged, Singular, TooCostly, NoReference };
+inline constexpr StabilityClass kStabilityClasses[] = {
+    StabilityClass::Accurate, StabilityClass::Inaccurate, StabilityClass::Drift,
+    StabilityClass::Diverged, StabilityClass::Singular,   StabilityClass::TooCostly,
+    StabilityClass::NoReference};
+// "accurate", "inaccurate", "drift", "diverged", "singular", "too costly", "no reference".
+const char* class_name(StabilityClass c);
+
+// What a cell's classification looks at.
+struct CellFacts {
+  bool reference = true;      // false: no reference at this parameter value
+  bool ok = false;            // the run finished
+  std::string failure;        // why it did not (RunFailure text)
+  double history_error = std::numeric_limits<double>::quiet_NaN();
+  double drift_H = std::numeric_limits<double>::quiet_NaN();
+  double drift_E = std::numeric_limits<double>::quiet_NaN();
+  bool H_conserved = false, E_conserved = false;  // by the scene (compare.hpp's reasons empty)
+};
+
+struct ClassLimits {
+  double tolerance = 1e-6;      // history error at most this: accurate
+  double drift_limit = 1e-6;    // relative drift of a conserved H or E above this: drift
+  double diverged_error = 1.0;  // history error above this: diverged
+};
+
+struct Classified {
+  StabilityClass cls = StabilityClass::Inaccurate;
+  std::string why;  // one phrase: "history error 3.2e-05 > 1e-06", "step limit reached ..."
+};
+Classified classify(const CellFacts& facts, const ClassLimits& limits);
+
+// The swept scene parameter (`--vary`):
+//   <joint>.stiffness         a revolute or spherical joint's spring stiffness, N m/rad
+//   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s
+//   <joint>.prescribed_rate   a prescribed joint's final rate Omega_s, rad/s
+//   <body>.modal_stiffness    a flexible body's modal stiffness K, scaled by the value
+//   duration                  the run's duration (the horizon), s
+//   links                     the number of links of chainN (the scene must be a chainN)
+struct Knob {
+  enum class Kind { JointStiffness, JointRate, PrescribedRate, ModalStiffness, Duration, Links };
+  Kind kind = Kind::Duration;
+  std::string spec;         // as given: "hinge.stiffness"
+  int index = -1;           // the joint or body
+  std::string unit;         // "N m/rad", "rad/s", "" (a scale), "s", "" (links)
+  std::string description;  // "the spring stiffness of joint 'hinge'"
+};
+// Parses `spec` against the scene; InputError naming what is wrong and listing the knobs the
+// scene has.
+Knob parse_knob(const System& system, const std::string& spec);
+// The scene with the knob set to `value` (InputError when the value is out of range).
+System apply_knob(const System& system, const Knob& knob, double value);
+// The knobs this scene offers, for messages and --help ("hinge.stiffness", "duration", ...).
+std::vector<std::string> available_knobs(const System& system);
+
+struct StabilityCell {
+  std::string engine, integrator;
+  bool fixed_step = false;
+  double setting = 0;           // dt (rk4) or rtol = atol
+  std::size_t column = 0;       // into StabilityMap::columns
+  Classified result;
+  double history_error = std::numeric_limits<double>::quiet_NaN();
+  double cpu = 0;               // s, one run
+  long rhs_calls = 0, steps = 0;
+  double h_lambda = std::numeric_limits<double>::quiet_NaN();  // rk4: dt |lambda|max
+  std::string setting_text() const;  // "dt 0.0125" or "rtol 1e-08"
+};
+
+struct StabilityColumn {
+  double value = 0;
+  bool reference = true;
+  std::string reference_note;  // why there is none, or the reference's description
+  double lambda_max = std::numeric_limits<double>::quiet_NaN();  // 1/s
+};
+
+struct StabilityMap {
+  std::string scene, file;
+  Knob knob;
+  std::vector<StabilityColumn> columns;  // one per parameter value, in the order given
+  std::vector<StabilityCell> cells;
+  ClassLimits limits;
+  std::vector<std::string> engines, integrators;  // in map order
+  std::vector<std::string> findings;  // per engine x integrator: where, how, remedy (sentences)
+  std::vector<std::string> notes;
+};
+
+struct StabilityOptions {
+  std::vector<std::string> engines;      // empty: every engine
+  std::vector<std::string> integrators;  // empty: rk4, dopri5, dop853, cvode-bdf
+  std::vector<double> tolerances;        // empty: 1e-3, 1e-6, 1e-9, 1e-12
+  std::vector<double> dts;               // empty: output step / 1, 2, 4, ..., 64
+  std::optional<double> tolerance;       // the accuracy limit; empty: the scene's default
+  double drift_limit = 1e-6;
+  std::optional<long> max_steps = 200000;
+  double timeout = 20;                   // per run, s
+  ProgressLine* progress = nullptr;
+};
+
+// Runs the sweep. Throws InputError for bad options, cancel::Cancelled when interrupted.
+StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
+                             const StabilityOptions& options);
+
+// |lambda|max of `engine`'s right-hand side at the scene's initial state (see the header); NaN
+// when the engine cannot be made or the Jacobian is not finite.
+double jacobian_spectral_radius(const System& system, const std::string& engine);
+
+// The findings (StabilityMap::findings) from the cells.
+std::vector<std::string> stability_findings(const StabilityMap& map);
+
+// Text: the maps as character grids (one per engine), the legend and the findings.
+std::string format_stability(const StabilityMap& map);
+std::string stability_csv(const StabilityMap& map);
+// JSON (kind "stability") and the report folder (index.html, <scene>-stability.html, maps as PNG).
+std::string stability_json(const std::vector<StabilityMap>& maps);
+void write_stability_report(const std::string& dir, const std::vector<StabilityMap>& maps,
+                            const std::string& python = "/usr/bin/python3");
+
+}  // namespace crossdyn::harness

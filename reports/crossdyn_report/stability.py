@@ -1,0 +1,130 @@
+"""`crossdyn stability --report DIR` (stability.json, "kind": "stability"): one map per engine,
+parameter values across, integrator x step (or tolerance) down, cells coloured by class."""
+
+import os
+
+import numpy as np
+from matplotlib.colors import ListedColormap
+from matplotlib.patches import Patch
+
+from .common import gfmt, plt, save_figure, write_atomic
+
+# One colour per class, in stability.json's "classes" order (harness/stability.hpp):
+# accurate, inaccurate, drift, diverged, singular, too costly, no reference.
+CLASS_COLOURS = {
+    "accurate": "#4daf4a",
+    "inaccurate": "#ffd92f",
+    "drift": "#fdae61",
+    "diverged": "#d7191c",
+    "singular": "#7b3294",
+    "too costly": "#2b83ba",
+    "no reference": "#bdbdbd",
+}
+
+
+def _rows(m, engine):
+    """(integrator, setting, setting_text) in map order, for one engine."""
+    out = []
+    for integ in m["integrators"]:
+        seen = []
+        for c in m["cells"]:
+            if c["engine"] == engine and c["integrator"] == integ and c["setting"] not in [s for s, _ in seen]:
+                seen.append((c["setting"], c["setting_text"]))
+        out += [(integ, s, t) for s, t in seen]
+    return out
+
+
+def chart_map(m, out_dir):
+    """One panel per engine. Returns (file name, caption) or None."""
+    engines = [e for e in m["engines"] if any(c["engine"] == e for c in m["cells"])]
+    if not engines or not m["columns"]:
+        return None
+    classes = list(CLASS_COLOURS)
+    cmap = ListedColormap([CLASS_COLOURS[k] for k in classes])
+    nrows = max(len(_rows(m, e)) for e in engines)
+    ncols = len(m["columns"])
+    fig, axes = plt.subplots(len(engines), 1, figsize=(max(7.0, 0.95 * ncols + 3.4), (0.3 * nrows + 1.6) * len(engines) + 0.8),
+                             squeeze=False)
+    for ax, engine in zip(axes[:, 0], engines):
+        rows = _rows(m, engine)
+        grid = np.full((len(rows), ncols), np.nan)
+        text = [["" for _ in range(ncols)] for _ in rows]
+        for c in m["cells"]:
+            if c["engine"] != engine:
+                continue
+            i = rows.index((c["integrator"], c["setting"], c["setting_text"]))
+            grid[i, c["column"]] = classes.index(c["class"])
+            if c.get("h_lambda") is not None and c["class"] != "no reference":
+                text[i][c["column"]] = "%.2g" % c["h_lambda"]
+        ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=-0.5, vmax=len(classes) - 0.5, aspect="auto",
+                  interpolation="nearest")
+        for i in range(len(rows)):
+            for j in range(ncols):
+                if text[i][j]:
+                    ax.text(j, i, text[i][j], ha="center", va="center", fontsize=7, color="black")
+        # Lines between integrators.
+        for i in range(1, len(rows)):
+            if rows[i][0] != rows[i - 1][0]:
+                ax.axhline(i - 0.5, color="white", linewidth=3)
+        ax.set_yticks(range(len(rows)))
+        ax.set_yticklabels(["%s %s" % (r[0], r[2]) for r in rows], fontsize=8)
+        ax.set_xticks(range(ncols))
+        ax.set_xticklabels([gfmt(c["value"]) for c in m["columns"]], fontsize=8, rotation=30)
+        p = m["parameter"]
+        ax.set_xlabel("%s%s" % (p["spec"], (" (%s)" % p["unit"]) if p["unit"] else ""))
+        ax.set_title(engine, fontsize="medium")
+        lam = [c.get("lambda_max") for c in m["columns"]]
+        if any(x is not None for x in lam):
+            top = ax.secondary_xaxis("top")
+            top.set_xticks(range(ncols))
+            top.set_xticklabels(["%.3g" % x if x is not None else "-" for x in lam], fontsize=7)
+            top.set_xlabel("|lambda|max, 1/s", fontsize=8)
+    present = sorted({c["class"] for c in m["cells"]}, key=classes.index)
+    fig.legend(handles=[Patch(facecolor=CLASS_COLOURS[k], label=k) for k in present], loc="lower center",
+               ncol=len(present), frameon=False, bbox_to_anchor=(0.5, 0.0))
+    fig.tight_layout(rect=(0, 0.8 / fig.get_size_inches()[1], 1, 1))
+    name = "%s.png" % m["id"]
+    save_figure(fig, os.path.join(out_dir, name))
+    return name, ("Each cell is one run of %s: the engine (panel) with the integrator and step or "
+                  "tolerance (row) at one value of %s (column), coloured by its class. Numbers in rk4 "
+                  "cells are h |lambda|max: rk4 is stable only below about 2.8. |lambda|max (top axis) is "
+                  "the largest |eigenvalue| of the right-hand side's Jacobian at t = 0."
+                  % (m["scene"], m["parameter"]["description"]))
+
+
+def map_context(summary, m, chart):
+    cells = []
+    for c in m["cells"]:
+        col = m["columns"][c["column"]]
+        cells.append(dict(engine=c["engine"], integrator=c["integrator"], setting=c["setting_text"],
+                          value=gfmt(col["value"]), cls=c["class"], why=c["why"],
+                          cpu="" if c.get("cpu") is None else "%.3g" % (1e3 * c["cpu"]),
+                          rhs=c["rhs_calls"], h_lambda="" if c.get("h_lambda") is None else "%.3g" % c["h_lambda"]))
+    p = m["parameter"]
+    return dict(title="crossdyn stability: %s against %s" % (m["scene"], p["spec"]), scene=m["scene"],
+                file=m.get("file", ""), parameter=p, limits=m["limits"], chart=chart, csv=m["csv"],
+                findings=m.get("findings", []), notes=m.get("notes", []), cells=cells,
+                columns=[dict(value=gfmt(c["value"]), lam="-" if c.get("lambda_max") is None else "%.3g" % c["lambda_max"],
+                              reference=c.get("reference_note", "")) for c in m["columns"]],
+                colours=CLASS_COLOURS)
+
+
+def index_context(summary):
+    maps = [dict(page=m["page"], scene=m["scene"], spec=m["parameter"]["spec"],
+                 description=m["parameter"]["description"], findings=m.get("findings", [])[:3])
+            for m in summary.get("maps", [])]
+    return dict(title="crossdyn: where each method fails", maps=maps)
+
+
+def report(summary, out_dir, env, render, warn):
+    for m in summary.get("maps", []):
+        try:
+            made = chart_map(m, out_dir)
+        except Exception as e:  # a chart that cannot be drawn must not lose the page
+            warn("%s: the stability map failed: %r" % (m.get("scene"), e))
+            plt.close("all")
+            made = None
+        chart = dict(name=made[0], caption=made[1]) if made else None
+        write_atomic(os.path.join(out_dir, m["page"]), render(env, "stability.html", map_context(summary, m, chart)))
+    write_atomic(os.path.join(out_dir, "index.html"), render(env, "stability_index.html", index_context(summary)))
+    return 0
