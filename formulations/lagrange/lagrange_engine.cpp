@@ -101,6 +101,11 @@ struct LagrangeEngine::Model {
     int parent_node = -1, child_node = -1;
     int parent_e0 = -1, child_e0 = -1;
     Eigen::Matrix3Xd Phi_P, Psi_P, Phi_C, Psi_C;
+    // Geometric stiffening of the parent (child) node: e_i and G_i (flex_body.hpp), so the node
+    // moves by Phi eta + e (1/2 eta^T G eta) with velocity Pt eta', Pt = Phi + e (G eta)^T.
+    bool stiff_P = false, stiff_C = false;
+    Eigen::Vector3d e_P = Eigen::Vector3d::Zero(), e_C = Eigen::Vector3d::Zero();
+    Eigen::MatrixXd Gs_P, Gs_C;
     std::vector<int> subtree;  // this joint and every joint below it, in topological order
     double stiffness = 0, neutral = 0, damping = 0;
     PiecewiseConstant<1> motor_revolute;
@@ -166,6 +171,8 @@ struct Kin {
   std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position
   std::vector<Mat3<S>> E_C;           // joint at a child node: exp([psi_C x])
   std::vector<Mat3X<S>> G_P, G_C;     // joint at a parent (child) node: Jl(psi) Psi, 3 x modes
+  std::vector<Mat3X<S>> Pt_P, Pt_C;   // ... with geometric stiffening: Phi + e (G eta)^T
+  std::vector<S> Ge;                  // scratch: G eta, max_modes
   std::vector<S> he;                  // scratch: modal momentum, max_modes
   void resize(const Model& m) {
     const std::size_t nb = m.bodies.size();
@@ -181,11 +188,18 @@ struct Kin {
     E_C.assign(nb, Mat3<S>::Identity());
     G_P.resize(nb);
     G_C.resize(nb);
-    for (std::size_t b = 0; b < nb; ++b) fi[b].resize(m.bodies[b].nm);
+    Pt_P.resize(nb);
+    Pt_C.resize(nb);
+    Ge.assign(static_cast<std::size_t>(m.max_modes), S(0.0));
+    for (std::size_t b = 0; b < nb; ++b)
+      fi[b].resize(m.bodies[b].nm,
+                   m.bodies[b].flex >= 0 && m.flex[static_cast<std::size_t>(m.bodies[b].flex)].stiff);
     for (const Model::JointM& J : m.joints) {
       const auto c = static_cast<std::size_t>(J.child);
       G_P[c].resize(3, J.Psi_P.cols());
       G_C[c].resize(3, J.Psi_C.cols());
+      if (J.stiff_P) Pt_P[c].resize(3, J.Phi_P.cols());
+      if (J.stiff_C) Pt_C[c].resize(3, J.Phi_C.cols());
     }
     he.assign(static_cast<std::size_t>(m.max_modes), S(0.0));
   }
@@ -251,6 +265,25 @@ void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eig
       G(a, k) = Jl(a, 0) * Psi(0, k) + Jl(a, 1) * Psi(1, k) + Jl(a, 2) * Psi(2, k);
 }
 
+// Geometric stiffening at a node (docs/flexible-bodies.md "Geometric stiffening"; Kane, Ryan and
+// Banerjee 1987, Eq. (8)): r += e (1/2 eta^T Gs eta) and Pt = Phi + e (Gs eta)^T, the node's
+// velocity relative to the body per unit eta' (du/dt = Pt eta'). Ge: scratch of nm values.
+template <class S>
+void node_stiffening(const Eigen::Matrix3Xd& Phi, const Eigen::Vector3d& e,
+                     const Eigen::MatrixXd& Gs, const S* eta, S* Ge, Vec3<S>& r, Mat3X<S>& Pt) {
+  const auto nm = Phi.cols();
+  S w(0.0);
+  for (Eigen::Index k = 0; k < nm; ++k) {
+    S g(0.0);
+    for (Eigen::Index l = 0; l < nm; ++l) g += Gs(k, l) * eta[l];
+    Ge[k] = g;
+    w += 0.5 * eta[k] * g;
+  }
+  for (int a = 0; a < 3; ++a) r(a) += e(a) * w;
+  for (Eigen::Index k = 0; k < nm; ++k)
+    for (int a = 0; a < 3; ++a) Pt(a, k) = Phi(a, k) + e(a) * Ge[k];
+}
+
 // pose: (q*) => R_NB, R_PC, p_NoBo_N. Joint kinematics of system.hpp:
 // R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, R_NC = R_NP R_PC,
 // p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
@@ -301,11 +334,17 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
     if (J.parent_node >= 0) {
       Mat3<S> E_P;
       node_frame(J.p_PoJ_P, J.Phi_P, J.Psi_P, k.q.data() + J.parent_e0, k.r_P[c], E_P, k.G_P[c]);
+      if (J.stiff_P)
+        node_stiffening(J.Phi_P, J.e_P, J.Gs_P, k.q.data() + J.parent_e0, k.Ge.data(), k.r_P[c],
+                        k.Pt_P[c]);
       R_PC = E_P * R_PC;
     }
     if (J.child_node >= 0) {
       node_frame(J.p_CoJ_C, J.Phi_C, J.Psi_C, k.q.data() + J.child_e0, k.r_C[c], k.E_C[c],
                  k.G_C[c]);
+      if (J.stiff_C)
+        node_stiffening(J.Phi_C, J.e_C, J.Gs_C, k.q.data() + J.child_e0, k.Ge.data(), k.r_C[c],
+                        k.Pt_C[c]);
       R_PC = R_PC * k.E_C[c].transpose();
     }
     if (J.parent < 0) {
@@ -374,8 +413,13 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
         for (Eigen::Index l = 0; l < G.cols(); ++l)
           for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
         v_C = w.cross(k.r_C[c]);
-        for (Eigen::Index l = 0; l < G.cols(); ++l)
-          for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+        if (J.stiff_C) {
+          for (Eigen::Index l = 0; l < G.cols(); ++l)
+            for (int a = 0; a < 3; ++a) v_C(a) += k.Pt_C[c](a, l) * ed[l];
+        } else {
+          for (Eigen::Index l = 0; l < G.cols(); ++l)
+            for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+        }
       } else {
         for (int a = 0; a < 3; ++a) w(a) = S(J.axis_J(a) * uj[0]);
         v_C = cross(w, J.p_CoJ_C);
@@ -409,7 +453,10 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       const Mat3X<S>& G = k.G_P[c];
       for (Eigen::Index l = 0; l < G.cols(); ++l)
         for (int a = 0; a < 3; ++a) {
-          v_J(a) += J.Phi_P(a, l) * ed[l];
+          if (J.stiff_P)
+            v_J(a) += k.Pt_P[c](a, l) * ed[l];
+          else
+            v_J(a) += J.Phi_P(a, l) * ed[l];
           w_J(a) += G(a, l) * ed[l];
         }
     } else {
@@ -427,8 +474,13 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       for (Eigen::Index l = 0; l < G.cols(); ++l)
         for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
       v_C = w.cross(k.r_C[c]);
-      for (Eigen::Index l = 0; l < G.cols(); ++l)
-        for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+      if (J.stiff_C) {
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) v_C(a) += k.Pt_C[c](a, l) * ed[l];
+      } else {
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+      }
     } else {
       for (int a = 0; a < 3; ++a) w(a) += w_rel(a);
       v_C = cross(w, J.p_CoJ_C);
@@ -552,6 +604,11 @@ void validate_flex(const System& system, const std::string& where) {
       if (node.Phi_B.cols() != n || node.Psi_B.cols() != n)
         throw InputError(where + body + "node '" + node.name + "' must have " +
                          std::to_string(n) + " mode shapes and slopes");
+      if (f.geometric_stiffening && node.G.size() > 0 &&
+          (node.G.rows() != n || node.G.cols() != n || !node.G.allFinite() || !node.e_B.allFinite()))
+        throw InputError(where + body + "node '" + node.name + "' must have a finite " +
+                         std::to_string(n) + " x " + std::to_string(n) +
+                         " geometric stiffening matrix G and a finite direction e");
       if (!(node.mass >= 0) || !node.p_BoNi_B.allFinite() || !node.J_Ni_B.allFinite() ||
           !node.Phi_B.allFinite() || !node.Psi_B.allFinite())
         throw InputError(where + body + "node '" + node.name +
@@ -670,6 +727,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       jm.p_PoJ_P = nd.p_BoNi_B;
       jm.Phi_P = nd.Phi_B;
       jm.Psi_P = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.parent)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_P = true;
+        jm.e_P = nd.e_B;
+        jm.Gs_P = 0.5 * (nd.G + nd.G.transpose());
+      }
     }
     if (J.type != JointType::Free && J.child_node >= 0) {
       const FlexNode& nd =
@@ -679,6 +742,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       jm.p_CoJ_C = nd.p_BoNi_B;
       jm.Phi_C = nd.Phi_B;
       jm.Psi_C = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.child)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_C = true;
+        jm.e_C = nd.e_B;
+        jm.Gs_C = 0.5 * (nd.G + nd.G.transpose());
+      }
     }
     jm.stiffness = J.stiffness;
     jm.neutral = J.neutral_angle;
@@ -809,7 +878,9 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->Xi.assign(static_cast<std::size_t>(nb), Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n));
   w->Xi_dot = w->Xi;
   w->fi0.resize(static_cast<std::size_t>(nb));
-  for (std::size_t b = 0; b < m->bodies.size(); ++b) w->fi0[b].resize(m->bodies[b].nm);
+  for (std::size_t b = 0; b < m->bodies.size(); ++b)
+    w->fi0[b].resize(m->bodies[b].nm, m->bodies[b].flex >= 0 &&
+                                          m->flex[static_cast<std::size_t>(m->bodies[b].flex)].stiff);
   w->he1.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
   w->he0 = Eigen::VectorXd::Zero(m->max_modes);
   w->unit = Eigen::VectorXd::Zero(m->max_modes);
@@ -1088,7 +1159,12 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
     fi0.s(r) = fi1.s(r).v;
     for (int c = 0; c < 3; ++c) fi0.I_w(r, c) = fi1.I_w(r, c).v;
     for (int k = 0; k < B.nm; ++k) fi0.H(r, k) = fi1.H(r, k).v;
+    if (fi0.stiff)
+      for (int k = 0; k < B.nm; ++k) fi0.S1(r, k) = fi1.S1(r, k).v;
   }
+  if (fi0.stiff)
+    for (int k = 0; k < B.nm; ++k)
+      for (int l = 0; l < B.nm; ++l) fi0.Mee(k, l) = fi1.Mee(k, l).v;
   // The body's twist (w, v_B) and its rate at fixed pi', as Dual<1>.
   Vec3<Dual<1>> wt, vt;
   for (int a = 0; a < 3; ++a) {
