@@ -63,6 +63,18 @@ FlexInvariants::FlexInvariants(const FlexBody& f, double inertia_scale) {
     }
   K = 0.5 * (f.K + f.K.transpose());
   Dmp = f.D;
+  stiff = f.geometric_stiffening;
+  if (stiff)
+    for (const FlexNode& node : f.nodes) {
+      StiffNode sn;
+      sn.m = node.mass;
+      sn.p = node.p_BoNi_B;
+      sn.e = node.e_B;
+      sn.Phi = node.Phi_B;
+      sn.G = node.G.size() == 0 ? Eigen::MatrixXd::Zero(nn, nn)
+                                : Eigen::MatrixXd(0.5 * (node.G + node.G.transpose()));
+      nodes.push_back(std::move(sn));
+    }
 }
 
 Eigen::Matrix3d FlexInvariants::rigid_inertia() const {

@@ -27,6 +27,16 @@
 // of nodes. The functions are templated on the scalar so that the engine's dual numbers
 // (autodiff.hpp) differentiate through them.
 //
+// Geometric stiffening (docs/flexible-bodies.md "Geometric stiffening"; Kane, Ryan and Banerjee
+// 1987, Eq. (8); Sharf 1995): u_i = Phi_i eta + e_i w_i, w_i = 1/2 eta^T G_i eta, so
+//   r_i = p_i + Phi_i eta + e_i w_i,   du_i/dt = Pt_i(eta) eta',   Pt_i = Phi_i + e_i (G_i eta)^T
+// (G_i symmetric). T_B keeps the form above with S1, H and M_ee now eta-dependent:
+//   s = sum m_i r_i,  Q = sum m_i r_i r_i^T,  S1(eta) = sum m_i Pt_i,
+//   H(eta) = sum m_i [r_i x] Pt_i,  M_ee(eta) = sum m_i Pt_i^T Pt_i,
+// exact (no term dropped). These are summed over the nodes at every evaluation (flex_inertia:
+// O(nodes n^2)); the invariants above stay for the linear model (FlexBody::geometric_stiffening
+// false), whose arithmetic is unchanged.
+//
 // A node frame turns from the body frame by E = exp([psi x]), psi = Psi_i eta (exact: orthonormal
 // for any eta), and its angular velocity relative to the body is Jl(psi) psi' in body components,
 // Jl the left Jacobian of SO(3) (Barfoot, "State Estimation for Robotics", 2017, Sec. 7.1.3 for the
@@ -147,6 +157,15 @@ struct FlexInvariants {
   Eigen::MatrixXd Mee;                   // sum m_i Phi_i^T Phi_i                 n x n
   Eigen::MatrixXd K;                     // modal stiffness, symmetric part        n x n
   Eigen::MatrixXd Dmp;                   // modal damping as given                 n x n
+  // Geometric stiffening: the nodes themselves (header comment), summed at every evaluation.
+  struct StiffNode {
+    double m = 0;
+    Eigen::Vector3d p, e;   // p_BoNi_B, e_i (body frame)
+    Eigen::Matrix3Xd Phi;   // 3 x n
+    Eigen::MatrixXd G;      // n x n symmetric
+  };
+  bool stiff = false;
+  std::vector<StiffNode> nodes;
 
   // inertia_scale multiplies the body's rigid inertia about Bo (EngineOptions::test_inertia_scale):
   // J gains (scale - 1) times the undeformed rigid inertia.
@@ -163,12 +182,94 @@ struct FlexInertia {
   Mat3<S> I_w;
   Vec3<S> s;
   Eigen::Matrix<S, 3, Eigen::Dynamic> H;  // 3 x n, sized once (resize)
-  void resize(int n) { H.resize(3, n); }
+  // Geometric stiffening only: S1(eta), M_ee(eta) (header comment) and scratch G_i eta.
+  bool stiff = false;
+  Eigen::Matrix<S, 3, Eigen::Dynamic> S1;
+  Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic> Mee;
+  std::vector<S> Ge;
+  void resize(int n, bool stiffening = false) {
+    H.resize(3, n);
+    stiff = stiffening;
+    if (!stiff) return;
+    S1.resize(3, n);
+    Mee.resize(n, n);
+    Ge.assign(static_cast<std::size_t>(n), S(0.0));
+  }
 };
+
+// Geometric stiffening: (eta) => I_w, s, H, S1, M_ee summed over the nodes (header comment).
+template <class S>
+void flex_inertia_nodes(const FlexInvariants& f, const S* eta, FlexInertia<S>& out) {
+  const int n = f.n;
+  std::array<S, 6> Q;
+  for (auto& q : Q) q = S(0.0);
+  Vec3<S> s(S(0.0), S(0.0), S(0.0));
+  for (int k = 0; k < n; ++k) {
+    for (int a = 0; a < 3; ++a) out.H(a, k) = out.S1(a, k) = S(0.0);
+    for (int l = 0; l < n; ++l) out.Mee(k, l) = S(0.0);
+  }
+  for (const FlexInvariants::StiffNode& nd : f.nodes) {
+    // G_i eta, w_i = 1/2 eta^T G_i eta, r_i = p_i + Phi_i eta + e_i w_i.
+    S wi(0.0);
+    for (int k = 0; k < n; ++k) {
+      S g(0.0);
+      for (int l = 0; l < n; ++l) g += nd.G(k, l) * eta[l];
+      out.Ge[static_cast<std::size_t>(k)] = g;
+      wi += 0.5 * eta[k] * g;
+    }
+    Vec3<S> r;
+    for (int a = 0; a < 3; ++a) {
+      S x = nd.p(a) + nd.e(a) * wi;
+      for (int k = 0; k < n; ++k) x += nd.Phi(a, k) * eta[k];
+      r(a) = x;
+    }
+    s += nd.m * r;
+    Q[0] += nd.m * r(0) * r(0);
+    Q[1] += nd.m * r(0) * r(1);
+    Q[2] += nd.m * r(0) * r(2);
+    Q[3] += nd.m * r(1) * r(1);
+    Q[4] += nd.m * r(1) * r(2);
+    Q[5] += nd.m * r(2) * r(2);
+    // Pt_i column k = Phi_i,k + e_i (G_i eta)_k.
+    for (int k = 0; k < n; ++k) {
+      Vec3<S> pk;
+      for (int a = 0; a < 3; ++a) pk(a) = nd.Phi(a, k) + nd.e(a) * out.Ge[static_cast<std::size_t>(k)];
+      const Vec3<S> rxp = r.cross(pk);
+      for (int a = 0; a < 3; ++a) {
+        out.S1(a, k) += nd.m * pk(a);
+        out.H(a, k) += nd.m * rxp(a);
+      }
+      for (int l = k; l < n; ++l) {
+        S d(0.0);
+        for (int a = 0; a < 3; ++a)
+          d += pk(a) * (nd.Phi(a, l) + nd.e(a) * out.Ge[static_cast<std::size_t>(l)]);
+        out.Mee(k, l) += nd.m * d;
+      }
+    }
+  }
+  for (int k = 0; k < n; ++k)
+    for (int l = 0; l < k; ++l) out.Mee(k, l) = out.Mee(l, k);
+  const S tr = Q[0] + Q[3] + Q[5];
+  Mat3<S>& I = out.I_w;
+  I(0, 0) = tr - Q[0] + f.J(0, 0);
+  I(1, 1) = tr - Q[3] + f.J(1, 1);
+  I(2, 2) = tr - Q[5] + f.J(2, 2);
+  I(0, 1) = -Q[1] + f.J(0, 1);
+  I(1, 0) = -Q[1] + f.J(1, 0);
+  I(0, 2) = -Q[2] + f.J(0, 2);
+  I(2, 0) = -Q[2] + f.J(2, 0);
+  I(1, 2) = -Q[4] + f.J(1, 2);
+  I(2, 1) = -Q[4] + f.J(2, 1);
+  out.s = s;
+}
 
 // (eta) => I_w(eta), s(eta), H(eta). O(n^2); writes into preallocated storage.
 template <class S>
 void flex_inertia(const FlexInvariants& f, const S* eta, FlexInertia<S>& out) {
+  if (f.stiff) {
+    flex_inertia_nodes(f, eta, out);
+    return;
+  }
   const int n = f.n;
   std::array<S, 6> Q;
   for (std::size_t a = 0; a < 6; ++a) Q[a] = S(f.P2[a]);
@@ -214,9 +315,16 @@ void flex_momentum(const FlexInvariants& f, const FlexInertia<S>& fi, const Vec3
   for (int a = 0; a < 3; ++a) {
     S x = fi.I_w(a, 0) * w(0) + fi.I_w(a, 1) * w(1) + fi.I_w(a, 2) * w(2);
     S y = f.m * v(a);
-    for (int k = 0; k < n; ++k) {
-      x += fi.H(a, k) * ed[k];
-      y += f.S1(a, k) * ed[k];
+    if (fi.stiff) {
+      for (int k = 0; k < n; ++k) {
+        x += fi.H(a, k) * ed[k];
+        y += fi.S1(a, k) * ed[k];
+      }
+    } else {
+      for (int k = 0; k < n; ++k) {
+        x += fi.H(a, k) * ed[k];
+        y += f.S1(a, k) * ed[k];
+      }
     }
     hw(a) = x;
     hv(a) = y;
@@ -229,6 +337,15 @@ void flex_momentum(const FlexInvariants& f, const FlexInertia<S>& fi, const Vec3
   hv(1) += w(2) * s(0) - w(0) * s(2);
   hv(2) += w(0) * s(1) - w(1) * s(0);
   if (he == nullptr) return;
+  if (fi.stiff) {
+    for (int k = 0; k < n; ++k) {
+      S x = fi.H(0, k) * w(0) + fi.H(1, k) * w(1) + fi.H(2, k) * w(2) + fi.S1(0, k) * v(0) +
+            fi.S1(1, k) * v(1) + fi.S1(2, k) * v(2);
+      for (int l = 0; l < n; ++l) x += fi.Mee(k, l) * ed[l];
+      he[k] = x;
+    }
+    return;
+  }
   for (int k = 0; k < n; ++k) {
     S x = fi.H(0, k) * w(0) + fi.H(1, k) * w(1) + fi.H(2, k) * w(2) + f.S1(0, k) * v(0) +
           f.S1(1, k) * v(1) + f.S1(2, k) * v(2);

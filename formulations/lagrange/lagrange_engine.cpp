@@ -101,10 +101,21 @@ struct LagrangeEngine::Model {
     int parent_node = -1, child_node = -1;
     int parent_e0 = -1, child_e0 = -1;
     Eigen::Matrix3Xd Phi_P, Psi_P, Phi_C, Psi_C;
+    // Geometric stiffening of the parent (child) node: e_i and G_i (flex_body.hpp), so the node
+    // moves by Phi eta + e (1/2 eta^T G eta) with velocity Pt eta', Pt = Phi + e (G eta)^T.
+    bool stiff_P = false, stiff_C = false;
+    Eigen::Vector3d e_P = Eigen::Vector3d::Zero(), e_C = Eigen::Vector3d::Zero();
+    Eigen::MatrixXd Gs_P, Gs_C;
     std::vector<int> subtree;  // this joint and every joint below it, in topological order
     double stiffness = 0, neutral = 0, damping = 0;
     PiecewiseConstant<1> motor_revolute;
     PiecewiseConstant<3> motor_spherical;
+    // Prescribed revolute joint (docs/prescribed-motion.md): the angle angle0 + theta(t) and its
+    // rate are not state; the coordinate stays in q* and pi' (internal layout), filled from the
+    // profile at t (LagrangeEngine::expand).
+    bool prescribed = false;
+    PrescribedMotion motion;
+    double angle0 = 0;
   };
   struct EulerSetM {
     int i0 = 0;         // index of the first angle in q* (and of w in pi')
@@ -123,6 +134,14 @@ struct LagrangeEngine::Model {
   std::vector<int> all_joints;            // 0, 1, ..., in topological order
   int n = 0;
   int max_modes = 0;
+  // Prescribed joints: the state x holds the free coordinates only, nf of them (q*_f, pi'_f).
+  int nf = 0;
+  bool has_prescribed = false;
+  bool base_free = true;               // joints[0] is the free joint (else a prescribed revolute)
+  int base_set = -1;                   // the free base's Euler set (-1: prescribed base)
+  std::vector<int> free_index;         // per state coordinate k < nf: its index in q*
+  std::vector<int> state_of;           // per q* index: its state coordinate, -1 when prescribed
+  std::vector<int> prescribed_joints;  // joint indices of the prescribed joints
   double total_mass = 0;
   bool zero_linear_momentum = true;
   bool rechart = true;
@@ -152,6 +171,8 @@ struct Kin {
   std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position
   std::vector<Mat3<S>> E_C;           // joint at a child node: exp([psi_C x])
   std::vector<Mat3X<S>> G_P, G_C;     // joint at a parent (child) node: Jl(psi) Psi, 3 x modes
+  std::vector<Mat3X<S>> Pt_P, Pt_C;   // ... with geometric stiffening: Phi + e (G eta)^T
+  std::vector<S> Ge;                  // scratch: G eta, max_modes
   std::vector<S> he;                  // scratch: modal momentum, max_modes
   void resize(const Model& m) {
     const std::size_t nb = m.bodies.size();
@@ -167,11 +188,18 @@ struct Kin {
     E_C.assign(nb, Mat3<S>::Identity());
     G_P.resize(nb);
     G_C.resize(nb);
-    for (std::size_t b = 0; b < nb; ++b) fi[b].resize(m.bodies[b].nm);
+    Pt_P.resize(nb);
+    Pt_C.resize(nb);
+    Ge.assign(static_cast<std::size_t>(m.max_modes), S(0.0));
+    for (std::size_t b = 0; b < nb; ++b)
+      fi[b].resize(m.bodies[b].nm,
+                   m.bodies[b].flex >= 0 && m.flex[static_cast<std::size_t>(m.bodies[b].flex)].stiff);
     for (const Model::JointM& J : m.joints) {
       const auto c = static_cast<std::size_t>(J.child);
       G_P[c].resize(3, J.Psi_P.cols());
       G_C[c].resize(3, J.Psi_C.cols());
+      if (J.stiff_P) Pt_P[c].resize(3, J.Phi_P.cols());
+      if (J.stiff_C) Pt_C[c].resize(3, J.Phi_C.cols());
     }
     he.assign(static_cast<std::size_t>(m.max_modes), S(0.0));
   }
@@ -237,6 +265,25 @@ void node_frame(const Eigen::Vector3d& p, const Eigen::Matrix3Xd& Phi, const Eig
       G(a, k) = Jl(a, 0) * Psi(0, k) + Jl(a, 1) * Psi(1, k) + Jl(a, 2) * Psi(2, k);
 }
 
+// Geometric stiffening at a node (docs/flexible-bodies.md "Geometric stiffening"; Kane, Ryan and
+// Banerjee 1987, Eq. (8)): r += e (1/2 eta^T Gs eta) and Pt = Phi + e (Gs eta)^T, the node's
+// velocity relative to the body per unit eta' (du/dt = Pt eta'). Ge: scratch of nm values.
+template <class S>
+void node_stiffening(const Eigen::Matrix3Xd& Phi, const Eigen::Vector3d& e,
+                     const Eigen::MatrixXd& Gs, const S* eta, S* Ge, Vec3<S>& r, Mat3X<S>& Pt) {
+  const auto nm = Phi.cols();
+  S w(0.0);
+  for (Eigen::Index k = 0; k < nm; ++k) {
+    S g(0.0);
+    for (Eigen::Index l = 0; l < nm; ++l) g += Gs(k, l) * eta[l];
+    Ge[k] = g;
+    w += 0.5 * eta[k] * g;
+  }
+  for (int a = 0; a < 3; ++a) r(a) += e(a) * w;
+  for (Eigen::Index k = 0; k < nm; ++k)
+    for (int a = 0; a < 3; ++a) Pt(a, k) = Phi(a, k) + e(a) * Ge[k];
+}
+
 // pose: (q*) => R_NB, R_PC, p_NoBo_N. Joint kinematics of system.hpp:
 // R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, R_NC = R_NP R_PC,
 // p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
@@ -287,12 +334,32 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
     if (J.parent_node >= 0) {
       Mat3<S> E_P;
       node_frame(J.p_PoJ_P, J.Phi_P, J.Psi_P, k.q.data() + J.parent_e0, k.r_P[c], E_P, k.G_P[c]);
+      if (J.stiff_P)
+        node_stiffening(J.Phi_P, J.e_P, J.Gs_P, k.q.data() + J.parent_e0, k.Ge.data(), k.r_P[c],
+                        k.Pt_P[c]);
       R_PC = E_P * R_PC;
     }
     if (J.child_node >= 0) {
       node_frame(J.p_CoJ_C, J.Phi_C, J.Psi_C, k.q.data() + J.child_e0, k.r_C[c], k.E_C[c],
                  k.G_C[c]);
+      if (J.stiff_C)
+        node_stiffening(J.Phi_C, J.e_C, J.Gs_C, k.q.data() + J.child_e0, k.Ge.data(), k.r_C[c],
+                        k.Pt_C[c]);
       R_PC = R_PC * k.E_C[c].transpose();
+    }
+    if (J.parent < 0) {
+      // A prescribed base turning about an axis fixed in N (docs/prescribed-motion.md,
+      // "A prescribed base"): R_NB = R_NJ0 Rot(axis_J, angle) exp([psi_C x])^T (the parent frame
+      // is N), p_NoBo_N = p_NoJ_N - R_NB (p_BoJ_B + u_J).
+      k.R_NB[c] = R_PC;
+      if constexpr (kPositions) {
+        const Vec3<S> from_joint =
+            J.child_node >= 0 ? Vec3<S>(R_PC * k.r_C[c]) : times_const(R_PC, J.p_CoJ_C);
+        k.p_NoBo_N[c] = J.p_PoJ_P - from_joint;
+      }
+      if (C.flex >= 0)
+        flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
+      continue;
     }
     const auto P = static_cast<std::size_t>(J.parent);
     if (absolute) product(k.R_NB[P], R_PC, k.R_NB[c]);
@@ -333,6 +400,34 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       k.w_NB_B[c] = Vec3<S>(S(uj[3]), S(uj[4]), S(uj[5]));
       continue;
     }
+    if (J.parent < 0) {
+      // A prescribed base (parent N, at rest): w_NB_B = rate axis_J (docs/prescribed-motion.md,
+      // "A prescribed base"), turned by the child node frame when the joint is at a node as below
+      // (w_C = E_C w_rel - G_C eta_C'); the joint point is fixed in N, so
+      // v_NBo_B = -(w_C x r_C + Phi_C eta_C') (Kane & Levinson 1985, Sec. 2.7).
+      Vec3<S> w, v_C;
+      if (J.child_node >= 0) {
+        const double* ed = u + J.child_e0;
+        w = times_const(k.E_C[c], Eigen::Vector3d(J.axis_J * uj[0]));
+        const Mat3X<S>& G = k.G_C[c];
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
+        v_C = w.cross(k.r_C[c]);
+        if (J.stiff_C) {
+          for (Eigen::Index l = 0; l < G.cols(); ++l)
+            for (int a = 0; a < 3; ++a) v_C(a) += k.Pt_C[c](a, l) * ed[l];
+        } else {
+          for (Eigen::Index l = 0; l < G.cols(); ++l)
+            for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+        }
+      } else {
+        for (int a = 0; a < 3; ++a) w(a) = S(J.axis_J(a) * uj[0]);
+        v_C = cross(w, J.p_CoJ_C);
+      }
+      k.w_NB_B[c] = w;
+      for (int a = 0; a < 3; ++a) k.v_NBo_B[c](a) = -v_C(a);
+      continue;
+    }
     const auto P = static_cast<std::size_t>(J.parent);
     const Mat3<S>& R_PC = k.R_PC[c];
     if (J.parent_node < 0 && J.child_node < 0) {  // rigid attachments on both sides
@@ -358,7 +453,10 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       const Mat3X<S>& G = k.G_P[c];
       for (Eigen::Index l = 0; l < G.cols(); ++l)
         for (int a = 0; a < 3; ++a) {
-          v_J(a) += J.Phi_P(a, l) * ed[l];
+          if (J.stiff_P)
+            v_J(a) += k.Pt_P[c](a, l) * ed[l];
+          else
+            v_J(a) += J.Phi_P(a, l) * ed[l];
           w_J(a) += G(a, l) * ed[l];
         }
     } else {
@@ -376,8 +474,13 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
       for (Eigen::Index l = 0; l < G.cols(); ++l)
         for (int a = 0; a < 3; ++a) w(a) -= G(a, l) * ed[l];
       v_C = w.cross(k.r_C[c]);
-      for (Eigen::Index l = 0; l < G.cols(); ++l)
-        for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+      if (J.stiff_C) {
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) v_C(a) += k.Pt_C[c](a, l) * ed[l];
+      } else {
+        for (Eigen::Index l = 0; l < G.cols(); ++l)
+          for (int a = 0; a < 3; ++a) v_C(a) += J.Phi_C(a, l) * ed[l];
+      }
     } else {
       for (int a = 0; a < 3; ++a) w(a) += w_rel(a);
       v_C = cross(w, J.p_CoJ_C);
@@ -471,6 +574,11 @@ struct LagrangeEngine::Workspace {
 
   Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
   std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
+  // Prescribed joints: the full (q*, pi') at t (expand), the free block of M, its factor and
+  // right-hand side, and the joints' torques (per Model::prescribed_joints).
+  Eigen::VectorXd xf;
+  Eigen::MatrixXd Mff, Uff;
+  Eigen::VectorXd bf, inv_diag_f, torque;
 };
 
 // ------------------------------------------------------------------------------------------------
@@ -496,6 +604,11 @@ void validate_flex(const System& system, const std::string& where) {
       if (node.Phi_B.cols() != n || node.Psi_B.cols() != n)
         throw InputError(where + body + "node '" + node.name + "' must have " +
                          std::to_string(n) + " mode shapes and slopes");
+      if (f.geometric_stiffening && node.G.size() > 0 &&
+          (node.G.rows() != n || node.G.cols() != n || !node.G.allFinite() || !node.e_B.allFinite()))
+        throw InputError(where + body + "node '" + node.name + "' must have a finite " +
+                         std::to_string(n) + " x " + std::to_string(n) +
+                         " geometric stiffening matrix G and a finite direction e");
       if (!(node.mass >= 0) || !node.p_BoNi_B.allFinite() || !node.J_Ni_B.allFinite() ||
           !node.Phi_B.allFinite() || !node.Psi_B.allFinite())
         throw InputError(where + body + "node '" + node.name +
@@ -586,7 +699,14 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.parent = J.parent;
     jm.child = J.child;
     jm.i0 = i0;
-    jm.dof = J.dof();
+    // A prescribed revolute joint keeps its coordinate in q* (Joint::dof() is 0: not in the state).
+    jm.dof = J.type == JointType::Revolute ? 1 : J.dof();
+    if (J.type == JointType::Revolute && J.prescribed) {
+      jm.prescribed = true;
+      jm.motion = *J.prescribed;
+      jm.angle0 = J.angle0;
+      m->prescribed_joints.push_back(static_cast<int>(j));
+    }
     Model::BodyM& child_body = m->bodies[static_cast<std::size_t>(J.child)];
     jm.size = jm.dof + child_body.nm;
     if (child_body.flex >= 0) child_body.e0 = i0 + jm.dof;
@@ -607,6 +727,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       jm.p_PoJ_P = nd.p_BoNi_B;
       jm.Phi_P = nd.Phi_B;
       jm.Psi_P = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.parent)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_P = true;
+        jm.e_P = nd.e_B;
+        jm.Gs_P = 0.5 * (nd.G + nd.G.transpose());
+      }
     }
     if (J.type != JointType::Free && J.child_node >= 0) {
       const FlexNode& nd =
@@ -616,6 +742,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       jm.p_CoJ_C = nd.p_BoNi_B;
       jm.Phi_C = nd.Phi_B;
       jm.Psi_C = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.child)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_C = true;
+        jm.e_C = nd.e_B;
+        jm.Gs_C = 0.5 * (nd.G + nd.G.transpose());
+      }
     }
     jm.stiffness = J.stiffness;
     jm.neutral = J.neutral_angle;
@@ -711,9 +843,22 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   for (std::size_t s = 0; s < m->euler_sets.size(); ++s)
     for (int a = 0; a < 3; ++a)
       m->set_of_coordinate[static_cast<std::size_t>(m->euler_sets[s].i0 + a)] = static_cast<int>(s);
-  // T and V do not depend on the base position (the first three coordinates).
-  for (int r = 3; r < m->n; ++r) m->gradient_dirs.push_back(r);
-  m->zero_linear_momentum = system.zero_linear_momentum;
+  // T and V do not depend on the free base's position (the first three coordinates). A
+  // prescribed base's angle is kept: its derivative enters the joint torque.
+  m->base_free = system.base_is_free();
+  m->base_set = m->base_free ? m->joints[0].euler_set : -1;
+  for (int r = m->base_free ? 3 : 0; r < m->n; ++r) m->gradient_dirs.push_back(r);
+  m->has_prescribed = !m->prescribed_joints.empty();
+  m->state_of.assign(static_cast<std::size_t>(m->n), -1);
+  for (int i = 0; i < m->n; ++i) {
+    const Model::JointM& J = m->joints[static_cast<std::size_t>(m->coordinate_joint[static_cast<std::size_t>(i)])];
+    if (J.prescribed && i == J.i0) continue;
+    m->state_of[static_cast<std::size_t>(i)] = static_cast<int>(m->free_index.size());
+    m->free_index.push_back(i);
+  }
+  m->nf = static_cast<int>(m->free_index.size());
+  // A prescribed base has no linear momentum of its own to choose (docs/prescribed-motion.md).
+  m->zero_linear_momentum = system.zero_linear_momentum && m->base_free;
   m->rechart = options.rechart;
   m->layout = OutputLayout(system);
   m->recharts_column = m->layout.add_extra("lagrange.recharts", "");
@@ -733,7 +878,9 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->Xi.assign(static_cast<std::size_t>(nb), Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n));
   w->Xi_dot = w->Xi;
   w->fi0.resize(static_cast<std::size_t>(nb));
-  for (std::size_t b = 0; b < m->bodies.size(); ++b) w->fi0[b].resize(m->bodies[b].nm);
+  for (std::size_t b = 0; b < m->bodies.size(); ++b)
+    w->fi0[b].resize(m->bodies[b].nm, m->bodies[b].flex >= 0 &&
+                                          m->flex[static_cast<std::size_t>(m->bodies[b].flex)].stiff);
   w->he1.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
   w->he0 = Eigen::VectorXd::Zero(m->max_modes);
   w->unit = Eigen::VectorXd::Zero(m->max_modes);
@@ -747,6 +894,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
        {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed,
         &w->inv_diag})
     *v = Eigen::VectorXd::Zero(n);
+  w->xf = Eigen::VectorXd::Zero(2 * n);
+  w->Mff = Eigen::MatrixXd::Zero(m->nf, m->nf);
+  w->Uff = w->Mff;
+  w->bf = Eigen::VectorXd::Zero(m->nf);
+  w->inv_diag_f = w->bf;
+  w->torque = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m->prescribed_joints.size()));
   model_ = std::move(m);
   ws_ = std::move(w);
 }
@@ -754,10 +907,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
 LagrangeEngine::~LagrangeEngine() = default;
 
 int LagrangeEngine::state_size() const {
-  return 2 * model_->n;
+  return 2 * model_->nf;
 }
 int LagrangeEngine::dof() const {
-  return model_->n;
+  return model_->nf;
 }
 long LagrangeEngine::recharts() const {
   return ws_->recharts;
@@ -778,10 +931,38 @@ const OutputLayout& LagrangeEngine::layout() const {
   return model_->layout;
 }
 int LagrangeEngine::modal_index(int body) const {
-  return model_->bodies.at(static_cast<std::size_t>(body)).e0;
+  const int e0 = model_->bodies.at(static_cast<std::size_t>(body)).e0;
+  return e0 < 0 ? -1 : model_->state_of[static_cast<std::size_t>(e0)];
 }
 
 std::string LagrangeEngine::state_label(int i) const {
+  const Model& m = *model_;
+  if (i < 0 || i >= 2 * m.nf) return "x[" + std::to_string(i) + "]";
+  return full_label(i < m.nf ? m.free_index[static_cast<std::size_t>(i)]
+                             : m.n + m.free_index[static_cast<std::size_t>(i - m.nf)]);
+}
+
+// State x (free coordinates) => xf, the full (q*, pi') with the prescribed joints' angle
+// angle0 + theta(t) and rate theta'(t) (docs/prescribed-motion.md, "The motion").
+const double* LagrangeEngine::expand(double t, const double* x) {
+  const Model& m = *model_;
+  if (!m.has_prescribed) return x;
+  Workspace& w = *ws_;
+  double* xf = w.xf.data();
+  for (int a = 0; a < m.nf; ++a) {
+    const int i = m.free_index[static_cast<std::size_t>(a)];
+    xf[i] = x[a];
+    xf[m.n + i] = x[m.nf + a];
+  }
+  for (int j : m.prescribed_joints) {
+    const Model::JointM& J = m.joints[static_cast<std::size_t>(j)];
+    xf[J.i0] = J.angle0 + J.motion.angle(t);
+    xf[m.n + J.i0] = J.motion.velocity(t);
+  }
+  return xf;
+}
+
+std::string LagrangeEngine::full_label(int i) const {
   if (i < 0 || i >= static_cast<int>(model_->labels.size())) return "x[" + std::to_string(i) + "]";
   std::string label = model_->labels[static_cast<std::size_t>(i)];
   if (i < model_->n && model_->set_of_coordinate[static_cast<std::size_t>(i)] >= 0)
@@ -799,6 +980,8 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
     throw InputError("engine lagrange: pack() got a state with " + std::to_string(s.joints.size()) +
                      " joints for a system with " + std::to_string(m.joints.size()));
   const int n = m.n;
+  double* const xs = x;
+  if (m.has_prescribed) x = w.xf.data();  // fill the full (q*, pi'), then keep the free part
   double* q = x;
   double* u = x + n;
   auto set_angles = [&](int set, const Eigen::Quaterniond& quat, double* angles) {
@@ -825,8 +1008,8 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
         set_angles(J.euler_set, s.q_NB, qj + 3);
         break;
       case JointType::Revolute:
-        qj[0] = js.angle;
-        uj[0] = js.rate;
+        qj[0] = J.prescribed ? J.angle0 + J.motion.angle(0.0) : js.angle;  // pack() is at t = 0
+        uj[0] = J.prescribed ? J.motion.velocity(0.0) : js.rate;
         break;
       case JointType::Spherical:
         set_angles(J.euler_set, js.q_J, qj);
@@ -854,9 +1037,15 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
     // velocity adds to every point's velocity): choose it so that the total is zero, modal rates
     // included (docs/flexible-bodies.md "Initial state and momentum").
     for (int i = 0; i < 3; ++i) u[i] = 0.0;
-    const Eigen::Vector3d P = linear_momentum_N(x);
+    const Eigen::Vector3d P = linear_momentum_full(x);
     for (int i = 0; i < 3; ++i) u[i] = -P(i) / m.total_mass;
   }
+  if (m.has_prescribed)
+    for (int a = 0; a < m.nf; ++a) {
+      const int i = m.free_index[static_cast<std::size_t>(a)];
+      xs[a] = x[i];
+      xs[m.nf + a] = x[n + i];
+    }
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -869,7 +1058,7 @@ void LagrangeEngine::prepare_charts(double t, const double* x) {
     const double* a = x + m.euler_sets[s].i0;
     const EulerSequence& seq = kSequences[static_cast<std::size_t>(w.chart[s])];
     if (std::abs(std::cos(a[1])) < 1e-9)
-      throw RunFailure("lagrange", t, state_label(m.euler_sets[s].i0 + 1),
+      throw RunFailure("lagrange", t, full_label(m.euler_sets[s].i0 + 1),
                        m.euler_sets[s].what + " is at the singularity of its " + seq.name +
                            " Euler angles (second angle " + format_number(a[1] / kDeg) + " deg)");
     // A depends on a2 and a3 only (euler_chart.hpp): Dual<2> seeded on them (dA/da1 = 0), its
@@ -928,16 +1117,20 @@ void gradient_chunk(const Model& m, LagrangeEngine::Workspace& w, const int* cha
     }
   }
   // The base's quasi-displacement e_r of its rotation block turns it by e_r in body axes (dq* =
-  // B e_r, so A dq* = e_r).
-  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
-  std::array<Eigen::Vector3d, K> theta;
-  for (int c = 0; c < K; ++c) {
-    const int a = dirs[c] - b0;
-    theta[static_cast<std::size_t>(c)] = Eigen::Vector3d::Zero();
-    if (a >= 0 && a < 3) theta[static_cast<std::size_t>(c)](a) = 1.0;
+  // B e_r, so A dq* = e_r). A prescribed base has no Euler angles: pose_pass turns it itself.
+  if (m.base_set >= 0) {
+    const int b0 = m.euler_sets[static_cast<std::size_t>(m.base_set)].i0;
+    std::array<Eigen::Vector3d, K> theta;
+    for (int c = 0; c < K; ++c) {
+      const int a = dirs[c] - b0;
+      theta[static_cast<std::size_t>(c)] = Eigen::Vector3d::Zero();
+      if (a >= 0 && a < 3) theta[static_cast<std::size_t>(c)](a) = 1.0;
+    }
+    const Mat3<Dual<K>> R_base = base_attitude<K>(w.R_NB0, theta);
+    pose_pass(m, chart, k, false, &R_base);
+  } else {
+    pose_pass(m, chart, k, false);
   }
-  const Mat3<Dual<K>> R_base = base_attitude<K>(w.R_NB0, theta);
-  pose_pass(m, chart, k, false, &R_base);
   twist_pass(m, k, x + n, m.all_joints);
   const Dual<K> L = kinetic_energy_of(m, k, x + n) - potential_energy_of(m, chart, k.q.data());
   for (int c = 0; c < K; ++c) w.dL(dirs[c]) = L.d[static_cast<std::size_t>(c)];
@@ -966,7 +1159,12 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
     fi0.s(r) = fi1.s(r).v;
     for (int c = 0; c < 3; ++c) fi0.I_w(r, c) = fi1.I_w(r, c).v;
     for (int k = 0; k < B.nm; ++k) fi0.H(r, k) = fi1.H(r, k).v;
+    if (fi0.stiff)
+      for (int k = 0; k < B.nm; ++k) fi0.S1(r, k) = fi1.S1(r, k).v;
   }
+  if (fi0.stiff)
+    for (int k = 0; k < B.nm; ++k)
+      for (int l = 0; l < B.nm; ++l) fi0.Mee(k, l) = fi1.Mee(k, l).v;
   // The body's twist (w, v_B) and its rate at fixed pi', as Dual<1>.
   Vec3<Dual<1>> wt, vt;
   for (int a = 0; a < 3; ++a) {
@@ -1126,12 +1324,16 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     qi.d[0] = w.qdot(i);
   }
   // The base's attitude and its rate along the motion, R_NB [w_NB_B x] (base_attitude).
-  const int b0 = m.euler_sets[static_cast<std::size_t>(m.joints[0].euler_set)].i0;
-  w.R_NB0 = euler_rotation(kSequences[static_cast<std::size_t>(chart[m.joints[0].euler_set])],
-                           x[b0], x[b0 + 1], x[b0 + 2]);
-  const Mat3<Dual<1>> R_base =
-      base_attitude<1>(w.R_NB0, {Eigen::Vector3d(w.u(b0), w.u(b0 + 1), w.u(b0 + 2))});
-  pose_pass(m, chart, w.k1, true, &R_base);
+  if (m.base_set >= 0) {
+    const int b0 = m.euler_sets[static_cast<std::size_t>(m.base_set)].i0;
+    w.R_NB0 = euler_rotation(kSequences[static_cast<std::size_t>(chart[m.base_set])], x[b0],
+                             x[b0 + 1], x[b0 + 2]);
+    const Mat3<Dual<1>> R_base =
+        base_attitude<1>(w.R_NB0, {Eigen::Vector3d(w.u(b0), w.u(b0 + 1), w.u(b0 + 2))});
+    pose_pass(m, chart, w.k1, true, &R_base);
+  } else {
+    pose_pass(m, chart, w.k1, true);  // a prescribed base: R_NB from its angle (pose_pass)
+  }
   // Twists of the unit seeds pi' = e_i: nonzero only in the subtree of the joint of i (the
   // columns of other bodies stay zero from construction).
   w.seed.setZero();
@@ -1259,17 +1461,62 @@ void LagrangeEngine::evaluate(double t, const double* x) {
 
   // solve: M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p.
   w.f = w.N + w.dL - w.Mdot_u - w.hamel;
-  w.udot = w.f;
-  if (!cholesky_solve(w.M, w.U, w.inv_diag, w.udot))
+  if (!m.has_prescribed) {
+    w.udot = w.f;
+    if (!cholesky_solve(w.M, w.U, w.inv_diag, w.udot))
+      throw RunFailure("lagrange", t, "", "mass matrix is not positive definite");
+    return;
+  }
+  // Prescribed joints (docs/prescribed-motion.md): the equations above hold for every coordinate
+  // with, on a prescribed coordinate c, the joint torque tau_c as an extra generalised force (its
+  // virtual power is tau_c times the rate, as for a motor). Partitioned into free (f) and
+  // prescribed (c) coordinates with pi''_c = theta''(t) known (Greenwood, "Advanced Dynamics"
+  // 2003, Sec. 2.4, rheonomic constraints; Lagrange's equations of the constrained coordinate
+  // give its constraint force):
+  //   M_ff pi''_f = f_f - M_fc theta'',        tau_c = M_cf pi''_f + M_cc theta'' - f_c.
+  // M holds its upper triangle only: M_ij = M(min(i, j), max(i, j)).
+  auto Msym = [&w](int i, int j) { return i <= j ? w.M(i, j) : w.M(j, i); };
+  for (int j : m.prescribed_joints) {
+    const Model::JointM& J = m.joints[static_cast<std::size_t>(j)];
+    w.udot(J.i0) = J.motion.accel(t);
+  }
+  const int nf = m.nf;
+  for (int a = 0; a < nf; ++a) {
+    const int i = m.free_index[static_cast<std::size_t>(a)];
+    double b = w.f(i);
+    for (int j : m.prescribed_joints) {
+      const int c = m.joints[static_cast<std::size_t>(j)].i0;
+      b -= Msym(i, c) * w.udot(c);
+    }
+    w.bf(a) = b;
+    for (int bb = a; bb < nf; ++bb) w.Mff(a, bb) = Msym(i, m.free_index[static_cast<std::size_t>(bb)]);
+  }
+  if (!cholesky_solve(w.Mff, w.Uff, w.inv_diag_f, w.bf))
     throw RunFailure("lagrange", t, "", "mass matrix is not positive definite");
+  for (int a = 0; a < nf; ++a) w.udot(m.free_index[static_cast<std::size_t>(a)]) = w.bf(a);
+  for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k) {
+    const int c = m.joints[static_cast<std::size_t>(m.prescribed_joints[k])].i0;
+    double tau = -w.f(c);
+    for (int i = 0; i < n; ++i) tau += Msym(c, i) * w.udot(i);
+    w.torque(static_cast<Eigen::Index>(k)) = tau;
+  }
 }
 
 void LagrangeEngine::rhs(double t, const double* x, double* xdot) {
-  evaluate(t, x);
-  const int n = model_->n;
-  for (int i = 0; i < n; ++i) {
-    xdot[i] = ws_->qdot(i);
-    xdot[n + i] = ws_->udot(i);
+  const Model& m = *model_;
+  evaluate(t, expand(t, x));
+  const int n = m.nf;
+  if (!m.has_prescribed) {
+    for (int i = 0; i < n; ++i) {
+      xdot[i] = ws_->qdot(i);
+      xdot[n + i] = ws_->udot(i);
+    }
+  } else {
+    for (int a = 0; a < n; ++a) {
+      const int i = m.free_index[static_cast<std::size_t>(a)];
+      xdot[a] = ws_->qdot(i);
+      xdot[n + a] = ws_->udot(i);
+    }
   }
   for (int i = 0; i < 2 * n; ++i)
     if (!std::isfinite(xdot[i]))
@@ -1277,7 +1524,7 @@ void LagrangeEngine::rhs(double t, const double* x, double* xdot) {
 }
 
 LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
-  evaluate(t, x);
+  evaluate(t, expand(t, x));
   const Workspace& w = *ws_;
   Eigen::MatrixXd M = w.M;  // evaluate() fills the upper triangle only
   M.triangularView<Eigen::StrictlyLower>() = M.transpose();
@@ -1291,12 +1538,14 @@ bool LagrangeEngine::after_step(double t, double* x) {
   const Model& m = *model_;
   Workspace& w = *ws_;
   bool changed = false;
+  // Euler angles are never prescribed: work on their place in x directly.
+  auto at = [&m](int i) { return m.state_of[static_cast<std::size_t>(i)]; };
   for (std::size_t s = 0; s < m.euler_sets.size(); ++s) {
-    double* a = x + m.euler_sets[s].i0;
+    double* a = x + at(m.euler_sets[s].i0);
     const EulerSequence& seq = kSequences[static_cast<std::size_t>(w.chart[s])];
     const double cos_a2 = std::abs(std::cos(a[1]));  // 0 at gimbal lock
     if (!m.rechart && cos_a2 < std::cos(kFailDeg * kDeg))
-      throw RunFailure("lagrange", t, state_label(m.euler_sets[s].i0 + 1),
+      throw RunFailure("lagrange", t, full_label(m.euler_sets[s].i0 + 1),
                        m.euler_sets[s].what + " reached gimbal lock of its " + seq.name +
                            " Euler angles: second angle " + format_number(a[1] / kDeg, "%.3f") +
                            " deg (limit " + format_number(kFailDeg) +
@@ -1328,7 +1577,28 @@ bool LagrangeEngine::after_step(double t, double* x) {
 // ------------------------------------------------------------------------------------------------
 // Outputs and engine-neutral accelerations
 // ------------------------------------------------------------------------------------------------
-double LagrangeEngine::kinetic_energy(const double* x) {
+double LagrangeEngine::kinetic_energy(const double* x, double t) {
+  return kinetic_energy_full(expand(t, x));
+}
+double LagrangeEngine::potential_energy(const double* x, double t) {
+  return potential_energy_full(expand(t, x));
+}
+Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x, double t) {
+  return angular_momentum_full(expand(t, x));
+}
+Eigen::Vector3d LagrangeEngine::linear_momentum_N(const double* x, double t) {
+  return linear_momentum_full(expand(t, x));
+}
+std::vector<double> LagrangeEngine::prescribed_torques(double t, const double* x) {
+  const Model& m = *model_;
+  evaluate(t, expand(t, x));
+  std::vector<double> tau(m.joints.size(), 0.0);
+  for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k)
+    tau[static_cast<std::size_t>(m.prescribed_joints[k])] = ws_->torque(static_cast<Eigen::Index>(k));
+  return tau;
+}
+
+double LagrangeEngine::kinetic_energy_full(const double* x) {
   Workspace& w = *ws_;
   for (int i = 0; i < model_->n; ++i) w.k0.q[static_cast<std::size_t>(i)] = x[i];
   pose_pass(*model_, w.chart.data(), w.k0, true);
@@ -1336,7 +1606,7 @@ double LagrangeEngine::kinetic_energy(const double* x) {
   return kinetic_energy_of(*model_, w.k0, x + model_->n);
 }
 
-double LagrangeEngine::potential_energy(const double* x) {
+double LagrangeEngine::potential_energy_full(const double* x) {
   return potential_energy_of(*model_, ws_->chart.data(), x);
 }
 
@@ -1362,8 +1632,8 @@ BodyMomenta body_momenta(const Model& m, Kin<double>& k, const double* u, std::s
 
 }  // namespace
 
-Eigen::Vector3d LagrangeEngine::linear_momentum_N(const double* x) {
-  kinetic_energy(x);  // pose and twist passes into k0
+Eigen::Vector3d LagrangeEngine::linear_momentum_full(const double* x) {
+  kinetic_energy_full(x);  // pose and twist passes into k0
   Eigen::Vector3d P = Eigen::Vector3d::Zero();
   for (std::size_t b = 0; b < model_->bodies.size(); ++b)
     P += body_momenta(*model_, ws_->k0, x + model_->n, b).P;
@@ -1372,8 +1642,8 @@ Eigen::Vector3d LagrangeEngine::linear_momentum_N(const double* x) {
 
 // H about the system CM c: sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the
 // angular momentum about the origin, moved to the CM).
-Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x) {
-  kinetic_energy(x);
+Eigen::Vector3d LagrangeEngine::angular_momentum_full(const double* x) {
+  kinetic_energy_full(x);
   const Model& m = *model_;
   Kin<double>& k = ws_->k0;
   Eigen::Vector3d H = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
@@ -1387,13 +1657,15 @@ Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x) {
   return H - (s / m.total_mass).cross(P);
 }
 
-void LagrangeEngine::output_row(double t, const double* x, double* row) {
+void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   const Model& m = *model_;
   Workspace& w = *ws_;
   const int n = m.n;
+  const double* x = expand(t, xs);
+  if (m.has_prescribed) evaluate(t, x);  // the prescribed joints' torques
   const double* u = x + n;
-  const double E = kinetic_energy(x) + potential_energy(x);
-  const double H = angular_momentum_N(x).norm();  // leaves the pose and twist passes in k0
+  const double E = kinetic_energy_full(x) + potential_energy_full(x);
+  const double H = angular_momentum_full(x).norm();  // leaves the pose and twist passes in k0
   // Attitude quaternions: q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^*, q_J from the joint's own
   // coordinates, q(psi) the node frame's rotation vector psi = Psi eta (exp map).
   auto node_q = [&](const Eigen::Matrix3Xd& Psi, int e0) {
@@ -1417,7 +1689,8 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
     Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();
     if (J.type == JointType::Revolute) q_J = Eigen::AngleAxisd(qj[0], J.axis_J);
     if (J.type == JointType::Spherical) q_J = euler_q(qj);
-    Eigen::Quaterniond q = w.q_NB[static_cast<std::size_t>(J.parent)];
+    Eigen::Quaterniond q = J.parent >= 0 ? w.q_NB[static_cast<std::size_t>(J.parent)]
+                                         : Eigen::Quaterniond::Identity();  // a prescribed base
     if (J.parent_node >= 0) q = q * node_q(J.Psi_P, J.parent_e0);
     q = q * J.q_PJ0 * q_J;
     if (J.child_node >= 0) q = q * node_q(J.Psi_C, J.child_e0).conjugate();
@@ -1439,13 +1712,15 @@ void LagrangeEngine::output_row(double t, const double* x, double* row) {
     out.modal(static_cast<int>(b), Eigen::Map<const Eigen::VectorXd>(x + B.e0, B.nm),
               Eigen::Map<const Eigen::VectorXd>(u + B.e0, B.nm));
   }
+  for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k)
+    out.joint_torque(m.prescribed_joints[k], w.torque(static_cast<Eigen::Index>(k)));
   out.momentum(H);
   out.energy(E);
   out.extra(m.recharts_column, static_cast<double>(w.recharts));
 }
 
 void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
-  evaluate(t, x);
+  evaluate(t, expand(t, x));
   const Model& m = *model_;
   const Workspace& w = *ws_;
   const std::size_t nb = m.bodies.size(), nj = m.joints.size();

@@ -89,13 +89,16 @@ class LagrangeEngine final : public Engine {
   void output_row(double t, const double* x, double* row) override;
 
   // ---- Inspection (tests, reports) ----
-  int dof() const;                           // n, the number of quasi-velocities
+  // The state x holds the free coordinates and quasi-velocities only; a prescribed joint's angle
+  // and rate come from its profile at t (docs/prescribed-motion.md). Methods below taking a state
+  // x take the time t for that (ignored when nothing is prescribed).
+  int dof() const;                           // the number of free quasi-velocities (x is 2 dof())
   long recharts() const;                     // charts switched since construction
   int euler_sets() const;                    // number of Euler-angle sets
   std::string euler_set_owner(int s) const;  // "main" (base body) or the spherical joint's name
   int chart(int s) const;                    // current chart of set s (index into kSequences)
   std::string chart_name(int s) const;       // "3-2-1", ...
-  int modal_index(int body) const;           // index of a flexible body's eta in q* (-1: rigid)
+  int modal_index(int body) const;           // index of a flexible body's eta in x (-1: rigid)
   // Every term of the equations of motion at (t, x) (header comment).
   struct Terms {
     Eigen::MatrixXd M;       // mass matrix d2T/dpi'2
@@ -107,18 +110,28 @@ class LagrangeEngine final : public Engine {
     Eigen::VectorXd qdot;    // q*' = B pi'
     Eigen::VectorXd udot;    // pi''
   };
+  // Terms are over every coordinate, prescribed ones included (udot: theta'' there).
   Terms terms(double t, const double* x);
-  double kinetic_energy(const double* x);
-  double potential_energy(const double* x);
-  Eigen::Vector3d angular_momentum_N(const double* x);  // about the system CM, N components
-  Eigen::Vector3d linear_momentum_N(const double* x);
+  double kinetic_energy(const double* x, double t = 0.0);
+  double potential_energy(const double* x, double t = 0.0);
+  Eigen::Vector3d angular_momentum_N(const double* x, double t = 0.0);  // about the system CM, N
+  Eigen::Vector3d linear_momentum_N(const double* x, double t = 0.0);
+  // Torques of the prescribed revolute joints at (t, x), System::joints order (0 for the others).
+  std::vector<double> prescribed_torques(double t, const double* x);
 
   struct Model;      // immutable, built from the System (lagrange_engine.cpp)
   struct Workspace;  // mutable scratch and the current charts (lagrange_engine.cpp)
 
  private:
-  void evaluate(double t, const double* x);  // (t, x) => every term and pi'' in the workspace
-  void prepare_charts(double t, const double* x);
+  // Below, xf is the full (q*, pi'), prescribed coordinates included (expand).
+  const double* expand(double t, const double* x);  // state x => xf at t (x itself if none)
+  void evaluate(double t, const double* xf);  // (t, xf) => every term and pi'' in the workspace
+  void prepare_charts(double t, const double* xf);
+  std::string full_label(int i) const;  // label of index i of xf
+  double kinetic_energy_full(const double* xf);
+  double potential_energy_full(const double* xf);
+  Eigen::Vector3d angular_momentum_full(const double* xf);
+  Eigen::Vector3d linear_momentum_full(const double* xf);
   std::unique_ptr<const Model> model_;
   std::unique_ptr<Workspace> ws_;
 };
