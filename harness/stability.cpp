@@ -65,7 +65,7 @@ Classified classify(const CellFacts& f, const ClassLimits& lim) {
   const double e = f.history_error;
   if (!std::isfinite(e) || e > lim.diverged_error)
     return {StabilityClass::Diverged,
-            "history error " + sci(e, 2) + " > " + sci(lim.diverged_error, 2) + " (as large as the motion)"};
+            "history error " + sci(e, 2) + " > " + sci(lim.diverged_error, 2) + " (the state grew far beyond the motion)"};
   const bool drift_H = f.H_conserved && !(f.drift_H <= lim.drift_limit);
   const bool drift_E = f.E_conserved && !(f.drift_E <= lim.drift_limit);
   if (drift_H || drift_E) {

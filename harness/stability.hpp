@@ -15,7 +15,8 @@
 //   too costly    the run hit the step limit or the time limit
 //   diverged      the run stopped on a non-finite or exploding state, a non-positive-definite
 //                 mass matrix or a step-size underflow; or it finished with a history error above
-//                 ClassLimits::diverged_error (the error as large as the motion itself)
+//                 ClassLimits::diverged_error (10: the error ten times the motion itself, which
+//                 only a growing state gives; a wrong phase stays below 2)
 //   drift         finished, but the relative drift of H or E, where the scene conserves it, is
 //                 above ClassLimits::drift_limit (while the error may still be small)
 //   accurate      history error <= ClassLimits::tolerance (default: the scene's default compare
@@ -65,7 +66,9 @@ struct CellFacts {
 struct ClassLimits {
   double tolerance = 1e-6;      // history error at most this: accurate
   double drift_limit = 1e-6;    // relative drift of a conserved H or E above this: drift
-  double diverged_error = 1.0;  // history error above this: diverged
+  // History error above this: diverged. Ten times the motion's own size: only growth does that
+  // (a wrong phase or a damped amplitude stays below 2).
+  double diverged_error = 10.0;
 };
 
 struct Classified {

@@ -1,0 +1,198 @@
+// `crossdyn stability` (harness/stability.hpp): the classifier on constructed cases, the scene
+// parameters it sweeps, the rk4 stability limit h |lambda|max ~ 2.8 found on a real scene, and the
+// command line and report folder.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "core/errors.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/stability.hpp"
+#include "tests/harness/run_program.hpp"
+#include "tests/support/paths.hpp"
+
+using namespace crossdyn;
+using namespace crossdyn::harness;
+
+namespace {
+
+CellFacts finished(double error) {
+  CellFacts f;
+  f.ok = true;
+  f.history_error = error;
+  f.drift_H = f.drift_E = 0;
+  f.H_conserved = f.E_conserved = true;
+  return f;
+}
+
+CellFacts failed(const std::string& why) {
+  CellFacts f;
+  f.ok = false;
+  f.failure = why;
+  return f;
+}
+
+}  // namespace
+
+TEST_CASE("stability: the classifier, one constructed case per class and the order of the rules") {
+  ClassLimits lim;
+  lim.tolerance = 1e-8;
+  lim.drift_limit = 1e-6;
+  lim.diverged_error = 10.0;
+  CHECK(classify(finished(5e-9), lim).cls == StabilityClass::Accurate);
+  CHECK(classify(finished(1e-8), lim).cls == StabilityClass::Accurate);  // the limit is inclusive
+  CHECK(classify(finished(2e-8), lim).cls == StabilityClass::Inaccurate);
+  CHECK(classify(finished(1.9), lim).cls == StabilityClass::Inaccurate);  // a wrong phase, not growth
+  CHECK(classify(finished(30.0), lim).cls == StabilityClass::Diverged);   // grown far beyond the motion
+  CHECK(classify(finished(std::nan("")), lim).cls == StabilityClass::Diverged);
+  // Drift: only where the scene conserves the quantity, and before the accuracy rule.
+  CellFacts d = finished(1e-9);
+  d.drift_E = 1e-4;
+  CHECK(classify(d, lim).cls == StabilityClass::Drift);
+  CHECK(classify(d, lim).why.find("E drifts by 1.0e-04") != std::string::npos);
+  d.E_conserved = false;
+  CHECK(classify(d, lim).cls == StabilityClass::Accurate);
+  d = finished(1e-9);
+  d.drift_H = std::nan("");  // a non-finite drift of a conserved H is drift, not accurate
+  CHECK(classify(d, lim).cls == StabilityClass::Drift);
+  // Failed runs, by the integrator's or engine's reason.
+  CHECK(classify(failed("engine lagrange failed at t = 1 s (main.theta): main is at the singularity "
+                        "of its 3-2-1 Euler angles"), lim).cls == StabilityClass::Singular);
+  CHECK(classify(failed("engine kane failed at t = 2 s: step limit reached (1000 steps)"), lim).cls ==
+        StabilityClass::TooCostly);
+  CHECK(classify(failed("engine kane failed: time limit of 20 s reached"), lim).cls == StabilityClass::TooCostly);
+  CHECK(classify(failed("engine kane failed at t = 2 s (main.wx): non-finite derivative"), lim).cls ==
+        StabilityClass::Diverged);
+  CHECK(classify(failed("engine kane failed at t = 2 s: step-size underflow (step 1e-20 s)"), lim).cls ==
+        StabilityClass::Diverged);
+  CHECK(classify(failed("engine kane failed at t = 2 s (mass matrix): not positive definite"), lim).cls ==
+        StabilityClass::Diverged);
+  CellFacts none;
+  none.reference = false;
+  none.ok = true;
+  none.history_error = 0;
+  CHECK(classify(none, lim).cls == StabilityClass::NoReference);
+  // Every class has a name, and the names are distinct.
+  std::set<std::string> names;
+  for (StabilityClass c : kStabilityClasses) names.insert(class_name(c));
+  CHECK(names.size() == 7);
+}
+
+TEST_CASE("stability: the scene parameters, their values and their errors") {
+  const System s = read_scene(test::scene_path("hub_two_panels"));
+  const Knob k = parse_knob(s, "hinge1.stiffness");
+  CHECK(apply_knob(s, k, 1234).joints[static_cast<std::size_t>(k.index)].stiffness == 1234);
+  const Knob r = parse_knob(s, "hinge2.rate");
+  CHECK(apply_knob(s, r, 0.5).joints[static_cast<std::size_t>(r.index)].rate0 == 0.5);
+  const Knob d = parse_knob(s, "duration");
+  const System longer = apply_knob(s, d, 1e4);
+  CHECK(longer.run.duration == 1e4);
+  CHECK(longer.run.duration / longer.run.output_step <= 2000 * (1 + 1e-12));  // rows kept bounded
+  CHECK_THROWS_WITH(apply_knob(s, k, -1), Catch::Contains("a stiffness must be >= 0"));
+  CHECK_THROWS_WITH(parse_knob(s, "hinge9.stiffness"),
+                    Catch::Contains("no joint or body 'hinge9'") && Catch::Contains("hinge1.stiffness"));
+  CHECK_THROWS_WITH(parse_knob(s, "hub.modal_stiffness"), Catch::Contains("body 'hub' has no"));
+  CHECK_THROWS_WITH(parse_knob(s, "links"), Catch::Contains("needs a chainN scene"));
+  const System flex = read_scene(test::scene_path("hub_flex_array"));
+  const Knob m = parse_knob(flex, "array.modal_stiffness");
+  const System stiff = apply_knob(flex, m, 1e4);
+  const int b = flex.body_index("array");
+  CHECK(stiff.bodies[static_cast<std::size_t>(b)].flex->K(0, 0) ==
+        1e4 * flex.bodies[static_cast<std::size_t>(b)].flex->K(0, 0));
+  const System chain = read_scene(test::scene_path("chain5"));
+  CHECK(apply_knob(chain, parse_knob(chain, "links"), 3).bodies.size() == 3);
+}
+
+// The rk4 limit on a real scene: hub_two_panels' hinge springs set |lambda|max; a step with
+// h |lambda|max below 2.5 must not diverge and one above 3.2 must (rk4's stability region
+// reaches 2.8 on the imaginary axis, 2.83, and on the real one, 2.79).
+TEST_CASE("stability: rk4 diverges where h |lambda|max passes its stability limit, ~2.8") {
+  System s = read_scene(test::scene_path("hub_two_panels"));
+  s.run.duration = 4;
+  const Knob k = parse_knob(s, "hinge1.stiffness");
+  StabilityOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"rk4", "dop853"};
+  o.tolerances = {1e-12};
+  o.dts = {0.05, 0.025, 0.0125};
+  const StabilityMap m = stability_scene(s, k, {5e3, 1e6}, o);
+  REQUIRE(m.columns.size() == 2);
+  CHECK(m.columns[1].lambda_max > 3 * m.columns[0].lambda_max);  // stiffer spring, faster mode
+  int below = 0, above = 0;
+  for (const StabilityCell& c : m.cells) {
+    CAPTURE(c.engine, c.integrator, c.setting_text(), c.column, c.h_lambda, c.result.why);
+    if (!c.fixed_step) {
+      CHECK(c.result.cls == StabilityClass::Accurate);  // dop853 at 1e-12 takes what it needs
+      continue;
+    }
+    REQUIRE(std::isfinite(c.h_lambda));
+    if (c.h_lambda < 2.5) {
+      CHECK(c.result.cls != StabilityClass::Diverged);
+      ++below;
+    }
+    if (c.h_lambda > 3.2) {
+      CHECK(c.result.cls == StabilityClass::Diverged);
+      ++above;
+    }
+  }
+  CHECK(below >= 4);
+  CHECK(above >= 1);
+  // The findings say where and why, with the remedy.
+  bool said = false;
+  for (const std::string& f : m.findings)
+    if (f.rfind("kane + rk4:", 0) == 0) {
+      said = true;
+      CHECK(f.find("diverged") != std::string::npos);
+      CHECK(f.find("h |lambda|max below 2.8") != std::string::npos);
+    }
+  CHECK(said);
+}
+
+TEST_CASE("stability: bad arguments exit 2, a tiny map writes its table, CSV and report") {
+  const struct {
+    const char* args;
+    const char* message;
+  } cases[] = {
+      {"stability hub_two_panels --values 1,2", "--vary: give the scene parameter"},
+      {"stability hub_two_panels --vary hinge1.stifness --values 1", "no 'stifness' to vary"},
+      {"stability hub_two_panels --vary hinge1.stiffness --values 1,x", "'x' is not a number"},
+      {"stability hub_two_panels --vary hinge1.stiffness --values -5", "a stiffness must be >= 0"},
+      {"stability hub_two_panels --vary duration --values 1 --engines foo", "unknown engine 'foo'"},
+  };
+  for (const auto& c : cases) {
+    CAPTURE(c.args);
+    const test::ProgramResult r = test::run_crossdyn(std::string(c.args) + " -q");
+    CAPTURE(r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.find(c.message) != std::string::npos);
+  }
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn_stability_test_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string report = (dir / "report").string(), csv = (dir / "map.csv").string();
+  const test::ProgramResult r = test::run_crossdyn(
+      "stability torque_free_asymmetric --vary duration --values 1,2 --engines kane --integrators "
+      "rk4,dopri5 --dts 0.1 --tolerances 1e-6 -q --csv '" + csv + "' --report '" + report + "'");
+  CAPTURE(r.output);
+  REQUIRE(r.status == 0);
+  CHECK(r.output.find("Findings:") != std::string::npos);
+  std::ifstream in(csv);
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  const std::string text = buffer.str();
+  CHECK(std::count(text.begin(), text.end(), '\n') == 1 + 2 * 2);
+  for (const char* f : {"index.html", "torque_free_asymmetric-duration.html",
+                        "torque_free_asymmetric-duration.png", "torque_free_asymmetric-duration.csv",
+                        "stability.json"}) {
+    CAPTURE(f);
+    CHECK(fs::is_regular_file(fs::path(report) / f));
+  }
+  fs::remove_all(dir);
+}
