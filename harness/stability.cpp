@@ -206,13 +206,44 @@ System apply_knob(const System& s, const Knob& k, double v) {
 
 // ---- the sweep ---------------------------------------------------------------------------------
 
+std::vector<EngineSpec> parse_engine_variants(const std::string& text, const std::string& option) {
+  std::vector<EngineSpec> out;
+  if (text.empty()) return out;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    const std::size_t colon = item.find(':');
+    EngineSpec sp{item, item.substr(0, colon), {}};
+    const std::vector<std::string> known = engine_names();
+    if (std::find(known.begin(), known.end(), sp.engine) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError(option + ": unknown engine '" + sp.engine + "' (known: " + list + ")");
+    }
+    if (colon != std::string::npos) {
+      const std::string variant = item.substr(colon + 1);
+      if (sp.engine == "newton-euler" && (variant == "none" || variant == "baumgarte" || variant == "projection"))
+        sp.options.stabilization = variant;
+      else if (sp.engine == "lagrange" && variant == "no-rechart")
+        sp.options.rechart = false;
+      else
+        throw InputError(option + ": unknown variant '" + variant + "' of " + sp.engine +
+                         " (newton-euler:none|baumgarte|projection, lagrange:no-rechart)");
+    }
+    for (const EngineSpec& e : out)
+      if (e.label == sp.label) throw InputError(option + ": '" + sp.label + "' is listed twice");
+    out.push_back(sp);
+  }
+  return out;
+}
+
 std::string StabilityCell::setting_text() const {
   return (fixed_step ? "dt " : "rtol ") + g3(setting);
 }
 
 double jacobian_spectral_radius(const System& system, const std::string& engine_name) {
   try {
-    std::unique_ptr<Engine> e = make_engine(engine_name, system, {});
+    std::unique_ptr<Engine> e = make_engine(engine_name, system, EngineOptions{});
     const int n = e->state_size();
     if (n <= 0 || n > 400) return kNaN;
     Eigen::VectorXd x(n), xp(n), xm(n), fp(n), fm(n);
@@ -245,7 +276,10 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
   m.scene = system.name;
   m.file = system.file;
   m.knob = knob;
-  m.engines = o.engines.empty() ? engine_names() : o.engines;
+  std::vector<EngineSpec> specs = o.engine_specs;
+  if (specs.empty())
+    for (const std::string& e : o.engines.empty() ? engine_names() : o.engines) specs.push_back({e, e, {}});
+  for (const EngineSpec& sp : specs) m.engines.push_back(sp.label);
   m.integrators = o.integrators.empty()
                       ? std::vector<std::string>{"rk4", "dopri5", "dop853", "cvode-bdf"}
                       : o.integrators;
@@ -255,7 +289,7 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
   m.limits.drift_limit = o.drift_limit;
 
   StudyOptions so;
-  so.engines = m.engines;
+  so.engine_specs = specs;
   so.integrators = m.integrators;
   so.tolerances = o.tolerances.empty() ? std::vector<double>{1e-3, 1e-6, 1e-9, 1e-12} : o.tolerances;
   so.dts = o.dts;
@@ -272,7 +306,7 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
     const System s = apply_knob(system, knob, v);
     StabilityColumn col;
     col.value = v;
-    col.lambda_max = jacobian_spectral_radius(s, m.engines.front());
+    col.lambda_max = jacobian_spectral_radius(s, specs.front().engine);
     const std::size_t c = m.columns.size();
     const bool H_conserved = momentum_not_conserved_reason(s).empty();
     const bool E_conserved = energy_not_conserved_reason(s).empty();

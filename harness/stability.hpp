@@ -133,6 +133,9 @@ struct StabilityMap {
 
 struct StabilityOptions {
   std::vector<std::string> engines;      // empty: every engine
+  // Engine variants (label, engine, options), e.g. "newton-euler:none": when not empty, these
+  // instead of `engines` (parse_engine_variants).
+  std::vector<EngineSpec> engine_specs;
   std::vector<std::string> integrators;  // empty: rk4, dopri5, dop853, cvode-bdf
   std::vector<double> tolerances;        // empty: 1e-3, 1e-6, 1e-9, 1e-12
   std::vector<double> dts;               // empty: output step / 1, 2, 4, ..., 64
@@ -146,6 +149,11 @@ struct StabilityOptions {
 // Runs the sweep. Throws InputError for bad options, cancel::Cancelled when interrupted.
 StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
                              const StabilityOptions& options);
+
+// "kane,newton-euler:none,newton-euler:baumgarte,lagrange:no-rechart": engines, each optionally
+// with a variant (newton-euler: none | baumgarte | projection, its constraint stabilisation;
+// lagrange: no-rechart). InputError naming `option` for anything else.
+std::vector<EngineSpec> parse_engine_variants(const std::string& text, const std::string& option);
 
 // |lambda|max of `engine`'s right-hand side at the scene's initial state (see the header); NaN
 // when the engine cannot be made or the Jacobian is not finite.

@@ -79,7 +79,7 @@ std::vector<double> parse_parameter_values(const std::string& text) {
 
 int stability(const StabilityCliOptions& o) {
   harness::StabilityOptions options;
-  options.engines = split_names(o.engines, "--engines", engine_names(), "engine");
+  options.engine_specs = harness::parse_engine_variants(o.engines, "--engines");
   options.integrators = split_names(o.integrators, "--integrators", integrator_names(), "integrator");
   if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
   if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
@@ -143,7 +143,9 @@ void add_stability_command(CLI::App& app, int& exit_code) {
   sub->add_option("--vary", o->vary, "The scene parameter to sweep");
   sub->add_option("--values", o->values, "Its values: a list (1,10,100) or a range one per decade (1..1e4)")
       ->required();
-  sub->add_option("--engines", o->engines, "Comma-separated engines (default: all)");
+  sub->add_option("--engines", o->engines,
+                  "Comma-separated engines (default: all), each optionally with a variant: "
+                  "newton-euler:none|baumgarte|projection (constraint stabilisation), lagrange:no-rechart");
   sub->add_option("--integrators", o->integrators,
                   "Comma-separated integrators (default: rk4, dopri5, dop853, cvode-bdf)");
   sub->add_option("--tolerances", o->tolerances, "Adaptive methods' rtol = atol (default 1e-3,1e-6,1e-9,1e-12)");

@@ -459,9 +459,15 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
   const ErrorMetric metric(system, reference);
 
   // The configurations.
+  std::vector<EngineSpec> specs = options.engine_specs;
+  if (specs.empty())
+    for (const std::string& e : engines) specs.push_back({e, e, {}});
+  std::map<std::string, const EngineSpec*> spec_of;
+  for (const EngineSpec& sp : specs) spec_of[sp.label] = &sp;
   std::vector<StudyRow> rows;
-  for (const std::string& engine : engines) {
-    if (!usable(engine, {})) continue;
+  for (const EngineSpec& spec : specs) {
+    const std::string& engine = spec.label;
+    if (!usable(spec.engine, spec.options)) continue;
     for (const std::string& integ : integrators) {
       const bool fixed = Choice<Integrator>(integ) == Integrator::Rk4;
       for (double v : fixed ? dts : tolerances) {
@@ -489,7 +495,9 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
       rs.method = row.integrator;
       if (row.fixed_step) rs.dt = row.dt;
       else rs.rtol = rs.atol = row.tolerance;
-      TimedRun r = timed_run(row.engine, row.engine, {}, system, rs, options.timeout, pinned, times.size());
+      const EngineSpec& spec = *spec_of.at(row.engine);
+      TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs, options.timeout, pinned,
+                             times.size());
       if (rep == 0) {
         row.rhs_calls = r.result.stats.rhs_calls;
         row.steps = r.result.stats.steps;

@@ -98,6 +98,9 @@ class ErrorMetric {
 
 struct StudyOptions {
   std::vector<std::string> engines;      // empty: every engine of engine_names()
+  // When not empty, the configurations' engines instead (a label per variant, e.g.
+  // "newton-euler:none" with its stabilisation; StudyRow::engine is the label).
+  std::vector<EngineSpec> engine_specs;
   std::vector<std::string> integrators;  // empty: every integrator of integrator_names()
   std::vector<double> tolerances;        // adaptive methods: rtol = atol = each; empty: 1e-4..1e-13
   std::vector<double> dts;               // rk4 steps; empty: output step / 2^k, k = 0..7
