@@ -45,10 +45,11 @@ JointModel model(const Joint& joint, const System* system) {
   m.type = joint.type;
   m.parent = joint.parent;
   m.child = joint.child;
+  m.prescribed = joint.type == JointType::Revolute && joint.prescribed.has_value();
   switch (joint.type) {
     case JointType::Free: m.rows = 0; break;
     case JointType::Spherical: m.rows = 3; break;
-    case JointType::Revolute: m.rows = 5; break;
+    case JointType::Revolute: m.rows = joint.prescribed ? 6 : 5; break;
     case JointType::Fixed: m.rows = 6; break;
   }
   m.P = side(system, joint.parent, joint.p_PoJ_P, joint.parent_node);
@@ -189,6 +190,13 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
       out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
       out.gdot(3 + k) = c.dot(jk.w_FG_F);
       out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
+    }
+    if (m.prescribed) {  // row 5: the angle (header; the time terms are the engine's)
+      out.g(5) = jk.angle_wrapped;
+      out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
+      out.J_P.block<1, 3>(5, 3) = -m.a_P.transpose();
+      out.gdot(5) = jk.rate;
+      out.gamma(5) = -m.a_P.dot(transport_F);
     }
   } else if (m.type == JointType::Fixed) {
     const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_FG;

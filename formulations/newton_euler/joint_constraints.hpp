@@ -36,6 +36,15 @@
 //     gamma_k = -( (u' x b_k) . w_FG_F + c_k . R_FG (w_FG_G x w_G) ),  u' = w_FG_F x u
 //     (the F-frame derivative of w_FG_F is R_FG w_G' - w_F' + R_FG (w_FG_G x w_G), because
 //      d/dt R_FG = R_FG [w_FG_G x]).
+//   prescribed revolute (docs/prescribed-motion.md), row 5 as well: the angle itself, a rheonomic
+//   constraint (Haug 1989, Sec. 6.3: driving constraints g(q, t) = 0, whose velocity and
+//   acceleration equations carry -g_t and -g_tt):
+//     g_5 = angle_wrapped (relative kinematics only; the engine subtracts the prescribed angle),
+//     g_5' = a_P . w_FG_F  (the rate; the engine subtracts theta'(t)),
+//     A_G = a_P^T R_FG, A_F = -a_P^T,
+//     gamma_5 = -a_P . R_FG (w_FG_G x w_G)  (the engine adds theta''(t)),
+//     from angle'' = a_P . (R_FG w_G' - w_F' + R_FG (w_FG_G x w_G)) (the F-frame derivative above).
+//     Its multiplier is the constraint moment on G about the axis: the joint's torque.
 //   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0):
 //     q_e = q_PJ0^* (x) q_FG, s = sign(q_e.w);  g = 2 s vec(q_e)
 //     g' = E_q w_FG_G with E_q = s (q_e.w I + [vec(q_e) x])  (Shuster 1993 Eq. 305),
@@ -69,7 +78,8 @@ struct JointSide {
 struct JointModel {
   JointType type = JointType::Revolute;
   int parent = -1, child = -1;
-  int rows = 0;                       // 3 (spherical), 5 (revolute), 6 (fixed), 0 (free)
+  int rows = 0;                       // 3 (spherical), 5 (revolute; 6 prescribed), 6 (fixed), 0 (free)
+  bool prescribed = false;            // revolute with Joint::prescribed: row 5 is the angle
   JointSide P, C;                     // parent side (frame F) and child side (frame G)
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
