@@ -30,6 +30,11 @@ JointSide side(const System* system, int body, const Vector3d& r, int node) {
         const FlexNode& n = b.flex->nodes[static_cast<std::size_t>(node)];
         s.Phi = n.Phi_B;
         if (n.Psi_B.cols() == s.modes) s.Psi = n.Psi_B;  // an empty Psi: no slopes at this node
+        if (b.flex->geometric_stiffening && n.G.rows() == s.modes && n.G.cols() == s.modes) {
+          s.stiff = true;
+          s.e = n.e_B;
+          s.G = n.G;
+        }
       }
     }
   }
@@ -76,6 +81,10 @@ JointModel JointModel::from(const System& system, int j) {
 JointKinematics::JointKinematics(const JointModel& m) {
   F.JlPsi = Eigen::Matrix3Xd::Zero(3, m.P.modes);
   G.JlPsi = Eigen::Matrix3Xd::Zero(3, m.C.modes);
+  F.Phi = m.P.Phi;
+  G.Phi = m.C.Phi;
+  F.g = Eigen::VectorXd::Zero(m.P.modes);
+  G.g = Eigen::VectorXd::Zero(m.C.modes);
   F.s_B = m.P.r;
   G.s_B = m.C.r;
 }
@@ -99,7 +108,17 @@ void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out) 
   out.s_B = side.r;
   if (side.modes == 0) return;  // rigid: the constants set by JointKinematics(m)
   out.s_B.noalias() += side.Phi * B.eta;
-  out.sdot_B.noalias() = side.Phi * B.eta_dot;
+  if (side.stiff) {  // header "Geometric stiffening": s = r + Phi eta + e w, s' = Phi~ eta'
+    out.g.noalias() = side.G * B.eta;
+    out.s_B += (0.5 * B.eta.dot(out.g)) * side.e;
+    out.Phi = side.Phi;
+    out.Phi.noalias() += side.e * out.g.transpose();
+    double q = 0;
+    for (int k = 0; k < side.modes; ++k)
+      for (int l = 0; l < side.modes; ++l) q += B.eta_dot(k) * side.G(k, l) * B.eta_dot(l);
+    out.a_B = q * side.e;
+  }
+  out.sdot_B.noalias() = out.Phi * B.eta_dot;
   Vector3d psi, psi_dot;
   psi.noalias() = side.Psi * B.eta;
   psi_dot.noalias() = side.Psi * B.eta_dot;
@@ -171,8 +190,10 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   out.gamma.head<3>() =
       -(C.R_NB * (w_C.cross(w_C.cross(s_C)) + 2.0 * w_C.cross(jk.G.sdot_B)) -
         P.R_NB * (w_P.cross(w_P.cross(s_P)) + 2.0 * w_P.cross(jk.F.sdot_B)));
-  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * m.C.Phi;
-  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * m.P.Phi;
+  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * jk.G.Phi;
+  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * jk.F.Phi;
+  if (m.C.stiff) out.gamma.head<3>() -= C.R_NB * jk.G.a_B;
+  if (m.P.stiff) out.gamma.head<3>() += P.R_NB * jk.F.a_B;
 
   // Rotation rows in terms of w_F and w_G (the frames' rigid rows), written in the w_P and w_C
   // columns, then mapped through the node frames below.

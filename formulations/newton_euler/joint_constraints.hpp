@@ -55,6 +55,9 @@
 //     J_P[rot, w_P] = A_F E_P^T,  J_P[rot, eta_P'] = A_F E_P^T Jl_P Psi_P,
 //     gamma -= A_F E_P^T (c_P - w_rel_P x w_P)        (and the same for C with A_G);
 //   on a rigid side J_P[rot, w_P] = A_F.
+// Geometric stiffening (modal_body.hpp): at a node of a stiffened body the point is
+// s = r + Phi eta + e w(eta), s' = Phi~ eta' with Phi~ = Phi + e (G eta)^T, s'' = Phi~ eta'' + e q,
+// so rows 0-2 take Phi~ in place of Phi in their modal columns and gamma loses R e q on each side.
 // Rows beyond rows() are zero (TreeKkt pads every joint block to 6 rows).
 #pragma once
 
@@ -72,6 +75,9 @@ struct JointSide {
   int node = -1;        // FlexBody::nodes index, or -1
   Eigen::Vector3d r = Eigen::Vector3d::Zero();  // undeformed joint point from Bo, body frame
   Eigen::Matrix3Xd Phi, Psi;  // 3 x modes: the node's shapes and slopes (zero without a node)
+  bool stiff = false;         // geometric stiffening at this node: e, G below
+  Eigen::Vector3d e = Eigen::Vector3d::Zero();
+  Eigen::MatrixXd G;          // modes x modes
 };
 
 // The constant description of one joint (built once from System::joints[j]).
@@ -107,7 +113,10 @@ struct BodyKinematics {
 // A joint frame on one side at the current state (see the header comment).
 struct NodeFrame {
   Eigen::Vector3d s_B = Eigen::Vector3d::Zero();      // joint point from Bo, body frame
-  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi eta': its rate relative to the body
+  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi~ eta': its rate relative to the body
+  Eigen::Matrix3Xd Phi;                               // 3 x modes: Phi~ (= Phi when not stiffened)
+  Eigen::Vector3d a_B = Eigen::Vector3d::Zero();      // e q: s'' = Phi~ eta'' + a_B (stiffened)
+  Eigen::VectorXd g;                                  // scratch: G eta
   Eigen::Matrix3d E = Eigen::Matrix3d::Identity();    // exp([psi x]): the frame in the body frame
   Eigen::Quaterniond q_E = Eigen::Quaterniond::Identity();
   Eigen::Vector3d w_rel_B = Eigen::Vector3d::Zero();  // Jl(psi) Psi eta'

@@ -325,6 +325,11 @@ void NewtonEulerEngine::validate_flex(const std::string& file, int b, const Body
       throw InputError(nk + ": mode shapes must be finite, 3 x " + std::to_string(n));
     if (node.Psi_B.size() > 0 && (node.Psi_B.cols() != n || !node.Psi_B.allFinite()))
       throw InputError(nk + ": mode slopes must be finite, 3 x " + std::to_string(n) + " (or absent)");
+    if (flex.geometric_stiffening && n > 0 &&
+        (node.G.rows() != n || node.G.cols() != n || !node.G.allFinite() || !node.e_B.allFinite() ||
+         (node.G - node.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1 + node.G.cwiseAbs().maxCoeff())))
+      throw InputError(nk + ": geometric stiffening needs a finite unit e and a symmetric " +
+                       std::to_string(n) + " x " + std::to_string(n) + " G");
   }
   const double scale = o.test_inertia_scale;
   ModalInvariants probe = ModalInvariants::from(flex, Matrix3d::Zero());
@@ -646,9 +651,8 @@ Vector3d NewtonEulerEngine::first_moment() const {
     const BodyKinematics& k = bk_[at(b)];
     sum += mass_[at(b)] * k.p_NoBo_N;
     if (flex_[at(b)] < 0) continue;
-    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
-    Vector3d S = inv.S0;
-    S.noalias() += inv.Phi_bar * k.eta;
+    Vector3d S, p_rel;
+    modal_first_moments(inv_[at(flex_[at(b)])], k.eta, k.eta_dot, S, p_rel);
     sum += k.R_NB * S;
   }
   return sum;
@@ -660,10 +664,8 @@ Vector3d NewtonEulerEngine::linear_momentum() const {
     const BodyKinematics& k = bk_[at(b)];
     sum += mass_[at(b)] * k.v_NBo_N;
     if (flex_[at(b)] < 0) continue;
-    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
-    Vector3d S = inv.S0, p_rel;
-    S.noalias() += inv.Phi_bar * k.eta;
-    p_rel.noalias() = inv.Phi_bar * k.eta_dot;
+    Vector3d S, p_rel;
+    modal_first_moments(inv_[at(flex_[at(b)])], k.eta, k.eta_dot, S, p_rel);
     sum += k.R_NB * (k.w_NB_B.cross(S) + p_rel);
   }
   return sum;
@@ -871,7 +873,9 @@ double NewtonEulerEngine::energy() const {
     const ModalInvariants& inv = inv_[at(fi)];
     e += k.v_NBo_N.dot(k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel)) +
          0.5 * k.w_NB_B.dot(mt.I * k.w_NB_B) + k.w_NB_B.dot(mt.h_rel) +
-         0.5 * k.eta_dot.dot(inv.M_ee * k.eta_dot) + 0.5 * k.eta.dot(inv.K * k.eta);
+         0.5 * k.eta_dot.dot((inv.stiffening ? Eigen::MatrixXd(mt.M.bottomRightCorner(inv.n, inv.n))
+                                             : inv.M_ee) * k.eta_dot) +
+         0.5 * k.eta.dot(inv.K * k.eta);
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
