@@ -129,4 +129,25 @@ run:
 )";
 }
 
+// free_spinning_beam_text() with a rigid tip body on a revolute joint at the beam's free end
+// (node `top`, where the foreshortening G is largest): a spring hinge, or a prescribed one.
+inline std::string beam_with_tip_text(bool prescribed) {
+  std::string t = free_spinning_beam_text();
+  t.replace(t.find("joints:"), 7, R"(  - name: tip
+    mass: 2 kg
+    inertia: [0.02, 0.03, 0.04]
+joints:)");
+  t.replace(t.find("run:"), 4, std::string(R"(  - name: wrist
+    type: revolute
+    parent: beam
+    parent_node: top
+    child: tip
+    child_point: [-0.2, 0.05, 0]
+    axis: [0, 1, 1]
+)") + (prescribed ? "    prescribed: {profile: spin-up, rate: 4 rad/s, ramp_time: 2 s}\n"
+                  : "    spring: {stiffness: 30}\n    initial: {angle: 0.4, rate: -1}\n") +
+                           "run:");
+  return t;
+}
+
 }  // namespace crossdyn::test::ne
