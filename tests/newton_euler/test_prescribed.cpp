@@ -297,7 +297,7 @@ TEST_CASE("newton-euler geometric stiffening: a joint at a foreshortened node (t
     TreeState ts = TreeState::initial(s);
     ts.eta[1] << 0.08, -0.03, 0.01, 0.05, -0.02;
     ts.eta_rate[1] << 0.2, 0.5, -0.3, -0.4, 0.1;
-    const RunResult r = run(s, ts, 4.0, 0.001);
+    const RunResult r = run(s, ts, 4.0, 0.0005);
     double dE = 0, dH = 0, pos = 0;
     const double E0 = col(r, 0, "E"), H0 = col(r, 0, "H");
     for (std::size_t k = 0; k < r.rows(); ++k) {
