@@ -67,7 +67,9 @@
 //     joint point, and the largest relative velocity of those copies, over the joints;
 //   constraint.ang (rad), constraint.angvel (rad/s): largest attitude violation (revolute: angle
 //     between the two copies of the axis; fixed: rotation angle away from the offset) and the norm
-//     of the forbidden relative angular velocity (between the joint frames).
+//     of the forbidden relative angular velocity (between the joint frames); a prescribed joint
+//     adds |angle - prescribed angle| and |rate - prescribed rate| to them, and a prescribed
+//     base its joint to N (largest row of g and g').
 //
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached
