@@ -30,6 +30,11 @@ JointSide side(const System* system, int body, const Vector3d& r, int node) {
         const FlexNode& n = b.flex->nodes[static_cast<std::size_t>(node)];
         s.Phi = n.Phi_B;
         if (n.Psi_B.cols() == s.modes) s.Psi = n.Psi_B;  // an empty Psi: no slopes at this node
+        if (b.flex->geometric_stiffening && n.G.rows() == s.modes && n.G.cols() == s.modes) {
+          s.stiff = true;
+          s.e = n.e_B;
+          s.G = n.G;
+        }
       }
     }
   }
@@ -45,10 +50,11 @@ JointModel model(const Joint& joint, const System* system) {
   m.type = joint.type;
   m.parent = joint.parent;
   m.child = joint.child;
+  m.prescribed = joint.type == JointType::Revolute && joint.prescribed.has_value();
   switch (joint.type) {
     case JointType::Free: m.rows = 0; break;
     case JointType::Spherical: m.rows = 3; break;
-    case JointType::Revolute: m.rows = 5; break;
+    case JointType::Revolute: m.rows = joint.prescribed ? 6 : 5; break;
     case JointType::Fixed: m.rows = 6; break;
   }
   m.P = side(system, joint.parent, joint.p_PoJ_P, joint.parent_node);
@@ -75,6 +81,10 @@ JointModel JointModel::from(const System& system, int j) {
 JointKinematics::JointKinematics(const JointModel& m) {
   F.JlPsi = Eigen::Matrix3Xd::Zero(3, m.P.modes);
   G.JlPsi = Eigen::Matrix3Xd::Zero(3, m.C.modes);
+  F.Phi = m.P.Phi;
+  G.Phi = m.C.Phi;
+  F.g = Eigen::VectorXd::Zero(m.P.modes);
+  G.g = Eigen::VectorXd::Zero(m.C.modes);
   F.s_B = m.P.r;
   G.s_B = m.C.r;
 }
@@ -98,7 +108,17 @@ void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out) 
   out.s_B = side.r;
   if (side.modes == 0) return;  // rigid: the constants set by JointKinematics(m)
   out.s_B.noalias() += side.Phi * B.eta;
-  out.sdot_B.noalias() = side.Phi * B.eta_dot;
+  if (side.stiff) {  // header "Geometric stiffening": s = r + Phi eta + e w, s' = Phi~ eta'
+    out.g.noalias() = side.G * B.eta;
+    out.s_B += (0.5 * B.eta.dot(out.g)) * side.e;
+    out.Phi = side.Phi;
+    out.Phi.noalias() += side.e * out.g.transpose();
+    double q = 0;
+    for (int k = 0; k < side.modes; ++k)
+      for (int l = 0; l < side.modes; ++l) q += B.eta_dot(k) * side.G(k, l) * B.eta_dot(l);
+    out.a_B = q * side.e;
+  }
+  out.sdot_B.noalias() = out.Phi * B.eta_dot;
   Vector3d psi, psi_dot;
   psi.noalias() = side.Psi * B.eta;
   psi_dot.noalias() = side.Psi * B.eta_dot;
@@ -170,8 +190,10 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   out.gamma.head<3>() =
       -(C.R_NB * (w_C.cross(w_C.cross(s_C)) + 2.0 * w_C.cross(jk.G.sdot_B)) -
         P.R_NB * (w_P.cross(w_P.cross(s_P)) + 2.0 * w_P.cross(jk.F.sdot_B)));
-  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * m.C.Phi;
-  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * m.P.Phi;
+  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * jk.G.Phi;
+  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * jk.F.Phi;
+  if (m.C.stiff) out.gamma.head<3>() -= C.R_NB * jk.G.a_B;
+  if (m.P.stiff) out.gamma.head<3>() += P.R_NB * jk.F.a_B;
 
   // Rotation rows in terms of w_F and w_G (the frames' rigid rows), written in the w_P and w_C
   // columns, then mapped through the node frames below.
@@ -189,6 +211,13 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
       out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
       out.gdot(3 + k) = c.dot(jk.w_FG_F);
       out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
+    }
+    if (m.prescribed) {  // row 5: the angle (header; the time terms are the engine's)
+      out.g(5) = jk.angle_wrapped;
+      out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
+      out.J_P.block<1, 3>(5, 3) = -m.a_P.transpose();
+      out.gdot(5) = jk.rate;
+      out.gamma(5) = -m.a_P.dot(transport_F);
     }
   } else if (m.type == JointType::Fixed) {
     const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_FG;

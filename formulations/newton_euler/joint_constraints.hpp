@@ -36,6 +36,15 @@
 //     gamma_k = -( (u' x b_k) . w_FG_F + c_k . R_FG (w_FG_G x w_G) ),  u' = w_FG_F x u
 //     (the F-frame derivative of w_FG_F is R_FG w_G' - w_F' + R_FG (w_FG_G x w_G), because
 //      d/dt R_FG = R_FG [w_FG_G x]).
+//   prescribed revolute (docs/prescribed-motion.md), row 5 as well: the angle itself, a rheonomic
+//   constraint (Haug 1989, Sec. 6.3: driving constraints g(q, t) = 0, whose velocity and
+//   acceleration equations carry -g_t and -g_tt):
+//     g_5 = angle_wrapped (relative kinematics only; the engine subtracts the prescribed angle),
+//     g_5' = a_P . w_FG_F  (the rate; the engine subtracts theta'(t)),
+//     A_G = a_P^T R_FG, A_F = -a_P^T,
+//     gamma_5 = -a_P . R_FG (w_FG_G x w_G)  (the engine adds theta''(t)),
+//     from angle'' = a_P . (R_FG w_G' - w_F' + R_FG (w_FG_G x w_G)) (the F-frame derivative above).
+//     Its multiplier is the constraint moment on G about the axis: the joint's torque.
 //   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0):
 //     q_e = q_PJ0^* (x) q_FG, s = sign(q_e.w);  g = 2 s vec(q_e)
 //     g' = E_q w_FG_G with E_q = s (q_e.w I + [vec(q_e) x])  (Shuster 1993 Eq. 305),
@@ -46,6 +55,9 @@
 //     J_P[rot, w_P] = A_F E_P^T,  J_P[rot, eta_P'] = A_F E_P^T Jl_P Psi_P,
 //     gamma -= A_F E_P^T (c_P - w_rel_P x w_P)        (and the same for C with A_G);
 //   on a rigid side J_P[rot, w_P] = A_F.
+// Geometric stiffening (modal_body.hpp): at a node of a stiffened body the point is
+// s = r + Phi eta + e w(eta), s' = Phi~ eta' with Phi~ = Phi + e (G eta)^T, s'' = Phi~ eta'' + e q,
+// so rows 0-2 take Phi~ in place of Phi in their modal columns and gamma loses R e q on each side.
 // Rows beyond rows() are zero (TreeKkt pads every joint block to 6 rows).
 #pragma once
 
@@ -63,13 +75,17 @@ struct JointSide {
   int node = -1;        // FlexBody::nodes index, or -1
   Eigen::Vector3d r = Eigen::Vector3d::Zero();  // undeformed joint point from Bo, body frame
   Eigen::Matrix3Xd Phi, Psi;  // 3 x modes: the node's shapes and slopes (zero without a node)
+  bool stiff = false;         // geometric stiffening at this node: e, G below
+  Eigen::Vector3d e = Eigen::Vector3d::Zero();
+  Eigen::MatrixXd G;          // modes x modes
 };
 
 // The constant description of one joint (built once from System::joints[j]).
 struct JointModel {
   JointType type = JointType::Revolute;
   int parent = -1, child = -1;
-  int rows = 0;                       // 3 (spherical), 5 (revolute), 6 (fixed), 0 (free)
+  int rows = 0;                       // 3 (spherical), 5 (revolute; 6 prescribed), 6 (fixed), 0 (free)
+  bool prescribed = false;            // revolute with Joint::prescribed: row 5 is the angle
   JointSide P, C;                     // parent side (frame F) and child side (frame G)
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
@@ -97,7 +113,10 @@ struct BodyKinematics {
 // A joint frame on one side at the current state (see the header comment).
 struct NodeFrame {
   Eigen::Vector3d s_B = Eigen::Vector3d::Zero();      // joint point from Bo, body frame
-  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi eta': its rate relative to the body
+  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi~ eta': its rate relative to the body
+  Eigen::Matrix3Xd Phi;                               // 3 x modes: Phi~ (= Phi when not stiffened)
+  Eigen::Vector3d a_B = Eigen::Vector3d::Zero();      // e q: s'' = Phi~ eta'' + a_B (stiffened)
+  Eigen::VectorXd g;                                  // scratch: G eta
   Eigen::Matrix3d E = Eigen::Matrix3d::Identity();    // exp([psi x]): the frame in the body frame
   Eigen::Quaterniond q_E = Eigen::Quaterniond::Identity();
   Eigen::Vector3d w_rel_B = Eigen::Vector3d::Zero();  // Jl(psi) Psi eta'

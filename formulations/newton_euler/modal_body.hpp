@@ -48,6 +48,20 @@
 // Momentum and energy (docs/flexible-bodies.md "Energy"): linear momentum m v + R (w x S + Phi_bar
 // eta'); angular momentum about Bo, relative to Bo's motion, R (I w + Lambda eta') + (R S) x v
 // (the node sums of m_i (x_i - p) x v_i plus R J_i w); kinetic energy 1/2 nu^T M nu.
+// Geometric stiffening (FlexBody::geometric_stiffening; docs/flexible-bodies.md "Geometric
+// stiffening"; Kane, Ryan & Banerjee 1987, Eq. (8); Sharf 1995): u_i = Phi_i eta + e_i w_i,
+// w_i = 1/2 eta^T G_i eta. Then, exactly (no term dropped),
+//   u_i' = Phi~_i eta',  Phi~_i(eta) = Phi_i + e_i (G_i eta)^T   (the node's partial velocities),
+//   u_i'' = Phi~_i eta'' + e_i q_i,  q_i = eta'^T G_i eta',
+// so the equations above hold with Phi_i replaced by Phi~_i(eta) (virtual displacement
+// delta x_i = delta p + R (delta theta x r_i + Phi~_i delta eta)), r_i = p_i + u_i with the
+// second-order u_i, and the node acceleration gaining e_i q_i:
+//   R^T a_i = R^T a + alpha x r_i + Phi~_i eta'' + c_i,  c_i = w x (w x r_i) + 2 w x u_i' + e_i q_i,
+//   M = [m 1, -R [S x], R Phi~_bar; ., I(eta), Lambda~; ., ., M~_ee] with Phi~_bar = sum m_i Phi~_i,
+//   Lambda~ = sum m_i [r_i x] Phi~_i, M~_ee = sum m_i Phi~_i^T Phi~_i,
+//   f_bias = [-R sum m_i c_i; -sum m_i r_i x c_i - w x J_sum w; -sum m_i Phi~_i^T c_i - K eta - D eta'].
+// Phi~ depends on eta, so the node-sum invariants above do not apply: these terms are node sums
+// per state, O(nodes n^2) per call (the linear model keeps the invariants, unchanged).
 #pragma once
 
 #include "core/system.hpp"
@@ -71,6 +85,12 @@ struct ModalInvariants {
   std::vector<Eigen::Matrix3d> D;      // n x n, D[k * n + l]
   Eigen::Matrix3Xd G;                  // 3 x n^2, column k * n + l = G_kl
   Eigen::MatrixXd K, Dmp;              // modal stiffness and damping (n x n)
+  // Geometric stiffening: the nodes themselves (per node mass, p_i, J_i, Phi_i, e_i, G_i).
+  bool stiffening = false;
+  std::vector<double> node_m;
+  std::vector<Eigen::Vector3d> node_p, node_e;
+  std::vector<Eigen::Matrix3Xd> node_Phi;
+  std::vector<Eigen::MatrixXd> node_G;
 
   // The node sums. extra_inertia is added to J_sum (EngineOptions::test_inertia_scale).
   static ModalInvariants from(const FlexBody& flex, const Eigen::Matrix3d& extra_inertia);
@@ -88,6 +108,8 @@ struct ModalTerms {
   std::vector<Eigen::Matrix3d> B;                      // B_k
   Eigen::MatrixXd M;                                   // (6 + n) x (6 + n)
   Eigen::VectorXd f;                                   // f_bias (6 + n)
+  Eigen::VectorXd g;                                   // stiffening scratch: G_i eta (n)
+  Eigen::Matrix3Xd Phit;                               // stiffening scratch: Phi~_i (3 x n)
 
   explicit ModalTerms(int n = 0);
 };
@@ -96,5 +118,18 @@ struct ModalTerms {
 void modal_terms(const ModalInvariants& inv, const Eigen::Matrix3d& R_NB, const Eigen::Vector3d& w,
                  const Eigen::Ref<const Eigen::VectorXd>& eta,
                  const Eigen::Ref<const Eigen::VectorXd>& eta_dot, ModalTerms& out);
+
+// With geometric stiffening, node i's second-order terms at eta, eta' (no allocation):
+// w_i = 1/2 eta^T G_i eta, eta^T G_i eta' (= d/dt w_i) and q_i = eta'^T G_i eta'.
+struct Foreshortening {
+  double w = 0, w_dot = 0, q = 0;
+};
+Foreshortening foreshortening(const Eigen::MatrixXd& G, const Eigen::Ref<const Eigen::VectorXd>& eta,
+                              const Eigen::Ref<const Eigen::VectorXd>& eta_dot);
+
+// S = sum m_i r_i and p_rel = sum m_i u_i' (body frame) at (eta, eta'), for either model.
+void modal_first_moments(const ModalInvariants& inv, const Eigen::Ref<const Eigen::VectorXd>& eta,
+                         const Eigen::Ref<const Eigen::VectorXd>& eta_dot, Eigen::Vector3d& S,
+                         Eigen::Vector3d& p_rel);
 
 }  // namespace crossdyn::newton_euler

@@ -88,7 +88,15 @@ class NewtonEulerEngine final : public Engine {
   // Named passes (see newton_euler.hpp).
   void body_pass(double t, const double* x);
   void mass_pass(double t);
-  void joint_pass();
+  void joint_pass(double t);
+  // The joints whose constraint rows exist: 1.. (a free base), 0.. (a prescribed base: joint 0's
+  // rows are the base's root rows, TreeKkt).
+  int first_joint() const { return prescribed_base_ ? 0 : 1; }
+  const BodyKinematics& parent_kinematics(int j) const {
+    const int p = joints_[at(j)].parent;
+    return p < 0 ? ground_ : bk_[at(p)];
+  }
+  double torque(int j) const;  // a prescribed joint's torque about its axis on the child
   void force_pass(double t);
   void solve_pass(double t);
   void dynamics(double t, const double* x);
@@ -119,6 +127,14 @@ class NewtonEulerEngine final : public Engine {
   std::vector<ModalInvariants> inv_;     // per flexible body
   std::vector<JointModel> joints_;       // per System joint
   double lever_scale_ = 0;               // m, largest |r_P| + |r_C| over the joints
+  // The base is a prescribed revolute joint to N (System::base_is_free() false). Choice: the base
+  // body keeps its 13 (+ modal) numbers in the state and its motion is the rheonomic constraint
+  // of joint 0 to N (joint_constraints.hpp, "prescribed revolute", with N as a rigid parent that
+  // does not move: ground_), solved in the KKT system as root rows (tree_kkt.hpp) and stabilised
+  // like every other joint. So the constraint moment about the axis (the torque) comes out of the
+  // same solve as every other multiplier, and a flexible base keeps its modal coordinates.
+  bool prescribed_base_ = false;
+  BodyKinematics ground_;                // N: identity attitude, at rest
   OutputLayout layout_;          // pinned columns, then joint wrenches, then constraint violations
   int wrench0_ = 0, violation0_ = 0;  // first extra column of each group
   std::vector<std::string> labels_;
@@ -193,7 +209,7 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   for (int j = 0; j < nj_; ++j) {
     const Joint& J = system.joints[at(j)];
     const std::string key = file + ": joints[" + std::to_string(j) + "] '" + J.name + "'";
-    if (j > 0) {
+    if (j > 0 || J.type == JointType::Revolute) {
       if (J.axis_P.norm() < 1e-12 && J.type == JointType::Revolute)
         throw InputError(key + ": axis must be a non-zero vector");
     }
@@ -218,7 +234,8 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   // Flexible: modal_body.hpp, set per state by mass_pass().
   std::vector<int> dofs;
   for (int b = 0; b < nb_; ++b) dofs.push_back(6 + modes(b));
-  kkt_ = TreeKkt(dofs, links);
+  prescribed_base_ = !system.base_is_free();
+  kkt_ = TreeKkt(dofs, links, prescribed_base_ ? joints_[0].rows : 0);
   for (int b = 0; b < nb_; ++b) {
     if (flex_[at(b)] >= 0) {
       terms_.emplace_back(modes(b));
@@ -308,6 +325,11 @@ void NewtonEulerEngine::validate_flex(const std::string& file, int b, const Body
       throw InputError(nk + ": mode shapes must be finite, 3 x " + std::to_string(n));
     if (node.Psi_B.size() > 0 && (node.Psi_B.cols() != n || !node.Psi_B.allFinite()))
       throw InputError(nk + ": mode slopes must be finite, 3 x " + std::to_string(n) + " (or absent)");
+    if (flex.geometric_stiffening && n > 0 &&
+        (node.G.rows() != n || node.G.cols() != n || !node.G.allFinite() || !node.e_B.allFinite() ||
+         (node.G - node.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1 + node.G.cwiseAbs().maxCoeff())))
+      throw InputError(nk + ": geometric stiffening needs a finite unit e and a symmetric " +
+                       std::to_string(n) + " x " + std::to_string(n) + " G");
   }
   const double scale = o.test_inertia_scale;
   ModalInvariants probe = ModalInvariants::from(flex, Matrix3d::Zero());
@@ -387,16 +409,28 @@ void NewtonEulerEngine::mass_pass(double t) {
 }
 
 // Body kinematics => node frames, relative joint kinematics, continuous revolute angles,
-// constraint rows.
-void NewtonEulerEngine::joint_pass() {
-  for (int j = 1; j < nj_; ++j) {
+// constraint rows. A prescribed joint's row 5 gets its time terms here (rheonomic constraint,
+// Haug 1989, Sec. 6.3; docs/prescribed-motion.md "The motion"): g_5 = angle - (angle0 + theta(t))
+// (wrapped to (-pi, pi]), g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection
+// and Baumgarte drive the joint to the prescribed angle and rate at t.
+void NewtonEulerEngine::joint_pass(double t) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const BodyKinematics& P = bk_[at(m.parent)];
+    const BodyKinematics& P = parent_kinematics(j);
     const BodyKinematics& C = bk_[at(m.child)];
     joint_kinematics(m, P, C, jk_[at(j)]);
-    if (m.type == JointType::Revolute)
+    ConstraintRows& cr = cr_[at(j)];
+    constraint_rows(m, P, C, jk_[at(j)], cr);
+    if (m.prescribed) {
+      const Joint& J = system_.joints[at(j)];
+      const double angle = J.angle0 + J.prescribed->angle(t);
+      angle_[at(j)] = angle;
+      cr.g(5) = unwrap_angle(jk_[at(j)].angle_wrapped - angle, 0.0);
+      cr.gdot(5) -= J.prescribed->velocity(t);
+      cr.gamma(5) += J.prescribed->accel(t);
+    } else if (m.type == JointType::Revolute) {
       angle_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
-    constraint_rows(m, P, C, jk_[at(j)], cr_[at(j)]);
+    }
   }
 }
 
@@ -470,6 +504,14 @@ void NewtonEulerEngine::solve_pass(double t) {
     if (stabilization_ == Stabilization::Baumgarte)  // [Baum72]: g'' + alpha g' + beta g = 0
       gamma_[at(k)] -= alpha_ * c.gdot + beta_ * c.g;
   }
+  if (prescribed_base_) {  // joint 0 to N: the root rows (N's columns are not unknowns)
+    const ConstraintRows& c = cr_[0];
+    kkt_.J_root().leftCols<6>() = c.J_C;
+    if (joints_[0].C.modes > 0) kkt_.J_root().rightCols(joints_[0].C.modes) = c.Je_C;
+    kkt_.gamma_root() = c.gamma;
+    if (stabilization_ == Stabilization::Baumgarte)  // [Baum72]
+      kkt_.gamma_root() -= alpha_ * c.gdot + beta_ * c.g;
+  }
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
   kkt_.solve(f_, gamma_, nu_dot_, y_);
   if (!nu_dot_.allFinite()) {
@@ -482,7 +524,7 @@ void NewtonEulerEngine::solve_pass(double t) {
 void NewtonEulerEngine::dynamics(double t, const double* x) {
   body_pass(t, x);
   mass_pass(t);
-  joint_pass();
+  joint_pass(t);
   force_pass(t);
   solve_pass(t);
 }
@@ -555,10 +597,14 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   B.p_NoBo_N = s.p_NoBo_N;
   B.v_NBo_N = s.v_NBo_N;
   B.w_NB_B = s.w_NB_B;
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const TreeState::JointState& js = s.joints[at(j)];
-    const BodyKinematics& P = bk_[at(m.parent)];
+    TreeState::JointState js = s.joints[at(j)];
+    if (m.prescribed) {  // pack() ignores the TreeState's prescribed coordinates (engine.hpp)
+      js.angle = system_.joints[at(j)].angle0 + system_.joints[at(j)].prescribed->angle(0.0);
+      js.rate = system_.joints[at(j)].prescribed->velocity(0.0);
+    }
+    const BodyKinematics& P = parent_kinematics(j);
     BodyKinematics& C = bk_[at(m.child)];
     NodeFrame& F = jk_[at(j)].F;
     NodeFrame& G = jk_[at(j)].G;
@@ -586,7 +632,7 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(F.s_B) + F.sdot_B) -
                 C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
   }
-  if (system_.zero_linear_momentum) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
+  if (system_.zero_linear_momentum && !prescribed_base_) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
   for (int j = 1; j < nj_; ++j) angle_[at(j)] = angle_ref_[at(j)];
 }
@@ -605,9 +651,8 @@ Vector3d NewtonEulerEngine::first_moment() const {
     const BodyKinematics& k = bk_[at(b)];
     sum += mass_[at(b)] * k.p_NoBo_N;
     if (flex_[at(b)] < 0) continue;
-    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
-    Vector3d S = inv.S0;
-    S.noalias() += inv.Phi_bar * k.eta;
+    Vector3d S, p_rel;
+    modal_first_moments(inv_[at(flex_[at(b)])], k.eta, k.eta_dot, S, p_rel);
     sum += k.R_NB * S;
   }
   return sum;
@@ -619,10 +664,8 @@ Vector3d NewtonEulerEngine::linear_momentum() const {
     const BodyKinematics& k = bk_[at(b)];
     sum += mass_[at(b)] * k.v_NBo_N;
     if (flex_[at(b)] < 0) continue;
-    const ModalInvariants& inv = inv_[at(flex_[at(b)])];
-    Vector3d S = inv.S0, p_rel;
-    S.noalias() += inv.Phi_bar * k.eta;
-    p_rel.noalias() = inv.Phi_bar * k.eta_dot;
+    Vector3d S, p_rel;
+    modal_first_moments(inv_[at(flex_[at(b)])], k.eta, k.eta_dot, S, p_rel);
     sum += k.R_NB * (k.w_NB_B.cross(S) + p_rel);
   }
   return sum;
@@ -655,13 +698,13 @@ bool NewtonEulerEngine::project(double t, double* x) {
       changed = true;
     }
   }
-  if (nj_ < 2) return changed;
+  if (nj_ < 2 && !prescribed_base_) return changed;
   double L = std::max(1.0, lever_scale_);
   for (int b = 0; b < nb_; ++b)
     L = std::max(L, std::abs(x[pos(b)]) + std::abs(x[pos(b) + 1]) + std::abs(x[pos(b) + 2]));
   auto max_violation = [this](bool velocity) {
     double v = 0;
-    for (int j = 1; j < nj_; ++j)
+    for (int j = first_joint(); j < nj_; ++j)
       v = std::max(v, (velocity ? cr_[at(j)].gdot : cr_[at(j)].g).cwiseAbs().maxCoeff());
     return v;
   };
@@ -675,11 +718,17 @@ bool NewtonEulerEngine::project(double t, double* x) {
       if (m.C.modes > 0) kkt_.J_child(j - 1).rightCols(m.C.modes) = c.Je_C;
       gamma_[at(j - 1)] = velocity ? Vector6d(-c.gdot) : Vector6d(-c.g);
     }
+    if (prescribed_base_) {
+      const ConstraintRows& c = cr_[0];
+      kkt_.J_root().leftCols<6>() = c.J_C;
+      if (joints_[0].C.modes > 0) kkt_.J_root().rightCols(joints_[0].C.modes) = c.Je_C;
+      kkt_.gamma_root() = velocity ? Vector6d(-c.gdot) : Vector6d(-c.g);
+    }
     f_.setZero();
   };
   body_pass(t, x);
   mass_pass(t);  // the metric: the mass matrix at the step's state
-  joint_pass();
+  joint_pass(t);
   const Vector3d moment0 = first_moment(), momentum0 = linear_momentum();
   if (max_violation(false) > kProjectTrigger * L) {
     for (int iter = 0; iter < kNewtonMaxIterations; ++iter) {
@@ -694,7 +743,7 @@ bool NewtonEulerEngine::project(double t, double* x) {
         k.R_NB = k.q_NB.toRotationMatrix();
         if (modes(b) > 0) k.eta += nu_dot_.segment(nu(b) + 6, modes(b));
       }
-      joint_pass();
+      joint_pass(t);
       changed = true;
       if (max_violation(false) <= kNewtonTarget * L) break;
     }
@@ -713,7 +762,9 @@ bool NewtonEulerEngine::project(double t, double* x) {
   }
   if (!changed) return false;
   const double m = total_mass();
-  shift_all((moment0 - first_moment()) / m, (momentum0 - linear_momentum()) / m);
+  // A prescribed base is held by N: no rigid translation (it would break the root rows).
+  if (!prescribed_base_)
+    shift_all((moment0 - first_moment()) / m, (momentum0 - linear_momentum()) / m);
   write_state(x);
   return true;
 }
@@ -722,7 +773,7 @@ void NewtonEulerEngine::update_turn_counters(double t, const double* x) {
   body_pass(t, x);
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    if (m.type != JointType::Revolute) continue;
+    if (m.type != JointType::Revolute || m.prescribed) continue;
     joint_kinematics(m, bk_[at(m.parent)], bk_[at(m.child)], jk_[at(j)]);
     angle_ref_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
   }
@@ -756,12 +807,15 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
     a.wdot_NB_B[at(b)] = nu_dot_.segment<3>(nu(b) + 3);
     if (modes(b) > 0) a.eta_ddot[at(b)] = nu_dot_.segment(nu(b) + 6, modes(b));
   }
+  if (prescribed_base_) a.angle_ddot[0] = system_.joints[0].prescribed->accel(t);
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
     const Vector3d wdot_F = frame_angular_acceleration(m.P, jk.F, m.parent);
     const Vector3d wdot_G = frame_angular_acceleration(m.C, jk.G, m.child);
-    if (m.type == JointType::Revolute) {
+    if (m.prescribed) {
+      a.angle_ddot[at(j)] = system_.joints[at(j)].prescribed->accel(t);
+    } else if (m.type == JointType::Revolute) {
       // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
       a.angle_ddot[at(j)] = m.a_P.dot(jk.R_FG * wdot_G - wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
     } else if (m.type == JointType::Spherical) {
@@ -819,7 +873,9 @@ double NewtonEulerEngine::energy() const {
     const ModalInvariants& inv = inv_[at(fi)];
     e += k.v_NBo_N.dot(k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel)) +
          0.5 * k.w_NB_B.dot(mt.I * k.w_NB_B) + k.w_NB_B.dot(mt.h_rel) +
-         0.5 * k.eta_dot.dot(inv.M_ee * k.eta_dot) + 0.5 * k.eta.dot(inv.K * k.eta);
+         0.5 * k.eta_dot.dot((inv.stiffening ? Eigen::MatrixXd(mt.M.bottomRightCorner(inv.n, inv.n))
+                                             : inv.M_ee) * k.eta_dot) +
+         0.5 * k.eta.dot(inv.K * k.eta);
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
@@ -835,6 +891,16 @@ double NewtonEulerEngine::energy() const {
   return e;
 }
 
+// The multiplier of a prescribed joint's angle row (joint_constraints.hpp): the constraint
+// generalised force J^T lambda it adds is the moment lambda_5 R_GF a_P on the child-side frame G
+// and -lambda_5 a_P on the parent-side frame F, so lambda_5 = -y_5 is the torque about the axis on
+// the child (docs/prescribed-motion.md "State, output, accelerations"; rows 3-4 act about
+// c_k = u x b_k, normal to the axis). Valid after dynamics().
+double NewtonEulerEngine::torque(int j) const {
+  if (j == 0) return -kkt_.y_root()(5);
+  return -y_[at(j - 1)](5);
+}
+
 void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   dynamics(t, x);  // the constraint forces need the accelerations
   RowWriter out(layout_, row);
@@ -843,9 +909,13 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     out.body(b, bk_[at(b)].w_NB_B, bk_[at(b)].q_NB);
     if (modes(b) > 0) out.modal(b, bk_[at(b)].eta, bk_[at(b)].eta_dot);
   }
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointType type = joints_[at(j)].type;
-    if (type == JointType::Revolute) out.revolute(j, angle_[at(j)], jk_[at(j)].rate);
+    if (joints_[at(j)].prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
+      const PrescribedMotion& pm = *system_.joints[at(j)].prescribed;
+      out.revolute(j, system_.joints[at(j)].angle0 + pm.angle(t), pm.velocity(t));
+      out.joint_torque(j, torque(j));
+    } else if (type == JointType::Revolute) out.revolute(j, angle_[at(j)], jk_[at(j)].rate);
     if (type == JointType::Spherical) out.spherical(j, jk_[at(j)].w_FG_G);
   }
   out.momentum(angular_momentum());
@@ -876,10 +946,21 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
       ang_violation = std::max(ang_violation, std::atan2(m.a_P.cross(u).norm(), m.a_P.dot(u)));
       angvel_violation =
           std::max(angvel_violation, (jk.w_FG_F - m.a_P.dot(jk.w_FG_F) * m.a_P).norm());
+      if (m.prescribed) {  // and the angle and rate away from the profile
+        ang_violation = std::max(ang_violation, std::abs(cr.g(5)));
+        angvel_violation = std::max(angvel_violation, std::abs(cr.gdot(5)));
+      }
     } else if (m.type == JointType::Fixed) {
       ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_FG));
       angvel_violation = std::max(angvel_violation, jk.w_FG_G.norm());
     }
+  }
+  if (prescribed_base_) {
+    const ConstraintRows& cr = cr_[0];
+    pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
+    vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
+    ang_violation = std::max(ang_violation, cr.g.tail<3>().cwiseAbs().maxCoeff());
+    angvel_violation = std::max(angvel_violation, cr.gdot.tail<3>().cwiseAbs().maxCoeff());
   }
   out.extra(violation0_, pos_violation);
   out.extra(violation0_ + 1, vel_violation);

@@ -38,6 +38,24 @@
 // (Hairer, Lubich & Wanner 2006, "Geometric Numerical Integration", Sec. IV.4; Hairer & Wanner
 // 1996, Sec. VII.2); "baumgarte"; "none" (drift shows).
 //
+// Prescribed motion (docs/prescribed-motion.md; issue 13). A prescribed revolute joint is a
+// rheonomic constraint (Haug 1989, "Computer Aided Kinematics and Dynamics of Mechanical Systems",
+// Sec. 6.3, driving constraints): besides its five revolute rows it has a sixth, the joint angle
+// minus angle0 + theta(t), whose velocity and acceleration equations carry -theta'(t) and
+// +theta''(t) (joint_constraints.hpp), so projection and Baumgarte drive it to the prescribed
+// angle and rate at t. Its multiplier is the constraint moment about the axis on the child: the
+// output <joint>.torque. <joint>.angle and .rate are the profile's; TreeAccel::angle_ddot is
+// theta''(t). A prescribed base (joints[0] revolute with parent N) keeps its body's numbers in the
+// state (the layout above is unchanged); its joint to N is the same rheonomic constraint with N as
+// a parent at rest, solved as root rows of the KKT system (tree_kkt.hpp) and stabilised like every
+// joint (projection moves no rigid translation then: the base is held; zero_linear_momentum does
+// not apply). For a base attached at a node of a flexible body the joint frame turns with the node
+// (R_NB = R_NJ0 Rot(axis_J, angle) exp([psi x])^T, the general "Joints at nodes" rule).
+//
+// Geometric stiffening (docs/flexible-bodies.md; modal_body.hpp): u_i = Phi_i eta + e_i 1/2 eta^T
+// G_i eta kept exactly; a stiffened body's mass matrix and velocity terms are node sums per state
+// (O(nodes n^2) per call for that body), joint points at its nodes move with the same u_i.
+//
 // Extra output columns after the pinned ones:
 //   per joint other than the free one: <joint>.fx .fy .fz (N) .mx .my .mz (N m): the constraint
 //     force and the constraint moment about the joint point exerted BY THE PARENT ON THE CHILD
@@ -49,7 +67,9 @@
 //     joint point, and the largest relative velocity of those copies, over the joints;
 //   constraint.ang (rad), constraint.angvel (rad/s): largest attitude violation (revolute: angle
 //     between the two copies of the axis; fixed: rotation angle away from the offset) and the norm
-//     of the forbidden relative angular velocity (between the joint frames).
+//     of the forbidden relative angular velocity (between the joint frames); a prescribed joint
+//     adds |angle - prescribed angle| and |rate - prescribed rate| to them, and a prescribed
+//     base its joint to N (largest row of g and g').
 //
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached

@@ -79,6 +79,11 @@ void backward(const LM& L, const VM& inv_diag, N n, Vec_&& b) {
 TreeKkt::TreeKkt(int n_bodies, std::vector<KktLink> links)
     : TreeKkt(std::vector<int>(at(n_bodies), 6), std::move(links)) {}
 
+TreeKkt::TreeKkt(std::vector<int> dofs, std::vector<KktLink> links, int root_rows)
+    : TreeKkt(std::move(dofs), std::move(links)) {
+  root_rows_ = std::clamp(root_rows, 0, 6);
+}
+
 TreeKkt::TreeKkt(std::vector<int> dofs, std::vector<KktLink> links)
     : links_(std::move(links)), dofs_(std::move(dofs)) {
   const std::size_t nb = dofs_.size(), nl = links_.size();
@@ -117,6 +122,42 @@ TreeKkt::TreeKkt(std::vector<int> dofs, std::vector<KktLink> links)
   t_body_ = Eigen::VectorXd::Zero(max_dofs);
   r_link_.assign(nl, Vector6d::Zero());
   y_link_.assign(nl, Vector6d::Zero());
+  JR_ = Eigen::MatrixXd::Zero(6, dofs_.empty() ? 6 : dofs_[at(base_)]);
+  VR_ = Eigen::MatrixXd::Zero(JR_.cols(), 6);
+}
+
+// The root rows' Schur complement S = J_R D_base^{-1} J_R^T = V_R^T V_R (header).
+bool TreeKkt::factor_root() {
+  if (root_rows_ == 0) return true;
+  const std::size_t b = at(base_);
+  const int d = dofs_[b];
+  VR_ = JR_.transpose();  // same size: no allocation
+  for (int col = 0; col < root_rows_; ++col)
+    forward(L_body_[b], inv_diag_body_[b], d, VR_.col(col));
+  Matrix6d S;
+  S.noalias() = VR_.transpose() * VR_;
+  return cholesky(S, root_rows_, L_root_, inv_diag_root_);
+}
+
+// Given x = D_base^{-1} r in y_body_ (the unconstrained base solve): y_R = S^{-1} (J_R x -
+// gamma_R), then x -= D^{-1} J_R^T y_R (header).
+void TreeKkt::solve_root() {
+  y_root_.setZero();
+  if (root_rows_ == 0) return;
+  const std::size_t b = at(base_);
+  const int d = dofs_[b], o = offset_[b];
+  Vector6d y = Vector6d::Zero();
+  y.head(root_rows_).noalias() = JR_.topRows(root_rows_) * y_body_.segment(o, d);
+  y -= gamma_root_;
+  forward(L_root_, inv_diag_root_, root_rows_, y);
+  backward(L_root_, inv_diag_root_, root_rows_, y);
+  for (int i = root_rows_; i < 6; ++i) y(i) = 0.0;
+  y_root_ = y;
+  auto t = t_body_.head(d);
+  t.noalias() = JR_.transpose() * y;
+  forward(L_body_[b], inv_diag_body_[b], d, t);
+  backward(L_body_[b], inv_diag_body_[b], d, t);
+  y_body_.segment(o, d) -= t;
 }
 
 bool TreeKkt::set_mass(int b, const Eigen::Ref<const Eigen::MatrixXd>& M) {
@@ -187,10 +228,11 @@ bool TreeKkt::factor() {
     else link_parent_update<Eigen::Dynamic>(kk);
   }
   const std::size_t b = at(base_);
-  if (leaf_[b]) return true;
-  return rigid_[b] ? cholesky(Mat<6>(D_body_[b].data()), six, Mat<6>(L_body_[b].data()),
-                              Vec<6>(inv_diag_body_[b].data()))
-                   : cholesky(D_body_[b], dofs_[b], L_body_[b], inv_diag_body_[b]);
+  if (leaf_[b]) return factor_root();
+  const bool ok = rigid_[b] ? cholesky(Mat<6>(D_body_[b].data()), six, Mat<6>(L_body_[b].data()),
+                                       Vec<6>(inv_diag_body_[b].data()))
+                            : cholesky(D_body_[b], dofs_[b], L_body_[b], inv_diag_body_[b]);
+  return ok && factor_root();
 }
 
 // Baraff (1996) Fig. 3 "solve": forward (children first) r_i = b_i - sum_c H_ic y_c,
@@ -271,6 +313,7 @@ void TreeKkt::solve(const Eigen::Ref<const Eigen::VectorXd>& f, const std::vecto
   }
   if (rigid_[at(base_)]) solve_base<6>();
   else solve_base<Eigen::Dynamic>();
+  solve_root();
   const int ob = offset_[at(base_)], db = dofs_[at(base_)];
   nu_dot.segment(ob, db) = y_body_.segment(ob, db);
   for (int k = 0; k < links(); ++k) {

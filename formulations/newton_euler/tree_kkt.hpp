@@ -24,6 +24,14 @@
 // routines cost several times more at this size. The same templated kernels run with the
 // compile-time size 6 for rigid bodies (unrolled; the rigid scenes' speed) and with the run-time
 // size 6 + n_b for flexible ones. All storage is allocated by the constructor.
+//
+// Root rows (a prescribed base, docs/prescribed-motion.md): optionally, up to 6 constraint rows
+// J_R nu_base = gamma_R on the base body alone (its link to N). The base is eliminated last, so
+// they only change the last step: with D_base = L L^T, the base's small KKT system
+//   [D_base J_R^T; J_R 0] [x; y_R] = [r; gamma_R]
+// is solved by the range-space method (Nocedal & Wright 2006, "Numerical Optimization", 2nd ed.,
+// Sec. 16.2, Eq. (16.16)): S = J_R D^{-1} J_R^T = V_R^T V_R, V_R = L^{-1} J_R^T;
+// y_R = S^{-1} (J_R D^{-1} r - gamma_R), x = D^{-1} (r - J_R^T y_R).
 #pragma once
 
 #include <Eigen/Core>
@@ -49,6 +57,8 @@ class TreeKkt {
   // the base body or the child of an earlier link; every body except the base is the child of
   // exactly one link.
   TreeKkt(std::vector<int> dofs, std::vector<KktLink> links);
+  // With root rows (0: none) on the base body (see the header).
+  TreeKkt(std::vector<int> dofs, std::vector<KktLink> links, int root_rows);
   // All bodies rigid (6 unknowns each).
   TreeKkt(int n_bodies, std::vector<KktLink> links);
 
@@ -69,6 +79,14 @@ class TreeKkt {
   const Eigen::MatrixXd& J_parent(int k) const { return JP_[static_cast<std::size_t>(k)]; }
   const Eigen::MatrixXd& J_child(int k) const { return JC_[static_cast<std::size_t>(k)]; }
 
+  int root_rows() const { return root_rows_; }
+  int base() const { return base_; }
+  // Root rows J_R (6 x dofs(base); rows >= root_rows() zero), written in place.
+  Eigen::MatrixXd& J_root() { return JR_; }
+  // Their right-hand side gamma_R (set before solve()) and multipliers y_R (after solve()).
+  Vector6d& gamma_root() { return gamma_root_; }
+  const Vector6d& y_root() const { return y_root_; }
+
   // (M, J) => block LDL^T factors. False when a pivot block is not definite (a body with a
   // non-positive-definite mass matrix or a joint with dependent constraint rows).
   bool factor();
@@ -88,7 +106,15 @@ class TreeKkt {
   template <int D> void solve_child_up(std::size_t k, Eigen::Ref<Eigen::VectorXd> nu_dot);
   template <int D> void solve_parent_up(std::size_t k, const Eigen::Ref<const Eigen::VectorXd>& nu_dot);
 
+  bool factor_root();
+  void solve_root();
+
   std::vector<KktLink> links_;
+  int root_rows_ = 0;
+  Eigen::MatrixXd JR_, VR_;           // 6 x d_base, d_base x 6
+  Matrix6d L_root_ = Matrix6d::Zero();
+  Vector6d inv_diag_root_ = Vector6d::Zero(), gamma_root_ = Vector6d::Zero(),
+           y_root_ = Vector6d::Zero();
   std::vector<int> dofs_, offset_;
   int size_ = 0;
   int base_ = 0;

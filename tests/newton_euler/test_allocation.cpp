@@ -5,6 +5,7 @@
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/scene/scene.hpp"
+#include "tests/newton_euler/ne_prescribed_scenes.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
 #include "tests/support/paths.hpp"
 
@@ -71,6 +72,28 @@ TEST_CASE("newton-euler: rhs and after_step do not allocate", "[newton_euler][al
     std::vector<double> x(static_cast<std::size_t>(e->state_size())), xdot(x.size());
     TreeState ts = TreeState::initial(s);
     std::mt19937 rng(2);
+    test::ne::deform(s, ts, rng, 0.1, 0.3);
+    e->pack(ts, x.data());
+    std::normal_distribution<double> noise(0.0, 1e-6);
+    const long before = g_allocations.load();
+    for (int k = 0; k < 100; ++k) {
+      e->rhs(0.01 * k, x.data(), xdot.data());
+      for (double& v : x) v += noise(rng);
+      e->after_step(0.01 * k, x.data());
+    }
+    const long allocations = g_allocations.load() - before;
+    INFO(s.name);
+    CHECK(allocations == 0);
+  }
+  // Prescribed joints (inside the tree, and the base) and geometric stiffening (issue 13).
+  for (const std::string& text :
+       {test::ne::scan_platform_text(), test::ne::spinup_beam_text(true),
+        test::ne::spinup_beam_text(false), test::ne::free_spinning_beam_text()}) {
+    const System s = read_scene_text(text, "allocation");
+    auto e = make_newton_euler_engine(s, {});
+    std::vector<double> x(static_cast<std::size_t>(e->state_size())), xdot(x.size());
+    TreeState ts = TreeState::initial(s);
+    std::mt19937 rng(3);
     test::ne::deform(s, ts, rng, 0.1, 0.3);
     e->pack(ts, x.data());
     std::normal_distribution<double> noise(0.0, 1e-6);
