@@ -32,6 +32,7 @@ struct StabilityCliOptions {
   double drift_limit = 1e-6;
   long max_steps = 200000;
   double timeout = 20;
+  std::optional<double> duration;
   std::string report, csv;
   bool quiet = false;
 };
@@ -97,7 +98,13 @@ int stability(const StabilityCliOptions& o) {
   if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
   check_outputs_are_not_inputs(outputs, {{"the scene file", path}});
   std::vector<SceneWarning> warnings;
-  const System system = read_scene(path, &warnings);
+  System system = read_scene(path, &warnings);
+  if (o.duration) {
+    if (!(*o.duration > 0) || *o.duration > 1e7)
+      throw InputError("--duration: must be positive and at most 1e7 s");
+    system.run.duration = *o.duration;
+    system.run.output_step = std::min(system.run.output_step, *o.duration);
+  }
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   if (o.vary.empty()) {
     std::string list;
@@ -155,6 +162,7 @@ void add_stability_command(CLI::App& app, int& exit_code) {
   sub->add_option("--drift-limit", o->drift_limit, "Relative H or E drift counted as drift (default 1e-6)");
   sub->add_option("--max-steps", o->max_steps, "Per run: too costly after N steps (default 200000)");
   sub->add_option("--timeout", o->timeout, "Per run: too costly after SECONDS (default 20; 0: none)");
+  sub->add_option("--duration", o->duration, "Run every cell for T s instead of the scene's duration");
   sub->add_option("--report", o->report, "Write the pages (index.html, one page per map, PNG maps, CSV) into DIR");
   sub->add_option("--csv", o->csv, "Write one CSV line per cell to FILE");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");

@@ -5,7 +5,10 @@
 //   crossdyn_scene_doc --dict                  fuzz/scene.dict
 //   crossdyn_scene_doc --write-docs FILE       replaces the generated block of FILE
 //   crossdyn_scene_doc --write-dict FILE       rewrites FILE
+//   crossdyn_scene_doc --pin SCENE.yaml        the pin of a new scene (tests/scene/pinned/)
 // tests/scene/test_scene_docs.cpp and test_schema.cpp fail while the committed files differ.
+#include "core/errors.hpp"
+#include "core/scene/scene.hpp"
 #include "core/scene/schema.hpp"
 #include "tests/scene/generated_block.hpp"
 
@@ -24,6 +27,15 @@ int main(int argc, char** argv) {
     std::cout << crossdyn::scene::fuzz_dictionary();
     return 0;
   }
+  if (argc == 3 && mode == "--pin") {
+    try {
+      std::cout << crossdyn::write_scene_text(crossdyn::read_scene(argv[2]));
+    } catch (const crossdyn::InputError& e) {
+      std::cerr << e.what() << '\n';
+      return 2;
+    }
+    return 0;
+  }
   if (argc == 3 && (mode == "--write-docs" || mode == "--write-dict")) {
     std::string text = crossdyn::scene::fuzz_dictionary();
     if (mode == "--write-docs") {
@@ -40,6 +52,6 @@ int main(int argc, char** argv) {
     std::ofstream(argv[2]) << text;
     return 0;
   }
-  std::cerr << "usage: crossdyn_scene_doc --markdown | --dict | --write-docs FILE | --write-dict FILE\n";
+  std::cerr << "usage: crossdyn_scene_doc --markdown | --dict | --write-docs FILE | --write-dict FILE | --pin SCENE\n";
   return 2;
 }
