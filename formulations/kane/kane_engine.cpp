@@ -302,6 +302,12 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       if (!(J.axis_P.norm() > 0)) throw InputError(jname + ": revolute axis must be non-zero");
       n.axis_P = J.axis_P.normalized();
       n.axis_J = n.R_PJ0.transpose() * n.axis_P;
+      if (J.prescribed) {  // docs/prescribed-motion.md: not a degree of freedom
+        n.prescribed = true;
+        n.motion = *J.prescribed;
+        n.angle0 = J.angle0;
+        has_prescribed_ = true;
+      }
     }
 
     // Attachment at nodes of flexible bodies (docs/flexible-bodies.md "Joints at nodes").
@@ -337,7 +343,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       throw InputError(jname + ": the free joint has no parent body, so no parent_node");
     }
     n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj);
-    if (k == 0 && J.child_node >= 0)
+    if (k == 0 && J.type == JointType::Free && J.child_node >= 0)
       throw InputError(jname +
                        ": the free joint moves the base's body frame; child_node must "
                        "not be set");
@@ -350,8 +356,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
         n.nuj = 6;
         break;
       case JointType::Revolute:
-        n.nqj = 1;
-        n.nuj = 1;
+        n.nqj = n.prescribed ? 0 : 1;
+        n.nuj = n.prescribed ? 0 : 1;
         break;
       case JointType::Spherical:
         n.nqj = 4;
@@ -392,6 +398,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
         for (int i = 0; i < 3; ++i) put(n_q_ + n.u0 + 3 + i, b + ".v" + "xyz"[i]);
         break;
       case JointType::Revolute:
+        if (n.prescribed) break;
         put(n.q0, j + ".angle");
         put(n_q_ + n.u0, j + ".rate");
         break;
@@ -418,6 +425,15 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
 
   // Workspace.
   work_.resize(nj);
+  prescribed_torque_.assign(nj, 0.0);
+  for (NodeWork* w : {&ground_}) {
+    w->R_NB.setIdentity();
+    w->I_BBo_N.setZero();
+    w->W_N.setZero();
+    for (Vector3d* v : {&w->p_B0oBo_N, &w->p_B0oOk_N, &w->w_NB_N, &w->v_NBo_N, &w->w_NB_B,
+                        &w->w_PC_N, &w->w_NJp_N, &w->alpha_t_N, &w->a_t_N, &w->alpha_N, &w->a_N})
+      v->setZero();
+  }
   for (std::size_t k = 0; k < nj; ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
@@ -488,6 +504,13 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     max_speed_depth_ = std::max(max_speed_depth_, depth[k]);
   }
   const bool rigid = flex_.empty();
+  // The order-N solver declines prescribed joints (issue 13): its elimination assumes a free
+  // base and a speed for every revolute joint, so a scene with a prescribed joint (inside the
+  // tree or as the base) always uses the composite solver, which handles both.
+  const bool order_n_ok = rigid && !has_prescribed_ && system_.base_is_free();
+  if (solver == KaneSolver::OrderN && rigid && !order_n_ok)
+    throw InputError(file + ": the kane engine's order-N solver handles no prescribed joint; use "
+                     "the composite solver");
   if (solver == KaneSolver::OrderN && !rigid) {
     std::string flexible;
     for (const Body& b : system_.bodies)
@@ -496,7 +519,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
                      flexible + "' is flexible); use the composite solver");
   }
   if (solver == KaneSolver::Automatic)
-    solver = rigid && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
+    solver = order_n_ok && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
                                                           : KaneSolver::Composite;
   solver_ = solver;
   if (solver_ == KaneSolver::OrderN) {
@@ -525,6 +548,20 @@ std::string KaneEngine::state_label(int i) const {
   return labels_[static_cast<std::size_t>(i)];
 }
 
+// Prescribed joints at time t (docs/prescribed-motion.md "The motion"; the spin-up profile of
+// Kane, Ryan and Banerjee 1987, Eq. (61), evaluated by PrescribedMotion):
+//   angle = angle0 + theta(t),  rate = theta'(t),  angle'' = theta''(t).
+void KaneEngine::set_time(double t) {
+  if (!has_prescribed_) return;
+  for (const Node& n : nodes_) {
+    if (!n.prescribed) continue;
+    NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+    w.pres_angle = n.angle0 + n.motion.angle(t);
+    w.pres_rate = n.motion.velocity(t);
+    w.pres_accel = n.motion.accel(t);
+  }
+}
+
 Quaterniond KaneEngine::read_quat(const double* x, int i) const {
   return Quaterniond(x[i], x[i + 1], x[i + 2], x[i + 3]).normalized();
 }
@@ -550,7 +587,9 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
       w.p_B0oOk_N.setZero();
       w.W_N = w.R_NB;  // W_r = b_r for u_r = w_NB_B,r (r = 1..3)
     } else {
-      const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+      // A prescribed base's parent is N (ground_: at rest, origin No, so that the positions of
+      // such a tree are measured from No; docs/prescribed-motion.md "A prescribed base").
+      const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
       Vector3d r_Pj = n.p_PoJ_P;
       // Frames by pointer so that a rigid attachment copies no matrix: R_NJp is R_NP, and R_NJc
       // is written straight into R_NB.
@@ -580,7 +619,7 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
       switch (n.type) {
         case JointType::Revolute:
         {
-          const double half = 0.5 * x[n.q0];
+          const double half = 0.5 * (n.prescribed ? w.pres_angle : x[n.q0]);
           const double sh = std::sin(half), ch = std::cos(half);  // one sincos
           w.sin_half = sh;
           w.cos_half = ch;
@@ -669,7 +708,7 @@ void KaneEngine::velocity_pass(const double* u) {
       w.v_NBo_N = v_NBo_N;
       w.w_PC_N = w.w_NB_N;
     } else {
-      const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+      const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
       const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
       const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
       Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(p_PoOk_N);
@@ -684,8 +723,8 @@ void KaneEngine::velocity_pass(const double* u) {
         v_Ok += w.v_att_N;
       }
       switch (n.type) {
-        case JointType::Revolute:
-          w.w_PC_N = w.W_N.col(0) * u[n.u0];
+        case JointType::Revolute:  // a prescribed joint: its rate theta'(t)
+          w.w_PC_N = w.W_N.col(0) * (n.prescribed ? w.pres_rate : u[n.u0]);
           break;
         case JointType::Spherical:
           w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
@@ -759,7 +798,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
       }
       continue;
     }
-    const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+    const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
     const Vector3d& alpha_P = full ? P.alpha_N : P.alpha_t_N;
     const Vector3d& a_P = full ? P.a_N : P.a_t_N;
     const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
@@ -777,6 +816,9 @@ void KaneEngine::propagate_accelerations(const double* udot) {
       }
     }
     alpha_C += w.w_NJp_N.cross(w.w_PC_N);
+    // A prescribed joint's W_r theta''(t) is known: part of the remainder (and of the full)
+    // acceleration, the "u_r' known function of time" of Kane and Levinson 1985, Sec. 6.1.
+    if (n.prescribed) alpha_C += w.W_N.col(0) * w.pres_accel;
     if (full)
       for (int i = 0; i < n.nuj; ++i) alpha_C += w.W_N.col(i) * udot[n.u0 + i];
     if (n.child_attach) {
@@ -809,7 +851,9 @@ void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
 // A child's sums move to its parent's point Op with e = p_Ok - p_Op (add_moved_inertia);
 // M' = M + e x F.
 
-void KaneEngine::subtree_pass(double t) {
+//   full (prescribed joints' torques): a_t, alpha_t replaced by the full a, alpha and, for a
+//   flexible body, the nodes' R Phi_i eta'' added: R_B -= R S eta'', T_B -= R A eta''.
+void KaneEngine::subtree_pass(double t, bool full) {
   for (NodeWork& w : work_) {
     w.m_sub = 0;
     w.s_sub_N.setZero();
@@ -824,25 +868,32 @@ void KaneEngine::subtree_pass(double t) {
 
     // This node's own body.
     const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    const Vector3d& a_t = full ? w.a_N : w.a_t_N;
+    const Vector3d& alpha_t = full ? w.alpha_N : w.alpha_t_N;
     w.m_sub += n.mass;
     Vector3d R_B, T_B;
     if (n.flex < 0) {
       w.s_sub_N += n.mass * d;
       add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d);
-      R_B = -n.mass * w.a_t_N;
-      T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+      R_B = -n.mass * a_t;
+      T_B = -(w.I_BBo_N * alpha_t) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
     } else {
       const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
       const Vector3d& c = fw.c_N;
       const Vector3d& wN = w.w_NB_N;
       w.s_sub_N += n.mass * d + c;
       add_moved_inertia(w.J_sub_N, w.I_BBo_N, n.mass, c, d);
-      R_B = -(n.mass * w.a_t_N + w.alpha_t_N.cross(c) + wN.cross(wN.cross(c)) +
+      R_B = -(n.mass * a_t + alpha_t.cross(c) + wN.cross(wN.cross(c)) +
               2.0 * wN.cross(fw.cdot_N));
       const Vector3d w_B = w.R_NB.transpose() * wN;
       const Vector3d cor_B = w_B * fw.L_B.trace() - fw.L_B.transpose() * w_B;
-      T_B = -c.cross(w.a_t_N) - w.I_BBo_N * w.alpha_t_N - wN.cross(w.I_BBo_N * wN) -
+      T_B = -c.cross(a_t) - w.I_BBo_N * alpha_t - wN.cross(w.I_BBo_N * wN) -
             2.0 * (w.R_NB * cor_B);
+      if (full) {
+        const double* eta_dd = udot_.data() + n.u0 + n.nuj;
+        R_B -= combine(fw.S_N, eta_dd);
+        T_B -= combine(fw.A_N, eta_dd);
+      }
     }
     if (!body.torque.empty()) {
       const Vector3d T = body.torque.value(t);
@@ -910,7 +961,7 @@ void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, 
 }
 
 void KaneEngine::mass_matrix_pass() {
-  {
+  if (nodes_[0].type == JointType::Free) {
     const NodeWork& base = work_[0];
     const int r0 = nodes_[0].u0;
     M_.block<3, 3>(r0, r0).noalias() = base.R_NB.transpose() * base.J_sub_N * base.R_NB;
@@ -1031,14 +1082,16 @@ Vector3d KaneEngine::hinge_torque_spherical(const Node& n, double t, const doubl
 
 void KaneEngine::generalized_force_pass(double t, const double* x) {
   const NodeWork& base = work_[0];
-  f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
-  f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
+  if (nodes_[0].type == JointType::Free) {
+    f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
+    f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
+  }
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
     switch (n.type) {
       case JointType::Revolute:
-        f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
+        if (!n.prescribed) f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
         break;
       case JointType::Spherical:
         f_.segment<3>(n.u0).noalias() =
@@ -1224,6 +1277,7 @@ bool KaneEngine::solve(bool fixed_base_block) {
 }
 
 Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed_base_block) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1236,6 +1290,7 @@ Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed
 }
 
 void KaneEngine::dynamics(double t, const double* x) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1268,7 +1323,7 @@ void KaneEngine::rhs(double t, const double* x, double* xdot) {
         break;
       }
       case JointType::Revolute:
-        xdot[n.q0] = u[n.u0];
+        if (!n.prescribed) xdot[n.q0] = u[n.u0];
         break;
       case JointType::Spherical: {
         // q_J' = 1/2 q_J (x) (0, w_PC_C): R_PC = R_PJ0 R(q_J) with R_PJ0 constant.
@@ -1330,7 +1385,8 @@ void KaneEngine::pack(const TreeState& s, double* x) {
         for (int i = 0; i < 3; ++i) u[n.u0 + 3 + i] = s.v_NBo_N(i);
         break;
       }
-      case JointType::Revolute:
+      case JointType::Revolute:  // a prescribed joint: nothing (its profile gives it at any t)
+        if (n.prescribed) break;
         x[n.q0] = js.angle;
         u[n.u0] = js.rate;
         break;
@@ -1362,7 +1418,9 @@ void KaneEngine::pack(const TreeState& s, double* x) {
       }
     }
   }
-  if (system_.zero_linear_momentum) {
+  set_time(0.0);
+  // Zero linear momentum applies to a free base only (docs/prescribed-motion.md).
+  if (system_.zero_linear_momentum && system_.base_is_free()) {
     for (int i = 0; i < 3; ++i) u[nodes_[0].u0 + 3 + i] = 0.0;
     position_pass(x);
     velocity_pass(u);
@@ -1376,6 +1434,22 @@ void KaneEngine::pack(const TreeState& s, double* x) {
 // with the sums W_r u_r' and V_r u_r' added (propagate_accelerations).
 
 void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot); }
+
+// The torque a prescribed joint applies to its child about its axis (docs/prescribed-motion.md):
+// Kane's equation of its speed, kept as a known function of time (Kane and Levinson 1985,
+// Sec. 6.1), F_r + F_r* + tau = 0, where the speed's partial velocities move the subtree S(k)
+// rigidly about Ok with W_r = the axis, so F_r + F_r* = W_r . M_k, the moment about Ok of every
+// external and inertia force on S(k) with the full accelerations (hinge torques below k and the
+// elastic forces are internal to S(k) and cancel):  tau = -W_r . M_k.
+void KaneEngine::prescribed_torque_pass(double t) {
+  acceleration_pass(udot_.data());
+  subtree_pass(t, /*full=*/true);
+  for (const Node& n : nodes_)
+    if (n.prescribed) {
+      const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+      prescribed_torque_[static_cast<std::size_t>(n.joint)] = -w.W_N.col(0).dot(w.M_sub_N);
+    }
+}
 
 void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   dynamics(t, x);
@@ -1394,7 +1468,7 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
     a.wdot_NB_B[static_cast<std::size_t>(n.body)] = w.R_NB.transpose() * w.alpha_N;
     a.a_NBo_N[static_cast<std::size_t>(n.body)] = w.a_N;
     if (n.type == JointType::Revolute)
-      a.angle_ddot[static_cast<std::size_t>(n.joint)] = udot_(n.u0);
+      a.angle_ddot[static_cast<std::size_t>(n.joint)] = n.prescribed ? w.pres_accel : udot_(n.u0);
     if (n.type == JointType::Spherical)
       a.wdot_PC_C[static_cast<std::size_t>(n.joint)] = udot_.segment<3>(n.u0);
   }
@@ -1494,7 +1568,10 @@ std::vector<BodyMotion> KaneEngine::body_motion(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
   std::vector<BodyMotion> m(nodes_.size());
-  const Eigen::Map<const Vector3d> p_NoB0o_N(x + nodes_[0].q0);
+  // A free base's position is in x; a prescribed base's tree is measured from No already.
+  const Vector3d p_NoB0o_N = nodes_[0].type == JointType::Free
+                                 ? Vector3d(Eigen::Map<const Vector3d>(x + nodes_[0].q0))
+                                 : Vector3d::Zero();
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const NodeWork& w = work_[k];
     BodyMotion& b = m[static_cast<std::size_t>(nodes_[k].body)];
@@ -1569,9 +1646,9 @@ std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
     node_of(J.child, J.child_node, J.p_CoJ_C, r, E);
     f.R_NJc = c.R_NB * E;
     f.p_NoJ_N_child = c.p_NoBo_N + c.R_NB * r;
-    if (J.parent < 0) {
+    if (J.parent < 0) {  // N: the free joint's "point" is the child's; a prescribed base's is fixed
       f.R_NJp.setIdentity();
-      f.p_NoJ_N_parent = f.p_NoJ_N_child;
+      f.p_NoJ_N_parent = J.type == JointType::Free ? f.p_NoJ_N_child : J.p_PoJ_P;
       continue;
     }
     const BodyMotion& p = bm[static_cast<std::size_t>(J.parent)];
@@ -1591,6 +1668,7 @@ Eigen::MatrixXd KaneEngine::mass_matrix(const double* x) {
 }
 
 Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1603,6 +1681,11 @@ Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
 // (t, x) => one output row (columns() order).
 
 void KaneEngine::output_row(double t, const double* x, double* row) {
+  if (has_prescribed_) {  // the prescribed joints' torques need the accelerations
+    dynamics(t, x);
+    prescribed_torque_pass(t);
+  }
+  set_time(t);
   position_pass(x, /*rigid_inertia=*/false);  // the sums below use I_BBo_B for rigid bodies
   velocity_pass(x + n_q_);
   const double* u = x + n_q_;
@@ -1648,7 +1731,13 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     out.body(static_cast<int>(b), work_[k].w_NB_B, q_N[k]);
   }
   for (const Node& n : nodes_) {
-    if (n.type == JointType::Revolute) out.revolute(n.joint, x[n.q0], u[n.u0]);
+    if (n.type == JointType::Revolute && n.prescribed) {
+      const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+      out.revolute(n.joint, w.pres_angle, w.pres_rate);
+      out.joint_torque(n.joint, prescribed_torque_[static_cast<std::size_t>(n.joint)]);
+    } else if (n.type == JointType::Revolute) {
+      out.revolute(n.joint, x[n.q0], u[n.u0]);
+    }
     if (n.type == JointType::Spherical)
       out.spherical(n.joint, Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
     if (n.nm > 0)

@@ -178,6 +178,12 @@ struct Node {
   int nm = 0;               // modal coordinates of a flexible child: eta at x[q0 + nqj],
                             // eta' at u[u0 + nuj]
   int flex = -1;            // the child's FlexModel (flex_ index), -1 for a rigid body
+  // Prescribed revolute joint (docs/prescribed-motion.md): no position, no speed (nqj = nuj =
+  // 0); angle0 + theta(t), theta'(t), theta''(t) from `motion`.  For the base (parent -1) the
+  // parent frame is N: p_PoJ_P = p_NoJ_N, axis_P = axis_N, R_PJ0 = R_NJ0.
+  bool prescribed = false;
+  PrescribedMotion motion;
+  double angle0 = 0;
   bool has_offset = false;  // R_PJ0 != identity
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
@@ -210,6 +216,8 @@ struct NodeWork {
   Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
   Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
   double sin_half = 0, cos_half = 1;  // revolute: sine and cosine of half the joint angle
+  // Prescribed joint at the time of the last set_time(): angle, rate theta', acceleration theta''.
+  double pres_angle = 0, pres_rate = 0, pres_accel = 0;
   Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
   Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
   Eigen::Vector3d w_NB_N, v_NBo_N;
@@ -311,7 +319,10 @@ class KaneEngine final : public Engine {
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
 
-  // Introspection for tests (allocate; not for the hot path).
+  // Introspection for tests (allocate; not for the hot path).  Prescribed joints take their
+  // angle, rate and acceleration at the time of the last set_time() (rhs, accelerations,
+  // output_row, pack, composite_udot and generalized_forces set it themselves).
+  void set_time(double t);
   int position_size() const { return n_q_; }
   int speed_size() const { return n_u_; }
   const std::vector<Node>& nodes() const { return nodes_; }
@@ -343,7 +354,12 @@ class KaneEngine final : public Engine {
   //   flexible bodies' rate terms (flex_velocity)
   void velocity_pass(const double* u);
   void remainder_pass();                                   // (q, u) => alpha_t_N, a_t_N
-  void subtree_pass(double t);                             // => m_sub, s_sub, J_sub, F_sub, M_sub
+  // => m_sub, s_sub, J_sub, F_sub, M_sub.  full: with the full accelerations alpha_N, a_N and
+  // udot_'s modal accelerations (after acceleration_pass; prescribed joints' torques) instead of
+  // the remainder ones.
+  void subtree_pass(double t, bool full = false);
+  // After dynamics(t, x): the torque of each prescribed joint into prescribed_torque_ (per node).
+  void prescribed_torque_pass(double t);
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   // (M_, f_) => udot_ (false: M not positive definite).  fixed_base_block: a rigid base's 6 x 6
@@ -396,6 +412,10 @@ class KaneEngine final : public Engine {
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
   int extra0_ = 0;                       // first extra column
+  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
+  NodeWork ground_;
+  bool has_prescribed_ = false;
+  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
 }  // namespace crossdyn::kane
