@@ -84,6 +84,28 @@ struct InverseFactorials {
 };
 const InverseFactorials kInvFact;
 
+// g = G eta and 1/2 eta^T G eta (explicit loops: no temporaries).  Geometric stiffening's
+// second-order displacement e (1/2 eta^T G eta) (docs/flexible-bodies.md; [KRB] Eq. (8)).
+double stiff_g(const Eigen::MatrixXd& G, const double* eta, Eigen::VectorXd& g) {
+  double q = 0;
+  for (Eigen::Index k = 0; k < G.rows(); ++k) {
+    double v = 0;
+    for (Eigen::Index l = 0; l < G.cols(); ++l) v += G(k, l) * eta[l];
+    g(k) = v;
+    q += eta[k] * v;
+  }
+  return 0.5 * q;
+}
+
+// eta'^T G eta' (the second-order displacement's acceleration at eta'' = 0:
+// d2/dt2 (1/2 eta^T G eta) = eta^T G eta'' + eta'^T G eta').
+double stiff_quad(const Eigen::MatrixXd& G, const double* v) {
+  double q = 0;
+  for (Eigen::Index k = 0; k < G.rows(); ++k)
+    for (Eigen::Index l = 0; l < G.cols(); ++l) q += v[k] * G(k, l) * v[l];
+  return q;
+}
+
 bool all_zero(const Eigen::Matrix3Xd& A) { return A.size() == 0 || A.cwiseAbs().maxCoeff() == 0; }
 
 }  // namespace
@@ -212,6 +234,21 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
         F.Mm(k, l) += m * Phi.col(k).dot(Phi.col(l));
       }
     }
+    if (fb.geometric_stiffening) {
+      FlexModel::StiffNode sn;
+      sn.m = m;
+      sn.p = p;
+      sn.Phi = Phi;
+      sn.e = nd.e_B;
+      sn.G = nd.G.size() ? nd.G : Eigen::MatrixXd::Zero(ni, ni);
+      if (sn.G.rows() != ni || sn.G.cols() != ni || !sn.G.allFinite() || !sn.e.allFinite())
+        throw InputError(where_n + ": geometric stiffening needs a finite e and an n x n G (" +
+                         std::to_string(n) + " modes)");
+      if ((sn.G - sn.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + sn.G.cwiseAbs().maxCoeff()))
+        throw InputError(where_n + ": G is not symmetric");
+      sn.G = 0.5 * (sn.G + sn.G.transpose());
+      F.sn.push_back(std::move(sn));
+    }
     Eigen::Matrix<double, 3, Eigen::Dynamic> V(3, 6 + ni);
     V.leftCols<3>().setIdentity();
     V.middleCols<3>(3) = -rot::skew(p);
@@ -220,6 +257,7 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
   }
   Mb.block<3, 3>(3, 3) += Jsum;
   if (!(F.mass > 0)) throw InputError(where_b + ": the node masses sum to zero");
+  F.stiff = fb.geometric_stiffening;
   // The model's rigid mass and inertia are the node sums (docs/flexible-bodies.md); the System's
   // Body::mass and I_BBo_B must say the same.
   const Matrix3d I_nodes = Jsum + F.I0;
@@ -312,7 +350,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
 
     // Attachment at nodes of flexible bodies (docs/flexible-bodies.md "Joints at nodes").
     auto attach = [&](int body, int node, const Eigen::Vector3d& point, const char* side,
-                      Eigen::Matrix3Xd& Phi, Eigen::Matrix3Xd& Psi) -> bool {
+                      Eigen::Matrix3Xd& Phi, Eigen::Matrix3Xd& Psi, bool& stiff,
+                      Eigen::Vector3d& e, Eigen::MatrixXd& G) -> bool {
       const Body& A = system_.bodies[static_cast<std::size_t>(body)];
       if (node < 0) {
         if (A.flex) {  // attached to the body frame itself: no shape, no slope
@@ -334,15 +373,25 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       const Eigen::Index m = A.flex->modes();
       Phi = fn.Phi_B.cols() ? fn.Phi_B : Eigen::Matrix3Xd::Zero(3, m);
       Psi = fn.Psi_B.cols() ? fn.Psi_B : Eigen::Matrix3Xd::Zero(3, m);
-      return !(all_zero(Phi) && all_zero(Psi));  // a node that never moves: rigid attachment
+      // Geometric stiffening: the node also moves by e (1/2 eta^T G eta) (docs "Joints at nodes").
+      stiff = A.flex->geometric_stiffening && fn.G.size() > 0 && fn.G.cwiseAbs().maxCoeff() > 0 &&
+              fn.e_B.squaredNorm() > 0;
+      if (stiff) {
+        e = fn.e_B;
+        G = 0.5 * (fn.G + fn.G.transpose());
+      }
+      // a node that never moves: rigid attachment
+      return stiff || !(all_zero(Phi) && all_zero(Psi));
     };
     if (k > 0) {
-      n.parent_attach = attach(J.parent, J.parent_node, J.p_PoJ_P, "parent", n.Phi_Pj, n.Psi_Pj);
+      n.parent_attach = attach(J.parent, J.parent_node, J.p_PoJ_P, "parent", n.Phi_Pj, n.Psi_Pj,
+                               n.stiff_P, n.e_Pj, n.G_Pj);
       n.pm = static_cast<int>(n.Phi_Pj.cols());
     } else if (J.parent_node >= 0) {
       throw InputError(jname + ": the free joint has no parent body, so no parent_node");
     }
-    n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj);
+    n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj,
+                            n.stiff_C, n.e_Cj, n.G_Cj);
     if (k == 0 && J.type == JointType::Free && J.child_node >= 0)
       throw InputError(jname +
                        ": the free joint moves the base's body frame; child_node must "
@@ -465,6 +514,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     w.Vm_N = Eigen::Matrix3Xd::Zero(3, nm);
     for (Vector3d* v : {&w.w_att_N, &w.v_att_N, &w.jdot_att_N, &w.w_m_N, &w.v_m_N, &w.jdot_m_N})
       v->setZero();
+    w.gP = Eigen::VectorXd::Zero(n.stiff_P ? n.pm : 0);
+    w.gC = Eigen::VectorXd::Zero(n.stiff_C ? n.nm : 0);
   }
   flex_work_.resize(flex_.size());
   for (std::size_t f = 0; f < flex_.size(); ++f) {
@@ -479,6 +530,15 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     fw.cdot_N.setZero();
     fw.hdef_N.setZero();
     fw.L_B.setZero();
+    const FlexModel& F = flex_[f];
+    fw.S_B = F.S;
+    fw.Mm = F.Mm;
+    fw.bgen = Eigen::VectorXd::Zero(m);
+    if (F.stiff) {
+      fw.Phit.assign(F.sn.size(), Eigen::Matrix3Xd::Zero(3, m));
+      fw.r.assign(F.sn.size(), Vector3d::Zero());
+      fw.g.assign(F.sn.size(), Eigen::VectorXd::Zero(m));
+    }
   }
   M_ = Eigen::MatrixXd::Zero(n_u_, n_u_);
   f_ = Eigen::VectorXd::Zero(n_u_);
@@ -600,12 +660,18 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
         const double* eta_P = x + pn.q0 + pn.nqj;
         w.rot_P.set(combine(n.Psi_Pj, eta_P));
         r_Pj += combine(n.Phi_Pj, eta_P);
+        // Geometric stiffening: u = Phi eta + e (1/2 eta^T G eta), partial velocities
+        // Phi_l + e (G eta)_l (docs/flexible-bodies.md "Geometric stiffening").
+        if (n.stiff_P) r_Pj += n.e_Pj * stiff_g(n.G_Pj, eta_P, w.gP);
         R_NJp_node.noalias() = P.R_NB * w.rot_P.R();
         R_NJp = &R_NJp_node;
         const Matrix3d RJl = P.R_NB * w.rot_P.Jl();
         for (int l = 0; l < n.pm; ++l) {
           w.Wp_N.col(l).noalias() = RJl * n.Psi_Pj.col(l);
-          w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
+          if (n.stiff_P)
+            w.Vp_N.col(l).noalias() = P.R_NB * (n.Phi_Pj.col(l) + n.e_Pj * w.gP(l));
+          else
+            w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
         }
       }
       const Matrix3d* R_NJ0 = R_NJp;
@@ -641,11 +707,15 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
         const double* eta = x + n.q0 + n.nqj;
         w.rot_C.set(combine(n.Psi_Cj, eta));
         r_Cj += combine(n.Phi_Cj, eta);
+        if (n.stiff_C) r_Cj += n.e_Cj * stiff_g(n.G_Cj, eta, w.gC);  // as on the parent side
         w.R_NB.noalias() = R_NJc * w.rot_C.R().transpose();
         const Matrix3d RJl = -(w.R_NB * w.rot_C.Jl());
         for (int l = 0; l < n.nm; ++l) {
           w.Wm_N.col(l).noalias() = RJl * n.Psi_Cj.col(l);
-          w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
+          if (n.stiff_C)
+            w.Vm_N.col(l).noalias() = -(w.R_NB * (n.Phi_Cj.col(l) + n.e_Cj * w.gC(l)));
+          else
+            w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
         }
       }
       w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * r_Cj;
@@ -660,13 +730,41 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
 // Flexible body at eta => FlexWork (body frame, then N), I_BBo_N (kane_engine.hpp):
 //   c = c0 + S eta;  N_k = G_k^T + sum_l eta_l Q_kl;  A_k = Hs_k + sum_l eta_l C_lk;
 //   dS = sum_k eta_k (G_k + N_k) = sum m_i (r_i r_i^T - p_i p_i^T);  I = I0 + tr(dS) 1 - dS.
+// Geometric stiffening (FlexModel::stiff): the same quantities summed over the nodes, exactly, with
+//   r_i = p_i + Phi_i eta + e_i w_i,  w_i = 1/2 eta^T G_i eta,  Phi~_i = Phi_i + e_i (G_i eta)^T
+//   (d r_i / d eta = Phi~_i: docs/flexible-bodies.md "Geometric stiffening"; [KRB] Eq. (8)):
+//   c = sum m_i r_i,  dS = sum m_i (r_i r_i^T - p_i p_i^T),  S~ = sum m_i Phi~_i,
+//   N_k = sum m_i Phi~_ik r_i^T,  A_k = sum m_i r_i x Phi~_ik,  Mm~ = sum m_i Phi~_i^T Phi~_i.
 void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
   const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
   FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
   const int m = F.n;
   fw.c_B = F.c0;
   Matrix3d dS = Matrix3d::Zero();
-  for (int k = 0; k < m; ++k) {
+  if (F.stiff) {
+    fw.S_B.setZero();
+    fw.Mm.setZero();
+    fw.A_B.setZero();
+    for (int k = 0; k < m; ++k) fw.N_B[static_cast<std::size_t>(k)].setZero();
+    for (std::size_t i = 0; i < F.sn.size(); ++i) {
+      const FlexModel::StiffNode& sn = F.sn[i];
+      const double wi = stiff_g(sn.G, eta, fw.g[i]);
+      const Vector3d u = combine(sn.Phi, eta) + sn.e * wi;
+      const Vector3d r = sn.p + u;
+      fw.r[i] = r;
+      fw.c_B += sn.m * u;
+      dS.noalias() += sn.m * (r * r.transpose() - sn.p * sn.p.transpose());
+      Eigen::Matrix3Xd& Pt = fw.Phit[i];
+      for (int k = 0; k < m; ++k) Pt.col(k) = sn.Phi.col(k) + sn.e * fw.g[i](k);
+      for (int k = 0; k < m; ++k) {
+        fw.S_B.col(k) += sn.m * Pt.col(k);
+        fw.N_B[static_cast<std::size_t>(k)].noalias() += sn.m * Pt.col(k) * r.transpose();
+        fw.A_B.col(k) += sn.m * r.cross(Pt.col(k));
+        for (int l = 0; l < m; ++l) fw.Mm(k, l) += sn.m * Pt.col(k).dot(Pt.col(l));
+      }
+    }
+  }
+  for (int k = 0; k < m && !F.stiff; ++k) {
     const std::size_t ks = static_cast<std::size_t>(k);
     fw.c_B += F.S.col(k) * eta[k];
     Matrix3d N = F.G[ks].transpose();
@@ -684,8 +782,9 @@ void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
   const Matrix3d& R = w.R_NB;
   fw.c_N.noalias() = R * fw.c_B;
   w.I_BBo_N.noalias() = R * fw.I_B * R.transpose();
+  const Eigen::Matrix3Xd& S = F.stiff ? fw.S_B : F.S;
   for (int k = 0; k < m; ++k) {
-    fw.S_N.col(k).noalias() = R * F.S.col(k);
+    fw.S_N.col(k).noalias() = R * S.col(k);
     fw.A_N.col(k).noalias() = R * fw.A_B.col(k);
   }
 }
@@ -719,6 +818,7 @@ void KaneEngine::velocity_pass(const double* u) {
         w.w_att_N = combine(w.Wp_N, eta_rate);
         w.v_att_N = combine(w.Vp_N, eta_rate);
         w.jdot_att_N.noalias() = P.R_NB * w.rot_P.Jl_dot_times(combine(n.Psi_Pj, eta_rate));
+        if (n.stiff_P) w.b_att_N.noalias() = P.R_NB * n.e_Pj * stiff_quad(n.G_Pj, eta_rate);
         w.w_NJp_N += w.w_att_N;
         v_Ok += w.v_att_N;
       }
@@ -739,6 +839,7 @@ void KaneEngine::velocity_pass(const double* u) {
         w.w_m_N = combine(w.Wm_N, eta_rate);
         w.v_m_N = combine(w.Vm_N, eta_rate);
         w.jdot_m_N.noalias() = w.R_NB * w.rot_C.Jl_dot_times(combine(n.Psi_Cj, eta_rate));
+        if (n.stiff_C) w.b_m_N.noalias() = -(w.R_NB * n.e_Cj) * stiff_quad(n.G_Cj, eta_rate);
         w.w_NB_N += w.w_m_N;
       }
       w.v_NBo_N = v_Ok + w.w_NB_N.cross(p_OkCo_N);
@@ -750,14 +851,38 @@ void KaneEngine::velocity_pass(const double* u) {
 
 // Flexible body's rate terms => FlexWork:  cdot_N = R S eta',  hdef_N = R A eta',
 //   L = sum_k eta_k' N_k^T = sum m_i r_i (Phi_i eta')^T,  Ce_k = sum_l eta_l' C_lk.
+// Geometric stiffening: Ce_k = sum m_i (Phi~_i eta') x Phi~_ik by node sums, and the nodes'
+// second-order accelerations b_i = e_i (eta'^T G_i eta') (d2u_i/dt2 = Phi~_i eta'' + b_i,
+// docs/flexible-bodies.md) summed into bsum, bmom and bgen (FlexWork).
 void KaneEngine::flex_velocity(const Node& n, NodeWork& w, const double* eta_rate) {
-  (void)w;
   const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
   FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
   const int m = F.n;
   fw.cdot_N = combine(fw.S_N, eta_rate);
   fw.hdef_N = combine(fw.A_N, eta_rate);
   fw.L_B.setZero();
+  if (F.stiff) {
+    for (int k = 0; k < m; ++k)
+      fw.L_B.noalias() += eta_rate[k] * fw.N_B[static_cast<std::size_t>(k)].transpose();
+    fw.Ce_B.setZero();
+    fw.bgen.setZero();
+    Vector3d bsum = Vector3d::Zero(), bmom = Vector3d::Zero();
+    for (std::size_t i = 0; i < F.sn.size(); ++i) {
+      const FlexModel::StiffNode& sn = F.sn[i];
+      const Eigen::Matrix3Xd& Pt = fw.Phit[i];
+      const Vector3d v = combine(Pt, eta_rate);
+      const double q = sn.m * stiff_quad(sn.G, eta_rate);
+      for (int k = 0; k < m; ++k) {
+        fw.Ce_B.col(k) += sn.m * v.cross(Pt.col(k));
+        fw.bgen(k) += q * Pt.col(k).dot(sn.e);
+      }
+      bsum += q * sn.e;
+      bmom += q * fw.r[i].cross(sn.e);
+    }
+    fw.bsum_N.noalias() = w.R_NB * bsum;
+    fw.bmom_N.noalias() = w.R_NB * bmom;
+    return;
+  }
   for (int k = 0; k < m; ++k) {
     fw.L_B.noalias() += eta_rate[k] * fw.N_B[static_cast<std::size_t>(k)].transpose();
     Vector3d c = Vector3d::Zero();
@@ -806,7 +931,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
     Vector3d a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
     Vector3d alpha_C = alpha_P;
     if (n.parent_attach) {
-      a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N);
+      a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N) + w.b_att_N;  // b: stiffening's R e eta'^T G eta'
       alpha_C += P.w_NB_N.cross(w.w_att_N) + w.jdot_att_N;
       if (full) {
         const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
@@ -827,7 +952,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
     }
     acc = a_Ok + alpha_C.cross(p_OkCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_OkCo_N));
     if (n.child_attach) {
-      acc += 2.0 * w.w_NB_N.cross(w.v_m_N);
+      acc += 2.0 * w.w_NB_N.cross(w.v_m_N) + w.b_m_N;
       if (full) acc += combine(w.Vm_N, udot + n.u0 + n.nuj);
     }
     alpha = alpha_C;
@@ -889,6 +1014,10 @@ void KaneEngine::subtree_pass(double t, bool full) {
       const Vector3d cor_B = w_B * fw.L_B.trace() - fw.L_B.transpose() * w_B;
       T_B = -c.cross(a_t) - w.I_BBo_N * alpha_t - wN.cross(w.I_BBo_N * wN) -
             2.0 * (w.R_NB * cor_B);
+      if (flex_[static_cast<std::size_t>(n.flex)].stiff) {  // -sum m_i R b_i, its moment
+        R_B -= fw.bsum_N;
+        T_B -= fw.bmom_N;
+      }
       if (full) {
         const double* eta_dd = udot_.data() + n.u0 + n.nuj;
         R_B -= combine(fw.S_N, eta_dd);
@@ -1024,7 +1153,7 @@ void KaneEngine::mass_matrix_pass() {
       }
       // Against the modal speeds s <= l: twist part of s, and its elastic part on C's nodes.
       for (int s = 0; s <= l; ++s) {
-        double m = F.Mm(s, l);
+        double m = F.stiff ? fw.Mm(s, l) : F.Mm(s, l);
         if (n.child_attach) {
           const Vector3d hC_s = d.cross(fw.S_N.col(s)) + fw.A_N.col(s);
           m += w.Wm_N.col(s).dot(h) + w.Vm_N.col(s).dot(p) + fw.S_N.col(s).dot(w.Vm_N.col(l)) +
@@ -1111,8 +1240,10 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
     const double w2 = w_B.squaredNorm();
     for (int l = 0; l < n.nm; ++l) {
       const Matrix3d& N = fw.N_B[static_cast<std::size_t>(l)];
-      double g = -(F.S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
+      const Eigen::Matrix3Xd& S = F.stiff ? fw.S_B : F.S;  // S~ with stiffening
+      double g = -(S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
                    w2 * N.trace() + 2.0 * w_B.dot(fw.Ce_B.col(l)));
+      if (F.stiff) g -= fw.bgen(l);  // -sum m_i Phi~_il . b_i
       if (n.child_attach) g += w.Wm_N.col(l).dot(w.M_sub_N) + w.Vm_N.col(l).dot(w.F_sub_N);
       for (int c : n.attached_children) {
         const NodeWork& cw = work_[static_cast<std::size_t>(c)];
@@ -1512,7 +1643,7 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
       const Eigen::Map<const Eigen::VectorXd> eta_rate(u + n.u0 + n.nuj, n.nm);
       const Vector3d Iw = w.I_BBo_N * w.w_NB_N;
       T += 0.5 * w.w_NB_N.dot(Iw) + w.v_NBo_N.dot(w.w_NB_N.cross(fw.c_N) + fw.cdot_N) +
-           w.w_NB_N.dot(fw.hdef_N) + 0.5 * eta_rate.dot(F.Mm * eta_rate);
+           w.w_NB_N.dot(fw.hdef_N) + 0.5 * eta_rate.dot((F.stiff ? fw.Mm : F.Mm) * eta_rate);
       h_Bo = fw.c_N.cross(w.v_NBo_N) + Iw + fw.hdef_N;
       P_B += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
       first_moment += fw.c_N;
@@ -1612,9 +1743,14 @@ std::vector<MassPoint> KaneEngine::mass_points(const double* x) {
       p.node = static_cast<int>(i);
       p.mass = nd.mass;
       p.J_N = m.R_NB * nd.J_Ni_B * m.R_NB.transpose();
-      const Vector3d r_N = m.R_NB * (nd.p_BoNi_B + Phi * eta);
+      Vector3d u = Phi * eta, u_rate = Phi * eta_rate;
+      if (B.flex->geometric_stiffening && nd.G.size()) {  // + e (1/2 eta^T G eta), its rate
+        u += nd.e_B * (0.5 * eta.dot(nd.G * eta));
+        u_rate += nd.e_B * eta.dot(nd.G * eta_rate);
+      }
+      const Vector3d r_N = m.R_NB * (nd.p_BoNi_B + u);
       p.p_NoP_N = m.p_NoBo_N + r_N;
-      p.v_NP_N = m.v_NBo_N + w_N.cross(r_N) + m.R_NB * (Phi * eta_rate);
+      p.v_NP_N = m.v_NBo_N + w_N.cross(r_N) + m.R_NB * u_rate;
       pts.push_back(p);
     }
   }
@@ -1635,6 +1771,7 @@ std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
     const Node& bn = nodes_[static_cast<std::size_t>(system_.joint_of_body(body))];
     const Eigen::Map<const Eigen::VectorXd> eta(x + bn.q0 + bn.nqj, bn.nm);
     if (nd.Phi_B.cols()) r += nd.Phi_B * eta;
+    if (B.flex->geometric_stiffening && nd.G.size()) r += nd.e_B * (0.5 * eta.dot(nd.G * eta));
     if (nd.Psi_B.cols()) E = rot::from_rotation_vector(nd.Psi_B * eta).toRotationMatrix();
   };
   for (std::size_t k = 0; k < nodes_.size(); ++k) {

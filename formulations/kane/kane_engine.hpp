@@ -151,6 +151,18 @@ struct FlexModel {
   std::vector<Eigen::Vector3d> C;  // n * n: C_kl = sum m_i Phi_ik x Phi_il   (index k n + l)
   Eigen::MatrixXd Mm;              // n x n: sum m_i Phi_i^T Phi_i (modal mass)
   Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping
+  // Geometric stiffening (FlexBody::geometric_stiffening; docs/flexible-bodies.md "Geometric
+  // stiffening"): u_i = Phi_i eta + e_i (1/2 eta^T G_i eta).  The integrals above then depend on
+  // eta beyond the linear terms, so they are summed over the nodes at each state (FlexWork,
+  // flex_position / flex_velocity; O(nodes n^2)) from these per-node data.
+  struct StiffNode {
+    double m = 0;
+    Eigen::Vector3d p, e;    // p_BoNi_B, e_i (unit, body frame)
+    Eigen::Matrix3Xd Phi;    // 3 x n
+    Eigen::MatrixXd G;       // n x n symmetric
+  };
+  bool stiff = false;
+  std::vector<StiffNode> sn;
 };
 
 // exp([psi x]) and its left Jacobian Jl(psi) for a node's rotation vector psi ([Barfoot] Sec.
@@ -201,6 +213,11 @@ struct Node {
   // Attachment at a node of this flexible child whose shape or slope is not zero (3 x nm).
   bool child_attach = false;
   Eigen::Matrix3Xd Phi_Cj, Psi_Cj;
+  // Geometric stiffening at the attachment node (parent / child side): the node's e and G
+  // (its displacement gains e (1/2 eta^T G eta)); stiff_* false when the body has none there.
+  bool stiff_P = false, stiff_C = false;
+  Eigen::Vector3d e_Pj = Eigen::Vector3d::Zero(), e_Cj = Eigen::Vector3d::Zero();
+  Eigen::MatrixXd G_Pj, G_Cj;
   std::vector<int> attached_children;  // child nodes with parent_attach (flexible child body)
   // Ancestors of this node that carry speeds, nearest first, ending with the base (0), each
   // with the node below it on the path from here ("via": the child it moves this node through).
@@ -243,6 +260,10 @@ struct NodeWork {
   NodeRotation rot_C;
   Eigen::Matrix3Xd Wm_N, Vm_N;
   Eigen::Vector3d w_m_N, v_m_N, jdot_m_N;
+  // Geometric stiffening at the attachment nodes: G eta (parent side, child side) and the
+  // second-order node accelerations R e (eta'^T G eta') (N components; zero without stiffening).
+  Eigen::VectorXd gP, gC;
+  Eigen::Vector3d b_att_N = Eigen::Vector3d::Zero(), b_m_N = Eigen::Vector3d::Zero();
 };
 
 // Per flexible body: the modal integrals evaluated at the state (body frame unless _N).
@@ -256,6 +277,18 @@ struct FlexWork {
   Eigen::Matrix3d L_B;               // sum m_i r_i (Phi_i eta')^T
   Eigen::Matrix3Xd Ce_B;             // 3 x n: sum_l eta_l' C_lk
   Eigen::Matrix3Xd pm_N, hm_N;       // 3 x n: momenta of S(k) about Ok per modal speed
+  // Geometric stiffening only (FlexModel::stiff), node sums at the state, with the effective
+  // shapes Phi~_i = Phi_i + e_i (G_i eta)^T (the partial velocities of node i for eta'):
+  //   S_B = sum m_i Phi~_i,  Mm = sum m_i Phi~_i^T Phi~_i  (replacing FlexModel::S, Mm);
+  //   b_i = e_i (eta'^T G_i eta') (the node's second-order acceleration at eta'' = 0):
+  //   bsum_N = R sum m_i b_i,  bmom_N = R sum m_i r_i x b_i,  bgen_l = sum m_i Phi~_il . b_i.
+  Eigen::Matrix3Xd S_B;
+  Eigen::MatrixXd Mm;
+  std::vector<Eigen::Matrix3Xd> Phit;  // per node
+  std::vector<Eigen::Vector3d> r;      // per node: p_i + u_i
+  std::vector<Eigen::VectorXd> g;      // per node: G_i eta
+  Eigen::Vector3d bsum_N = Eigen::Vector3d::Zero(), bmom_N = Eigen::Vector3d::Zero();
+  Eigen::VectorXd bgen;
 };
 
 // Per-node workspace of the order-N solver (kane_order_n.cpp); N components, about Ok.
