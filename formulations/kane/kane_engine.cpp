@@ -906,8 +906,7 @@ void KaneEngine::flex_velocity(const Node& n, NodeWork& w, const double* eta_rat
 //   a_Co = a_Ok + alpha_C x p_OkCo + w_C x (w_C x p_OkCo) + 2 w_C x v_m + Vm eta_C''.
 //   Base: alpha = R_NB w_NB_B' (w x w = 0), a = v_NBo_N'; the remainder values are zero.
 
-void KaneEngine::propagate_accelerations(const double* udot) {
-  const bool full = udot != nullptr;
+void KaneEngine::propagate_accelerations(const double* udot, bool full) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
@@ -959,7 +958,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
   }
 }
 
-void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
+void KaneEngine::remainder_pass() { propagate_accelerations(nullptr, false); }
 
 // ------------------------------------------------------------------------------------------------
 // Pass 4 (backward, leaves first). => per node k the sums over its subtree S(k), about Ok:
@@ -1564,7 +1563,8 @@ void KaneEngine::pack(const TreeState& s, double* x) {
 // u' => alpha_N, a_N (full accelerations, for accelerations()): the remainder-pass recursion
 // with the sums W_r u_r' and V_r u_r' added (propagate_accelerations).
 
-void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot); }
+// (full is explicit: with no speed at all, a prescribed base's rigid tree, udot is null.)
+void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot, true); }
 
 // The torque a prescribed joint applies to its child about its axis (docs/prescribed-motion.md):
 // Kane's equation of its speed, kept as a known function of time (Kane and Levinson 1985,

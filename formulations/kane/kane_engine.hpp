@@ -405,8 +405,8 @@ class KaneEngine final : public Engine {
   void articulated_solve(double t);
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
   void dynamics(double t, const double* x);    // all of the above up to udot_
-  // The remainder (udot == nullptr) or full accelerations, into alpha_t/a_t or alpha/a.
-  void propagate_accelerations(const double* udot);
+  // The remainder (full false) or full accelerations, into alpha_t/a_t or alpha/a.
+  void propagate_accelerations(const double* udot, bool full);
   void flex_position(const Node& n, NodeWork& w, const double* eta);
   void flex_velocity(const Node& n, NodeWork& w, const double* eta_rate);
   // Mass-matrix row r (speed of node k) against k's speed ancestors, from the momenta p, h

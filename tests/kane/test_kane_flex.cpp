@@ -156,9 +156,12 @@ TEST_CASE(
 TEST_CASE("kane flex: positions, joints at nodes and particle velocities are consistent") {
   // The joint point is the same seen from both sides; R_NJc = R_NJp R_PJ0 R_J; every node's
   // velocity is the derivative of its position along the motion.
-  const System s = flex_tree(true);
+  // Also with geometric stiffening (u_i = Phi_i eta + e_i 1/2 eta^T G_i eta, joint nodes too).
+  for (bool stiff : {false, true}) {
+  const System s = stiff ? stiffened(flex_tree(true)) : flex_tree(true);
   kane::KaneEngine e(s, {});
   std::mt19937 g(12);
+  INFO((stiff ? "with" : "without") << " geometric stiffening");
   for (int trial = 0; trial < 3; ++trial) {
     std::vector<double> x = packed(e, random_flex_state(s, g)), xdot(x.size());
     e.rhs(0.3, x.data(), xdot.data());
@@ -194,6 +197,7 @@ TEST_CASE("kane flex: positions, joints at nodes and particle velocities are con
     CHECK(dR <= 1e-14);
     CHECK(all_close(v, v_fd, 1e-9, 1e-10));
   }
+  }
 }
 
 TEST_CASE("kane flex: Kane's equations F_r + F_r* = 0 hold particle by particle at random states") {
@@ -204,11 +208,15 @@ TEST_CASE("kane flex: Kane's equations F_r + F_r* = 0 hold particle by particle 
   //   sum_i V_r^i . (-m_i a_i) + sum_B W_r^B . (T_B - J alpha - w x J w)
   //     + sum_hinges (W_r^Jc - W_r^Jp) . tau  -  (K eta + D eta')_r  =  0     ([KLL] Eq. (4.11.2)).
   const double t = 0.4, h = 1e-4;
-  for (bool loaded : {false, true}) {
-    const System s = flex_tree(loaded);
+  // Also with geometric stiffening on every flexible body (stiffened(): its exactness, joint
+  // nodes included; the particles' positions and velocities of mass_points() carry it).
+  for (int variant = 0; variant < 4; ++variant) {
+    const bool loaded = variant % 2 == 1, stiff = variant >= 2;
+    const System s = stiff ? stiffened(flex_tree(loaded)) : flex_tree(loaded);
     kane::KaneEngine e(s, {});
     const int nq = e.position_size(), nu = e.speed_size();
     std::mt19937 g(loaded ? 31 : 32);
+    INFO((stiff ? "with" : "without") << " geometric stiffening");
     for (int trial = 0; trial < 3; ++trial) {
       std::vector<double> x = packed(e, random_flex_state(s, g)), xdot(x.size());
       e.rhs(t, x.data(), xdot.data());
