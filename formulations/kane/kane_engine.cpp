@@ -244,7 +244,8 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
       if (sn.G.rows() != ni || sn.G.cols() != ni || !sn.G.allFinite() || !sn.e.allFinite())
         throw InputError(where_n + ": geometric stiffening needs a finite e and an n x n G (" +
                          std::to_string(n) + " modes)");
-      if ((sn.G - sn.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + sn.G.cwiseAbs().maxCoeff()))
+      const double g_max = sn.G.cwiseAbs().maxCoeff();
+      if ((sn.G - sn.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + g_max))
         throw InputError(where_n + ": G is not symmetric");
       sn.G = 0.5 * (sn.G + sn.G.transpose());
       F.sn.push_back(std::move(sn));

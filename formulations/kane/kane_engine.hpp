@@ -5,11 +5,12 @@
 // point" of tree node k (its joint point J; for the base its CM).  w_NB_N is the angular velocity
 // of B in N with N components; a trailing _N means N components, _B body components.  Every
 // vector in the workspace has N components; positions are measured from the base CM B0o, so the
-// dynamics never sees the (possibly large) inertial position of the base.
+// dynamics never sees the (possibly large) inertial position of the base (a prescribed base:
+// from No, see "Prescribed revolute joints" below).
 //
 // Tree nodes.  Node k is System::joints[k] together with its child body (exactly one joint per
-// body), in the System's topological order: node 0 is the free base, every node's parent node
-// has a smaller index.
+// body), in the System's topological order: node 0 is the base (free, or a prescribed revolute
+// joint to N), every node's parent node has a smaller index.
 //
 // State vector x = [ positions (n_q) | generalised speeds u (n_u) ]:
 //   positions  base: p_NoBo_N (3), q_NB (4, w x y z);  revolute: angle (1);
@@ -105,6 +106,26 @@
 //   body is the acceleration of its frame origin Bo (the undeformed CM), as TreeState's velocities
 //   are; body torques given in the inertial frame act on the body frame likewise.
 //
+// Prescribed revolute joints (docs/prescribed-motion.md; issue 13).  A prescribed joint has no
+// position and no speed: its angle angle0 + theta(t), rate theta'(t) and theta''(t) come from its
+// profile at the time of the call (set_time; the spin-up of [KRB] Eq. (61)).  Its partial angular
+// velocity W_r (the axis) is still formed, but u_r is a known function of time (Kane and Levinson,
+// Dynamics: Theory and Applications, 1985, Sec. 6.1, [KL85]): its W_r theta' enters the velocities
+// and W_r theta'' the remainder accelerations, and Kane's equation of that speed is not solved but
+// gives the joint torque:  tau = -(F_r + F_r*) = -W_r . M_k, M_k the moment about Ok of every
+// external and inertia force on S(k) with the full accelerations (prescribed_torque_pass).  A
+// prescribed base (joints[0], parent N) is the same joint with N as its parent (ground_, at rest);
+// the positions of such a tree are measured from No instead of the base CM, the base has no speeds
+// of its own (a flexible base keeps its modal speeds), and zero_linear_momentum does not apply.
+//
+// Geometric stiffening (docs/flexible-bodies.md "Geometric stiffening"; [KRB] Eq. (8), [Sharf]):
+// u_i = Phi_i eta + e_i w_i, w_i = 1/2 eta^T G_i eta.  Every formula above holds with r_i = p_i +
+// u_i and the shapes replaced by the partial velocities Phi~_i = d r_i / d eta = Phi_i + e_i (G_i
+// eta)^T, plus the second-order acceleration b_i = e_i eta'^T G_i eta' (d2u_i/dt2 = Phi~_i eta'' +
+// b_i) in every node's remainder acceleration.  The modal integrals then depend on eta beyond the
+// linear terms, so for such a body they are summed over its nodes at each state (FlexWork; O(nodes
+// n^2)); a joint at a node uses that node's r_i, Phi~_i and b_i.
+//
 // Two solvers for u' (KaneSolver below; both solve the same Kane's equations F_r + F_r* = 0 with
 // the same partial velocities, the same remainder accelerations and the same loads):
 //   composite  forms M and f by the composite-body sums above and solves M u' = f by the sparse
@@ -114,6 +135,9 @@
 //   order-N    eliminates Kane's equations along the tree, leaves first, without forming M: the
 //              articulated-body recursion (kane_order_n.cpp gives the derivation and its sources).
 //              O(n_bodies).  Rigid bodies only; a scene with any flexible body uses composite.
+//              It declines prescribed joints too (its elimination assumes a free base and a speed
+//              per revolute joint): a scene with one uses composite, and forcing order-N is
+//              refused with InputError.
 //   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
 //   least KaneEngine::kOrderNMinDepth = 12 generalised speeds (the base's 6 included; chain3),
 //   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
@@ -126,6 +150,9 @@
 //   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
 //   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
 //           using TREETOPS and model-specific computer codes", 1990 (docs/references.md).
+//   [KL85] T. R. Kane, D. A. Levinson, Dynamics: Theory and Applications, McGraw-Hill, 1985.
+//   [Sharf] I. Sharf, "Geometric stiffening in multibody dynamics formulations", J. Guidance,
+//          Control, and Dynamics 18(4), 1995.
 //   [Ban93] A. K. Banerjee, "Block-diagonal equations for multibody elastodynamics with geometric
 //           stiffness and constraints", J. Guidance, Control, and Dynamics 16(6), 1993.
 #pragma once

@@ -4,21 +4,19 @@
 // the reported joint torque against the energy, the angular momentum of a free system, a rigid
 // body's torque I theta'', the small-motion frequencies of a spinning clamped beam from its
 // Lagrangian, and the conservation of E and H with the second-order displacement field.
+#include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <catch2/catch.hpp>
+#include <cmath>
+#include <complex>
+#include <string>
+#include <vector>
 
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/scene/scene.hpp"
 #include "formulations/kane/kane_engine.hpp"
 #include "tests/kane/kane_flex_systems.hpp"
-
-#include <Eigen/Eigenvalues>
-
-#include <algorithm>
-#include <cmath>
-#include <complex>
-#include <string>
-#include <vector>
 
 using namespace crossdyn;
 using namespace crossdyn::test::kane;
@@ -243,11 +241,13 @@ TEST_CASE("kane prescribed: a free base with an internal prescribed joint keeps 
   for (const System& s : {read_scene_text(kScanPlatform, "scan_platform (test)"),
                           prescribed_flex_tree(false), prescribed_flex_tree(true)}) {
     kane::KaneEngine e(s, {});
-    const RunResult r = simulate(e, s, TreeState::initial(s), dop853(s.name == "scan_platform" ? 10 : 3, 0.05));
+    const RunResult r =
+        simulate(e, s, TreeState::initial(s), dop853(s.name == "scan_platform" ? 10 : 3, 0.05));
     REQUIRE_FALSE(r.failure.has_value());
     double dH = 0, H0 = 0;
     const int hx = r.column("kane.H_N.x");
-    for (int i = 0; i < 3; ++i) H0 = std::max(H0, std::abs(r.at(0, static_cast<std::size_t>(hx + i))));
+    for (int i = 0; i < 3; ++i)
+      H0 = std::max(H0, std::abs(r.at(0, static_cast<std::size_t>(hx + i))));
     for (std::size_t k = 0; k < r.rows(); ++k)
       for (int i = 0; i < 3; ++i)
         dH = std::max(dH, std::abs(r.at(k, static_cast<std::size_t>(hx + i)) -
@@ -259,8 +259,9 @@ TEST_CASE("kane prescribed: a free base with an internal prescribed joint keeps 
   }
 }
 
-TEST_CASE("kane prescribed: a rigid body on a prescribed base about a principal axis through "
-          "its CM needs torque I theta'' and turns at w_NB_B = theta' axis") {
+TEST_CASE(
+    "kane prescribed: a rigid body on a prescribed base about a principal axis through "
+    "its CM needs torque I theta'' and turns at w_NB_B = theta' axis") {
   // The base turns about its principal axis k = R_NJ0 axis_J fixed in N: H = I_k theta' k, so
   // the torque about the axis is I_k theta'' exactly (Euler's equation with w x I w = 0); with
   // the CM at a distance d from the axis, (I_k + m d^2) theta'' (the parallel-axis theorem).
@@ -293,12 +294,13 @@ TEST_CASE("kane prescribed: a rigid body on a prescribed base about a principal 
       TreeAccel a;
       e.accelerations(t, x.data(), a);
       CHECK(a.angle_ddot[0] == pm.accel(t));
-      CHECK((a.wdot_NB_B[0] - pm.accel(t) * Vector3d::UnitZ()).norm() <= 1e-14 * (1.0 + pm.accel(t)));
+      CHECK((a.wdot_NB_B[0] - pm.accel(t) * Vector3d::UnitZ()).norm() <=
+            1e-14 * (1.0 + pm.accel(t)));
       // The CM moves on a circle of radius d about the axis: a = alpha x r + w x (w x r).
       const Vector3d k = j.axis_P;
       const Vector3d r_N = e.body_motion(x.data())[0].p_NoBo_N - j.p_PoJ_P;
-      const Vector3d a_ref = pm.accel(t) * k.cross(r_N) +
-                             pm.velocity(t) * pm.velocity(t) * k.cross(k.cross(r_N));
+      const Vector3d a_ref =
+          pm.accel(t) * k.cross(r_N) + pm.velocity(t) * pm.velocity(t) * k.cross(k.cross(r_N));
       CHECK((a.a_NBo_N[0] - a_ref).norm() <= 1e-13 * (1.0 + a_ref.norm()));
       CHECK(std::abs(r_N.norm() - d) <= 1e-14);
     }
@@ -332,7 +334,8 @@ std::vector<std::complex<double>> spinning_beam_eigenvalues(const System& s, dou
     const Vector3d rho0 = nd.p_BoNi_B - p_clamp;
     Mm += nd.mass * nd.Phi_B.transpose() * nd.Phi_B;
     Ms += nd.mass * nd.Phi_B.transpose() * P * nd.Phi_B;
-    Gy += W * nd.mass * (nd.Phi_B.transpose() * Z * nd.Phi_B - (Z * nd.Phi_B).transpose() * nd.Phi_B);
+    Gy +=
+        W * nd.mass * (nd.Phi_B.transpose() * Z * nd.Phi_B - (Z * nd.Phi_B).transpose() * nd.Phi_B);
     if (fb.geometric_stiffening) KG -= nd.mass * (P * rho0).dot(nd.e_B) * nd.G;
   }
   const MatrixXd Keff = fb.K + W * W * (KG - Ms);
@@ -386,12 +389,13 @@ TEST_CASE("kane stiffening: a clamped beam spinning at W vibrates with K + W^2 (
         scale = std::max(scale, std::abs(r));
         max_real = std::max(max_real, r.real());
       }
-      INFO((stiff ? "stiffening" : "linear") << ", W = " << W << ": max |lambda_engine - "
-                                             << "lambda_Lagrange| = " << worst << " (|lambda| up to "
-                                             << scale << "), max Re lambda = " << max_real);
+      INFO((stiff ? "stiffening" : "linear")
+           << ", W = " << W << ": max |lambda_engine - "
+           << "lambda_Lagrange| = " << worst << " (|lambda| up to " << scale
+           << "), max Re lambda = " << max_real);
       CHECK(worst <= 1e-6 * scale);
       if (stiff || W < 3.8) CHECK(max_real <= 1e-6 * scale);  // oscillatory: stable
-      if (!stiff && W > 3.8) CHECK(max_real > 0.1);            // diverges
+      if (!stiff && W > 3.8) CHECK(max_real > 0.1);           // diverges
     }
   }
   // The stiffening raises the first in-plane frequency above the non-rotating one (K alone):
@@ -441,8 +445,8 @@ TEST_CASE("kane stiffening: spinup_beam's tip stays bounded, spinup_beam_linear'
 TEST_CASE("kane stiffening: a free hub with a spinning clamped beam conserves E and H") {
   // No prescribed motion: a free hub carrying a clamped beam bent both ways with stiffening,
   // spinning and tumbling; every term second order in eta must be exact for E and H to stay.
-  std::string text = replaced(kSpinupBeam, {{"STIFF", "true"}, {"RATE", "1"}, {"RAMP", "1"},
-                                            {"DURATION", "4"}});
+  std::string text =
+      replaced(kSpinupBeam, {{"STIFF", "true"}, {"RATE", "1"}, {"RAMP", "1"}, {"DURATION", "4"}});
   text = replaced(text, {{"          y: {modes: 3, EI: 14000}",
                           "          y: {modes: 2, EI: 14000}\n          z: {modes: 2, EI: 9000}"},
                          {R"(  - name: spin
