@@ -84,6 +84,28 @@ struct InverseFactorials {
 };
 const InverseFactorials kInvFact;
 
+// g = G eta and 1/2 eta^T G eta (explicit loops: no temporaries).  Geometric stiffening's
+// second-order displacement e (1/2 eta^T G eta) (docs/flexible-bodies.md; [KRB] Eq. (8)).
+double stiff_g(const Eigen::MatrixXd& G, const double* eta, Eigen::VectorXd& g) {
+  double q = 0;
+  for (Eigen::Index k = 0; k < G.rows(); ++k) {
+    double v = 0;
+    for (Eigen::Index l = 0; l < G.cols(); ++l) v += G(k, l) * eta[l];
+    g(k) = v;
+    q += eta[k] * v;
+  }
+  return 0.5 * q;
+}
+
+// eta'^T G eta' (the second-order displacement's acceleration at eta'' = 0:
+// d2/dt2 (1/2 eta^T G eta) = eta^T G eta'' + eta'^T G eta').
+double stiff_quad(const Eigen::MatrixXd& G, const double* v) {
+  double q = 0;
+  for (Eigen::Index k = 0; k < G.rows(); ++k)
+    for (Eigen::Index l = 0; l < G.cols(); ++l) q += v[k] * G(k, l) * v[l];
+  return q;
+}
+
 bool all_zero(const Eigen::Matrix3Xd& A) { return A.size() == 0 || A.cwiseAbs().maxCoeff() == 0; }
 
 }  // namespace
@@ -212,6 +234,22 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
         F.Mm(k, l) += m * Phi.col(k).dot(Phi.col(l));
       }
     }
+    if (fb.geometric_stiffening) {
+      FlexModel::StiffNode sn;
+      sn.m = m;
+      sn.p = p;
+      sn.Phi = Phi;
+      sn.e = nd.e_B;
+      sn.G = nd.G.size() ? nd.G : Eigen::MatrixXd::Zero(ni, ni);
+      if (sn.G.rows() != ni || sn.G.cols() != ni || !sn.G.allFinite() || !sn.e.allFinite())
+        throw InputError(where_n + ": geometric stiffening needs a finite e and an n x n G (" +
+                         std::to_string(n) + " modes)");
+      const double g_max = sn.G.cwiseAbs().maxCoeff();
+      if ((sn.G - sn.G.transpose()).cwiseAbs().maxCoeff() > 1e-12 * (1.0 + g_max))
+        throw InputError(where_n + ": G is not symmetric");
+      sn.G = 0.5 * (sn.G + sn.G.transpose());
+      F.sn.push_back(std::move(sn));
+    }
     Eigen::Matrix<double, 3, Eigen::Dynamic> V(3, 6 + ni);
     V.leftCols<3>().setIdentity();
     V.middleCols<3>(3) = -rot::skew(p);
@@ -220,6 +258,7 @@ FlexModel build_flex_model(const Body& B, const std::string& file, double inerti
   }
   Mb.block<3, 3>(3, 3) += Jsum;
   if (!(F.mass > 0)) throw InputError(where_b + ": the node masses sum to zero");
+  F.stiff = fb.geometric_stiffening;
   // The model's rigid mass and inertia are the node sums (docs/flexible-bodies.md); the System's
   // Body::mass and I_BBo_B must say the same.
   const Matrix3d I_nodes = Jsum + F.I0;
@@ -302,11 +341,18 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       if (!(J.axis_P.norm() > 0)) throw InputError(jname + ": revolute axis must be non-zero");
       n.axis_P = J.axis_P.normalized();
       n.axis_J = n.R_PJ0.transpose() * n.axis_P;
+      if (J.prescribed) {  // docs/prescribed-motion.md: not a degree of freedom
+        n.prescribed = true;
+        n.motion = *J.prescribed;
+        n.angle0 = J.angle0;
+        has_prescribed_ = true;
+      }
     }
 
     // Attachment at nodes of flexible bodies (docs/flexible-bodies.md "Joints at nodes").
     auto attach = [&](int body, int node, const Eigen::Vector3d& point, const char* side,
-                      Eigen::Matrix3Xd& Phi, Eigen::Matrix3Xd& Psi) -> bool {
+                      Eigen::Matrix3Xd& Phi, Eigen::Matrix3Xd& Psi, bool& stiff,
+                      Eigen::Vector3d& e, Eigen::MatrixXd& G) -> bool {
       const Body& A = system_.bodies[static_cast<std::size_t>(body)];
       if (node < 0) {
         if (A.flex) {  // attached to the body frame itself: no shape, no slope
@@ -328,16 +374,26 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       const Eigen::Index m = A.flex->modes();
       Phi = fn.Phi_B.cols() ? fn.Phi_B : Eigen::Matrix3Xd::Zero(3, m);
       Psi = fn.Psi_B.cols() ? fn.Psi_B : Eigen::Matrix3Xd::Zero(3, m);
-      return !(all_zero(Phi) && all_zero(Psi));  // a node that never moves: rigid attachment
+      // Geometric stiffening: the node also moves by e (1/2 eta^T G eta) (docs "Joints at nodes").
+      stiff = A.flex->geometric_stiffening && fn.G.size() > 0 && fn.G.cwiseAbs().maxCoeff() > 0 &&
+              fn.e_B.squaredNorm() > 0;
+      if (stiff) {
+        e = fn.e_B;
+        G = 0.5 * (fn.G + fn.G.transpose());
+      }
+      // a node that never moves: rigid attachment
+      return stiff || !(all_zero(Phi) && all_zero(Psi));
     };
     if (k > 0) {
-      n.parent_attach = attach(J.parent, J.parent_node, J.p_PoJ_P, "parent", n.Phi_Pj, n.Psi_Pj);
+      n.parent_attach = attach(J.parent, J.parent_node, J.p_PoJ_P, "parent", n.Phi_Pj, n.Psi_Pj,
+                               n.stiff_P, n.e_Pj, n.G_Pj);
       n.pm = static_cast<int>(n.Phi_Pj.cols());
     } else if (J.parent_node >= 0) {
       throw InputError(jname + ": the free joint has no parent body, so no parent_node");
     }
-    n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj);
-    if (k == 0 && J.child_node >= 0)
+    n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj,
+                            n.stiff_C, n.e_Cj, n.G_Cj);
+    if (k == 0 && J.type == JointType::Free && J.child_node >= 0)
       throw InputError(jname +
                        ": the free joint moves the base's body frame; child_node must "
                        "not be set");
@@ -350,8 +406,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
         n.nuj = 6;
         break;
       case JointType::Revolute:
-        n.nqj = 1;
-        n.nuj = 1;
+        n.nqj = n.prescribed ? 0 : 1;
+        n.nuj = n.prescribed ? 0 : 1;
         break;
       case JointType::Spherical:
         n.nqj = 4;
@@ -392,6 +448,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
         for (int i = 0; i < 3; ++i) put(n_q_ + n.u0 + 3 + i, b + ".v" + "xyz"[i]);
         break;
       case JointType::Revolute:
+        if (n.prescribed) break;
         put(n.q0, j + ".angle");
         put(n_q_ + n.u0, j + ".rate");
         break;
@@ -418,6 +475,15 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
 
   // Workspace.
   work_.resize(nj);
+  prescribed_torque_.assign(nj, 0.0);
+  for (NodeWork* w : {&ground_}) {
+    w->R_NB.setIdentity();
+    w->I_BBo_N.setZero();
+    w->W_N.setZero();
+    for (Vector3d* v : {&w->p_B0oBo_N, &w->p_B0oOk_N, &w->w_NB_N, &w->v_NBo_N, &w->w_NB_B,
+                        &w->w_PC_N, &w->w_NJp_N, &w->alpha_t_N, &w->a_t_N, &w->alpha_N, &w->a_N})
+      v->setZero();
+  }
   for (std::size_t k = 0; k < nj; ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
@@ -449,6 +515,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     w.Vm_N = Eigen::Matrix3Xd::Zero(3, nm);
     for (Vector3d* v : {&w.w_att_N, &w.v_att_N, &w.jdot_att_N, &w.w_m_N, &w.v_m_N, &w.jdot_m_N})
       v->setZero();
+    w.gP = Eigen::VectorXd::Zero(n.stiff_P ? n.pm : 0);
+    w.gC = Eigen::VectorXd::Zero(n.stiff_C ? n.nm : 0);
   }
   flex_work_.resize(flex_.size());
   for (std::size_t f = 0; f < flex_.size(); ++f) {
@@ -463,6 +531,15 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     fw.cdot_N.setZero();
     fw.hdef_N.setZero();
     fw.L_B.setZero();
+    const FlexModel& F = flex_[f];
+    fw.S_B = F.S;
+    fw.Mm = F.Mm;
+    fw.bgen = Eigen::VectorXd::Zero(m);
+    if (F.stiff) {
+      fw.Phit.assign(F.sn.size(), Eigen::Matrix3Xd::Zero(3, m));
+      fw.r.assign(F.sn.size(), Vector3d::Zero());
+      fw.g.assign(F.sn.size(), Eigen::VectorXd::Zero(m));
+    }
   }
   M_ = Eigen::MatrixXd::Zero(n_u_, n_u_);
   f_ = Eigen::VectorXd::Zero(n_u_);
@@ -488,6 +565,13 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     max_speed_depth_ = std::max(max_speed_depth_, depth[k]);
   }
   const bool rigid = flex_.empty();
+  // The order-N solver declines prescribed joints (issue 13): its elimination assumes a free
+  // base and a speed for every revolute joint, so a scene with a prescribed joint (inside the
+  // tree or as the base) always uses the composite solver, which handles both.
+  const bool order_n_ok = rigid && !has_prescribed_ && system_.base_is_free();
+  if (solver == KaneSolver::OrderN && rigid && !order_n_ok)
+    throw InputError(file + ": the kane engine's order-N solver handles no prescribed joint; use "
+                     "the composite solver");
   if (solver == KaneSolver::OrderN && !rigid) {
     std::string flexible;
     for (const Body& b : system_.bodies)
@@ -496,7 +580,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
                      flexible + "' is flexible); use the composite solver");
   }
   if (solver == KaneSolver::Automatic)
-    solver = rigid && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
+    solver = order_n_ok && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
                                                           : KaneSolver::Composite;
   solver_ = solver;
   if (solver_ == KaneSolver::OrderN) {
@@ -525,6 +609,20 @@ std::string KaneEngine::state_label(int i) const {
   return labels_[static_cast<std::size_t>(i)];
 }
 
+// Prescribed joints at time t (docs/prescribed-motion.md "The motion"; the spin-up profile of
+// Kane, Ryan and Banerjee 1987, Eq. (61), evaluated by PrescribedMotion):
+//   angle = angle0 + theta(t),  rate = theta'(t),  angle'' = theta''(t).
+void KaneEngine::set_time(double t) {
+  if (!has_prescribed_) return;
+  for (const Node& n : nodes_) {
+    if (!n.prescribed) continue;
+    NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+    w.pres_angle = n.angle0 + n.motion.angle(t);
+    w.pres_rate = n.motion.velocity(t);
+    w.pres_accel = n.motion.accel(t);
+  }
+}
+
 Quaterniond KaneEngine::read_quat(const double* x, int i) const {
   return Quaterniond(x[i], x[i + 1], x[i + 2], x[i + 3]).normalized();
 }
@@ -550,7 +648,9 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
       w.p_B0oOk_N.setZero();
       w.W_N = w.R_NB;  // W_r = b_r for u_r = w_NB_B,r (r = 1..3)
     } else {
-      const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+      // A prescribed base's parent is N (ground_: at rest, origin No, so that the positions of
+      // such a tree are measured from No; docs/prescribed-motion.md "A prescribed base").
+      const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
       Vector3d r_Pj = n.p_PoJ_P;
       // Frames by pointer so that a rigid attachment copies no matrix: R_NJp is R_NP, and R_NJc
       // is written straight into R_NB.
@@ -561,12 +661,18 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
         const double* eta_P = x + pn.q0 + pn.nqj;
         w.rot_P.set(combine(n.Psi_Pj, eta_P));
         r_Pj += combine(n.Phi_Pj, eta_P);
+        // Geometric stiffening: u = Phi eta + e (1/2 eta^T G eta), partial velocities
+        // Phi_l + e (G eta)_l (docs/flexible-bodies.md "Geometric stiffening").
+        if (n.stiff_P) r_Pj += n.e_Pj * stiff_g(n.G_Pj, eta_P, w.gP);
         R_NJp_node.noalias() = P.R_NB * w.rot_P.R();
         R_NJp = &R_NJp_node;
         const Matrix3d RJl = P.R_NB * w.rot_P.Jl();
         for (int l = 0; l < n.pm; ++l) {
           w.Wp_N.col(l).noalias() = RJl * n.Psi_Pj.col(l);
-          w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
+          if (n.stiff_P)
+            w.Vp_N.col(l).noalias() = P.R_NB * (n.Phi_Pj.col(l) + n.e_Pj * w.gP(l));
+          else
+            w.Vp_N.col(l).noalias() = P.R_NB * n.Phi_Pj.col(l);
         }
       }
       const Matrix3d* R_NJ0 = R_NJp;
@@ -580,7 +686,7 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
       switch (n.type) {
         case JointType::Revolute:
         {
-          const double half = 0.5 * x[n.q0];
+          const double half = 0.5 * (n.prescribed ? w.pres_angle : x[n.q0]);
           const double sh = std::sin(half), ch = std::cos(half);  // one sincos
           w.sin_half = sh;
           w.cos_half = ch;
@@ -602,11 +708,15 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
         const double* eta = x + n.q0 + n.nqj;
         w.rot_C.set(combine(n.Psi_Cj, eta));
         r_Cj += combine(n.Phi_Cj, eta);
+        if (n.stiff_C) r_Cj += n.e_Cj * stiff_g(n.G_Cj, eta, w.gC);  // as on the parent side
         w.R_NB.noalias() = R_NJc * w.rot_C.R().transpose();
         const Matrix3d RJl = -(w.R_NB * w.rot_C.Jl());
         for (int l = 0; l < n.nm; ++l) {
           w.Wm_N.col(l).noalias() = RJl * n.Psi_Cj.col(l);
-          w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
+          if (n.stiff_C)
+            w.Vm_N.col(l).noalias() = -(w.R_NB * (n.Phi_Cj.col(l) + n.e_Cj * w.gC(l)));
+          else
+            w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
         }
       }
       w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * r_Cj;
@@ -621,13 +731,41 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
 // Flexible body at eta => FlexWork (body frame, then N), I_BBo_N (kane_engine.hpp):
 //   c = c0 + S eta;  N_k = G_k^T + sum_l eta_l Q_kl;  A_k = Hs_k + sum_l eta_l C_lk;
 //   dS = sum_k eta_k (G_k + N_k) = sum m_i (r_i r_i^T - p_i p_i^T);  I = I0 + tr(dS) 1 - dS.
+// Geometric stiffening (FlexModel::stiff): the same quantities summed over the nodes, exactly, with
+//   r_i = p_i + Phi_i eta + e_i w_i,  w_i = 1/2 eta^T G_i eta,  Phi~_i = Phi_i + e_i (G_i eta)^T
+//   (d r_i / d eta = Phi~_i: docs/flexible-bodies.md "Geometric stiffening"; [KRB] Eq. (8)):
+//   c = sum m_i r_i,  dS = sum m_i (r_i r_i^T - p_i p_i^T),  S~ = sum m_i Phi~_i,
+//   N_k = sum m_i Phi~_ik r_i^T,  A_k = sum m_i r_i x Phi~_ik,  Mm~ = sum m_i Phi~_i^T Phi~_i.
 void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
   const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
   FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
   const int m = F.n;
   fw.c_B = F.c0;
   Matrix3d dS = Matrix3d::Zero();
-  for (int k = 0; k < m; ++k) {
+  if (F.stiff) {
+    fw.S_B.setZero();
+    fw.Mm.setZero();
+    fw.A_B.setZero();
+    for (int k = 0; k < m; ++k) fw.N_B[static_cast<std::size_t>(k)].setZero();
+    for (std::size_t i = 0; i < F.sn.size(); ++i) {
+      const FlexModel::StiffNode& sn = F.sn[i];
+      const double wi = stiff_g(sn.G, eta, fw.g[i]);
+      const Vector3d u = combine(sn.Phi, eta) + sn.e * wi;
+      const Vector3d r = sn.p + u;
+      fw.r[i] = r;
+      fw.c_B += sn.m * u;
+      dS.noalias() += sn.m * (r * r.transpose() - sn.p * sn.p.transpose());
+      Eigen::Matrix3Xd& Pt = fw.Phit[i];
+      for (int k = 0; k < m; ++k) Pt.col(k) = sn.Phi.col(k) + sn.e * fw.g[i](k);
+      for (int k = 0; k < m; ++k) {
+        fw.S_B.col(k) += sn.m * Pt.col(k);
+        fw.N_B[static_cast<std::size_t>(k)].noalias() += sn.m * Pt.col(k) * r.transpose();
+        fw.A_B.col(k) += sn.m * r.cross(Pt.col(k));
+        for (int l = 0; l < m; ++l) fw.Mm(k, l) += sn.m * Pt.col(k).dot(Pt.col(l));
+      }
+    }
+  }
+  for (int k = 0; k < m && !F.stiff; ++k) {
     const std::size_t ks = static_cast<std::size_t>(k);
     fw.c_B += F.S.col(k) * eta[k];
     Matrix3d N = F.G[ks].transpose();
@@ -645,8 +783,9 @@ void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
   const Matrix3d& R = w.R_NB;
   fw.c_N.noalias() = R * fw.c_B;
   w.I_BBo_N.noalias() = R * fw.I_B * R.transpose();
+  const Eigen::Matrix3Xd& S = F.stiff ? fw.S_B : F.S;
   for (int k = 0; k < m; ++k) {
-    fw.S_N.col(k).noalias() = R * F.S.col(k);
+    fw.S_N.col(k).noalias() = R * S.col(k);
     fw.A_N.col(k).noalias() = R * fw.A_B.col(k);
   }
 }
@@ -669,7 +808,7 @@ void KaneEngine::velocity_pass(const double* u) {
       w.v_NBo_N = v_NBo_N;
       w.w_PC_N = w.w_NB_N;
     } else {
-      const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+      const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
       const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
       const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
       Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(p_PoOk_N);
@@ -680,12 +819,13 @@ void KaneEngine::velocity_pass(const double* u) {
         w.w_att_N = combine(w.Wp_N, eta_rate);
         w.v_att_N = combine(w.Vp_N, eta_rate);
         w.jdot_att_N.noalias() = P.R_NB * w.rot_P.Jl_dot_times(combine(n.Psi_Pj, eta_rate));
+        if (n.stiff_P) w.b_att_N.noalias() = P.R_NB * n.e_Pj * stiff_quad(n.G_Pj, eta_rate);
         w.w_NJp_N += w.w_att_N;
         v_Ok += w.v_att_N;
       }
       switch (n.type) {
-        case JointType::Revolute:
-          w.w_PC_N = w.W_N.col(0) * u[n.u0];
+        case JointType::Revolute:  // a prescribed joint: its rate theta'(t)
+          w.w_PC_N = w.W_N.col(0) * (n.prescribed ? w.pres_rate : u[n.u0]);
           break;
         case JointType::Spherical:
           w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
@@ -700,6 +840,7 @@ void KaneEngine::velocity_pass(const double* u) {
         w.w_m_N = combine(w.Wm_N, eta_rate);
         w.v_m_N = combine(w.Vm_N, eta_rate);
         w.jdot_m_N.noalias() = w.R_NB * w.rot_C.Jl_dot_times(combine(n.Psi_Cj, eta_rate));
+        if (n.stiff_C) w.b_m_N.noalias() = -(w.R_NB * n.e_Cj) * stiff_quad(n.G_Cj, eta_rate);
         w.w_NB_N += w.w_m_N;
       }
       w.v_NBo_N = v_Ok + w.w_NB_N.cross(p_OkCo_N);
@@ -711,14 +852,38 @@ void KaneEngine::velocity_pass(const double* u) {
 
 // Flexible body's rate terms => FlexWork:  cdot_N = R S eta',  hdef_N = R A eta',
 //   L = sum_k eta_k' N_k^T = sum m_i r_i (Phi_i eta')^T,  Ce_k = sum_l eta_l' C_lk.
+// Geometric stiffening: Ce_k = sum m_i (Phi~_i eta') x Phi~_ik by node sums, and the nodes'
+// second-order accelerations b_i = e_i (eta'^T G_i eta') (d2u_i/dt2 = Phi~_i eta'' + b_i,
+// docs/flexible-bodies.md) summed into bsum, bmom and bgen (FlexWork).
 void KaneEngine::flex_velocity(const Node& n, NodeWork& w, const double* eta_rate) {
-  (void)w;
   const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
   FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
   const int m = F.n;
   fw.cdot_N = combine(fw.S_N, eta_rate);
   fw.hdef_N = combine(fw.A_N, eta_rate);
   fw.L_B.setZero();
+  if (F.stiff) {
+    for (int k = 0; k < m; ++k)
+      fw.L_B.noalias() += eta_rate[k] * fw.N_B[static_cast<std::size_t>(k)].transpose();
+    fw.Ce_B.setZero();
+    fw.bgen.setZero();
+    Vector3d bsum = Vector3d::Zero(), bmom = Vector3d::Zero();
+    for (std::size_t i = 0; i < F.sn.size(); ++i) {
+      const FlexModel::StiffNode& sn = F.sn[i];
+      const Eigen::Matrix3Xd& Pt = fw.Phit[i];
+      const Vector3d v = combine(Pt, eta_rate);
+      const double q = sn.m * stiff_quad(sn.G, eta_rate);
+      for (int k = 0; k < m; ++k) {
+        fw.Ce_B.col(k) += sn.m * v.cross(Pt.col(k));
+        fw.bgen(k) += q * Pt.col(k).dot(sn.e);
+      }
+      bsum += q * sn.e;
+      bmom += q * fw.r[i].cross(sn.e);
+    }
+    fw.bsum_N.noalias() = w.R_NB * bsum;
+    fw.bmom_N.noalias() = w.R_NB * bmom;
+    return;
+  }
   for (int k = 0; k < m; ++k) {
     fw.L_B.noalias() += eta_rate[k] * fw.N_B[static_cast<std::size_t>(k)].transpose();
     Vector3d c = Vector3d::Zero();
@@ -742,8 +907,7 @@ void KaneEngine::flex_velocity(const Node& n, NodeWork& w, const double* eta_rat
 //   a_Co = a_Ok + alpha_C x p_OkCo + w_C x (w_C x p_OkCo) + 2 w_C x v_m + Vm eta_C''.
 //   Base: alpha = R_NB w_NB_B' (w x w = 0), a = v_NBo_N'; the remainder values are zero.
 
-void KaneEngine::propagate_accelerations(const double* udot) {
-  const bool full = udot != nullptr;
+void KaneEngine::propagate_accelerations(const double* udot, bool full) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
@@ -759,7 +923,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
       }
       continue;
     }
-    const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+    const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
     const Vector3d& alpha_P = full ? P.alpha_N : P.alpha_t_N;
     const Vector3d& a_P = full ? P.a_N : P.a_t_N;
     const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
@@ -767,7 +931,7 @@ void KaneEngine::propagate_accelerations(const double* udot) {
     Vector3d a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
     Vector3d alpha_C = alpha_P;
     if (n.parent_attach) {
-      a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N);
+      a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N) + w.b_att_N;  // b: stiffening's R e eta'^T G eta'
       alpha_C += P.w_NB_N.cross(w.w_att_N) + w.jdot_att_N;
       if (full) {
         const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
@@ -777,6 +941,9 @@ void KaneEngine::propagate_accelerations(const double* udot) {
       }
     }
     alpha_C += w.w_NJp_N.cross(w.w_PC_N);
+    // A prescribed joint's W_r theta''(t) is known: part of the remainder (and of the full)
+    // acceleration, the "u_r' known function of time" of Kane and Levinson 1985, Sec. 6.1.
+    if (n.prescribed) alpha_C += w.W_N.col(0) * w.pres_accel;
     if (full)
       for (int i = 0; i < n.nuj; ++i) alpha_C += w.W_N.col(i) * udot[n.u0 + i];
     if (n.child_attach) {
@@ -785,14 +952,14 @@ void KaneEngine::propagate_accelerations(const double* udot) {
     }
     acc = a_Ok + alpha_C.cross(p_OkCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_OkCo_N));
     if (n.child_attach) {
-      acc += 2.0 * w.w_NB_N.cross(w.v_m_N);
+      acc += 2.0 * w.w_NB_N.cross(w.v_m_N) + w.b_m_N;
       if (full) acc += combine(w.Vm_N, udot + n.u0 + n.nuj);
     }
     alpha = alpha_C;
   }
 }
 
-void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
+void KaneEngine::remainder_pass() { propagate_accelerations(nullptr, false); }
 
 // ------------------------------------------------------------------------------------------------
 // Pass 4 (backward, leaves first). => per node k the sums over its subtree S(k), about Ok:
@@ -809,7 +976,9 @@ void KaneEngine::remainder_pass() { propagate_accelerations(nullptr); }
 // A child's sums move to its parent's point Op with e = p_Ok - p_Op (add_moved_inertia);
 // M' = M + e x F.
 
-void KaneEngine::subtree_pass(double t) {
+//   full (prescribed joints' torques): a_t, alpha_t replaced by the full a, alpha and, for a
+//   flexible body, the nodes' R Phi_i eta'' added: R_B -= R S eta'', T_B -= R A eta''.
+void KaneEngine::subtree_pass(double t, bool full) {
   for (NodeWork& w : work_) {
     w.m_sub = 0;
     w.s_sub_N.setZero();
@@ -824,25 +993,36 @@ void KaneEngine::subtree_pass(double t) {
 
     // This node's own body.
     const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    const Vector3d& a_t = full ? w.a_N : w.a_t_N;
+    const Vector3d& alpha_t = full ? w.alpha_N : w.alpha_t_N;
     w.m_sub += n.mass;
     Vector3d R_B, T_B;
     if (n.flex < 0) {
       w.s_sub_N += n.mass * d;
       add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d);
-      R_B = -n.mass * w.a_t_N;
-      T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+      R_B = -n.mass * a_t;
+      T_B = -(w.I_BBo_N * alpha_t) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
     } else {
       const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
       const Vector3d& c = fw.c_N;
       const Vector3d& wN = w.w_NB_N;
       w.s_sub_N += n.mass * d + c;
       add_moved_inertia(w.J_sub_N, w.I_BBo_N, n.mass, c, d);
-      R_B = -(n.mass * w.a_t_N + w.alpha_t_N.cross(c) + wN.cross(wN.cross(c)) +
+      R_B = -(n.mass * a_t + alpha_t.cross(c) + wN.cross(wN.cross(c)) +
               2.0 * wN.cross(fw.cdot_N));
       const Vector3d w_B = w.R_NB.transpose() * wN;
       const Vector3d cor_B = w_B * fw.L_B.trace() - fw.L_B.transpose() * w_B;
-      T_B = -c.cross(w.a_t_N) - w.I_BBo_N * w.alpha_t_N - wN.cross(w.I_BBo_N * wN) -
+      T_B = -c.cross(a_t) - w.I_BBo_N * alpha_t - wN.cross(w.I_BBo_N * wN) -
             2.0 * (w.R_NB * cor_B);
+      if (flex_[static_cast<std::size_t>(n.flex)].stiff) {  // -sum m_i R b_i, its moment
+        R_B -= fw.bsum_N;
+        T_B -= fw.bmom_N;
+      }
+      if (full) {
+        const double* eta_dd = udot_.data() + n.u0 + n.nuj;
+        R_B -= combine(fw.S_N, eta_dd);
+        T_B -= combine(fw.A_N, eta_dd);
+      }
     }
     if (!body.torque.empty()) {
       const Vector3d T = body.torque.value(t);
@@ -910,7 +1090,7 @@ void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, 
 }
 
 void KaneEngine::mass_matrix_pass() {
-  {
+  if (nodes_[0].type == JointType::Free) {
     const NodeWork& base = work_[0];
     const int r0 = nodes_[0].u0;
     M_.block<3, 3>(r0, r0).noalias() = base.R_NB.transpose() * base.J_sub_N * base.R_NB;
@@ -973,7 +1153,7 @@ void KaneEngine::mass_matrix_pass() {
       }
       // Against the modal speeds s <= l: twist part of s, and its elastic part on C's nodes.
       for (int s = 0; s <= l; ++s) {
-        double m = F.Mm(s, l);
+        double m = F.stiff ? fw.Mm(s, l) : F.Mm(s, l);
         if (n.child_attach) {
           const Vector3d hC_s = d.cross(fw.S_N.col(s)) + fw.A_N.col(s);
           m += w.Wm_N.col(s).dot(h) + w.Vm_N.col(s).dot(p) + fw.S_N.col(s).dot(w.Vm_N.col(l)) +
@@ -1031,14 +1211,16 @@ Vector3d KaneEngine::hinge_torque_spherical(const Node& n, double t, const doubl
 
 void KaneEngine::generalized_force_pass(double t, const double* x) {
   const NodeWork& base = work_[0];
-  f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
-  f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
+  if (nodes_[0].type == JointType::Free) {
+    f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
+    f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
+  }
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
     switch (n.type) {
       case JointType::Revolute:
-        f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
+        if (!n.prescribed) f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
         break;
       case JointType::Spherical:
         f_.segment<3>(n.u0).noalias() =
@@ -1058,8 +1240,10 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
     const double w2 = w_B.squaredNorm();
     for (int l = 0; l < n.nm; ++l) {
       const Matrix3d& N = fw.N_B[static_cast<std::size_t>(l)];
-      double g = -(F.S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
+      const Eigen::Matrix3Xd& S = F.stiff ? fw.S_B : F.S;  // S~ with stiffening
+      double g = -(S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
                    w2 * N.trace() + 2.0 * w_B.dot(fw.Ce_B.col(l)));
+      if (F.stiff) g -= fw.bgen(l);  // -sum m_i Phi~_il . b_i
       if (n.child_attach) g += w.Wm_N.col(l).dot(w.M_sub_N) + w.Vm_N.col(l).dot(w.F_sub_N);
       for (int c : n.attached_children) {
         const NodeWork& cw = work_[static_cast<std::size_t>(c)];
@@ -1224,6 +1408,7 @@ bool KaneEngine::solve(bool fixed_base_block) {
 }
 
 Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed_base_block) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1236,6 +1421,7 @@ Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed
 }
 
 void KaneEngine::dynamics(double t, const double* x) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1268,7 +1454,7 @@ void KaneEngine::rhs(double t, const double* x, double* xdot) {
         break;
       }
       case JointType::Revolute:
-        xdot[n.q0] = u[n.u0];
+        if (!n.prescribed) xdot[n.q0] = u[n.u0];
         break;
       case JointType::Spherical: {
         // q_J' = 1/2 q_J (x) (0, w_PC_C): R_PC = R_PJ0 R(q_J) with R_PJ0 constant.
@@ -1330,7 +1516,8 @@ void KaneEngine::pack(const TreeState& s, double* x) {
         for (int i = 0; i < 3; ++i) u[n.u0 + 3 + i] = s.v_NBo_N(i);
         break;
       }
-      case JointType::Revolute:
+      case JointType::Revolute:  // a prescribed joint: nothing (its profile gives it at any t)
+        if (n.prescribed) break;
         x[n.q0] = js.angle;
         u[n.u0] = js.rate;
         break;
@@ -1362,7 +1549,9 @@ void KaneEngine::pack(const TreeState& s, double* x) {
       }
     }
   }
-  if (system_.zero_linear_momentum) {
+  set_time(0.0);
+  // Zero linear momentum applies to a free base only (docs/prescribed-motion.md).
+  if (system_.zero_linear_momentum && system_.base_is_free()) {
     for (int i = 0; i < 3; ++i) u[nodes_[0].u0 + 3 + i] = 0.0;
     position_pass(x);
     velocity_pass(u);
@@ -1375,7 +1564,24 @@ void KaneEngine::pack(const TreeState& s, double* x) {
 // u' => alpha_N, a_N (full accelerations, for accelerations()): the remainder-pass recursion
 // with the sums W_r u_r' and V_r u_r' added (propagate_accelerations).
 
-void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot); }
+// (full is explicit: with no speed at all, a prescribed base's rigid tree, udot is null.)
+void KaneEngine::acceleration_pass(const double* udot) { propagate_accelerations(udot, true); }
+
+// The torque a prescribed joint applies to its child about its axis (docs/prescribed-motion.md):
+// Kane's equation of its speed, kept as a known function of time (Kane and Levinson 1985,
+// Sec. 6.1), F_r + F_r* + tau = 0, where the speed's partial velocities move the subtree S(k)
+// rigidly about Ok with W_r = the axis, so F_r + F_r* = W_r . M_k, the moment about Ok of every
+// external and inertia force on S(k) with the full accelerations (hinge torques below k and the
+// elastic forces are internal to S(k) and cancel):  tau = -W_r . M_k.
+void KaneEngine::prescribed_torque_pass(double t) {
+  acceleration_pass(udot_.data());
+  subtree_pass(t, /*full=*/true);
+  for (const Node& n : nodes_)
+    if (n.prescribed) {
+      const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+      prescribed_torque_[static_cast<std::size_t>(n.joint)] = -w.W_N.col(0).dot(w.M_sub_N);
+    }
+}
 
 void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   dynamics(t, x);
@@ -1394,7 +1600,7 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
     a.wdot_NB_B[static_cast<std::size_t>(n.body)] = w.R_NB.transpose() * w.alpha_N;
     a.a_NBo_N[static_cast<std::size_t>(n.body)] = w.a_N;
     if (n.type == JointType::Revolute)
-      a.angle_ddot[static_cast<std::size_t>(n.joint)] = udot_(n.u0);
+      a.angle_ddot[static_cast<std::size_t>(n.joint)] = n.prescribed ? w.pres_accel : udot_(n.u0);
     if (n.type == JointType::Spherical)
       a.wdot_PC_C[static_cast<std::size_t>(n.joint)] = udot_.segment<3>(n.u0);
   }
@@ -1438,7 +1644,7 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
       const Eigen::Map<const Eigen::VectorXd> eta_rate(u + n.u0 + n.nuj, n.nm);
       const Vector3d Iw = w.I_BBo_N * w.w_NB_N;
       T += 0.5 * w.w_NB_N.dot(Iw) + w.v_NBo_N.dot(w.w_NB_N.cross(fw.c_N) + fw.cdot_N) +
-           w.w_NB_N.dot(fw.hdef_N) + 0.5 * eta_rate.dot(F.Mm * eta_rate);
+           w.w_NB_N.dot(fw.hdef_N) + 0.5 * eta_rate.dot((F.stiff ? fw.Mm : F.Mm) * eta_rate);
       h_Bo = fw.c_N.cross(w.v_NBo_N) + Iw + fw.hdef_N;
       P_B += w.w_NB_N.cross(fw.c_N) + fw.cdot_N;
       first_moment += fw.c_N;
@@ -1494,7 +1700,10 @@ std::vector<BodyMotion> KaneEngine::body_motion(const double* x) {
   position_pass(x);
   velocity_pass(x + n_q_);
   std::vector<BodyMotion> m(nodes_.size());
-  const Eigen::Map<const Vector3d> p_NoB0o_N(x + nodes_[0].q0);
+  // A free base's position is in x; a prescribed base's tree is measured from No already.
+  const Vector3d p_NoB0o_N = nodes_[0].type == JointType::Free
+                                 ? Vector3d(Eigen::Map<const Vector3d>(x + nodes_[0].q0))
+                                 : Vector3d::Zero();
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const NodeWork& w = work_[k];
     BodyMotion& b = m[static_cast<std::size_t>(nodes_[k].body)];
@@ -1535,9 +1744,14 @@ std::vector<MassPoint> KaneEngine::mass_points(const double* x) {
       p.node = static_cast<int>(i);
       p.mass = nd.mass;
       p.J_N = m.R_NB * nd.J_Ni_B * m.R_NB.transpose();
-      const Vector3d r_N = m.R_NB * (nd.p_BoNi_B + Phi * eta);
+      Vector3d u = Phi * eta, u_rate = Phi * eta_rate;
+      if (B.flex->geometric_stiffening && nd.G.size()) {  // + e (1/2 eta^T G eta), its rate
+        u += nd.e_B * (0.5 * eta.dot(nd.G * eta));
+        u_rate += nd.e_B * eta.dot(nd.G * eta_rate);
+      }
+      const Vector3d r_N = m.R_NB * (nd.p_BoNi_B + u);
       p.p_NoP_N = m.p_NoBo_N + r_N;
-      p.v_NP_N = m.v_NBo_N + w_N.cross(r_N) + m.R_NB * (Phi * eta_rate);
+      p.v_NP_N = m.v_NBo_N + w_N.cross(r_N) + m.R_NB * u_rate;
       pts.push_back(p);
     }
   }
@@ -1558,6 +1772,7 @@ std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
     const Node& bn = nodes_[static_cast<std::size_t>(system_.joint_of_body(body))];
     const Eigen::Map<const Eigen::VectorXd> eta(x + bn.q0 + bn.nqj, bn.nm);
     if (nd.Phi_B.cols()) r += nd.Phi_B * eta;
+    if (B.flex->geometric_stiffening && nd.G.size()) r += nd.e_B * (0.5 * eta.dot(nd.G * eta));
     if (nd.Psi_B.cols()) E = rot::from_rotation_vector(nd.Psi_B * eta).toRotationMatrix();
   };
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -1569,9 +1784,9 @@ std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
     node_of(J.child, J.child_node, J.p_CoJ_C, r, E);
     f.R_NJc = c.R_NB * E;
     f.p_NoJ_N_child = c.p_NoBo_N + c.R_NB * r;
-    if (J.parent < 0) {
+    if (J.parent < 0) {  // N: the free joint's "point" is the child's; a prescribed base's is fixed
       f.R_NJp.setIdentity();
-      f.p_NoJ_N_parent = f.p_NoJ_N_child;
+      f.p_NoJ_N_parent = J.type == JointType::Free ? f.p_NoJ_N_child : J.p_PoJ_P;
       continue;
     }
     const BodyMotion& p = bm[static_cast<std::size_t>(J.parent)];
@@ -1591,6 +1806,7 @@ Eigen::MatrixXd KaneEngine::mass_matrix(const double* x) {
 }
 
 Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
+  set_time(t);
   position_pass(x);
   velocity_pass(x + n_q_);
   remainder_pass();
@@ -1603,6 +1819,11 @@ Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
 // (t, x) => one output row (columns() order).
 
 void KaneEngine::output_row(double t, const double* x, double* row) {
+  if (has_prescribed_) {  // the prescribed joints' torques need the accelerations
+    dynamics(t, x);
+    prescribed_torque_pass(t);
+  }
+  set_time(t);
   position_pass(x, /*rigid_inertia=*/false);  // the sums below use I_BBo_B for rigid bodies
   velocity_pass(x + n_q_);
   const double* u = x + n_q_;
@@ -1648,7 +1869,13 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     out.body(static_cast<int>(b), work_[k].w_NB_B, q_N[k]);
   }
   for (const Node& n : nodes_) {
-    if (n.type == JointType::Revolute) out.revolute(n.joint, x[n.q0], u[n.u0]);
+    if (n.type == JointType::Revolute && n.prescribed) {
+      const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
+      out.revolute(n.joint, w.pres_angle, w.pres_rate);
+      out.joint_torque(n.joint, prescribed_torque_[static_cast<std::size_t>(n.joint)]);
+    } else if (n.type == JointType::Revolute) {
+      out.revolute(n.joint, x[n.q0], u[n.u0]);
+    }
     if (n.type == JointType::Spherical)
       out.spherical(n.joint, Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
     if (n.nm > 0)

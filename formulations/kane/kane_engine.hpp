@@ -5,11 +5,12 @@
 // point" of tree node k (its joint point J; for the base its CM).  w_NB_N is the angular velocity
 // of B in N with N components; a trailing _N means N components, _B body components.  Every
 // vector in the workspace has N components; positions are measured from the base CM B0o, so the
-// dynamics never sees the (possibly large) inertial position of the base.
+// dynamics never sees the (possibly large) inertial position of the base (a prescribed base:
+// from No, see "Prescribed revolute joints" below).
 //
 // Tree nodes.  Node k is System::joints[k] together with its child body (exactly one joint per
-// body), in the System's topological order: node 0 is the free base, every node's parent node
-// has a smaller index.
+// body), in the System's topological order: node 0 is the base (free, or a prescribed revolute
+// joint to N), every node's parent node has a smaller index.
 //
 // State vector x = [ positions (n_q) | generalised speeds u (n_u) ]:
 //   positions  base: p_NoBo_N (3), q_NB (4, w x y z);  revolute: angle (1);
@@ -105,6 +106,26 @@
 //   body is the acceleration of its frame origin Bo (the undeformed CM), as TreeState's velocities
 //   are; body torques given in the inertial frame act on the body frame likewise.
 //
+// Prescribed revolute joints (docs/prescribed-motion.md; issue 13).  A prescribed joint has no
+// position and no speed: its angle angle0 + theta(t), rate theta'(t) and theta''(t) come from its
+// profile at the time of the call (set_time; the spin-up of [KRB] Eq. (61)).  Its partial angular
+// velocity W_r (the axis) is still formed, but u_r is a known function of time (Kane and Levinson,
+// Dynamics: Theory and Applications, 1985, Sec. 6.1, [KL85]): its W_r theta' enters the velocities
+// and W_r theta'' the remainder accelerations, and Kane's equation of that speed is not solved but
+// gives the joint torque:  tau = -(F_r + F_r*) = -W_r . M_k, M_k the moment about Ok of every
+// external and inertia force on S(k) with the full accelerations (prescribed_torque_pass).  A
+// prescribed base (joints[0], parent N) is the same joint with N as its parent (ground_, at rest);
+// the positions of such a tree are measured from No instead of the base CM, the base has no speeds
+// of its own (a flexible base keeps its modal speeds), and zero_linear_momentum does not apply.
+//
+// Geometric stiffening (docs/flexible-bodies.md "Geometric stiffening"; [KRB] Eq. (8), [Sharf]):
+// u_i = Phi_i eta + e_i w_i, w_i = 1/2 eta^T G_i eta.  Every formula above holds with r_i = p_i +
+// u_i and the shapes replaced by the partial velocities Phi~_i = d r_i / d eta = Phi_i + e_i (G_i
+// eta)^T, plus the second-order acceleration b_i = e_i eta'^T G_i eta' (d2u_i/dt2 = Phi~_i eta'' +
+// b_i) in every node's remainder acceleration.  The modal integrals then depend on eta beyond the
+// linear terms, so for such a body they are summed over its nodes at each state (FlexWork; O(nodes
+// n^2)); a joint at a node uses that node's r_i, Phi~_i and b_i.
+//
 // Two solvers for u' (KaneSolver below; both solve the same Kane's equations F_r + F_r* = 0 with
 // the same partial velocities, the same remainder accelerations and the same loads):
 //   composite  forms M and f by the composite-body sums above and solves M u' = f by the sparse
@@ -114,6 +135,9 @@
 //   order-N    eliminates Kane's equations along the tree, leaves first, without forming M: the
 //              articulated-body recursion (kane_order_n.cpp gives the derivation and its sources).
 //              O(n_bodies).  Rigid bodies only; a scene with any flexible body uses composite.
+//              It declines prescribed joints too (its elimination assumes a free base and a speed
+//              per revolute joint): a scene with one uses composite, and forcing order-N is
+//              refused with InputError.
 //   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
 //   least KaneEngine::kOrderNMinDepth = 12 generalised speeds (the base's 6 included; chain3),
 //   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
@@ -126,6 +150,9 @@
 //   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
 //   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
 //           using TREETOPS and model-specific computer codes", 1990 (docs/references.md).
+//   [KL85] T. R. Kane, D. A. Levinson, Dynamics: Theory and Applications, McGraw-Hill, 1985.
+//   [Sharf] I. Sharf, "Geometric stiffening in multibody dynamics formulations", J. Guidance,
+//          Control, and Dynamics 18(4), 1995.
 //   [Ban93] A. K. Banerjee, "Block-diagonal equations for multibody elastodynamics with geometric
 //           stiffness and constraints", J. Guidance, Control, and Dynamics 16(6), 1993.
 #pragma once
@@ -151,6 +178,18 @@ struct FlexModel {
   std::vector<Eigen::Vector3d> C;  // n * n: C_kl = sum m_i Phi_ik x Phi_il   (index k n + l)
   Eigen::MatrixXd Mm;              // n x n: sum m_i Phi_i^T Phi_i (modal mass)
   Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping
+  // Geometric stiffening (FlexBody::geometric_stiffening; docs/flexible-bodies.md "Geometric
+  // stiffening"): u_i = Phi_i eta + e_i (1/2 eta^T G_i eta).  The integrals above then depend on
+  // eta beyond the linear terms, so they are summed over the nodes at each state (FlexWork,
+  // flex_position / flex_velocity; O(nodes n^2)) from these per-node data.
+  struct StiffNode {
+    double m = 0;
+    Eigen::Vector3d p, e;    // p_BoNi_B, e_i (unit, body frame)
+    Eigen::Matrix3Xd Phi;    // 3 x n
+    Eigen::MatrixXd G;       // n x n symmetric
+  };
+  bool stiff = false;
+  std::vector<StiffNode> sn;
 };
 
 // exp([psi x]) and its left Jacobian Jl(psi) for a node's rotation vector psi ([Barfoot] Sec.
@@ -178,6 +217,12 @@ struct Node {
   int nm = 0;               // modal coordinates of a flexible child: eta at x[q0 + nqj],
                             // eta' at u[u0 + nuj]
   int flex = -1;            // the child's FlexModel (flex_ index), -1 for a rigid body
+  // Prescribed revolute joint (docs/prescribed-motion.md): no position, no speed (nqj = nuj =
+  // 0); angle0 + theta(t), theta'(t), theta''(t) from `motion`.  For the base (parent -1) the
+  // parent frame is N: p_PoJ_P = p_NoJ_N, axis_P = axis_N, R_PJ0 = R_NJ0.
+  bool prescribed = false;
+  PrescribedMotion motion;
+  double angle0 = 0;
   bool has_offset = false;  // R_PJ0 != identity
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
@@ -195,6 +240,11 @@ struct Node {
   // Attachment at a node of this flexible child whose shape or slope is not zero (3 x nm).
   bool child_attach = false;
   Eigen::Matrix3Xd Phi_Cj, Psi_Cj;
+  // Geometric stiffening at the attachment node (parent / child side): the node's e and G
+  // (its displacement gains e (1/2 eta^T G eta)); stiff_* false when the body has none there.
+  bool stiff_P = false, stiff_C = false;
+  Eigen::Vector3d e_Pj = Eigen::Vector3d::Zero(), e_Cj = Eigen::Vector3d::Zero();
+  Eigen::MatrixXd G_Pj, G_Cj;
   std::vector<int> attached_children;  // child nodes with parent_attach (flexible child body)
   // Ancestors of this node that carry speeds, nearest first, ending with the base (0), each
   // with the node below it on the path from here ("via": the child it moves this node through).
@@ -210,6 +260,8 @@ struct NodeWork {
   Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
   Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
   double sin_half = 0, cos_half = 1;  // revolute: sine and cosine of half the joint angle
+  // Prescribed joint at the time of the last set_time(): angle, rate theta', acceleration theta''.
+  double pres_angle = 0, pres_rate = 0, pres_accel = 0;
   Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
   Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
   Eigen::Vector3d w_NB_N, v_NBo_N;
@@ -235,6 +287,10 @@ struct NodeWork {
   NodeRotation rot_C;
   Eigen::Matrix3Xd Wm_N, Vm_N;
   Eigen::Vector3d w_m_N, v_m_N, jdot_m_N;
+  // Geometric stiffening at the attachment nodes: G eta (parent side, child side) and the
+  // second-order node accelerations R e (eta'^T G eta') (N components; zero without stiffening).
+  Eigen::VectorXd gP, gC;
+  Eigen::Vector3d b_att_N = Eigen::Vector3d::Zero(), b_m_N = Eigen::Vector3d::Zero();
 };
 
 // Per flexible body: the modal integrals evaluated at the state (body frame unless _N).
@@ -248,6 +304,18 @@ struct FlexWork {
   Eigen::Matrix3d L_B;               // sum m_i r_i (Phi_i eta')^T
   Eigen::Matrix3Xd Ce_B;             // 3 x n: sum_l eta_l' C_lk
   Eigen::Matrix3Xd pm_N, hm_N;       // 3 x n: momenta of S(k) about Ok per modal speed
+  // Geometric stiffening only (FlexModel::stiff), node sums at the state, with the effective
+  // shapes Phi~_i = Phi_i + e_i (G_i eta)^T (the partial velocities of node i for eta'):
+  //   S_B = sum m_i Phi~_i,  Mm = sum m_i Phi~_i^T Phi~_i  (replacing FlexModel::S, Mm);
+  //   b_i = e_i (eta'^T G_i eta') (the node's second-order acceleration at eta'' = 0):
+  //   bsum_N = R sum m_i b_i,  bmom_N = R sum m_i r_i x b_i,  bgen_l = sum m_i Phi~_il . b_i.
+  Eigen::Matrix3Xd S_B;
+  Eigen::MatrixXd Mm;
+  std::vector<Eigen::Matrix3Xd> Phit;  // per node
+  std::vector<Eigen::Vector3d> r;      // per node: p_i + u_i
+  std::vector<Eigen::VectorXd> g;      // per node: G_i eta
+  Eigen::Vector3d bsum_N = Eigen::Vector3d::Zero(), bmom_N = Eigen::Vector3d::Zero();
+  Eigen::VectorXd bgen;
 };
 
 // Per-node workspace of the order-N solver (kane_order_n.cpp); N components, about Ok.
@@ -311,7 +379,10 @@ class KaneEngine final : public Engine {
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
 
-  // Introspection for tests (allocate; not for the hot path).
+  // Introspection for tests (allocate; not for the hot path).  Prescribed joints take their
+  // angle, rate and acceleration at the time of the last set_time() (rhs, accelerations,
+  // output_row, pack, composite_udot and generalized_forces set it themselves).
+  void set_time(double t);
   int position_size() const { return n_q_; }
   int speed_size() const { return n_u_; }
   const std::vector<Node>& nodes() const { return nodes_; }
@@ -343,7 +414,12 @@ class KaneEngine final : public Engine {
   //   flexible bodies' rate terms (flex_velocity)
   void velocity_pass(const double* u);
   void remainder_pass();                                   // (q, u) => alpha_t_N, a_t_N
-  void subtree_pass(double t);                             // => m_sub, s_sub, J_sub, F_sub, M_sub
+  // => m_sub, s_sub, J_sub, F_sub, M_sub.  full: with the full accelerations alpha_N, a_N and
+  // udot_'s modal accelerations (after acceleration_pass; prescribed joints' torques) instead of
+  // the remainder ones.
+  void subtree_pass(double t, bool full = false);
+  // After dynamics(t, x): the torque of each prescribed joint into prescribed_torque_ (per node).
+  void prescribed_torque_pass(double t);
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   // (M_, f_) => udot_ (false: M not positive definite).  fixed_base_block: a rigid base's 6 x 6
@@ -356,8 +432,8 @@ class KaneEngine final : public Engine {
   void articulated_solve(double t);
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
   void dynamics(double t, const double* x);    // all of the above up to udot_
-  // The remainder (udot == nullptr) or full accelerations, into alpha_t/a_t or alpha/a.
-  void propagate_accelerations(const double* udot);
+  // The remainder (full false) or full accelerations, into alpha_t/a_t or alpha/a.
+  void propagate_accelerations(const double* udot, bool full);
   void flex_position(const Node& n, NodeWork& w, const double* eta);
   void flex_velocity(const Node& n, NodeWork& w, const double* eta_rate);
   // Mass-matrix row r (speed of node k) against k's speed ancestors, from the momenta p, h
@@ -396,6 +472,10 @@ class KaneEngine final : public Engine {
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
   int extra0_ = 0;                       // first extra column
+  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
+  NodeWork ground_;
+  bool has_prescribed_ = false;
+  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
 }  // namespace crossdyn::kane

@@ -216,4 +216,25 @@ inline TreeState random_flex_state(const System& system, std::mt19937& g, double
   return s;
 }
 
+// The same system with geometric stiffening on every flexible body (docs/flexible-bodies.md):
+// every node gets a random unit e_i and a random symmetric G_i (entries ~ size), so the
+// second-order displacement e_i (1/2 eta^T G_i eta) moves every node, joint nodes included.
+inline System stiffened(System s, unsigned seed = 5, double size = 0.5) {
+  std::mt19937 g(seed);
+  std::uniform_real_distribution<double> U(-1.0, 1.0);
+  for (Body& b : s.bodies) {
+    if (!b.flex) continue;
+    b.flex->geometric_stiffening = true;
+    const int n = b.flex->modes();
+    for (FlexNode& nd : b.flex->nodes) {
+      nd.e_B = Eigen::Vector3d(U(g), U(g), U(g)).normalized();
+      Eigen::MatrixXd G(n, n);
+      for (int k = 0; k < n; ++k)
+        for (int l = 0; l < n; ++l) G(k, l) = size * U(g);
+      nd.G = 0.5 * (G + G.transpose());
+    }
+  }
+  return s;
+}
+
 }  // namespace crossdyn::test::kane

@@ -92,6 +92,19 @@ TEST_CASE("kane: rhs performs no heap allocation") {
   loaded.bodies[0].torque.values = {Eigen::Vector3d(1, 0, 0)};
   // Flexible bodies everywhere, every load, deformed and moving.
   const System flexible = flex_tree(true);
+  // Issue 13: geometric stiffening everywhere and the revolute joints prescribed (the shoulder
+  // at a node of the flexible base); and a prescribed base carrying a stiffened flexible body.
+  System driven = stiffened(flex_tree(true));
+  for (std::size_t j = 1; j < driven.joints.size(); ++j) {
+    Joint& J = driven.joints[j];
+    if (J.type != JointType::Revolute) continue;
+    J.prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.0, 1.0};
+    J.stiffness = J.damping = 0;
+    J.motor_revolute = {};
+  }
+  System driven_base = stiffened(flex_tree(false));
+  driven_base.joints[0].type = JointType::Revolute;
+  driven_base.joints[0].prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.0, 1.0};
   struct Case {
     System system;
     kane::KaneSolver solver;
@@ -100,7 +113,8 @@ TEST_CASE("kane: rhs performs no heap allocation") {
       {spear1_case1(), kane::KaneSolver::Composite}, {chain(5), kane::KaneSolver::Composite},
       {loaded, kane::KaneSolver::Composite},         {flexible, kane::KaneSolver::Composite},
       {spear1_case1(), kane::KaneSolver::OrderN},    {chain(30), kane::KaneSolver::OrderN},
-      {loaded, kane::KaneSolver::OrderN}};
+      {loaded, kane::KaneSolver::OrderN},            {driven, kane::KaneSolver::Composite},
+      {driven_base, kane::KaneSolver::Composite}};
   for (const auto& [s, solver] : cases) {
     kane::KaneEngine e(s, {}, solver);
     std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());

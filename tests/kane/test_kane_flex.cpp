@@ -156,43 +156,47 @@ TEST_CASE(
 TEST_CASE("kane flex: positions, joints at nodes and particle velocities are consistent") {
   // The joint point is the same seen from both sides; R_NJc = R_NJp R_PJ0 R_J; every node's
   // velocity is the derivative of its position along the motion.
-  const System s = flex_tree(true);
-  kane::KaneEngine e(s, {});
-  std::mt19937 g(12);
-  for (int trial = 0; trial < 3; ++trial) {
-    std::vector<double> x = packed(e, random_flex_state(s, g)), xdot(x.size());
-    e.rhs(0.3, x.data(), xdot.data());
-    const auto frames = e.joint_frames(x.data());
-    double dp = 0, dR = 0;
-    for (std::size_t j = 1; j < s.joints.size(); ++j) {
-      const Joint& J = s.joints[j];
-      const kane::Node& n = e.nodes()[j];
-      dp = std::max(dp, (frames[j].p_NoJ_N_parent - frames[j].p_NoJ_N_child).norm());
-      Matrix3d R_J = Matrix3d::Identity();
-      if (J.type == JointType::Revolute)
-        R_J = Eigen::AngleAxisd(
-                  x[static_cast<std::size_t>(n.q0)],
-                  J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P.normalized())
-                  .toRotationMatrix();
-      if (J.type == JointType::Spherical)
-        R_J = Eigen::Quaterniond(
-                  x[static_cast<std::size_t>(n.q0)], x[static_cast<std::size_t>(n.q0 + 1)],
-                  x[static_cast<std::size_t>(n.q0 + 2)], x[static_cast<std::size_t>(n.q0 + 3)])
-                  .normalized()
-                  .toRotationMatrix();
-      dR = std::max(
-          dR, (frames[j].R_NJc - frames[j].R_NJp * J.q_PJ0.normalized().toRotationMatrix() * R_J)
-                  .cwiseAbs()
-                  .maxCoeff());
+  // Also with geometric stiffening (u_i = Phi_i eta + e_i 1/2 eta^T G_i eta, joint nodes too).
+  for (bool stiff : {false, true}) {
+    const System s = stiff ? stiffened(flex_tree(true)) : flex_tree(true);
+    kane::KaneEngine e(s, {});
+    std::mt19937 g(12);
+    INFO((stiff ? "with" : "without") << " geometric stiffening");
+    for (int trial = 0; trial < 3; ++trial) {
+      std::vector<double> x = packed(e, random_flex_state(s, g)), xdot(x.size());
+      e.rhs(0.3, x.data(), xdot.data());
+      const auto frames = e.joint_frames(x.data());
+      double dp = 0, dR = 0;
+      for (std::size_t j = 1; j < s.joints.size(); ++j) {
+        const Joint& J = s.joints[j];
+        const kane::Node& n = e.nodes()[j];
+        dp = std::max(dp, (frames[j].p_NoJ_N_parent - frames[j].p_NoJ_N_child).norm());
+        Matrix3d R_J = Matrix3d::Identity();
+        if (J.type == JointType::Revolute)
+          R_J = Eigen::AngleAxisd(
+                    x[static_cast<std::size_t>(n.q0)],
+                    J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P.normalized())
+                    .toRotationMatrix();
+        if (J.type == JointType::Spherical)
+          R_J = Eigen::Quaterniond(
+                    x[static_cast<std::size_t>(n.q0)], x[static_cast<std::size_t>(n.q0 + 1)],
+                    x[static_cast<std::size_t>(n.q0 + 2)], x[static_cast<std::size_t>(n.q0 + 3)])
+                    .normalized()
+                    .toRotationMatrix();
+        dR = std::max(
+            dR, (frames[j].R_NJc - frames[j].R_NJp * J.q_PJ0.normalized().toRotationMatrix() * R_J)
+                    .cwiseAbs()
+                    .maxCoeff());
+      }
+      const VectorXd v_fd =
+          derivative([&](double h) { return point_positions(e, along(x, xdot, h)); }, 1e-4);
+      const VectorXd v = point_velocities(e, x);
+      INFO("joint point gap " << dp << " m, joint frame error " << dR << ", max |v - dx/dt| "
+                              << (v - v_fd).cwiseAbs().maxCoeff() << " m/s");
+      CHECK(dp <= 1e-14);
+      CHECK(dR <= 1e-14);
+      CHECK(all_close(v, v_fd, 1e-9, 1e-10));
     }
-    const VectorXd v_fd =
-        derivative([&](double h) { return point_positions(e, along(x, xdot, h)); }, 1e-4);
-    const VectorXd v = point_velocities(e, x);
-    INFO("joint point gap " << dp << " m, joint frame error " << dR << ", max |v - dx/dt| "
-                            << (v - v_fd).cwiseAbs().maxCoeff() << " m/s");
-    CHECK(dp <= 1e-14);
-    CHECK(dR <= 1e-14);
-    CHECK(all_close(v, v_fd, 1e-9, 1e-10));
   }
 }
 
@@ -204,11 +208,15 @@ TEST_CASE("kane flex: Kane's equations F_r + F_r* = 0 hold particle by particle 
   //   sum_i V_r^i . (-m_i a_i) + sum_B W_r^B . (T_B - J alpha - w x J w)
   //     + sum_hinges (W_r^Jc - W_r^Jp) . tau  -  (K eta + D eta')_r  =  0     ([KLL] Eq. (4.11.2)).
   const double t = 0.4, h = 1e-4;
-  for (bool loaded : {false, true}) {
-    const System s = flex_tree(loaded);
+  // Also with geometric stiffening on every flexible body (stiffened(): its exactness, joint
+  // nodes included; the particles' positions and velocities of mass_points() carry it).
+  for (int variant = 0; variant < 4; ++variant) {
+    const bool loaded = variant % 2 == 1, stiff = variant >= 2;
+    const System s = stiff ? stiffened(flex_tree(loaded)) : flex_tree(loaded);
     kane::KaneEngine e(s, {});
     const int nq = e.position_size(), nu = e.speed_size();
     std::mt19937 g(loaded ? 31 : 32);
+    INFO((stiff ? "with" : "without") << " geometric stiffening");
     for (int trial = 0; trial < 3; ++trial) {
       std::vector<double> x = packed(e, random_flex_state(s, g)), xdot(x.size());
       e.rhs(t, x.data(), xdot.data());

@@ -103,7 +103,10 @@ std::vector<System> rigid_systems() {
   std::sort(files.begin(), files.end());
   for (const std::string& f : files) {
     System s = read_scene(f);
-    if (is_rigid(s)) out.push_back(std::move(s));
+    // The order-N solver declines prescribed joints (composite only): not its systems.
+    const bool prescribed = std::any_of(s.joints.begin(), s.joints.end(),
+                                        [](const Joint& j) { return j.prescribed.has_value(); });
+    if (is_rigid(s) && !prescribed) out.push_back(std::move(s));
   }
   REQUIRE(out.size() >= 5);
   for (const System& s : {chain(2), chain(7), chain(30), mixed_tree(), branched_tree()}) {
@@ -257,6 +260,14 @@ TEST_CASE("kane: the automatic choice takes order-N from kOrderNMinDepth speeds 
   const System flexible = flex_tree();
   CHECK(KaneEngine(flexible, {}).solver() == KaneSolver::Composite);
   CHECK_THROWS_AS(KaneEngine(flexible, {}, KaneSolver::OrderN), InputError);
+  // A prescribed joint keeps the composite solver (the order-N one declines it), and forcing
+  // order-N on it is refused.
+  System driven = chain(60);
+  driven.joints[3].type = JointType::Revolute;
+  driven.joints[3].axis_P = Eigen::Vector3d::UnitY();
+  driven.joints[3].prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.0, 2.0};
+  CHECK(KaneEngine(driven, {}).solver() == KaneSolver::Composite);
+  CHECK_THROWS_AS(KaneEngine(driven, {}, KaneSolver::OrderN), InputError);
   // Either solver can be forced where both apply.
   CHECK(KaneEngine(chain(80), {}, KaneSolver::Composite).solver() == KaneSolver::Composite);
   CHECK(KaneEngine(spear1_case1(), {}, KaneSolver::OrderN).solver() == KaneSolver::OrderN);

@@ -22,13 +22,16 @@ namespace {
 // external torque: H is.
 bool energy_conserved(const System& s) {
   for (const Joint& j : s.joints)
-    if (j.damping != 0 || !j.motor_revolute.empty() || !j.motor_spherical.empty()) return false;
+    if (j.damping != 0 || !j.motor_revolute.empty() || !j.motor_spherical.empty() ||
+        j.prescribed)  // a prescribed joint does work (test_kane_prescribed.cpp checks it)
+      return false;
   for (const Body& b : s.bodies)
     if (!b.torque.empty() || (b.flex && b.flex->D.size() && b.flex->D.cwiseAbs().maxCoeff() > 0))
       return false;
   return true;
 }
 bool momentum_conserved(const System& s) {
+  if (!s.base_is_free()) return false;  // a prescribed base: N applies the torque
   for (const Body& b : s.bodies)
     if (!b.torque.empty()) return false;
   return true;
