@@ -24,8 +24,13 @@ namespace crossdyn {
 // joints[j] describes System::joints[j]; only the fields of that joint's type are used.
 struct TreeState {
   // Base (the free joint, joints[0]). When the base is a prescribed revolute joint to N
-  // (System::base_is_free() false), these follow from its prescribed angle: initial() sets them
-  // at t = 0 and pack() ignores them.
+  // (System::base_is_free() false), these follow from its prescribed angle (initial() sets them
+  // for t = 0).
+  //
+  // Prescribed joints (docs/prescribed-motion.md): their angle and rate here, and a prescribed
+  // base's pose and velocity above, must be those of the profile at the time the run starts
+  // (initial() gives t = 0). Engines that keep body poses in their state (newton-euler) place
+  // bodies from them; the others take the prescribed motion from the profile at t.
   Eigen::Vector3d p_NoBo_N = Eigen::Vector3d::Zero();
   Eigen::Quaterniond q_NB = Eigen::Quaterniond::Identity();
   Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();

@@ -6,12 +6,14 @@
 // initial rate (a rotor speed), a prescribed joint's final rate, a flexible body's modal-stiffness
 // scale, the run's duration, or the number of links of chainN), the scene with that value is
 // studied exactly as `crossdyn study` does (harness/study.hpp, one timed run per configuration):
-// the same reference (analytic, or the engines' agreement at 1e-13), the same error metric
+// the same reference (analytic, or the engines' agreement at 1e-13, here required to half the
+// accuracy limit rather than the study's 1e-11), the same error metric
 // (history error: max over quantities and output times of |x - r| / the quantity's scale).
 //
 // The classes (classify(); first match wins):
 //   no reference  the reference could not be made at this value (the study refused it)
-//   singular      the run stopped at an Euler-angle singularity (lagrange without re-charting)
+//   singular      the run stopped at an Euler-angle singularity or gimbal lock (lagrange without
+//                 re-charting)
 //   too costly    the run hit the step limit or the time limit
 //   diverged      the run stopped on a non-finite or exploding state, a non-positive-definite
 //                 mass matrix or a step-size underflow; or it finished with a history error above

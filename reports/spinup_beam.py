@@ -15,6 +15,7 @@ Kane, Ryan and Banerjee (1987). Charts use matplotlib's Agg backend (Debian pyth
 
 import csv
 import os
+import re
 import subprocess
 import sys
 
@@ -33,7 +34,8 @@ def run(crossdyn, scene_path, engine, out_csv):
     subprocess.run([crossdyn, "run", scene_path, "--engine", engine, "--output", out_csv], check=True)
     with open(out_csv, newline="") as f:
         rows = list(csv.DictReader(f))
-    modes = [c for c in rows[0] if c.startswith("beam.q") and not c.endswith("_rate")]
+    # beam.qy1, beam.qy2, ...: the modal coordinates (not the quaternion column beam.qy)
+    modes = [c for c in rows[0] if re.fullmatch(r"beam\.q[xyz][0-9]+", c)]
     t = [float(r["t"]) for r in rows]
     tip = [sum(float(r[c]) for c in modes) for r in rows]
     torque = [float(r["spin.torque"]) for r in rows]

@@ -1851,7 +1851,8 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
       q_J = q.normalized();
     }
-    Quaterniond q_NJp = q_N[static_cast<std::size_t>(n.parent)];
+    // A prescribed base's parent is N (parent -1): its joint frame starts from the identity.
+    Quaterniond q_NJp = n.parent >= 0 ? q_N[static_cast<std::size_t>(n.parent)] : Quaterniond::Identity();
     if (n.parent_attach) q_NJp = q_NJp * rot::from_rotation_vector(work_[k].rot_P.psi);
     Quaterniond q = n.has_offset ? q_NJp * n.q_PJ0 * q_J : q_NJp * q_J;
     if (n.child_attach) q = q * rot::from_rotation_vector(work_[k].rot_C.psi).conjugate();

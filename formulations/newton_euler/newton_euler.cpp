@@ -599,11 +599,9 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   B.w_NB_B = s.w_NB_B;
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    TreeState::JointState js = s.joints[at(j)];
-    if (m.prescribed) {  // pack() ignores the TreeState's prescribed coordinates (engine.hpp)
-      js.angle = system_.joints[at(j)].angle0 + system_.joints[at(j)].prescribed->angle(0.0);
-      js.rate = system_.joints[at(j)].prescribed->velocity(0.0);
-    }
+    // A prescribed joint's angle and rate come from the TreeState like any other (engine.hpp:
+    // they must follow the profile at the time the run starts; TreeState::initial gives t = 0).
+    const TreeState::JointState& js = s.joints[at(j)];
     const BodyKinematics& P = parent_kinematics(j);
     BodyKinematics& C = bk_[at(m.child)];
     NodeFrame& F = jk_[at(j)].F;

@@ -16,7 +16,8 @@ bool conservative(const System& s) {
   for (const Body& b : s.bodies)
     if (!b.torque.empty()) return false;
   for (const Joint& j : s.joints)
-    if (j.damping != 0 || !j.motor_revolute.empty() || !j.motor_spherical.empty()) return false;
+    if (j.damping != 0 || !j.motor_revolute.empty() || !j.motor_spherical.empty() || j.prescribed)
+      return false;  // a prescribed joint does work (docs/prescribed-motion.md)
   return true;
 }
 

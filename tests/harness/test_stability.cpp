@@ -65,6 +65,8 @@ TEST_CASE("stability: the classifier, one constructed case per class and the ord
   // Failed runs, by the integrator's or engine's reason.
   CHECK(classify(failed("engine lagrange failed at t = 1 s (main.theta): main is at the singularity "
                         "of its 3-2-1 Euler angles"), lim).cls == StabilityClass::Singular);
+  CHECK(classify(failed("engine lagrange failed at t = 3.1 s (body.euler2 (3-2-1)): attitude of body 'body' "
+                        "reached gimbal lock of its 3-2-1 Euler angles"), lim).cls == StabilityClass::Singular);
   CHECK(classify(failed("engine kane failed at t = 2 s: step limit reached (1000 steps)"), lim).cls ==
         StabilityClass::TooCostly);
   CHECK(classify(failed("engine kane failed: time limit of 20 s reached"), lim).cls == StabilityClass::TooCostly);
