@@ -342,5 +342,47 @@ class CheckScenes(unittest.TestCase):
                                     "sign of child_point and the offset"])
 
 
+class StabilityMap(unittest.TestCase):
+    """The stability page (crossdyn stability --report): every cell drawn in its class's colour at
+    its row (integrator x setting) and column (parameter value), and the findings on the page."""
+
+    def summary(self):
+        cells = []
+        classes = ["accurate", "diverged", "too costly", "drift"]
+        for col, value in enumerate([10.0, 1000.0]):
+            for row, dt in enumerate([0.1, 0.01]):
+                cell = dict(engine="kane", integrator="rk4", fixed_step=True, setting=dt,
+                            setting_text="dt %g" % dt, column=col, why="because", history_error=1e-9,
+                            cpu=1e-3, rhs_calls=40, steps=10, h_lambda=dt * value)
+                cell["class"] = classes[2 * col + row]
+                cells.append(cell)
+        return {"tool": "crossdyn", "kind": "stability", "maps": [dict(
+            scene="toy", file="toy.yaml", id="toy-k", page="toy-k.html", csv="toy-k.csv",
+            parameter=dict(spec="hinge.stiffness", unit="N m/rad", description="the spring"),
+            limits=dict(tolerance=1e-8, drift_limit=1e-6, diverged_error=10.0),
+            columns=[dict(value=10.0, reference=True, reference_note="ok", lambda_max=10.0),
+                     dict(value=1000.0, reference=True, reference_note="ok", lambda_max=1000.0)],
+            engines=["kane"], integrators=["rk4"], cells=cells,
+            findings=["kane + rk4: it diverges at dt 0.1 when stiff"], notes=[])]}
+
+    def test_cells_are_coloured_by_class_and_the_findings_are_on_the_page(self):
+        from crossdyn_report import stability
+        from matplotlib.colors import to_rgb
+        with tempfile.TemporaryDirectory() as d:
+            summary = self.summary()
+            self.assertEqual(stability.report(summary, d, pages.environment(), pages.render, print), 0)
+            page = open(os.path.join(d, "toy-k.html"), encoding="utf-8").read()
+            self.assertIn("kane + rk4: it diverges at dt 0.1 when stiff", visible(page))
+            self.assertIn('src="toy-k.png"', page)
+            self.assertIn('href="toy-k.html"', open(os.path.join(d, "index.html"), encoding="utf-8").read())
+            # The map's pixel colours: each class present in the image.
+            import matplotlib.image as mpimg
+            img = mpimg.imread(os.path.join(d, "toy-k.png"))[:, :, :3]
+            for cls in ["accurate", "diverged", "too costly", "drift"]:
+                rgb = np.array(to_rgb(stability.CLASS_COLOURS[cls]))
+                close = np.all(np.abs(img - rgb) < 0.02, axis=2)
+                self.assertGreater(close.sum(), 500, cls)
+
+
 if __name__ == "__main__":
     unittest.main()
