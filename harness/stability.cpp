@@ -307,7 +307,12 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
     const System s = apply_knob(system, knob, v);
     StabilityColumn col;
     col.value = v;
-    col.lambda_max = jacobian_spectral_radius(s, specs.front().engine);
+    for (const EngineSpec& sp : specs) col.lambda_max.push_back(jacobian_spectral_radius(s, sp.engine));
+    auto lambda_of = [&](const std::string& label) {
+      for (std::size_t e = 0; e < specs.size(); ++e)
+        if (specs[e].label == label) return col.lambda_max[e];
+      return kNaN;
+    };
     const std::size_t c = m.columns.size();
     const bool H_conserved = momentum_not_conserved_reason(s).empty();
     const bool E_conserved = energy_not_conserved_reason(s).empty();
@@ -330,7 +335,7 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
         cell.rhs_calls = r.rhs_calls;
         cell.steps = r.steps;
         cell.history_error = r.error.history;
-        if (r.fixed_step) cell.h_lambda = r.dt * col.lambda_max;
+        if (r.fixed_step) cell.h_lambda = r.dt * lambda_of(r.engine);
         CellFacts f;
         f.ok = r.ok;
         f.failure = r.failure;
@@ -500,11 +505,12 @@ std::string format_stability(const StabilityMap& m) {
   o << "accurate: history error <= " << sci(m.limits.tolerance, 2) << "; drift: relative H or E drift > "
     << sci(m.limits.drift_limit, 2) << " where conserved\n";
   o << "legend: . accurate  i inaccurate  d drift  X diverged  S singular  C too costly  ? no reference\n";
-  o << "|lambda|max (1/s, Jacobian of " << m.engines.front() << " at t = 0):";
-  for (const StabilityColumn& c : m.columns) o << ' ' << g3(c.lambda_max);
-  o << "\n\n";
-  for (const std::string& e : m.engines) {
-    o << e << "\n" << std::string(24, ' ');
+  o << "|lambda|max: the largest |eigenvalue| of each engine's Jacobian at t = 0, 1/s\n\n";
+  for (std::size_t ei = 0; ei < m.engines.size(); ++ei) {
+    const std::string& e = m.engines[ei];
+    o << e << " (|lambda|max";
+    for (const StabilityColumn& c : m.columns) o << ' ' << g3(c.lambda_max[ei]);
+    o << ")\n" << std::string(24, ' ');
     for (const StabilityColumn& c : m.columns) {
       std::string v = g3(c.value);
       v.resize(9, ' ');
@@ -541,13 +547,15 @@ std::string format_stability(const StabilityMap& m) {
 
 std::string stability_csv(const StabilityMap& m) {
   std::ostringstream o;
-  o << "scene,parameter,value,lambda_max,engine,integrator,setting_kind,setting,class,why,history_error,"
+  o << "scene,parameter,value,engine,lambda_max,integrator,setting_kind,setting,class,why,history_error,"
        "cpu_ms,rhs_calls,steps,h_lambda\n";
   auto num = [](double v) { return std::isfinite(v) ? sci(v, 4) : std::string(); };
   for (const StabilityCell& c : m.cells) {
     const StabilityColumn& col = m.columns[c.column];
-    o << m.scene << ',' << m.knob.spec << ',' << sci(col.value, 6) << ',' << num(col.lambda_max) << ','
-      << c.engine << ',' << c.integrator << ',' << (c.fixed_step ? "dt" : "tolerance") << ','
+    const auto e = static_cast<std::size_t>(
+        std::find(m.engines.begin(), m.engines.end(), c.engine) - m.engines.begin());
+    o << m.scene << ',' << m.knob.spec << ',' << sci(col.value, 6) << ',' << c.engine << ','
+      << num(e < col.lambda_max.size() ? col.lambda_max[e] : kNaN) << ',' << c.integrator << ',' << (c.fixed_step ? "dt" : "tolerance") << ','
       << sci(c.setting, 6) << ',' << class_name(c.result.cls) << ',' << csv_field(c.result.why) << ','
       << num(c.history_error) << ',' << (c.result.cls == StabilityClass::NoReference ? "" : num(1e3 * c.cpu))
       << ',' << c.rhs_calls << ',' << c.steps << ',' << num(c.h_lambda) << '\n';

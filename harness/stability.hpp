@@ -25,9 +25,10 @@
 //                 tolerance, atol + rtol)
 //   inaccurate    anything else that finished
 //
-// The stiffness of each column. |lambda|max, the spectral radius of the Jacobian d xdot / dx of the
-// first engine's right-hand side at the initial state (central differences, step 1e-6 (1 + |x_j|)),
-// is the rate the fastest motion sets: rk4's stability region reaches |h lambda| ~ 2.8 (2.83 on
+// The stiffness of each column. |lambda|max, the spectral radius of the Jacobian d xdot / dx of
+// each engine's right-hand side at the initial state (central differences, step 1e-6 (1 + |x_j|)),
+// is the rate the fastest motion of that engine's state sets (engines differ: newton-euler's
+// state holds a rotor's fast attitude, kane's and lagrange's only its constant rate): rk4's stability region reaches |h lambda| ~ 2.8 (2.83 on
 // the imaginary axis, 2.79 on the real one; Hairer and Wanner, Solving ODEs II, Sec. IV.2), so
 // a step above 2.8 / |lambda|max diverges. The findings quote h |lambda|max for every rk4 cell.
 #pragma once
@@ -111,7 +112,7 @@ struct StabilityCell {
   double history_error = std::numeric_limits<double>::quiet_NaN();
   double cpu = 0;               // s, one run
   long rhs_calls = 0, steps = 0;
-  double h_lambda = std::numeric_limits<double>::quiet_NaN();  // rk4: dt |lambda|max
+  double h_lambda = std::numeric_limits<double>::quiet_NaN();  // rk4: dt |lambda|max (its engine's)
   std::string setting_text() const;  // "dt 0.0125" or "rtol 1e-08"
 };
 
@@ -119,7 +120,9 @@ struct StabilityColumn {
   double value = 0;
   bool reference = true;
   std::string reference_note;  // why there is none, or the reference's description
-  double lambda_max = std::numeric_limits<double>::quiet_NaN();  // 1/s
+  // |lambda|max per engine (StabilityMap::engines order), 1/s: each engine's own state, so an
+  // engine that integrates a fast rotor's attitude (newton-euler) sees its speed here.
+  std::vector<double> lambda_max;
 };
 
 struct StabilityMap {

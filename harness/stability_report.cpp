@@ -55,11 +55,14 @@ json map_json(const StabilityMap& m, const std::string& id) {
                  {"drift_limit", m.limits.drift_limit},
                  {"diverged_error", m.limits.diverged_error}};
   json cols = json::array();
-  for (const StabilityColumn& c : m.columns)
+  for (const StabilityColumn& c : m.columns) {
+    json lambda = json::array();  // per engine, in "engines" order
+    for (double l : c.lambda_max) lambda.push_back(number(l));
     cols.push_back({{"value", c.value},
                     {"reference", c.reference},
                     {"reference_note", c.reference_note},
-                    {"lambda_max", number(c.lambda_max)}});
+                    {"lambda_max", lambda}});
+  }
   j["columns"] = cols;
   j["engines"] = m.engines;
   j["integrators"] = m.integrators;

@@ -73,7 +73,8 @@ def chart_map(m, out_dir):
         p = m["parameter"]
         ax.set_xlabel("%s%s" % (p["spec"], (" (%s)" % p["unit"]) if p["unit"] else ""))
         ax.set_title(engine, fontsize="medium")
-        lam = [c.get("lambda_max") for c in m["columns"]]
+        e_index = m["engines"].index(engine)
+        lam = [(c.get("lambda_max") or [None] * len(m["engines"]))[e_index] for c in m["columns"]]
         if any(x is not None for x in lam):
             top = ax.secondary_xaxis("top")
             top.set_xticks(range(ncols))
@@ -88,11 +89,55 @@ def chart_map(m, out_dir):
     return name, ("Each cell is one run of %s: the engine (panel) with the integrator and step or "
                   "tolerance (row) at one value of %s (column), coloured by its class. Numbers in rk4 "
                   "cells are h |lambda|max: rk4 is stable only below about 2.8. |lambda|max (top axis) is "
-                  "the largest |eigenvalue| of the right-hand side's Jacobian at t = 0."
+                  "the largest |eigenvalue| of that engine's right-hand-side Jacobian at t = 0."
                   % (m["scene"], m["parameter"]["description"]))
 
 
-def map_context(summary, m, chart):
+def chart_cost(m, out_dir):
+    """Right-hand sides of the cheapest accurate run of each engine x integrator against the
+    parameter: what it costs to be accurate. Returns (file name, caption) or None."""
+    engines = [e for e in m["engines"] if any(c["engine"] == e for c in m["cells"])]
+    values = [c["value"] for c in m["columns"]]
+    fig, ax = plt.subplots(figsize=(9.5, 5.0))
+    colours = ["#1b9e77", "#d95f02", "#7570b3", "#e7298a", "#66a61e", "#e6ab02", "#a6761d", "#666666"]
+    markers = ["o", "s", "^", "D", "v", "P", "X", "*"]
+    dashes = ["-", "--", ":", "-."]
+    drawn = 0
+    for ei, engine in enumerate(engines):
+        for ii, integ in enumerate(m["integrators"]):
+            xs, ys = [], []
+            for col, v in enumerate(values):
+                ok = [c["rhs_calls"] for c in m["cells"] if c["engine"] == engine and c["integrator"] == integ
+                      and c["column"] == col and c["class"] == "accurate" and c["rhs_calls"] > 0]
+                if ok:
+                    xs.append(v)
+                    ys.append(min(ok))
+            if xs:
+                ax.plot(xs, ys, color=colours[ii % len(colours)], marker=markers[ei % len(markers)],
+                        linestyle=dashes[ei % len(dashes)], label="%s + %s" % (engine, integ))
+                drawn += 1
+    if not drawn:
+        plt.close(fig)
+        return None
+    if all(v > 0 for v in values):
+        ax.set_xscale("log")
+    ax.set_yscale("log")
+    p = m["parameter"]
+    ax.set_xlabel("%s%s" % (p["spec"], (" (%s)" % p["unit"]) if p["unit"] else ""))
+    ax.set_ylabel("right-hand sides of the cheapest accurate run")
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize="x-small", loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    name = "%s-cost.png" % m["id"]
+    save_figure(fig, os.path.join(out_dir, name))
+    return name, ("What it costs to be accurate on %s: for each engine (marker and dash) and integrator "
+                  "(colour), the right-hand-side calls of its cheapest accurate run at each value of %s; "
+                  "a line stops where no setting tried is accurate. Where a fixed step diverges, an "
+                  "adaptive method pays in steps instead, and an implicit one in fewer, costlier steps."
+                  % (m["scene"], p["spec"]))
+
+
+def map_context(summary, m, chart, cost=None):
     cells = []
     for c in m["cells"]:
         col = m["columns"][c["column"]]
@@ -102,9 +147,11 @@ def map_context(summary, m, chart):
                           rhs=c["rhs_calls"], h_lambda="" if c.get("h_lambda") is None else "%.3g" % c["h_lambda"]))
     p = m["parameter"]
     return dict(title="crossdyn stability: %s against %s" % (m["scene"], p["spec"]), scene=m["scene"],
-                file=m.get("file", ""), parameter=p, limits=m["limits"], chart=chart, csv=m["csv"],
+                file=m.get("file", ""), parameter=p, limits=m["limits"], chart=chart, cost=cost, csv=m["csv"],
                 findings=m.get("findings", []), notes=m.get("notes", []), cells=cells,
-                columns=[dict(value=gfmt(c["value"]), lam="-" if c.get("lambda_max") is None else "%.3g" % c["lambda_max"],
+                engines=m["engines"],
+                columns=[dict(value=gfmt(c["value"]),
+                              lam=["-" if x is None else "%.3g" % x for x in (c.get("lambda_max") or [])],
                               reference=c.get("reference_note", "")) for c in m["columns"]],
                 colours=CLASS_COLOURS)
 
@@ -125,6 +172,14 @@ def report(summary, out_dir, env, render, warn):
             plt.close("all")
             made = None
         chart = dict(name=made[0], caption=made[1]) if made else None
-        write_atomic(os.path.join(out_dir, m["page"]), render(env, "stability.html", map_context(summary, m, chart)))
+        try:
+            made = chart_cost(m, out_dir)
+        except Exception as e:
+            warn("%s: the cost chart failed: %r" % (m.get("scene"), e))
+            plt.close("all")
+            made = None
+        cost = dict(name=made[0], caption=made[1]) if made else None
+        write_atomic(os.path.join(out_dir, m["page"]),
+                     render(env, "stability.html", map_context(summary, m, chart, cost)))
     write_atomic(os.path.join(out_dir, "index.html"), render(env, "stability_index.html", index_context(summary)))
     return 0

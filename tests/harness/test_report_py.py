@@ -360,8 +360,8 @@ class StabilityMap(unittest.TestCase):
             scene="toy", file="toy.yaml", id="toy-k", page="toy-k.html", csv="toy-k.csv",
             parameter=dict(spec="hinge.stiffness", unit="N m/rad", description="the spring"),
             limits=dict(tolerance=1e-8, drift_limit=1e-6, diverged_error=10.0),
-            columns=[dict(value=10.0, reference=True, reference_note="ok", lambda_max=10.0),
-                     dict(value=1000.0, reference=True, reference_note="ok", lambda_max=1000.0)],
+            columns=[dict(value=10.0, reference=True, reference_note="ok", lambda_max=[10.0]),
+                     dict(value=1000.0, reference=True, reference_note="ok", lambda_max=[1000.0])],
             engines=["kane"], integrators=["rk4"], cells=cells,
             findings=["kane + rk4: it diverges at dt 0.1 when stiff"], notes=[])]}
 
