@@ -1,0 +1,22 @@
+#!/bin/bash
+# The standard stability maps of issue 13, as committed in reports/example/stability/: one
+# `crossdyn stability` command per map. Usage: scripts/stability_examples.sh [OUT_DIR]
+# (default /tmp/stability_examples). About 8 minutes on 2 cores (measured 2026-11-24:
+# hinge 104 s, modal 55 s, rotor 64 s, horizon 122 s, chain 116 s, lock 2 s).
+set -euo pipefail
+C=${CROSSDYN:-build/crossdyn}
+O=${1:-/tmp/stability_examples}
+mkdir -p "$O"
+# Explicit steppers against a hinge spring's stiffness: the rk4 limit h |lambda|max ~ 2.8.
+$C stability hub_two_panels --vary hinge1.stiffness --values 500..5e6 --timeout 60 -q --report "$O/hinge" > "$O/hinge.txt"
+# A stiff flexible appendage: the solar array's modal stiffness x 1 ... x 1e4 (EI x 1e4).
+$C stability hub_flex_array --vary array.modal_stiffness --values 1..1e4 --duration 6 --tolerance 1e-6 --timeout 60 -q --report "$O/modal" > "$O/modal.txt"
+# Fast rotors: the wheel from 10 rad/s to 10,000 rpm.
+$C stability dual_spin --vary bearing.rate --values 10,104.7,314,1047 --duration 5 --tolerance 1e-6 -q --report "$O/rotor" > "$O/rotor.txt"
+# Long horizons, with newton-euler's constraint stabilisation none / baumgarte / projection.
+$C stability chain5 --vary duration --values 10,100,1000 --engines kane,lagrange,newton-euler:none,newton-euler:baumgarte,newton-euler:projection --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 --tolerance 1e-6 --timeout 120 -q --report "$O/horizon" > "$O/horizon.txt"
+# Chain length.
+$C stability chain5 --vary links --values 2,4,8,16 --duration 2 -q --report "$O/chain" > "$O/chain.txt"
+# Euler-angle lock: lagrange with and without re-charting, runs that end before and after the lock.
+$C stability gimbal_lock --vary duration --values 1,2,3,5 --engines kane,lagrange,lagrange:no-rechart,newton-euler --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 -q --report "$O/lock" > "$O/lock.txt"
+echo "maps in $O"
