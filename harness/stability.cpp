@@ -378,7 +378,9 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
 
 namespace {
 
-std::string remedy(StabilityClass c, bool fixed_step, const std::string& engine) {
+std::string remedy(StabilityClass c, bool fixed_step, const std::string& engine,
+                   const std::string& integrator) {
+  const bool implicit = integrator.rfind("cvode-", 0) == 0;
   switch (c) {
     case StabilityClass::Diverged:
       return fixed_step
@@ -390,6 +392,12 @@ std::string remedy(StabilityClass c, bool fixed_step, const std::string& engine)
       return "turn Euler-angle re-charting on (lagrange's default) or use an engine with "
              "quaternions (kane, newton-euler)";
     case StabilityClass::TooCostly:
+      if (implicit)
+        return engine.rfind("newton-euler", 0) == 0
+                   ? "newton-euler's constraint projection restarts the multistep history after "
+                     "every step: use an explicit adaptive method (dop853) or another engine"
+                   : "this multistep method cannot take long steps here: use an explicit adaptive "
+                     "method (dop853), or leave out the fast modes that do not change the answer";
       return "the scene is stiff for an explicit method: use the implicit cvode-bdf, or leave out "
              "the fast modes or stiff springs that do not change the answer";
     case StabilityClass::Drift:
@@ -465,7 +473,7 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
           if (how.count(c)) most = c;
         sentence += where.str() + ". Fails mostly as " + class_name(most) +
                     (h_lambda_note.empty() ? "" : " (" + h_lambda_note + ")") +
-                    ". Remedy: " + remedy(most, fixed, e) + ".";
+                    ". Remedy: " + remedy(most, fixed, e, i) + ".";
       }
       out.push_back(sentence);
     }
