@@ -33,26 +33,30 @@ n=$1
 out=$2
 shift 2
 
-if [ -z "${CROSSDYN_SLURM_ROLE:-}" ]; then
+# The role comes from Slurm's variables: an array task runs a shard, another job the merge, and
+# outside Slurm the script submits both. (In a job, Slurm runs a copy of this script, so the
+# program is found through CROSSDYN, PATH or the submission folder's build/crossdyn.)
+if [ -n "${SLURM_ARRAY_TASK_ID:-}" ]; then
+  crossdyn=${CROSSDYN:-$(command -v crossdyn || echo "${SLURM_SUBMIT_DIR:-.}/build/crossdyn")}
+  k=$SLURM_ARRAY_TASK_ID
+  "$crossdyn" verify --quiet --shard "$k/$n" --part "$out/part-$k.json" "$@"
+  rc=$?
+  [ "$rc" -eq 1 ] && exit 0  # failed checks: the part is written, merge reports them
+  exit "$rc"
+elif [ -n "${SLURM_JOB_ID:-}" ]; then
+  crossdyn=${CROSSDYN:-$(command -v crossdyn || echo "${SLURM_SUBMIT_DIR:-.}/build/crossdyn")}
+  "$crossdyn" merge "$out"/part-*.json --json "$out/summary.json" --junit "$out/junit.xml"
+else
   # Submission (login node): the array, then the merge depending on it.
   here=$(cd "$(dirname "$0")" && pwd)
   export CROSSDYN=${CROSSDYN:-$(command -v crossdyn || echo "$here/../build/crossdyn")}
   mkdir -p "$out" || exit 2
   rm -f "$out"/part-*.json  # parts of an earlier run must not be merged with these
-  array=$(CROSSDYN_SLURM_ROLE=shard sbatch --parsable --export=ALL,CROSSDYN_SLURM_ROLE=shard \
-          --array=0-$((n - 1)) "$here/verify_slurm.sh" "$n" "$out" "$@") || exit 2
+  array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) "$here/verify_slurm.sh" "$n" "$out" "$@") ||
+    exit 2
   array=${array%%;*}  # --parsable prints "jobid" or "jobid;cluster"
-  merge=$(sbatch --parsable --export=ALL,CROSSDYN_SLURM_ROLE=merge --job-name=crossdyn-merge \
-          --output=crossdyn-merge-%j.out --dependency=afterok:"$array" \
-          "$here/verify_slurm.sh" "$n" "$out" "$@") || exit 2
+  merge=$(sbatch --parsable --export=ALL --job-name=crossdyn-merge --output=crossdyn-merge-%j.out \
+          --dependency=afterok:"$array" "$here/verify_slurm.sh" "$n" "$out" "$@") || exit 2
   echo "shards: job array ${array} (tasks 0-$((n - 1))); merge: job ${merge%%;*} (after all shards succeed)"
   echo "results: $out/summary.json, $out/junit.xml"
-elif [ "$CROSSDYN_SLURM_ROLE" = shard ]; then
-  k=${SLURM_ARRAY_TASK_ID:?"not run as a Slurm array task"}
-  "$CROSSDYN" verify --quiet --shard "$k/$n" --part "$out/part-$k.json" "$@"
-  rc=$?
-  [ "$rc" -eq 1 ] && exit 0  # failed checks: the part is written, merge reports them
-  exit "$rc"
-else
-  "$CROSSDYN" merge "$out"/part-*.json --json "$out/summary.json" --junit "$out/junit.xml"
 fi
