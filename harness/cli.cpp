@@ -176,6 +176,7 @@ int crossdyn_main(int argc, char** argv) {
     };
     static constexpr Command kCommands[] = {
         {"run", add_run_command},   {"compare", add_compare_command}, {"verify", add_verify_command},
+        {"merge", add_merge_command},
         {"list", add_list_command}, {"draw", add_draw_command},       {"converge", add_converge_command},
         {"study", add_study_command}, {"stability", add_stability_command}};
     const Command* named = nullptr;

@@ -11,6 +11,7 @@ namespace crossdyn {
 void add_run_command(CLI::App& app, int& exit_code);      // harness/run_command.cpp
 void add_compare_command(CLI::App& app, int& exit_code);  // harness/compare_command.cpp
 void add_verify_command(CLI::App& app, int& exit_code);   // harness/verify_command.cpp
+void add_merge_command(CLI::App& app, int& exit_code);    // harness/verify_command.cpp
 void add_draw_command(CLI::App& app, int& exit_code);     // harness/draw_command.cpp
 void add_list_command(CLI::App& app, int& exit_code);     // harness/list_command.cpp
 void add_converge_command(CLI::App& app, int& exit_code); // harness/converge_command.cpp

@@ -8,6 +8,7 @@
 #include "core/output.hpp"
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
+#include "harness/shard.hpp"
 #include "harness/verify.hpp"
 
 #include <cstdint>
@@ -31,6 +32,9 @@ struct VerifyCommandOptions {
   std::string python = "/usr/bin/python3";
   std::string report_script;
   CLI::Option* json_option = nullptr;
+  std::string shard;  // --shard K/N
+  std::string part;   // --part FILE
+  std::vector<std::string> parts;  // merge: the part files
 };
 
 // Opens an AtomicFile for an output in `f`, its folder created first (nothing for "").
@@ -40,51 +44,54 @@ void open_output(std::optional<AtomicFile>& f, const std::string& path, const st
   f.emplace(path, label);
 }
 
-int verify(VerifyCommandOptions& o) {
-  o.common.quiet = o.verify.quiet;  // --quiet also silences the progress line
-  // 1. Everything that can be refused before the work: options, scenes, outputs (exit 2).
-  o.verify.compare = harness::to_compare_options(o.common);
-  const std::vector<std::string> files = harness::scene_files(o.verify);
-  std::string json = o.json;
+// The outputs verify (and merge) open before the work: JSON summary and JUnit XML files, opened
+// now so that a bad path is refused (exit 2) before anything runs; checks that no output is an
+// input (`inputs`: the scene files, plus the report script here).
+struct Outputs {
+  std::string json;
+  std::string script;
+  std::optional<AtomicFile> json_file, junit_file;
+};
+void open_outputs(VerifyCommandOptions& o, std::vector<NamedPath> inputs, Outputs& out) {
+  out.json = o.json;
   // The report folder has its own summary.json; write another only when asked.
-  if (o.report && o.json_option->count() == 0) json.clear();
-  const std::string script = o.report_script.empty() ? harness::installed_report_script()
-                                                     : o.report_script;
-  std::vector<NamedPath> inputs, outputs{{"standard output", "-"}}, folders;
-  for (const std::string& f : files) inputs.push_back({"the scene file", f});
+  if (o.report && o.json_option->count() == 0) out.json.clear();
+  out.script = o.report_script.empty() ? harness::installed_report_script() : o.report_script;
+  std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
   if (o.report) {
-    inputs.push_back({"the report script", script});
+    inputs.push_back({"the report script", out.script});
     folders.push_back({"--report", *o.report});
   }
-  if (!json.empty()) outputs.push_back({"--json", json});
+  if (!out.json.empty()) outputs.push_back({"--json", out.json});
   if (!o.junit.empty()) outputs.push_back({"--junit", o.junit});
   check_outputs_are_not_inputs(outputs, inputs, folders);
-  std::optional<AtomicFile> json_file, junit_file;
-  open_output(json_file, json, "--json");
-  open_output(junit_file, o.junit, "--junit");
+  open_output(out.json_file, out.json, "--json");
+  open_output(out.junit_file, o.junit, "--junit");
+}
 
-  // 2. The verdict: every scene compared, the table, the JSON summary, the JUnit XML.
-  const harness::VerifyResult result = harness::run_verify(o.verify, files);
+// What verify writes after the comparisons: the table, the JSON summary, the JUnit XML, then the
+// report (whose failure never changes the verdict). Returns the exit status.
+int write_outputs(VerifyCommandOptions& o, Outputs& out, const harness::VerifyResult& result) {
   std::cout << harness::format_verify_table(result);
   check_written(std::cout);
-  if (json_file) {
-    json_file->stream() << harness::json_summary(result.scenes);
-    json_file->commit();
-    std::cout << "JSON summary: " << json << '\n';
+  if (out.json_file) {
+    out.json_file->stream() << harness::json_summary(result.scenes);
+    out.json_file->commit();
+    std::cout << "JSON summary: " << out.json << '\n';
   }
-  if (junit_file) {
-    junit_file->stream() << harness::junit_xml(result.scenes);
-    junit_file->commit();
+  if (out.junit_file) {
+    out.junit_file->stream() << harness::junit_xml(result.scenes);
+    out.junit_file->commit();
     std::cout << "JUnit XML: " << o.junit << '\n';
   }
   check_written(std::cout);
 
-  // 3. The report: its failure is reported, never the verdict; Ctrl-C during it is 130.
+  // The report: its failure is reported, never the verdict; Ctrl-C during it is 130.
   if (o.report) {
     harness::ReportOptions r;
     r.dir = *o.report;
     r.python = o.python;
-    r.script = script;
+    r.script = out.script;
     try {
       harness::write_report(result.scenes, r);
       std::cout << "report: " << r.dir << "/index.html\n";
@@ -101,6 +108,71 @@ int verify(VerifyCommandOptions& o) {
     check_written(std::cout);
   }
   return result.exit_code();
+}
+
+// verify --shard K/N --part FILE: slice K's scenes only, its table, and the part file for merge.
+// The exit status is slice K's verdict (merge gives the whole run's).
+int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files) {
+  const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
+  if (o.part.empty())
+    throw InputError("--shard: give --part FILE, the part file `crossdyn merge` combines");
+  if (o.json_option->count() > 0 || !o.junit.empty() || o.report)
+    throw InputError("--shard/--part: --json, --junit and --report are written by `crossdyn merge "
+                     "PARTS...` from all the parts, not by one shard");
+  std::vector<NamedPath> inputs;
+  for (const std::string& f : files) inputs.push_back({"the scene file", f});
+  check_outputs_are_not_inputs({{"standard output", "-"}, {"--part", o.part}}, inputs, {});
+  std::optional<AtomicFile> part_file;
+  open_output(part_file, o.part, "--part");
+  const std::vector<harness::ShardScene> plan = harness::plan_shards(files, shard.count);
+  std::vector<std::string> own;
+  for (const harness::ShardScene& s : plan)
+    if (s.shard == shard.index) own.push_back(s.path);
+  if (!o.verify.quiet)
+    std::cerr << "verify: shard " << shard.index << "/" << shard.count << ": " << own.size()
+              << " of " << files.size() << " scenes\n";
+  const harness::VerifyResult result = harness::run_verify(o.verify, own);
+  std::cout << harness::format_verify_table(result);
+  part_file->stream() << harness::part_json(shard, plan, result.scenes);
+  part_file->commit();
+  std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
+  check_written(std::cout);
+  return result.exit_code();
+}
+
+int verify(VerifyCommandOptions& o) {
+  o.common.quiet = o.verify.quiet;  // --quiet also silences the progress line
+  // 1. Everything that can be refused before the work: options, scenes, outputs (exit 2).
+  o.verify.compare = harness::to_compare_options(o.common);
+  if (!o.shard.empty()) harness::parse_shard(o.shard);  // a bad --shard before anything else
+  const std::vector<std::string> files = harness::scene_files(o.verify);
+  if (!o.shard.empty() || !o.part.empty()) return verify_shard(o, files);
+  std::vector<NamedPath> inputs;
+  for (const std::string& f : files) inputs.push_back({"the scene file", f});
+  Outputs out;
+  open_outputs(o, inputs, out);
+
+  // 2. The verdict: every scene compared, the table, the JSON summary, the JUnit XML, the report.
+  const harness::VerifyResult result = harness::run_verify(o.verify, files);
+  return write_outputs(o, out, result);
+}
+
+// crossdyn merge PARTS...: the parts checked (harness/shard.hpp merge_parts), then exactly what
+// verify writes for the whole run.
+int merge(VerifyCommandOptions& o) {
+  std::vector<harness::Part> parts;
+  std::vector<NamedPath> inputs;
+  for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
+  Outputs out;
+  open_outputs(o, inputs, out);
+  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
+  int checked = 0;
+  harness::VerifyResult result;
+  result.scenes = harness::merge_parts(parts, harness::version(), &checked);
+  if (!o.verify.quiet)
+    std::cerr << "merge: " << parts.size() << " parts, " << result.scenes.size() << " scenes ("
+              << checked << " scene files on disk checked against their SHA-256)\n";
+  return write_outputs(o, out, result);
 }
 
 }  // namespace
@@ -143,7 +215,47 @@ void add_verify_command(CLI::App& app, int& exit_code) {
   sub->add_flag("--quiet,-q", o->verify.quiet, "No progress line per scene on stderr");
   sub->add_flag("--no-converge", [o](std::int64_t) { o->verify.converge = false; },
                 "Do not run `converge` on flexible scenes (the report's model-size section)");
+  sub->add_option("--shard", o->shard,
+                  "Run only slice K of N (K counts from 0: 0/4, 1/4, 2/4, 3/4, as Slurm's "
+                  "SLURM_ARRAY_TASK_ID) and write --part FILE for `crossdyn merge`. Scenes are "
+                  "assigned by content (SHA-256 of name and bytes) and balanced by a static cost "
+                  "estimate, so the slices do not depend on the order the scenes are named in")
+      ->type_name("K/N");
+  sub->add_option("--part", o->part,
+                  "With --shard: write this shard's part file (JSON: version, all scenes with "
+                  "their SHA-256, this slice's full results); without --shard: the whole run as "
+                  "part 0/1");
   sub->callback([o, &exit_code] { exit_code = verify(*o); });
+}
+
+void add_merge_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<VerifyCommandOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "merge",
+      "Combine the part files of `crossdyn verify --shard K/N --part FILE` (K = 0..N-1) into\n"
+      "exactly the table, JSON summary, JUnit XML and report an unsharded `verify` writes (run\n"
+      "times are each part's own). Refused, exit status 2, naming what is wrong: parts of another\n"
+      "crossdyn version, of different N, a missing or repeated shard, different scene lists or\n"
+      "scene hashes, or a scene file on disk that changed since (run merge where the shards ran).\n"
+      "Otherwise the exit status is the whole run's verdict, as verify's.");
+  sub->add_option("parts", o->parts, "The part files, one per shard, in any order")->required();
+  o->json_option = sub->add_option("--json", o->json,
+                                   "Write the JSON summary to FILE (default: "
+                                   "reports/latest/summary.json, or only DIR/summary.json with "
+                                   "--report DIR)");
+  sub->add_option("--junit", o->junit, "Write JUnit XML to FILE (for CI)");
+  sub->add_option("--report", o->report,
+                  "Write the HTML report to DIR (default when given without DIR: reports/latest; "
+                  "write --report=DIR after the parts)")
+      ->expected(0, 1)
+      ->default_str("reports/latest");
+  sub->add_option("--python", o->python,
+                  "Python with matplotlib for the report (default: /usr/bin/python3, Debian's)");
+  sub->add_option("--report-script", o->report_script,
+                  "The report script to run (default: reports/make_report.py of the source tree "
+                  "crossdyn was built from)");
+  sub->add_flag("--quiet,-q", o->verify.quiet, "No summary line on stderr");
+  sub->callback([o, &exit_code] { exit_code = merge(*o); });
 }
 
 }  // namespace crossdyn

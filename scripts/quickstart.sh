@@ -8,10 +8,12 @@ cd "$(dirname "$0")/.."
 
 # The report and `crossdyn draw` run reports/*.py with /usr/bin/python3: matplotlib and Jinja2.
 # catch2 is Catch2 v2 on Debian 12 (bookworm); libsundials-dev is SUNDIALS 6.4 (the CVODE
-# integrators); libfmt-dev is fmt 9, used header-only (its Dragonbox writes the CSV numbers).
-# .ci/run uses this list (it runs this script).
+# integrators); libfmt-dev is fmt 9, used header-only (its Dragonbox writes the CSV numbers);
+# parallel is GNU parallel (scripts/verify_parallel.sh and its test). .ci/run uses this list (it
+# runs this script).
 packages=(build-essential cmake libeigen3-dev libboost-dev libyaml-cpp-dev catch2 libbenchmark-dev
-          libcli11-dev nlohmann-json3-dev libsundials-dev libfmt-dev python3-matplotlib python3-jinja2)
+          libcli11-dev nlohmann-json3-dev libsundials-dev libfmt-dev python3-matplotlib python3-jinja2
+          parallel)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,82 @@
+// Sharding `crossdyn verify` across processes or machines, and merging the parts (README
+// "Sharding a sweep").
+//
+// `verify --shard K/N --part FILE` (K = 0 .. N-1, zero-based like Slurm's SLURM_ARRAY_TASK_ID and
+// GNU parallel's {%}-1) compares only the scenes of slice K and writes a part file (JSON, below).
+// `crossdyn merge PARTS...` checks the parts belong together and writes exactly the summary table,
+// JSON summary, JUnit XML and report that an unsharded `verify` over the same scenes writes.
+//
+// The slicing (assign_shards): each scene's identity is the SHA-256 of its file name (without
+// folder) and its bytes, and its cost a static estimate (scene_cost). The scenes are sorted by
+// cost (largest first; equal costs by identity) and each goes to the shard with the least cost so
+// far (longest processing time first; equal loads: the lowest K). The result depends only on the
+// set of scenes, never on the order they were named in, and is the same in every shard.
+//
+// The part file: {"tool": "crossdyn-part", "format": 1, "version": harness::version(),
+// "shard": {"index": K, "count": N}, "scenes": [{"path", "sha256", "cost", "shard"} for every
+// scene of the whole run, in the run's order], "outcomes": [the full SceneOutcome of every scene
+// of slice K: the scene as read (write_scene_text), the comparison with its runs' rows, checks and
+// notes, converge's result]}. Doubles are written in shortest round-trip form, and NaN and
+// infinities as the strings "nan", "inf", "-inf", so a merged file carries the same numbers to
+// the last bit. Run times (wall_seconds) are each part's own.
+#pragma once
+
+#include "harness/report.hpp"
+
+#include <string>
+#include <vector>
+
+namespace crossdyn::harness {
+
+// --shard K/N: slice K (0-based) of N.
+struct ShardSpec {
+  int index = 0;
+  int count = 1;
+};
+// Parses "K/N" (0 <= K < N, 1 <= N <= 10000); InputError naming --shard and the value otherwise.
+ShardSpec parse_shard(const std::string& text);
+
+// One scene of a (sharded) verify run, as listed in every part.
+struct ShardScene {
+  std::string path;    // as verify was given it (scene_files)
+  std::string sha256;  // of the file's bytes; "" when it cannot be read
+  double cost = 0;     // scene_cost
+  int shard = 0;       // assign_shards
+};
+
+// SHA-256 of a file's bytes, "" when it cannot be read.
+std::string file_sha256(const std::string& path);
+
+// The static cost estimate of comparing one scene: output rows (duration / output_step, or the
+// rk4 steps duration / dt when more) x bodies x (1 + modes), times 3 engines, plus one kane run
+// per converge model for flexible scenes (as verify runs them). 1 for a scene that cannot be read
+// (it costs nothing but still has to land somewhere). Cheap: reads the scene, runs nothing.
+double scene_cost(const std::string& path);
+
+// The scenes of a run (path, hash, cost) with their shard among `count` (see the file comment).
+std::vector<ShardScene> plan_shards(const std::vector<std::string>& files, int count);
+
+// A part file's text: the shard, every scene of the run and the outcomes of slice `shard`
+// (`own`, in the run's order).
+std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& scenes,
+                      const std::vector<SceneOutcome>& own);
+
+struct Part {
+  std::string file;  // where it was read from (messages)
+  std::string version;
+  ShardSpec shard;
+  std::vector<ShardScene> scenes;
+  std::vector<SceneOutcome> outcomes;
+};
+// Reads a part file; InputError naming the file when it cannot be read or is not a part.
+Part read_part(const std::string& file);
+
+// The whole run's outcomes, in the run's order, from parts that belong together. InputError
+// (exit 2) naming what is wrong when they do not: another crossdyn version than `version`, a
+// different N, a shard given twice (which K, which files) or missing (which K), different scene
+// lists or scene hashes, or a scene file on disk that no longer matches its hash (checked for the
+// files that can be found; `checked` is set to how many were).
+std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& version,
+                                      int* checked = nullptr);
+
+}  // namespace crossdyn::harness
