@@ -17,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <numeric>
+#include <set>
 #include <sstream>
 
 namespace crossdyn::harness {
@@ -64,15 +65,20 @@ std::string file_sha256(const std::string& path) {
   return read_bytes(path, bytes) ? sha256_hex(bytes) : "";
 }
 
+double system_run_cost(const System& s) {
+  double steps = s.run.duration / s.run.output_step;
+  if (s.run.integrator == Integrator::Rk4) steps = std::max(steps, s.run.duration / s.run.dt);
+  double modes = 0;
+  for (const Body& b : s.bodies) modes += b.flex ? b.flex->modes() : 0;
+  const double cost = (steps + 1) * static_cast<double>(s.bodies.size()) * (1 + modes);
+  return std::isfinite(cost) && cost > 0 ? cost : 1;
+}
+
 double scene_cost(const std::string& path) {
   try {
     std::vector<SceneWarning> warnings;  // verify prints them; the estimate stays quiet
     const System s = read_scene(path, &warnings);
-    double steps = s.run.duration / s.run.output_step;
-    if (s.run.integrator == Integrator::Rk4) steps = std::max(steps, s.run.duration / s.run.dt);
-    double modes = 0;
-    for (const Body& b : s.bodies) modes += b.flex ? b.flex->modes() : 0;
-    const double one_run = (steps + 1) * static_cast<double>(s.bodies.size()) * (1 + modes);
+    const double one_run = system_run_cost(s);
     double runs = 3;  // the engines compare runs
     long models = 1;
     for (const ModeGroup& g : mode_groups(s)) models *= static_cast<long>(g.modes.size()) + 1;
@@ -85,25 +91,40 @@ double scene_cost(const std::string& path) {
 }
 
 std::vector<ShardScene> plan_shards(const std::vector<std::string>& files, int count) {
-  std::vector<ShardScene> scenes;
-  std::vector<std::string> identity;  // SHA-256 of file name + bytes: independent of the order
+  std::vector<ShardScene> units;
   for (const std::string& f : files) {
     ShardScene s;
     s.path = f;
-    std::string bytes;
-    const bool readable = read_bytes(f, bytes);
-    s.sha256 = readable ? sha256_hex(bytes) : "";
     s.cost = scene_cost(f);
-    identity.push_back(sha256_hex(fs::path(f).filename().string() + '\n' + bytes));
-    scenes.push_back(s);
+    units.push_back(s);
   }
-  // Longest processing time first over (cost, identity, path): a total order on the scenes.
+  return plan_units(std::move(units), count);
+}
+
+std::vector<ShardScene> plan_units(std::vector<ShardScene> scenes, int count) {
+  std::vector<std::string> identity;  // SHA-256 of file name + bytes (+ item): order-independent
+  std::map<std::string, std::pair<bool, std::string>> file_of;  // read once (stability: many units)
+  for (ShardScene& s : scenes) {
+    auto it = file_of.find(s.path);
+    if (it == file_of.end()) {
+      std::string bytes;
+      const bool readable = read_bytes(s.path, bytes);
+      it = file_of.emplace(s.path, std::make_pair(readable, readable ? bytes : std::string())).first;
+    }
+    const auto& [readable, bytes] = it->second;
+    s.sha256 = readable ? sha256_hex(bytes) : "";
+    std::string id = fs::path(s.path).filename().string() + '\n' + bytes;
+    if (!s.item.empty()) id += '\n' + s.item;
+    identity.push_back(sha256_hex(id));
+  }
+  // Longest processing time first over (cost, identity, path, item): a total order on the units.
   std::vector<std::size_t> order(scenes.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     if (scenes[a].cost != scenes[b].cost) return scenes[a].cost > scenes[b].cost;
     if (identity[a] != identity[b]) return identity[a] < identity[b];
-    return scenes[a].path < scenes[b].path;
+    if (scenes[a].path != scenes[b].path) return scenes[a].path < scenes[b].path;
+    return scenes[a].item < scenes[b].item;
   });
   std::vector<double> load(static_cast<std::size_t>(count), 0.0);
   for (std::size_t i : order) {
@@ -323,9 +344,31 @@ std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& sce
   const json j = {{"tool", "crossdyn-part"},
                   {"format", 1},
                   {"version", version()},
+                  {"command", "verify"},
                   {"shard", {{"index", shard.index}, {"count", shard.count}}},
                   {"scenes", list},
                   {"outcomes", outcomes}};
+  return j.dump() + "\n";
+}
+
+std::string sweep_part_json(const std::string& command, const PartOptions& options,
+                            const ShardSpec& shard, const std::vector<ShardScene>& units,
+                            const std::string& frame, const std::vector<std::string>& items) {
+  json list = json::array(), opts = json::array(), own = json::array();
+  for (const ShardScene& s : units)
+    list.push_back({{"path", s.path}, {"sha256", s.sha256}, {"cost", s.cost}, {"shard", s.shard},
+                    {"item", s.item}});
+  for (const auto& [k, v] : options) opts.push_back({k, v});
+  for (const std::string& i : items) own.push_back(json::parse(i));
+  const json j = {{"tool", "crossdyn-part"},
+                  {"format", 1},
+                  {"version", version()},
+                  {"command", command},
+                  {"options", opts},
+                  {"shard", {{"index", shard.index}, {"count", shard.count}}},
+                  {"scenes", list},
+                  {"frame", json::parse(frame)},
+                  {"items", own}};
   return j.dump() + "\n";
 }
 
@@ -337,11 +380,15 @@ Part read_part(const std::string& file) {
   try {
     const json j = json::parse(text);
     if (!j.is_object() || j.value("tool", "") != "crossdyn-part")
-      throw InputError("it is not a crossdyn part file (written by `crossdyn verify --shard K/N "
-                       "--part FILE`)");
+      throw InputError("it is not a crossdyn part file (written by `crossdyn verify|study|"
+                       "stability --shard K/N --part FILE`)");
     if (j.at("format").get<int>() != 1)
       throw InputError("part format " + j.at("format").dump() + " is not the one this crossdyn reads (1)");
     p.version = j.at("version").get<std::string>();
+    p.command = j.value("command", "verify");
+    if (j.contains("options"))
+      for (const json& kv : j.at("options"))
+        p.options.emplace_back(kv.at(0).get<std::string>(), kv.at(1).get<std::string>());
     p.shard.index = j.at("shard").at("index").get<int>();
     p.shard.count = j.at("shard").at("count").get<int>();
     if (p.shard.count < 1 || p.shard.index < 0 || p.shard.index >= p.shard.count)
@@ -352,9 +399,15 @@ Part read_part(const std::string& file) {
       x.sha256 = s.at("sha256").get<std::string>();
       x.cost = s.at("cost").get<double>();
       x.shard = s.at("shard").get<int>();
+      x.item = s.value("item", "");
       p.scenes.push_back(x);
     }
-    for (const json& o : j.at("outcomes")) p.outcomes.push_back(outcome_from(o));
+    if (p.command == "verify") {
+      for (const json& o : j.at("outcomes")) p.outcomes.push_back(outcome_from(o));
+    } else {
+      p.frame = j.at("frame").dump();
+      for (const json& i : j.at("items")) p.items.push_back(i.dump());
+    }
   } catch (const InputError& e) {
     throw InputError("part file '" + file + "': " + e.what());
   } catch (const json::exception& e) {
@@ -363,15 +416,37 @@ Part read_part(const std::string& file) {
   return p;
 }
 
-std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& ver,
-                                      int* checked) {
+void check_parts(const std::vector<Part>& parts, const std::string& ver, int* checked) {
   if (parts.empty()) throw InputError("merge: no part files given");
   const Part& first = parts.front();
-  // 1. The same crossdyn, and the same N.
+  // 1. The same crossdyn, the same command with the same options, and the same N.
   for (const Part& p : parts)
     if (p.version != ver)
       throw InputError("part '" + p.file + "' was written by crossdyn " + p.version +
                        ", this is crossdyn " + ver + ": merge parts of one version with that version");
+  for (const Part& p : parts)
+    if (p.command != first.command)
+      throw InputError("parts of different commands: '" + first.file + "' was written by `crossdyn " +
+                       first.command + "`, '" + p.file + "' by `crossdyn " + p.command +
+                       "` (merge the parts of one run)");
+  for (const Part& p : parts) {
+    const auto value = [](const PartOptions& o, const std::string& key) -> std::string {
+      for (const auto& [k, v] : o)
+        if (k == key) return v;
+      return "(not given)";
+    };
+    PartOptions keys = first.options;
+    for (const auto& kv : p.options)
+      if (std::none_of(keys.begin(), keys.end(), [&](const auto& x) { return x.first == kv.first; }))
+        keys.push_back(kv);
+    for (const auto& kv : keys) {
+      const std::string a = value(first.options, kv.first), b = value(p.options, kv.first);
+      if (a != b)
+        throw InputError("parts made with different options: " + kv.first + " is '" + a + "' in '" +
+                         first.file + "' but '" + b + "' in '" + p.file +
+                         "' (every shard of a run needs the same options)");
+    }
+  }
   for (const Part& p : parts)
     if (p.shard.count != first.shard.count)
       throw InputError("parts of different shard counts: '" + first.file + "' is shard " +
@@ -402,9 +477,11 @@ std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std:
     for (std::size_t i = 0; i < p.scenes.size(); ++i) {
       const ShardScene& a = first.scenes[i];
       const ShardScene& b = p.scenes[i];
-      if (a.path != b.path)
-        throw InputError("parts of different runs: scene " + std::to_string(i + 1) + " is '" +
-                         a.path + "' in '" + first.file + "' but '" + b.path + "' in '" + p.file + "'");
+      if (a.path != b.path || a.item != b.item)
+        throw InputError("parts of different runs: unit " + std::to_string(i + 1) + " is '" +
+                         a.path + (a.item.empty() ? "" : " " + a.item) + "' in '" + first.file +
+                         "' but '" + b.path + (b.item.empty() ? "" : " " + b.item) + "' in '" +
+                         p.file + "'");
       if (a.sha256 != b.sha256)
         throw InputError("scene '" + a.path + "' changed between the shards: SHA-256 " + a.sha256 +
                          " in '" + first.file + "', " + b.sha256 + " in '" + p.file + "'");
@@ -416,8 +493,10 @@ std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std:
   }
   // 4. The files on disk, where they can be found, still hold what was compared.
   int n_checked = 0;
+  std::set<std::string> seen;  // a file once (stability: a unit per value)
   for (const ShardScene& s : first.scenes) {
     std::error_code ec;
+    if (!seen.insert(s.path).second) continue;
     if (s.sha256.empty() || !fs::is_regular_file(s.path, ec)) continue;
     const std::string now = file_sha256(s.path);
     if (now != s.sha256)
@@ -427,6 +506,15 @@ std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std:
     ++n_checked;
   }
   if (checked) *checked = n_checked;
+}
+
+std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& ver,
+                                      int* checked) {
+  check_parts(parts, ver, checked);
+  const Part& first = parts.front();
+  if (first.command != "verify")
+    throw InputError("part '" + first.file + "' was written by `crossdyn " + first.command +
+                     "`, not `crossdyn verify`");
   // 5. Each scene's outcome from its shard's part, in the run's order.
   std::vector<SceneOutcome> out;
   std::vector<std::size_t> next(parts.size(), 0);
@@ -442,6 +530,215 @@ std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std:
     if (next[p] != parts[p].outcomes.size())
       throw InputError("part '" + parts[p].file + "' holds outcomes of scenes that are not its shard's");
   return out;
+}
+
+std::vector<std::string> merge_items(const std::vector<Part>& parts, const std::string& ver,
+                                     int* checked) {
+  check_parts(parts, ver, checked);
+  std::map<int, std::size_t> part_of;
+  for (std::size_t p = 0; p < parts.size(); ++p) part_of[parts[p].shard.index] = p;
+  std::vector<std::size_t> next(parts.size(), 0);
+  std::vector<std::string> out;
+  for (const ShardScene& s : parts.front().scenes) {
+    const std::size_t p = part_of.at(s.shard);
+    if (next[p] >= parts[p].items.size())
+      throw InputError("part '" + parts[p].file + "' lacks the result of its unit '" + s.path +
+                       (s.item.empty() ? "" : " " + s.item) + "'");
+    out.push_back(parts[p].items[next[p]++]);
+  }
+  for (std::size_t p = 0; p < parts.size(); ++p)
+    if (next[p] != parts[p].items.size())
+      throw InputError("part '" + parts[p].file + "' holds results of units that are not its shard's");
+  return out;
+}
+
+// ---- study and stability items ------------------------------------------------------------------
+
+namespace {
+
+json nums(const std::vector<double>& v) {
+  json a = json::array();
+  for (double x : v) a.push_back(num(x));
+  return a;
+}
+
+std::vector<double> get_nums(const json& j) {
+  std::vector<double> v;
+  for (const json& x : j) v.push_back(get_num(x));
+  return v;
+}
+
+json row_to(const StudyRow& r) {
+  return {{"engine", r.engine}, {"integrator", r.integrator}, {"fixed_step", r.fixed_step},
+          {"tolerance", num(r.tolerance)}, {"dt", num(r.dt)}, {"ok", r.ok}, {"failure", r.failure},
+          {"cpu_median", num(r.cpu_median)}, {"cpu_min", num(r.cpu_min)}, {"cpu_max", num(r.cpu_max)},
+          {"repeats", r.repeats}, {"rhs_calls", r.rhs_calls}, {"steps", r.steps},
+          {"rejected", r.rejected}, {"end", num(r.error.end)}, {"history", num(r.error.history)},
+          {"end_quantity", r.error.end_quantity}, {"history_quantity", r.error.history_quantity},
+          {"drift_H", num(r.drift_H)}, {"drift_E", num(r.drift_E)}, {"front_end", r.front_end},
+          {"front_history", r.front_history}};
+}
+
+StudyRow row_from(const json& j) {
+  StudyRow r;
+  r.engine = j.at("engine").get<std::string>();
+  r.integrator = j.at("integrator").get<std::string>();
+  r.fixed_step = j.at("fixed_step").get<bool>();
+  r.tolerance = get_num(j.at("tolerance"));
+  r.dt = get_num(j.at("dt"));
+  r.ok = j.at("ok").get<bool>();
+  r.failure = j.at("failure").get<std::string>();
+  r.cpu_median = get_num(j.at("cpu_median"));
+  r.cpu_min = get_num(j.at("cpu_min"));
+  r.cpu_max = get_num(j.at("cpu_max"));
+  r.repeats = j.at("repeats").get<int>();
+  r.rhs_calls = j.at("rhs_calls").get<long>();
+  r.steps = j.at("steps").get<long>();
+  r.rejected = j.at("rejected").get<long>();
+  r.error.end = get_num(j.at("end"));
+  r.error.history = get_num(j.at("history"));
+  r.error.end_quantity = j.at("end_quantity").get<std::string>();
+  r.error.history_quantity = j.at("history_quantity").get<std::string>();
+  r.drift_H = get_num(j.at("drift_H"));
+  r.drift_E = get_num(j.at("drift_E"));
+  r.front_end = j.at("front_end").get<bool>();
+  r.front_history = j.at("front_history").get<bool>();
+  return r;
+}
+
+}  // namespace
+
+std::string study_item_json(const StudyItem& item) {
+  json j = {{"refused", item.refused}, {"exit_status", item.exit_status}, {"study", nullptr}};
+  if (item.study) {
+    const SceneStudy& s = *item.study;
+    const StudyReference& ref = s.reference;
+    json rows = json::array();
+    for (const StudyRow& r : s.rows) rows.push_back(row_to(r));
+    j["study"] = {{"scene", s.scene}, {"file", s.file}, {"duration", num(s.duration)},
+                  {"output_step", num(s.output_step)},
+                  {"reference", {{"kind", ref.kind}, {"description", ref.description},
+                                 {"runs", ref.runs}, {"agreement", num(ref.agreement)},
+                                 {"worst_pair", ref.worst_pair}, {"cpu_seconds", num(ref.cpu_seconds)}}},
+                  {"rows", rows}, {"notes", s.notes}};
+  }
+  return j.dump();
+}
+
+StudyItem study_item_from(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    StudyItem item;
+    item.refused = j.at("refused").get<std::string>();
+    item.exit_status = j.at("exit_status").get<int>();
+    if (!j.at("study").is_null()) {
+      const json& js = j.at("study");
+      SceneStudy s;
+      s.scene = js.at("scene").get<std::string>();
+      s.file = js.at("file").get<std::string>();
+      s.duration = get_num(js.at("duration"));
+      s.output_step = get_num(js.at("output_step"));
+      const json& jr = js.at("reference");
+      s.reference.kind = jr.at("kind").get<std::string>();
+      s.reference.description = jr.at("description").get<std::string>();
+      s.reference.runs = jr.at("runs").get<std::vector<std::string>>();
+      s.reference.agreement = get_num(jr.at("agreement"));
+      s.reference.worst_pair = jr.at("worst_pair").get<std::string>();
+      s.reference.cpu_seconds = get_num(jr.at("cpu_seconds"));
+      for (const json& r : js.at("rows")) s.rows.push_back(row_from(r));
+      s.notes = js.at("notes").get<std::vector<std::string>>();
+      item.study = std::move(s);
+    }
+    return item;
+  } catch (const json::exception& e) {
+    throw InputError(std::string("a study result in the part is not valid: ") + e.what());
+  }
+}
+
+std::string stability_frame_json(const StabilityMap& m) {
+  const Knob& k = m.knob;
+  const json j = {{"scene", m.scene}, {"file", m.file},
+                  {"knob", {{"kind", static_cast<int>(k.kind)}, {"spec", k.spec}, {"index", k.index},
+                            {"unit", k.unit}, {"description", k.description}}},
+                  {"limits", {{"tolerance", num(m.limits.tolerance)},
+                              {"drift_limit", num(m.limits.drift_limit)},
+                              {"diverged_error", num(m.limits.diverged_error)}}},
+                  {"engines", m.engines}, {"integrators", m.integrators}};
+  return j.dump();
+}
+
+StabilityMap stability_frame_from(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    StabilityMap m;
+    m.scene = j.at("scene").get<std::string>();
+    m.file = j.at("file").get<std::string>();
+    const json& k = j.at("knob");
+    const int kind = k.at("kind").get<int>();
+    if (kind < 0 || kind > static_cast<int>(Knob::Kind::Links)) throw InputError("unknown knob kind");
+    m.knob.kind = static_cast<Knob::Kind>(kind);
+    m.knob.spec = k.at("spec").get<std::string>();
+    m.knob.index = k.at("index").get<int>();
+    m.knob.unit = k.at("unit").get<std::string>();
+    m.knob.description = k.at("description").get<std::string>();
+    m.limits.tolerance = get_num(j.at("limits").at("tolerance"));
+    m.limits.drift_limit = get_num(j.at("limits").at("drift_limit"));
+    m.limits.diverged_error = get_num(j.at("limits").at("diverged_error"));
+    m.engines = j.at("engines").get<std::vector<std::string>>();
+    m.integrators = j.at("integrators").get<std::vector<std::string>>();
+    return m;
+  } catch (const json::exception& e) {
+    throw InputError(std::string("the stability map in the part is not valid: ") + e.what());
+  }
+}
+
+std::string stability_value_json(const StabilityValue& v) {
+  json cells = json::array();
+  for (const StabilityCell& c : v.cells)
+    cells.push_back({{"engine", c.engine}, {"integrator", c.integrator}, {"fixed_step", c.fixed_step},
+                     {"setting", num(c.setting)}, {"class", static_cast<int>(c.result.cls)},
+                     {"why", c.result.why}, {"history_error", num(c.history_error)},
+                     {"cpu", num(c.cpu)}, {"rhs_calls", c.rhs_calls}, {"steps", c.steps},
+                     {"h_lambda", num(c.h_lambda)}});
+  const StabilityColumn& col = v.column;
+  const json j = {{"value", num(col.value)}, {"reference", col.reference},
+                  {"reference_note", col.reference_note}, {"lambda_max", nums(col.lambda_max)},
+                  {"cells", cells}, {"study_notes", v.study_notes}, {"refused_note", v.refused_note}};
+  return j.dump();
+}
+
+StabilityValue stability_value_from(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    StabilityValue v;
+    v.column.value = get_num(j.at("value"));
+    v.column.reference = j.at("reference").get<bool>();
+    v.column.reference_note = j.at("reference_note").get<std::string>();
+    v.column.lambda_max = get_nums(j.at("lambda_max"));
+    for (const json& jc : j.at("cells")) {
+      StabilityCell c;
+      c.engine = jc.at("engine").get<std::string>();
+      c.integrator = jc.at("integrator").get<std::string>();
+      c.fixed_step = jc.at("fixed_step").get<bool>();
+      c.setting = get_num(jc.at("setting"));
+      const int cls = jc.at("class").get<int>();
+      if (cls < 0 || cls > static_cast<int>(StabilityClass::NoReference))
+        throw InputError("unknown stability class");
+      c.result.cls = static_cast<StabilityClass>(cls);
+      c.result.why = jc.at("why").get<std::string>();
+      c.history_error = get_num(jc.at("history_error"));
+      c.cpu = get_num(jc.at("cpu"));
+      c.rhs_calls = jc.at("rhs_calls").get<long>();
+      c.steps = jc.at("steps").get<long>();
+      c.h_lambda = get_num(jc.at("h_lambda"));
+      v.cells.push_back(c);
+    }
+    v.study_notes = j.at("study_notes").get<std::vector<std::string>>();
+    v.refused_note = j.at("refused_note").get<std::string>();
+    return v;
+  } catch (const json::exception& e) {
+    throw InputError(std::string("a stability value in the part is not valid: ") + e.what());
+  }
 }
 
 }  // namespace crossdyn::harness

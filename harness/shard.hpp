@@ -22,6 +22,8 @@
 #pragma once
 
 #include "harness/report.hpp"
+#include "harness/stability.hpp"
+#include "harness/study.hpp"
 
 #include <string>
 #include <vector>
@@ -36,12 +38,14 @@ struct ShardSpec {
 // Parses "K/N" (0 <= K < N, 1 <= N <= 10000); InputError naming --shard and the value otherwise.
 ShardSpec parse_shard(const std::string& text);
 
-// One scene of a (sharded) verify run, as listed in every part.
+// One unit of work of a sharded run, as listed in every part: a scene (verify, study), or one
+// parameter value of a scene (stability: `item` names it, "value 2: 5000").
 struct ShardScene {
-  std::string path;    // as verify was given it (scene_files)
+  std::string path;    // as the command was given it (scene_files)
   std::string sha256;  // of the file's bytes; "" when it cannot be read
-  double cost = 0;     // scene_cost
-  int shard = 0;       // assign_shards
+  double cost = 0;     // scene_cost, or the command's estimate
+  int shard = 0;       // plan_units
+  std::string item;    // "" for a whole scene; otherwise which part of it
 };
 
 // SHA-256 of a file's bytes, "" when it cannot be read.
@@ -53,20 +57,45 @@ std::string file_sha256(const std::string& path);
 // (it costs nothing but still has to land somewhere). Cheap: reads the scene, runs nothing.
 double scene_cost(const std::string& path);
 
+// The static cost estimate of one engine run of a scene as read: output rows (or rk4 steps)
+// x bodies x (1 + modes). scene_cost is this times the runs verify makes; study and stability
+// multiply it by their configurations (for stability on the scene with the value applied, so a
+// longer duration or more links cost more).
+double system_run_cost(const System& system);
+
 // The scenes of a run (path, hash, cost) with their shard among `count` (see the file comment).
 std::vector<ShardScene> plan_shards(const std::vector<std::string>& files, int count);
+// The same for units whose path, item and cost are given: fills sha256 and shard. A unit's
+// identity is the SHA-256 of its file name, its bytes and (when not empty) its item, so the
+// slices do not depend on the order of the units.
+std::vector<ShardScene> plan_units(std::vector<ShardScene> units, int count);
 
 // A part file's text: the shard, every scene of the run and the outcomes of slice `shard`
 // (`own`, in the run's order).
 std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& scenes,
                       const std::vector<SceneOutcome>& own);
 
+// The options a sweep's result depends on, as (option, value) pairs in a fixed order: every part
+// of a run must carry the same (merge names the first that differs).
+using PartOptions = std::vector<std::pair<std::string, std::string>>;
+
+// A part file of `study` or `stability` (command): the same header as verify's plus the options,
+// a `frame` (JSON text the command needs to put the units back together; "null" for none) and one
+// JSON text per unit of slice `shard`, in the run's order (`items`).
+std::string sweep_part_json(const std::string& command, const PartOptions& options,
+                            const ShardSpec& shard, const std::vector<ShardScene>& units,
+                            const std::string& frame, const std::vector<std::string>& items);
+
 struct Part {
   std::string file;  // where it was read from (messages)
   std::string version;
+  std::string command = "verify";  // the crossdyn command that wrote it
+  PartOptions options;             // sweep parts: the options of the run
   ShardSpec shard;
   std::vector<ShardScene> scenes;
-  std::vector<SceneOutcome> outcomes;
+  std::vector<SceneOutcome> outcomes;  // verify
+  std::string frame = "null";          // sweep parts (JSON text)
+  std::vector<std::string> items;      // sweep parts: one JSON text per unit of the slice
 };
 // Reads a part file; InputError naming the file when it cannot be read or is not a part.
 Part read_part(const std::string& file);
@@ -78,5 +107,27 @@ Part read_part(const std::string& file);
 // files that can be found; `checked` is set to how many were).
 std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& version,
                                       int* checked = nullptr);
+// The checks of merge_parts for parts of any command (also: parts of different commands, parts
+// made with different options, naming the option and both values), then the items of every unit
+// in the run's order (sweep parts).
+void check_parts(const std::vector<Part>& parts, const std::string& version, int* checked = nullptr);
+std::vector<std::string> merge_items(const std::vector<Part>& parts, const std::string& version,
+                                     int* checked = nullptr);
+
+// ---- The items of study and stability parts (JSON text, numbers exact as above) ----------------
+
+// One scene of a sharded study: its study, or why it was refused and the exit status that gives.
+struct StudyItem {
+  std::optional<SceneStudy> study;
+  std::string refused;
+  int exit_status = 0;
+};
+std::string study_item_json(const StudyItem& item);
+StudyItem study_item_from(const std::string& text);
+// A stability map without its columns (the frame every part carries), and one value's column.
+std::string stability_frame_json(const StabilityMap& frame);
+StabilityMap stability_frame_from(const std::string& text);
+std::string stability_value_json(const StabilityValue& value);
+StabilityValue stability_value_from(const std::string& text);
 
 }  // namespace crossdyn::harness

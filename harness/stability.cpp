@@ -269,17 +269,23 @@ double jacobian_spectral_radius(const System& system, const std::string& engine_
   }
 }
 
-StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
-                             const StabilityOptions& o) {
-  if (values.empty()) throw InputError("--values: give at least one value");
+namespace {
+
+std::vector<EngineSpec> engine_specs_of(const StabilityOptions& o) {
+  std::vector<EngineSpec> specs = o.engine_specs;
+  if (specs.empty())
+    for (const std::string& e : o.engines.empty() ? engine_names() : o.engines) specs.push_back({e, e, {}});
+  return specs;
+}
+
+}  // namespace
+
+StabilityMap stability_frame(const System& system, const Knob& knob, const StabilityOptions& o) {
   StabilityMap m;
   m.scene = system.name;
   m.file = system.file;
   m.knob = knob;
-  std::vector<EngineSpec> specs = o.engine_specs;
-  if (specs.empty())
-    for (const std::string& e : o.engines.empty() ? engine_names() : o.engines) specs.push_back({e, e, {}});
-  for (const EngineSpec& sp : specs) m.engines.push_back(sp.label);
+  for (const EngineSpec& sp : engine_specs_of(o)) m.engines.push_back(sp.label);
   m.integrators = o.integrators.empty()
                       ? std::vector<std::string>{"rk4", "dopri5", "dop853", "cvode-bdf"}
                       : o.integrators;
@@ -287,7 +293,12 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
                                    : system.compare.default_tolerance.atol +
                                          system.compare.default_tolerance.rtol;
   m.limits.drift_limit = o.drift_limit;
+  return m;
+}
 
+StabilityValue stability_value(const System& system, const Knob& knob, double v,
+                               const StabilityMap& m, const StabilityOptions& o) {
+  const std::vector<EngineSpec> specs = engine_specs_of(o);
   StudyOptions so;
   so.engine_specs = specs;
   so.integrators = m.integrators;
@@ -303,73 +314,90 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
   // hub_flex_array with K x 1e4 agree to 3e-8), and a map of 1e-6 accuracy needs no better.
   so.reference_agreement = std::max(so.reference_agreement, 0.5 * m.limits.tolerance);
 
-  for (double v : values) {
-    const System s = apply_knob(system, knob, v);
-    StabilityColumn col;
-    col.value = v;
-    for (const EngineSpec& sp : specs) col.lambda_max.push_back(jacobian_spectral_radius(s, sp.engine));
-    auto lambda_of = [&](const std::string& label) {
-      for (std::size_t e = 0; e < specs.size(); ++e)
-        if (specs[e].label == label) return col.lambda_max[e];
-      return kNaN;
-    };
-    const std::size_t c = m.columns.size();
-    const bool H_conserved = momentum_not_conserved_reason(s).empty();
-    const bool E_conserved = energy_not_conserved_reason(s).empty();
-    StudyOptions sv = so;
-    if (sv.dts.empty())
-      for (int k = 0; k <= 6; ++k) sv.dts.push_back(s.run.output_step / std::pow(2.0, k));
-    try {
-      const SceneStudy st = study_scene(s, sv);
-      col.reference_note = st.reference.description;
-      for (const std::string& n : st.notes)
-        if (std::find(m.notes.begin(), m.notes.end(), n) == m.notes.end()) m.notes.push_back(n);
-      for (const StudyRow& r : st.rows) {
-        StabilityCell cell;
-        cell.engine = r.engine;
-        cell.integrator = r.integrator;
-        cell.fixed_step = r.fixed_step;
-        cell.setting = r.fixed_step ? r.dt : r.tolerance;
-        cell.column = c;
-        cell.cpu = r.cpu_median;
-        cell.rhs_calls = r.rhs_calls;
-        cell.steps = r.steps;
-        cell.history_error = r.error.history;
-        if (r.fixed_step) cell.h_lambda = r.dt * lambda_of(r.engine);
-        CellFacts f;
-        f.ok = r.ok;
-        f.failure = r.failure;
-        f.history_error = r.error.history;
-        f.drift_H = r.drift_H;
-        f.drift_E = r.drift_E;
-        f.H_conserved = H_conserved;
-        f.E_conserved = E_conserved;
-        cell.result = classify(f, m.limits);
-        m.cells.push_back(cell);
-      }
-    } catch (const StudyRefused& r) {
-      col.reference = false;
-      col.reference_note = r.what();
-      m.notes.push_back("at " + knob.spec + " = " + g3(v) + ": " + r.what());
-      for (const std::string& e : m.engines)
-        for (const std::string& i : m.integrators) {
-          const bool fixed = Choice<Integrator>(i) == Integrator::Rk4;
-          for (double x : fixed ? sv.dts : sv.tolerances) {
-            StabilityCell cell;
-            cell.engine = e;
-            cell.integrator = i;
-            cell.fixed_step = fixed;
-            cell.setting = x;
-            cell.column = c;
-            CellFacts f;
-            f.reference = false;
-            cell.result = classify(f, m.limits);
-            m.cells.push_back(cell);
-          }
-        }
+  StabilityValue out;
+  const System s = apply_knob(system, knob, v);
+  StabilityColumn& col = out.column;
+  col.value = v;
+  for (const EngineSpec& sp : specs) col.lambda_max.push_back(jacobian_spectral_radius(s, sp.engine));
+  auto lambda_of = [&](const std::string& label) {
+    for (std::size_t e = 0; e < specs.size(); ++e)
+      if (specs[e].label == label) return col.lambda_max[e];
+    return kNaN;
+  };
+  const std::size_t c = 0;  // add_stability_value sets the map's column
+  const bool H_conserved = momentum_not_conserved_reason(s).empty();
+  const bool E_conserved = energy_not_conserved_reason(s).empty();
+  StudyOptions sv = so;
+  if (sv.dts.empty())
+    for (int k = 0; k <= 6; ++k) sv.dts.push_back(s.run.output_step / std::pow(2.0, k));
+  try {
+    const SceneStudy st = study_scene(s, sv);
+    col.reference_note = st.reference.description;
+    out.study_notes = st.notes;
+    for (const StudyRow& r : st.rows) {
+      StabilityCell cell;
+      cell.engine = r.engine;
+      cell.integrator = r.integrator;
+      cell.fixed_step = r.fixed_step;
+      cell.setting = r.fixed_step ? r.dt : r.tolerance;
+      cell.column = c;
+      cell.cpu = r.cpu_median;
+      cell.rhs_calls = r.rhs_calls;
+      cell.steps = r.steps;
+      cell.history_error = r.error.history;
+      if (r.fixed_step) cell.h_lambda = r.dt * lambda_of(r.engine);
+      CellFacts f;
+      f.ok = r.ok;
+      f.failure = r.failure;
+      f.history_error = r.error.history;
+      f.drift_H = r.drift_H;
+      f.drift_E = r.drift_E;
+      f.H_conserved = H_conserved;
+      f.E_conserved = E_conserved;
+      cell.result = classify(f, m.limits);
+      out.cells.push_back(cell);
     }
-    m.columns.push_back(col);
+  } catch (const StudyRefused& r) {
+    col.reference = false;
+    col.reference_note = r.what();
+    out.refused_note = "at " + knob.spec + " = " + g3(v) + ": " + r.what();
+    for (const std::string& e : m.engines)
+      for (const std::string& i : m.integrators) {
+        const bool fixed = Choice<Integrator>(i) == Integrator::Rk4;
+        for (double x : fixed ? sv.dts : sv.tolerances) {
+          StabilityCell cell;
+          cell.engine = e;
+          cell.integrator = i;
+          cell.fixed_step = fixed;
+          cell.setting = x;
+          cell.column = c;
+          CellFacts f;
+          f.reference = false;
+          cell.result = classify(f, m.limits);
+          out.cells.push_back(cell);
+        }
+      }
   }
+  return out;
+}
+
+void add_stability_value(StabilityMap& m, StabilityValue v) {
+  const std::size_t c = m.columns.size();
+  for (const std::string& n : v.study_notes)
+    if (std::find(m.notes.begin(), m.notes.end(), n) == m.notes.end()) m.notes.push_back(n);
+  if (!v.refused_note.empty()) m.notes.push_back(v.refused_note);
+  for (StabilityCell& cell : v.cells) {
+    cell.column = c;
+    m.cells.push_back(std::move(cell));
+  }
+  m.columns.push_back(std::move(v.column));
+}
+
+StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
+                             const StabilityOptions& o) {
+  if (values.empty()) throw InputError("--values: give at least one value");
+  StabilityMap m = stability_frame(system, knob, o);
+  for (double v : values) add_stability_value(m, stability_value(system, knob, v, m, o));
   m.findings = stability_findings(m);
   return m;
 }

@@ -155,6 +155,21 @@ struct StabilityOptions {
 StabilityMap stability_scene(const System& system, const Knob& knob, const std::vector<double>& values,
                              const StabilityOptions& options);
 
+// The sweep in pieces (what stability_scene does; `stability --shard` runs some values, `merge`
+// puts them back): the map without columns, one value's column with its cells (column 0) and the
+// notes it adds, and appending a value to the map (its cells' column set, its notes added in
+// stability_scene's way). After the last value, set the findings (stability_findings).
+struct StabilityValue {
+  StabilityColumn column;
+  std::vector<StabilityCell> cells;
+  std::vector<std::string> study_notes;  // the study's notes: added when not in the map yet
+  std::string refused_note;              // no reference: "at <knob> = <value>: why"
+};
+StabilityMap stability_frame(const System& system, const Knob& knob, const StabilityOptions& options);
+StabilityValue stability_value(const System& system, const Knob& knob, double value,
+                               const StabilityMap& frame, const StabilityOptions& options);
+void add_stability_value(StabilityMap& map, StabilityValue value);
+
 // "kane,newton-euler:none,newton-euler:baumgarte,lagrange:no-rechart": engines, each optionally
 // with a variant (newton-euler: none | baumgarte | projection, its constraint stabilisation;
 // lagrange: no-rechart). InputError naming `option` for anything else.

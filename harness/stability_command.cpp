@@ -9,10 +9,12 @@
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/shard.hpp"
 #include "harness/stability.hpp"
 #include "harness/study.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -35,7 +37,36 @@ struct StabilityCliOptions {
   std::optional<double> duration;
   std::string report, csv;
   bool quiet = false;
+  std::string shard, part;  // --shard K/N --part FILE
 };
+
+std::string exact(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", x);
+  return buf;
+}
+
+// "1e-06,1e-08": parsed values in shortest exact form, for a part's options.
+std::string values_text(const std::vector<double>& v) {
+  if (v.empty()) return "(default)";
+  std::string out;
+  for (double x : v) out += (out.empty() ? "" : ",") + exact(x);
+  return out;
+}
+
+// What stability writes: the text, --csv and --report.
+void write_stability_outputs(const harness::StabilityMap& map, const std::string& csv,
+                             const std::string& report) {
+  std::cout << harness::format_stability(map);
+  check_written(std::cout);
+  if (!csv.empty()) {
+    if (csv != "-") harness::make_directories(std::filesystem::path(csv).parent_path().string());
+    AtomicFile f(csv, "--csv");
+    f.stream() << harness::stability_csv(map);
+    f.commit();
+  }
+  if (!report.empty()) harness::write_stability_report(report, {map});
+}
 
 std::vector<std::string> split_names(const std::string& text, const std::string& option,
                                      const std::vector<std::string>& known, const std::string& noun) {
@@ -93,9 +124,18 @@ int stability(const StabilityCliOptions& o) {
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: none)");
   options.timeout = o.timeout;
+  const bool sharded = !o.shard.empty() || !o.part.empty();
+  const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
+  if (sharded) {
+    if (o.part.empty()) throw InputError("--shard: give --part FILE, the part file `crossdyn merge` combines");
+    if (!o.csv.empty() || !o.report.empty())
+      throw InputError("--shard/--part: --csv and --report are written by `crossdyn merge PARTS...` "
+                       "from all the parts, not by one shard");
+  }
   const std::string path = harness::resolve_scene(o.scene);
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  if (sharded) outputs.push_back({"--part", o.part});
   check_outputs_are_not_inputs(outputs, {{"the scene file", path}});
   std::vector<SceneWarning> warnings;
   System system = read_scene(path, &warnings);
@@ -117,21 +157,82 @@ int stability(const StabilityCliOptions& o) {
 
   ProgressLine progress(!o.quiet);
   options.progress = &progress;
-  const harness::StabilityMap map = harness::stability_scene(system, knob, values, options);
-  progress.clear();
-  std::cout << harness::format_stability(map);
-  check_written(std::cout);
-  if (!o.csv.empty()) {
-    if (o.csv != "-") harness::make_directories(std::filesystem::path(o.csv).parent_path().string());
-    AtomicFile f(o.csv, "--csv");
-    f.stream() << harness::stability_csv(map);
-    f.commit();
+  if (!sharded) {
+    const harness::StabilityMap map = harness::stability_scene(system, knob, values, options);
+    progress.clear();
+    write_stability_outputs(map, o.csv, o.report);
+    return kExitOk;
   }
-  if (!o.report.empty()) harness::write_stability_report(o.report, {map});
+
+  // --shard K/N: the values of slice K, each an independent study of the modified scene. A
+  // value's cost: one run of the modified scene (duration and links change it) x the cells.
+  if (o.part != "-") harness::make_directories(std::filesystem::path(o.part).parent_path().string());
+  AtomicFile part_file(o.part, "--part");
+  const harness::StabilityMap frame = harness::stability_frame(system, knob, options);
+  double cells = 0;
+  for (const std::string& i : frame.integrators)
+    cells += Choice<Integrator>(i) == Integrator::Rk4
+                 ? static_cast<double>(options.dts.empty() ? 7 : options.dts.size())
+                 : static_cast<double>(options.tolerances.empty() ? 4 : options.tolerances.size());
+  cells *= static_cast<double>(frame.engines.size());
+  std::vector<harness::ShardScene> plan;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    harness::ShardScene u;
+    u.path = path;
+    u.item = "value " + std::to_string(k + 1) + ": " + exact(values[k]);
+    u.cost = harness::system_run_cost(harness::apply_knob(system, knob, values[k])) * std::max(cells, 1.0);
+    plan.push_back(u);
+  }
+  plan = harness::plan_units(std::move(plan), shard.count);
+  harness::StabilityMap own = frame;  // this shard's values, for its own text
+  std::vector<std::string> items;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    if (plan[k].shard != shard.index) continue;
+    harness::StabilityValue v = harness::stability_value(system, knob, values[k], frame, options);
+    items.push_back(harness::stability_value_json(v));
+    harness::add_stability_value(own, std::move(v));
+  }
+  progress.clear();
+  if (!own.columns.empty()) {
+    own.findings = harness::stability_findings(own);
+    std::cout << harness::format_stability(own);
+  } else {
+    std::cout << "stability: shard " << shard.index << "/" << shard.count << " has no values\n";
+  }
+  const harness::PartOptions part_options{
+      {"--vary", o.vary},
+      {"--values", values_text(values)},
+      {"--engines", o.engines.empty() ? "(all)" : o.engines},
+      {"--integrators", o.integrators.empty() ? "(default)" : o.integrators},
+      {"--tolerances", values_text(options.tolerances)},
+      {"--dts", values_text(options.dts)},
+      {"--tolerance", o.tolerance ? exact(*o.tolerance) : "(scene's)"},
+      {"--drift-limit", exact(o.drift_limit)},
+      {"--max-steps", std::to_string(o.max_steps)},
+      {"--timeout", exact(o.timeout)},
+      {"--duration", o.duration ? exact(*o.duration) : "(scene's)"}};
+  part_file.stream() << harness::sweep_part_json("stability", part_options, shard, plan,
+                                                 harness::stability_frame_json(frame), items);
+  part_file.commit();
+  std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
+  check_written(std::cout);
   return kExitOk;
 }
 
 }  // namespace
+
+int merge_stability_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out) {
+  int checked = 0;
+  const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
+  if (!out.quiet)
+    std::cerr << "merge: " << parts.size() << " stability parts, " << items.size() << " values ("
+              << checked << " scene file on disk checked against its SHA-256)\n";
+  harness::StabilityMap map = harness::stability_frame_from(parts.front().frame);
+  for (const std::string& text : items) harness::add_stability_value(map, harness::stability_value_from(text));
+  map.findings = harness::stability_findings(map);
+  write_stability_outputs(map, out.csv, out.report ? *out.report : "");
+  return kExitOk;
+}
 
 void add_stability_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<StabilityCliOptions>();
@@ -166,6 +267,14 @@ void add_stability_command(CLI::App& app, int& exit_code) {
   sub->add_option("--report", o->report, "Write the pages (index.html, one page per map, PNG maps, CSV) into DIR");
   sub->add_option("--csv", o->csv, "Write one CSV line per cell to FILE");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
+  sub->add_option("--shard", o->shard,
+                  "Run only slice K of N of the values (K counts from 0, as Slurm's "
+                  "SLURM_ARRAY_TASK_ID) and write --part FILE for `crossdyn merge`, which puts the "
+                  "map's columns back in the order of --values. Not with --csv or --report")
+      ->type_name("K/N");
+  sub->add_option("--part", o->part,
+                  "With --shard: write this shard's part file (version, options, the scene's "
+                  "SHA-256, this slice's columns)");
   sub->callback([o, &exit_code] { exit_code = stability(*o); });
 }
 

@@ -10,9 +10,11 @@
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/shard.hpp"
 #include "harness/study.hpp"
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -36,7 +38,34 @@ struct StudyCliOptions {
   int max_links = 128;
   double budget = 0.2;
   bool quiet = false;
+  std::string shard, part;  // --shard K/N --part FILE
 };
+
+// "1e-06,1e-08": parsed values in shortest exact form, for a part's options.
+std::string values_text(const std::vector<double>& v) {
+  if (v.empty()) return "(default)";
+  std::string out;
+  for (double x : v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.17g", x);
+    out += (out.empty() ? "" : ",") + std::string(buf);
+  }
+  return out;
+}
+
+// What study writes after the studies: --csv and --report.
+void write_study_outputs(const std::vector<harness::SceneStudy>& results,
+                         const std::optional<harness::ScalingStudy>& scaling, const std::string& csv,
+                         const std::string& report) {
+  if (!csv.empty()) {
+    if (csv != "-") harness::make_directories(std::filesystem::path(csv).parent_path().string());
+    AtomicFile f(csv, "--csv");
+    f.stream() << harness::study_csv_header();
+    for (const harness::SceneStudy& s : results) f.stream() << harness::study_csv_rows(s);
+    f.commit();
+  }
+  if (!report.empty()) harness::write_study_report(report, results, scaling);
+}
 
 std::vector<std::string> split_names(const std::string& text, const std::string& option,
                                      const std::vector<std::string>& known, const std::string& noun) {
@@ -78,10 +107,22 @@ int study(const StudyCliOptions& o) {
   options.timeout = o.timeout;
   if (!(o.budget > 0) || !(o.budget <= 60))
     throw InputError("--budget: must be more than 0 and at most 60 s");
+  const bool sharded = !o.shard.empty() || !o.part.empty();
+  const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
+  if (sharded) {
+    if (o.part.empty()) throw InputError("--shard: give --part FILE, the part file `crossdyn merge` combines");
+    if (!o.csv.empty() || !o.report.empty())
+      throw InputError("--shard/--part: --csv and --report are written by `crossdyn merge PARTS...` "
+                       "from all the parts, not by one shard");
+    if (o.scaling)
+      throw InputError("--shard/--part: --scaling is not sharded (it measures the right-hand-side "
+                       "cost in one process); run `crossdyn study --scaling` on its own");
+  }
   std::vector<std::string> paths;
   for (const std::string& s : o.scenes) paths.push_back(harness::resolve_scene(s));
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  if (sharded) outputs.push_back({"--part", o.part});
   std::vector<NamedPath> inputs;
   for (const std::string& p : paths) inputs.push_back({"the scene file", p});
   check_outputs_are_not_inputs(outputs, inputs);
@@ -92,21 +133,64 @@ int study(const StudyCliOptions& o) {
     for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   }
 
+  std::optional<AtomicFile> part_file;
+  std::vector<harness::ShardScene> plan;
+  if (sharded) {
+    if (o.part != "-") harness::make_directories(std::filesystem::path(o.part).parent_path().string());
+    part_file.emplace(o.part, "--part");
+    // A scene's cost: one engine run's estimate x the configurations it is studied in.
+    for (std::size_t k = 0; k < paths.size(); ++k) {
+      const System& s = systems[k];
+      const std::size_t engines = options.engines.empty() ? engine_names().size() : options.engines.size();
+      double configs = 0;
+      for (const std::string& i : options.integrators.empty() ? integrator_names() : options.integrators)
+        configs += Choice<Integrator>(i) == Integrator::Rk4
+                       ? static_cast<double>(options.dts.empty() ? 8 : options.dts.size())
+                       : static_cast<double>(options.tolerances.empty() ? 10 : options.tolerances.size());
+      harness::ShardScene u;
+      u.path = paths[k];
+      u.cost = harness::system_run_cost(s) * static_cast<double>(engines) * std::max(configs, 1.0) *
+               options.repeat;
+      plan.push_back(u);
+    }
+    plan = harness::plan_units(std::move(plan), shard.count);
+  }
+
   ProgressLine progress(!o.quiet);
   options.progress = &progress;
   std::vector<harness::SceneStudy> results;
+  std::vector<std::string> items;  // --part: one per scene of this shard
   int status = kExitOk;
-  for (const System& system : systems) {
+  for (std::size_t k = 0; k < systems.size(); ++k) {
+    const System& system = systems[k];
+    if (sharded && plan[k].shard != shard.index) continue;
     try {
       results.push_back(harness::study_scene(system, options));
     } catch (const harness::StudyRefused& r) {
       progress.clear();
       std::cerr << "crossdyn: study refused: " << r.what() << '\n';
       status = std::max(status, r.exit_status());
+      if (sharded) items.push_back(harness::study_item_json({std::nullopt, r.what(), r.exit_status()}));
       continue;
     }
+    if (sharded) items.push_back(harness::study_item_json({results.back(), "", 0}));
     std::cout << harness::format_study(results.back()) << '\n';
     check_written(std::cout);
+  }
+  if (sharded) {
+    const harness::PartOptions part_options{
+        {"--engines", o.engines.empty() ? "(all)" : o.engines},
+        {"--integrators", o.integrators.empty() ? "(all)" : o.integrators},
+        {"--tolerances", values_text(options.tolerances)},
+        {"--dts", values_text(options.dts)},
+        {"--repeat", std::to_string(options.repeat)},
+        {"--max-steps", o.max_steps ? std::to_string(*o.max_steps) : "(none)"},
+        {"--timeout", values_text({options.timeout})}};
+    part_file->stream() << harness::sweep_part_json("study", part_options, shard, plan, "null", items);
+    part_file->commit();
+    std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
+    check_written(std::cout);
+    return status;
   }
   std::optional<harness::ScalingStudy> scaling;
   if (o.scaling) {
@@ -119,18 +203,34 @@ int study(const StudyCliOptions& o) {
     std::cout << harness::format_scaling(*scaling) << '\n';
     check_written(std::cout);
   }
-  if (!o.csv.empty()) {
-    if (o.csv != "-") harness::make_directories(std::filesystem::path(o.csv).parent_path().string());
-    AtomicFile f(o.csv, "--csv");
-    f.stream() << harness::study_csv_header();
-    for (const harness::SceneStudy& s : results) f.stream() << harness::study_csv_rows(s);
-    f.commit();
-  }
-  if (!o.report.empty()) harness::write_study_report(o.report, results, scaling);
+  write_study_outputs(results, scaling, o.csv, o.report);
   return status;
 }
 
 }  // namespace
+
+int merge_study_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out) {
+  int checked = 0;
+  const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
+  if (!out.quiet)
+    std::cerr << "merge: " << parts.size() << " study parts, " << items.size() << " scenes ("
+              << checked << " scene files on disk checked against their SHA-256)\n";
+  std::vector<harness::SceneStudy> results;
+  int status = kExitOk;
+  for (const std::string& text : items) {
+    harness::StudyItem item = harness::study_item_from(text);
+    if (!item.study) {
+      std::cerr << "crossdyn: study refused: " << item.refused << '\n';
+      status = std::max(status, item.exit_status);
+      continue;
+    }
+    results.push_back(std::move(*item.study));
+    std::cout << harness::format_study(results.back()) << '\n';
+    check_written(std::cout);
+  }
+  write_study_outputs(results, std::nullopt, out.csv, out.report ? *out.report : "");
+  return status;
+}
 
 void add_study_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<StudyCliOptions>();
@@ -176,6 +276,15 @@ void add_study_command(CLI::App& app, int& exit_code) {
   sub->add_option("--max-links", o->max_links, "--scaling: the longest chain (default 128)");
   sub->add_option("--budget", o->budget, "--scaling: CPU seconds per point (default 0.2)");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
+  sub->add_option("--shard", o->shard,
+                  "Study only slice K of N of the scenes (K counts from 0, as Slurm's "
+                  "SLURM_ARRAY_TASK_ID) and write --part FILE for `crossdyn merge`; whole scenes "
+                  "are sliced (each is measured against its own reference), by content and "
+                  "estimated cost. Not with --scaling, --csv or --report (merge writes those)")
+      ->type_name("K/N");
+  sub->add_option("--part", o->part,
+                  "With --shard: write this shard's part file (version, options, all scenes with "
+                  "their SHA-256, this slice's studies)");
   sub->callback([o, &exit_code] { exit_code = study(*o); });
 }
 

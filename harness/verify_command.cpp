@@ -35,6 +35,7 @@ struct VerifyCommandOptions {
   std::string shard;  // --shard K/N
   std::string part;   // --part FILE
   std::vector<std::string> parts;  // merge: the part files
+  std::string csv;                 // merge of study or stability parts: --csv FILE
 };
 
 // Opens an AtomicFile for an output in `f`, its folder created first (nothing for "").
@@ -163,9 +164,28 @@ int merge(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
+  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
+  const std::string command = parts.front().command;
+  if (command != "verify") {
+    // study and stability parts: their outputs (the commands' own --csv and --report).
+    if (o.json_option->count() > 0 || !o.junit.empty() || !o.report_script.empty())
+      throw InputError("merge: parts of `crossdyn " + command + "` have no --json, --junit or "
+                       "--report-script (their outputs are the table, --csv and --report)");
+    std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
+    if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+    if (o.report) folders.push_back({"--report", *o.report});
+    check_outputs_are_not_inputs(outputs, inputs, folders);
+    const SweepMergeOutputs sweep{o.csv, o.report, o.verify.quiet};
+    if (command == "study") return merge_study_parts(parts, sweep);
+    if (command == "stability") return merge_stability_parts(parts, sweep);
+    throw InputError("part '" + parts.front().file + "' was written by `crossdyn " + command +
+                     "`, which this crossdyn cannot merge");
+  }
+  if (!o.csv.empty())
+    throw InputError("merge: --csv is for parts of `crossdyn study` and `crossdyn stability`; "
+                     "verify's parts give --json, --junit and --report");
   Outputs out;
   open_outputs(o, inputs, out);
-  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
   int checked = 0;
   harness::VerifyResult result;
   result.scenes = harness::merge_parts(parts, harness::version(), &checked);
@@ -232,18 +252,21 @@ void add_merge_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<VerifyCommandOptions>();
   CLI::App* sub = app.add_subcommand(
       "merge",
-      "Combine the part files of `crossdyn verify --shard K/N --part FILE` (K = 0..N-1) into\n"
-      "exactly the table, JSON summary, JUnit XML and report an unsharded `verify` writes (run\n"
-      "times are each part's own). Refused, exit status 2, naming what is wrong: parts of another\n"
-      "crossdyn version, of different N, a missing or repeated shard, different scene lists or\n"
-      "scene hashes, or a scene file on disk that changed since (run merge where the shards ran).\n"
-      "Otherwise the exit status is the whole run's verdict, as verify's.");
+      "Combine the part files of `crossdyn verify|study|stability --shard K/N --part FILE`\n"
+      "(K = 0..N-1) into exactly what the unsharded command writes: verify's table, JSON summary,\n"
+      "JUnit XML and report (run times are each part's own); study's tables, --csv and --report;\n"
+      "stability's map, --csv and --report (CPU times are each part's own). Refused, exit status\n"
+      "2, naming what is wrong: parts of another crossdyn version or of different commands, made\n"
+      "with different options, of different N, a missing or repeated shard, different scene lists\n"
+      "or scene hashes, or a scene file on disk that changed since (run merge where the shards\n"
+      "ran). Otherwise the exit status is the whole run's, as the command's.");
   sub->add_option("parts", o->parts, "The part files, one per shard, in any order")->required();
   o->json_option = sub->add_option("--json", o->json,
                                    "Write the JSON summary to FILE (default: "
                                    "reports/latest/summary.json, or only DIR/summary.json with "
                                    "--report DIR)");
-  sub->add_option("--junit", o->junit, "Write JUnit XML to FILE (for CI)");
+  sub->add_option("--junit", o->junit, "Write JUnit XML to FILE (for CI; verify parts)");
+  sub->add_option("--csv", o->csv, "Write the CSV to FILE (study and stability parts, as their --csv)");
   sub->add_option("--report", o->report,
                   "Write the HTML report to DIR (default when given without DIR: reports/latest; "
                   "write --report=DIR after the parts)")
