@@ -11,6 +11,8 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -349,6 +351,22 @@ std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& sce
                   {"scenes", list},
                   {"outcomes", outcomes}};
   return j.dump() + "\n";
+}
+
+std::string shortest_text(double value) {
+  char buf[40];
+  for (int digits = 1; digits <= 17; ++digits) {
+    std::snprintf(buf, sizeof buf, "%.*g", digits, value);
+    if (std::strtod(buf, nullptr) == value || std::isnan(value)) break;
+  }
+  return buf;
+}
+
+std::string shortest_list(const std::vector<double>& values) {
+  if (values.empty()) return "(default)";
+  std::string out;
+  for (double v : values) out += (out.empty() ? "" : ",") + shortest_text(v);
+  return out;
 }
 
 std::string sweep_part_json(const std::string& command, const PartOptions& options,

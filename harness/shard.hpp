@@ -78,6 +78,10 @@ std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& sce
 // The options a sweep's result depends on, as (option, value) pairs in a fixed order: every part
 // of a run must carry the same (merge names the first that differs).
 using PartOptions = std::vector<std::pair<std::string, std::string>>;
+// A number in the shortest text that reads back the same ("1e-06", not 9.9999999999999995e-07);
+// a list of them comma-separated, "(default)" when empty. For PartOptions.
+std::string shortest_text(double value);
+std::string shortest_list(const std::vector<double>& values);
 
 // A part file of `study` or `stability` (command): the same header as verify's plus the options,
 // a `frame` (JSON text the command needs to put the units back together; "null" for none) and one

@@ -14,7 +14,6 @@
 #include "harness/study.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -39,20 +38,6 @@ struct StabilityCliOptions {
   bool quiet = false;
   std::string shard, part;  // --shard K/N --part FILE
 };
-
-std::string exact(double x) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", x);
-  return buf;
-}
-
-// "1e-06,1e-08": parsed values in shortest exact form, for a part's options.
-std::string values_text(const std::vector<double>& v) {
-  if (v.empty()) return "(default)";
-  std::string out;
-  for (double x : v) out += (out.empty() ? "" : ",") + exact(x);
-  return out;
-}
 
 // What stability writes: the text, --csv and --report.
 void write_stability_outputs(const harness::StabilityMap& map, const std::string& csv,
@@ -179,7 +164,7 @@ int stability(const StabilityCliOptions& o) {
   for (std::size_t k = 0; k < values.size(); ++k) {
     harness::ShardScene u;
     u.path = path;
-    u.item = "value " + std::to_string(k + 1) + ": " + exact(values[k]);
+    u.item = "value " + std::to_string(k + 1) + ": " + harness::shortest_text(values[k]);
     u.cost = harness::system_run_cost(harness::apply_knob(system, knob, values[k])) * std::max(cells, 1.0);
     plan.push_back(u);
   }
@@ -201,16 +186,16 @@ int stability(const StabilityCliOptions& o) {
   }
   const harness::PartOptions part_options{
       {"--vary", o.vary},
-      {"--values", values_text(values)},
+      {"--values", harness::shortest_list(values)},
       {"--engines", o.engines.empty() ? "(all)" : o.engines},
       {"--integrators", o.integrators.empty() ? "(default)" : o.integrators},
-      {"--tolerances", values_text(options.tolerances)},
-      {"--dts", values_text(options.dts)},
-      {"--tolerance", o.tolerance ? exact(*o.tolerance) : "(scene's)"},
-      {"--drift-limit", exact(o.drift_limit)},
+      {"--tolerances", harness::shortest_list(options.tolerances)},
+      {"--dts", harness::shortest_list(options.dts)},
+      {"--tolerance", o.tolerance ? harness::shortest_text(*o.tolerance) : "(scene's)"},
+      {"--drift-limit", harness::shortest_text(o.drift_limit)},
       {"--max-steps", std::to_string(o.max_steps)},
-      {"--timeout", exact(o.timeout)},
-      {"--duration", o.duration ? exact(*o.duration) : "(scene's)"}};
+      {"--timeout", harness::shortest_text(o.timeout)},
+      {"--duration", o.duration ? harness::shortest_text(*o.duration) : "(scene's)"}};
   part_file.stream() << harness::sweep_part_json("stability", part_options, shard, plan,
                                                  harness::stability_frame_json(frame), items);
   part_file.commit();

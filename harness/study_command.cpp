@@ -14,7 +14,6 @@
 #include "harness/study.hpp"
 
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
 #include <filesystem>
 #include <iostream>
@@ -40,18 +39,6 @@ struct StudyCliOptions {
   bool quiet = false;
   std::string shard, part;  // --shard K/N --part FILE
 };
-
-// "1e-06,1e-08": parsed values in shortest exact form, for a part's options.
-std::string values_text(const std::vector<double>& v) {
-  if (v.empty()) return "(default)";
-  std::string out;
-  for (double x : v) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.17g", x);
-    out += (out.empty() ? "" : ",") + std::string(buf);
-  }
-  return out;
-}
 
 // What study writes after the studies: --csv and --report.
 void write_study_outputs(const std::vector<harness::SceneStudy>& results,
@@ -181,11 +168,11 @@ int study(const StudyCliOptions& o) {
     const harness::PartOptions part_options{
         {"--engines", o.engines.empty() ? "(all)" : o.engines},
         {"--integrators", o.integrators.empty() ? "(all)" : o.integrators},
-        {"--tolerances", values_text(options.tolerances)},
-        {"--dts", values_text(options.dts)},
+        {"--tolerances", harness::shortest_list(options.tolerances)},
+        {"--dts", harness::shortest_list(options.dts)},
         {"--repeat", std::to_string(options.repeat)},
         {"--max-steps", o.max_steps ? std::to_string(*o.max_steps) : "(none)"},
-        {"--timeout", values_text({options.timeout})}};
+        {"--timeout", harness::shortest_list({options.timeout})}};
     part_file->stream() << harness::sweep_part_json("study", part_options, shard, plan, "null", items);
     part_file->commit();
     std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
