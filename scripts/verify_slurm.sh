@@ -7,7 +7,10 @@
 # Sharded `crossdyn verify` on a Slurm cluster: a job array with one shard per task, and a merge
 # job that starts when every task has succeeded (README "Sharding a sweep").
 #
-#   scripts/verify_slurm.sh N OUTDIR [verify options and scenes ...]     (on a login node)
+#   scripts/verify_slurm.sh [study|stability] N OUTDIR [options and scenes ...]     (on a login node)
+#
+# shards `crossdyn verify`, or the command named first (`study`, `stability`: their merge writes
+# OUTDIR/COMMAND.csv and OUTDIR/COMMAND.txt, the table, instead of summary.json and junit.xml).
 #
 # submits
 #   sbatch --array=0-(N-1) scripts/verify_slurm.sh ...   task K: crossdyn verify --shard K/N --part OUTDIR/part-K.json
@@ -25,8 +28,12 @@
 # on a real cluster. CROSSDYN names the program (default: crossdyn on PATH, else build/crossdyn
 # of this source tree, resolved at submission).
 set -uo pipefail
+command=verify
+case "${1:-}" in
+  verify | study | stability) command=$1; shift ;;
+esac
 if [ $# -lt 2 ]; then
-  echo "usage: $0 N OUTDIR [verify options and scenes ...]" >&2
+  echo "usage: $0 [verify|study|stability] N OUTDIR [options and scenes ...]" >&2
   exit 2
 fi
 n=$1
@@ -39,24 +46,32 @@ shift 2
 if [ -n "${SLURM_ARRAY_TASK_ID:-}" ]; then
   crossdyn=${CROSSDYN:-$(command -v crossdyn || echo "${SLURM_SUBMIT_DIR:-.}/build/crossdyn")}
   k=$SLURM_ARRAY_TASK_ID
-  "$crossdyn" verify --quiet --shard "$k/$n" --part "$out/part-$k.json" "$@"
+  "$crossdyn" "$command" --quiet --shard "$k/$n" --part "$out/part-$k.json" "$@"
   rc=$?
-  [ "$rc" -eq 1 ] && exit 0  # failed checks: the part is written, merge reports them
+  [ "$rc" -eq 1 ] && exit 0  # failed checks (a refused study scene): the part is written, merge reports them
   exit "$rc"
 elif [ -n "${SLURM_JOB_ID:-}" ]; then
   crossdyn=${CROSSDYN:-$(command -v crossdyn || echo "${SLURM_SUBMIT_DIR:-.}/build/crossdyn")}
-  "$crossdyn" merge "$out"/part-*.json --json "$out/summary.json" --junit "$out/junit.xml"
+  if [ "$command" = verify ]; then
+    "$crossdyn" merge "$out"/part-*.json --json "$out/summary.json" --junit "$out/junit.xml"
+  else
+    "$crossdyn" merge "$out"/part-*.json --csv "$out/$command.csv" > "$out/$command.txt"
+  fi
 else
   # Submission (login node): the array, then the merge depending on it.
   here=$(cd "$(dirname "$0")" && pwd)
   export CROSSDYN=${CROSSDYN:-$(command -v crossdyn || echo "$here/../build/crossdyn")}
   mkdir -p "$out" || exit 2
   rm -f "$out"/part-*.json  # parts of an earlier run must not be merged with these
-  array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) "$here/verify_slurm.sh" "$n" "$out" "$@") ||
+  array=$(sbatch --parsable --export=ALL --array=0-$((n - 1)) "$here/verify_slurm.sh" "$command" "$n" "$out" "$@") ||
     exit 2
   array=${array%%;*}  # --parsable prints "jobid" or "jobid;cluster"
   merge=$(sbatch --parsable --export=ALL --job-name=crossdyn-merge --output=crossdyn-merge-%j.out \
-          --dependency=afterok:"$array" "$here/verify_slurm.sh" "$n" "$out" "$@") || exit 2
+          --dependency=afterok:"$array" "$here/verify_slurm.sh" "$command" "$n" "$out" "$@") || exit 2
   echo "shards: job array ${array} (tasks 0-$((n - 1))); merge: job ${merge%%;*} (after all shards succeed)"
-  echo "results: $out/summary.json, $out/junit.xml"
+  if [ "$command" = verify ]; then
+    echo "results: $out/summary.json, $out/junit.xml"
+  else
+    echo "results: $out/$command.txt, $out/$command.csv"
+  fi
 fi
