@@ -132,7 +132,55 @@ int beam_slices(const FlexBody& f) {
   return std::regex_search(f.scene_form, m, kSlices) ? std::stoi(m[1].str()) : 0;
 }
 
-ConvergeResult converge_scene(const System& system, const CompareOptions& options) {
+namespace {
+
+CompareOptions one_engine(const CompareOptions& options) {
+  CompareOptions one = options;
+  one.analytic = false;
+  if (one.engines.empty()) one.engines.push_back({"kane", "kane", {}});
+  one.engines.resize(1);
+  return one;
+}
+
+std::vector<int> full_counts_of(const ConvergeResult& frame) {
+  std::vector<int> full;
+  for (const ModeGroup& g : frame.groups) full.push_back(static_cast<int>(g.modes.size()));
+  return full;
+}
+
+// Runs `s` as model `m` and compares it with the full model's run.
+void run_and_compare(ConvergeModel& m, const System& s, const EngineRun& full_run,
+                     const CompareOptions& one) {
+  SceneComparison c = compare_scene(s, one);
+  m.run = std::move(c.runs.at(0));
+  m.run.label = m.label;
+  if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
+    m.passed = false;
+    m.worst_normalised = std::numeric_limits<double>::infinity();
+    m.worst_quantity = "run: " + (m.run.result.failure ? std::string(m.run.result.failure->what())
+                                                       : m.run.note);
+    return;
+  }
+  SceneComparison d = compare_runs(s, {full_run, m.run});
+  m.passed = true;
+  for (Check& k : d.checks) {
+    if (k.b.empty() || k.group == "run" || k.group == "t") {
+      if (k.status == CheckStatus::Fail) m.passed = false;  // "t": output times differ
+      continue;
+    }
+    if (k.status == CheckStatus::Fail) m.passed = false;
+    if (k.status != CheckStatus::Excluded && !(k.normalised <= m.worst_normalised)) {
+      m.worst_normalised = k.normalised;
+      m.worst_quantity = k.quantity;
+    }
+    m.checks.push_back(std::move(k));
+  }
+}
+
+}  // namespace
+
+ConvergeResult converge_frame(const System& system, const CompareOptions& options,
+                              std::vector<ConvergeJob>* jobs) {
   ConvergeResult r;
   r.scene = system.name;
   r.groups = mode_groups(system);
@@ -144,125 +192,97 @@ ConvergeResult converge_scene(const System& system, const CompareOptions& option
     throw InputError(system.file + ": converge would run " + std::to_string(combos.size()) +
                      " models (every count of modes in " + std::to_string(r.groups.size()) +
                      " mode groups); the limit is " + std::to_string(kMaxConvergeModels));
-  CompareOptions one = options;
-  one.analytic = false;
-  if (one.engines.empty()) one.engines.push_back({"kane", "kane", {}});
-  one.engines.resize(1);
-  r.engine = one.engines[0].label;
+  r.engine = one_engine(options).engines[0].label;
+  if (jobs) {
+    jobs->clear();
+    const std::vector<int> full = full_counts_of(r);
+    for (const auto& counts : combos)
+      if (counts != full) jobs->push_back({counts, -1, 0});
+    // Slicing rows: every beam-generator body with half and twice its slices, every mode kept.
+    for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+      const auto& flex = system.bodies[b].flex;
+      if (!flex || flex->modes() == 0) continue;
+      const int n = beam_slices(*flex);
+      if (n == 0) continue;
+      for (int slices : {n / 2, 2 * n}) jobs->push_back({full, static_cast<int>(b), slices});
+    }
+  }
+  return r;
+}
 
-  auto run_model = [&](const std::vector<int>& counts) {
-    ConvergeModel m;
-    m.counts = counts;
-    for (int c : counts) m.modes += c;
-    m.label = model_label(system, r.groups, counts);
-    System s = truncate_modes(system, r.groups, counts);
-    SceneComparison c = compare_scene(s, one);
-    m.run = std::move(c.runs.at(0));
-    m.run.label = m.label;
-    return std::pair{std::move(m), std::move(s)};
-  };
-
-  // The full model first: every other model is compared with it.
-  std::vector<int> full_counts;
-  for (const ModeGroup& g : r.groups) full_counts.push_back(static_cast<int>(g.modes.size()));
-  auto [full, full_system] = run_model(full_counts);
-  full.full = true;
-  full.label += " (full)";
+ConvergeModel converge_full_model(const System& system, const ConvergeResult& frame,
+                                  const CompareOptions& options) {
+  ConvergeModel full;
+  full.counts = full_counts_of(frame);
+  for (int c : full.counts) full.modes += c;
+  full.label = model_label(system, frame.groups, full.counts) + " (full)";
+  const System s = truncate_modes(system, frame.groups, full.counts);
+  SceneComparison c = compare_scene(s, one_engine(options));
+  full.run = std::move(c.runs.at(0));
   full.run.label = "full";
+  full.full = true;
   full.passed = full.run.state == EngineRun::State::Ok && !full.run.result.failure;
   if (!full.passed)
-    throw RunFailure(r.engine, full.run.result.failure ? full.run.result.failure->time() : 0.0, "",
+    throw RunFailure(frame.engine, full.run.result.failure ? full.run.result.failure->time() : 0.0, "",
                      "the full model did not run to the end, so nothing can be compared with it: " +
                          (full.run.result.failure ? std::string(full.run.result.failure->what())
                                                   : full.run.note));
-  const EngineRun full_run = full.run;
-  r.models.push_back(std::move(full));
+  return full;
+}
 
-  for (const auto& counts : combos) {
-    if (counts == full_counts) continue;
-    cancel::poll();
-    auto [m, s] = run_model(counts);
-    if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
-      m.passed = false;
-      m.worst_normalised = std::numeric_limits<double>::infinity();
-      m.worst_quantity = "run: " + (m.run.result.failure ? std::string(m.run.result.failure->what())
-                                                         : m.run.note);
-      r.models.push_back(std::move(m));
-      continue;
-    }
-    SceneComparison c = compare_runs(s, {full_run, m.run});
-    m.passed = true;
-    for (Check& k : c.checks) {
-      if (k.b.empty() || k.group == "run" || k.group == "t") {
-        if (k.status == CheckStatus::Fail) m.passed = false;  // "t": output times differ
-        continue;
-      }
-      if (k.status == CheckStatus::Fail) m.passed = false;
-      if (k.status != CheckStatus::Excluded && !(k.normalised <= m.worst_normalised)) {
-        m.worst_normalised = k.normalised;
-        m.worst_quantity = k.quantity;
-      }
-      m.checks.push_back(std::move(k));
-    }
-    r.models.push_back(std::move(m));
+std::optional<ConvergeModel> converge_job(const System& system, const ConvergeResult& frame,
+                                          const ConvergeJob& job, const EngineRun& full_run,
+                                          const CompareOptions& options, std::string* note) {
+  cancel::poll();
+  const CompareOptions one = one_engine(options);
+  ConvergeModel m;
+  m.counts = job.counts;
+  for (int c : job.counts) m.modes += c;
+  m.label = model_label(system, frame.groups, job.counts);
+  if (job.slices == 0) {
+    run_and_compare(m, truncate_modes(system, frame.groups, job.counts), full_run, one);
+    return m;
   }
-  // Slicing rows: every beam-generator body with half and twice its slices, every mode kept.
-  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
-    const auto& flex = system.bodies[b].flex;
-    if (!flex || flex->modes() == 0) continue;
-    const int n = beam_slices(*flex);
-    if (n == 0) continue;
-    for (int slices : {n / 2, 2 * n}) {
-      cancel::poll();
-      std::optional<System> s;
-      try {
-        s = reslice(system, static_cast<int>(b), slices);
-      } catch (const InputError& e) {
-        r.notes.push_back(system.bodies[b].name + " with " + std::to_string(slices) +
-                          " slices: not run (" + e.what() + ")");
-        continue;
-      }
-      if (!s) continue;
-      ConvergeModel m;
-      m.counts = full_counts;
-      m.modes = r.models.front().modes;
-      m.slices = slices;
-      m.slice_body = static_cast<int>(b);
-      m.label = model_label(system, r.groups, full_counts) + ", " + system.bodies[b].name + " " +
-                std::to_string(slices) + " slices";
-      SceneComparison c = compare_scene(*s, one);
-      m.run = std::move(c.runs.at(0));
-      m.run.label = m.label;
-      if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
-        m.worst_normalised = std::numeric_limits<double>::infinity();
-        m.worst_quantity = "run: " + (m.run.result.failure ? std::string(m.run.result.failure->what())
-                                                           : m.run.note);
-        r.models.push_back(std::move(m));
-        continue;
-      }
-      SceneComparison d = compare_runs(*s, {full_run, m.run});
-      m.passed = true;
-      for (Check& k : d.checks) {
-        if (k.b.empty() || k.group == "run" || k.group == "t") {
-          if (k.status == CheckStatus::Fail) m.passed = false;
-          continue;
-        }
-        if (k.status == CheckStatus::Fail) m.passed = false;
-        if (k.status != CheckStatus::Excluded && !(k.normalised <= m.worst_normalised)) {
-          m.worst_normalised = k.normalised;
-          m.worst_quantity = k.quantity;
-        }
-        m.checks.push_back(std::move(k));
-      }
-      r.models.push_back(std::move(m));
-    }
+  const std::size_t b = static_cast<std::size_t>(job.slice_body);
+  std::optional<System> s;
+  try {
+    s = reslice(system, job.slice_body, job.slices);
+  } catch (const InputError& e) {
+    if (note)
+      *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: not run (" +
+              e.what() + ")";
+    return std::nullopt;
   }
+  if (!s) return std::nullopt;
+  m.slices = job.slices;
+  m.slice_body = job.slice_body;
+  m.label += ", " + system.bodies[b].name + " " + std::to_string(job.slices) + " slices";
+  run_and_compare(m, *s, full_run, one);
+  return m;
+}
+
+void converge_finish(ConvergeResult& r) {
   // The smallest passing model (the full model always qualifies; slicing rows do not compete).
   r.smallest = 0;
   for (std::size_t i = 1; i < r.models.size(); ++i)
     if (r.models[i].passed && r.models[i].slices == 0 &&
         r.models[i].modes < r.models[static_cast<std::size_t>(r.smallest)].modes)
       r.smallest = static_cast<int>(i);
+}
+
+ConvergeResult converge_scene(const System& system, const CompareOptions& options) {
+  std::vector<ConvergeJob> jobs;
+  ConvergeResult r = converge_frame(system, options, &jobs);
+  // The full model first: every other model is compared with it.
+  r.models.push_back(converge_full_model(system, r, options));
+  const EngineRun full_run = r.models.front().run;
+  for (const ConvergeJob& job : jobs) {
+    std::string note;
+    std::optional<ConvergeModel> m = converge_job(system, r, job, full_run, options, &note);
+    if (m) r.models.push_back(std::move(*m));
+    if (!note.empty()) r.notes.push_back(note);
+  }
+  converge_finish(r);
   return r;
 }
 

@@ -89,6 +89,26 @@ inline constexpr int kMaxConvergeModels = 256;
 // cancel::Cancelled when interrupted.
 ConvergeResult converge_scene(const System& system, const CompareOptions& options);
 
+// converge_scene in pieces (`converge --shard` runs some models, `merge` puts them back): the
+// result without models (scene, engine, groups) and the jobs of the scene in table order (every
+// model but the full one, then the slicing rows); the full model (RunFailure when it does not
+// run to the end); one job against the full model's run (nullopt, with `note` set when the
+// reader refuses it, for a slicing row that cannot be made); and, after the models are in
+// place (the full model first), the smallest model.
+struct ConvergeJob {
+  std::vector<int> counts;
+  int slice_body = -1;  // a slicing row: the beam-generator body re-generated
+  int slices = 0;       // with this many slices (0: a model with `counts` modes)
+};
+ConvergeResult converge_frame(const System& system, const CompareOptions& options,
+                              std::vector<ConvergeJob>* jobs);
+ConvergeModel converge_full_model(const System& system, const ConvergeResult& frame,
+                                  const CompareOptions& options);
+std::optional<ConvergeModel> converge_job(const System& system, const ConvergeResult& frame,
+                                          const ConvergeJob& job, const EngineRun& full_run,
+                                          const CompareOptions& options, std::string* note);
+void converge_finish(ConvergeResult& result);
+
 // The table (one row per model: modes, worst normalised change and its quantity, pass/fail) and
 // the conclusion line.
 std::string format_converge(const ConvergeResult& r);
