@@ -20,12 +20,14 @@ struct Part;
 struct SweepMergeOutputs {
   std::string csv;                    // --csv FILE
   std::optional<std::string> report;  // --report DIR
+  std::string json;                   // --json FILE (converge)
   bool quiet = false;
 };
 // The merges of sharded sweeps: the parts checked (harness/shard.hpp check_parts), then exactly
 // what the unsharded command writes. Return the exit status.
 int merge_study_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out);      // study_command.cpp
 int merge_stability_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out);  // stability_command.cpp
+int merge_converge_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out);   // converge_command.cpp
 
 void add_run_command(CLI::App& app, int& exit_code);      // harness/run_command.cpp
 void add_compare_command(CLI::App& app, int& exit_code);  // harness/compare_command.cpp

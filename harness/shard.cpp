@@ -759,4 +759,75 @@ StabilityValue stability_value_from(const std::string& text) {
   }
 }
 
+// ---- converge items --------------------------------------------------------------------------------
+
+namespace {
+
+json model_to(const ConvergeModel& m) {
+  json checks = json::array();
+  for (const Check& k : m.checks) checks.push_back(check_to(k));
+  return {{"counts", m.counts}, {"modes", m.modes}, {"label", m.label}, {"full", m.full},
+          {"slices", m.slices}, {"slice_body", m.slice_body}, {"checks", checks},
+          {"worst_normalised", num(m.worst_normalised)}, {"worst_quantity", m.worst_quantity},
+          {"passed", m.passed}};
+}
+
+ConvergeModel model_from(const json& j) {
+  ConvergeModel m;
+  m.counts = j.at("counts").get<std::vector<int>>();
+  m.modes = j.at("modes").get<int>();
+  m.label = j.at("label").get<std::string>();
+  m.full = j.at("full").get<bool>();
+  m.slices = j.at("slices").get<int>();
+  m.slice_body = j.at("slice_body").get<int>();
+  for (const json& k : j.at("checks")) m.checks.push_back(check_from(k));
+  m.worst_normalised = get_num(j.at("worst_normalised"));
+  m.worst_quantity = j.at("worst_quantity").get<std::string>();
+  m.passed = j.at("passed").get<bool>();
+  return m;
+}
+
+}  // namespace
+
+std::string converge_frame_json(const ConvergeResult& r) {
+  json groups = json::array();
+  for (const ModeGroup& g : r.groups) groups.push_back({{"body", g.body}, {"name", g.name}, {"modes", g.modes}});
+  const json j = {{"scene", r.scene}, {"engine", r.engine}, {"groups", groups},
+                  {"full", r.models.empty() ? json(nullptr) : model_to(r.models.front())}};
+  return j.dump();
+}
+
+ConvergeResult converge_frame_from(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    ConvergeResult r;
+    r.scene = j.at("scene").get<std::string>();
+    r.engine = j.at("engine").get<std::string>();
+    for (const json& g : j.at("groups"))
+      r.groups.push_back({g.at("body").get<int>(), g.at("name").get<std::string>(),
+                          g.at("modes").get<std::vector<int>>()});
+    if (j.at("full").is_null()) throw InputError("the part has no full model");
+    r.models.push_back(model_from(j.at("full")));
+    return r;
+  } catch (const json::exception& e) {
+    throw InputError(std::string("the converge result in the part is not valid: ") + e.what());
+  }
+}
+
+std::string converge_item_json(const std::optional<ConvergeModel>& model, const std::string& note) {
+  const json j = {{"model", model ? model_to(*model) : json(nullptr)}, {"note", note}};
+  return j.dump();
+}
+
+std::pair<std::optional<ConvergeModel>, std::string> converge_item_from(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    std::optional<ConvergeModel> m;
+    if (!j.at("model").is_null()) m = model_from(j.at("model"));
+    return {std::move(m), j.at("note").get<std::string>()};
+  } catch (const json::exception& e) {
+    throw InputError(std::string("a converge model in the part is not valid: ") + e.what());
+  }
+}
+
 }  // namespace crossdyn::harness

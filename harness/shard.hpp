@@ -21,6 +21,7 @@
 // the last bit. Run times (wall_seconds) are each part's own.
 #pragma once
 
+#include "harness/converge.hpp"
 #include "harness/report.hpp"
 #include "harness/stability.hpp"
 #include "harness/study.hpp"
@@ -133,5 +134,12 @@ std::string stability_frame_json(const StabilityMap& frame);
 StabilityMap stability_frame_from(const std::string& text);
 std::string stability_value_json(const StabilityValue& value);
 StabilityValue stability_value_from(const std::string& text);
+// converge: the frame (scene, engine, groups, the full model) and one job's model (or the note
+// saying why a slicing row was not made). A model is carried with its checks and verdict, not
+// its run's rows (nothing converge writes uses them).
+std::string converge_frame_json(const ConvergeResult& frame);  // frame.models: the full model only
+ConvergeResult converge_frame_from(const std::string& text);
+std::string converge_item_json(const std::optional<ConvergeModel>& model, const std::string& note);
+std::pair<std::optional<ConvergeModel>, std::string> converge_item_from(const std::string& text);
 
 }  // namespace crossdyn::harness

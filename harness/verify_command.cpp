@@ -168,16 +168,23 @@ int merge(VerifyCommandOptions& o) {
   const std::string command = parts.front().command;
   if (command != "verify") {
     // study and stability parts: their outputs (the commands' own --csv and --report).
-    if (o.json_option->count() > 0 || !o.junit.empty() || !o.report_script.empty())
-      throw InputError("merge: parts of `crossdyn " + command + "` have no --json, --junit or "
-                       "--report-script (their outputs are the table, --csv and --report)");
+    // study and stability: the table, --csv, --report; converge: the table, --json.
+    const bool converge = command == "converge";
+    if ((!converge && o.json_option->count() > 0) || !o.junit.empty() || !o.report_script.empty() ||
+        (converge && (!o.csv.empty() || o.report)))
+      throw InputError("merge: parts of `crossdyn " + command + "` give " +
+                       (converge ? "the table and --json" : "the table, --csv and --report") +
+                       ", as the command does");
     std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
     if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+    if (converge && o.json_option->count() > 0) outputs.push_back({"--json", o.json});
     if (o.report) folders.push_back({"--report", *o.report});
     check_outputs_are_not_inputs(outputs, inputs, folders);
-    const SweepMergeOutputs sweep{o.csv, o.report, o.verify.quiet};
+    const SweepMergeOutputs sweep{o.csv, o.report, converge && o.json_option->count() > 0 ? o.json : "",
+                                  o.verify.quiet};
     if (command == "study") return merge_study_parts(parts, sweep);
     if (command == "stability") return merge_stability_parts(parts, sweep);
+    if (converge) return merge_converge_parts(parts, sweep);
     throw InputError("part '" + parts.front().file + "' was written by `crossdyn " + command +
                      "`, which this crossdyn cannot merge");
   }

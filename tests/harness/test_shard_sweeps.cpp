@@ -1,4 +1,4 @@
-// Sharded study and stability (harness/shard.hpp sweep parts): merged 2-shard runs equal the
+// Sharded study, stability and converge (harness/shard.hpp sweep parts): merged runs equal the
 // unsharded ones, directly and through GNU parallel (scripts/sweep_parallel.sh); their items read
 // back bit for bit; and the refusals of parts that do not belong together (mixed commands, mixed
 // options, a missing shard), each exit status 2 with its message.
@@ -287,4 +287,37 @@ TEST_CASE("GNU parallel runs a 2-shard study (scripts/sweep_parallel.sh), merged
   REQUIRE(fs::exists(dir / "out/part-1.json"));
   CHECK(csv_without(slurp(dir / "out/study.csv"), kStudyTimed) == csv_without(slurp(dir / "whole.csv"), kStudyTimed));
   CHECK(study_text_without_timings(slurp(dir / "merged.txt")) == study_text_without_timings(whole.output));
+}
+
+TEST_CASE("a 3-shard converge merged equals the unsharded converge, text and JSON", "[shard][converge]") {
+  TempDir dir("converge");
+  const auto whole = run_crossdyn("converge pointing_flex -q --json '" + dir / "whole.json" + "'");
+  REQUIRE(whole.status == 0);
+  for (int k = 0; k < 3; ++k)
+    REQUIRE(run_crossdyn("converge pointing_flex -q --shard " + std::to_string(k) + "/3 --part '" +
+                         dir / ("part-" + std::to_string(k) + ".json") + "'")
+                .status == 0);
+  std::size_t models = 0;
+  for (int k = 0; k < 3; ++k) {
+    const h::Part p = h::read_part(dir / ("part-" + std::to_string(k) + ".json"));
+    CHECK(p.command == "converge");
+    CHECK(!p.items.empty());  // 10 models besides the full one, over 3 shards
+    models += p.items.size();
+  }
+  CHECK(models == 10);
+  const auto merged = run_crossdyn("merge -q '" + dir / "part-2.json" + "' '" + dir / "part-0.json" + "' '" +
+                                   dir / "part-1.json" + "' --json '" + dir / "merged.json" + "'");
+  REQUIRE(merged.status == 0);
+  CHECK(merged.output == whole.output);  // converge writes no timings: all of it
+  CHECK(slurp(dir / "merged.json") == slurp(dir / "whole.json"));
+  // Parts of converge and of another command, or of converge with another engine, do not mix.
+  REQUIRE(run_crossdyn("converge pointing_flex -q --engine lagrange --shard 1/3 --part '" + dir / "other.json" + "'")
+              .status == 0);
+  const auto engines = run_crossdyn("merge -q '" + dir / "part-0.json" + "' '" + dir / "other.json" + "' '" +
+                                    dir / "part-2.json" + "'");
+  CHECK(engines.status == 2);
+  CHECK(engines.output.find("parts made with different options: --engine is 'kane' in '") != std::string::npos);
+  const auto junit = run_crossdyn("merge -q '" + dir / "part-0.json" + "' '" + dir / "part-1.json" + "' '" +
+                                  dir / "part-2.json" + "' --csv '" + dir / "x.csv" + "'");
+  CHECK(junit.status == 2);
 }
