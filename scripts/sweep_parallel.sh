@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Any sharded crossdyn sweep (verify, study, stability) on one machine with GNU parallel (Debian
+# Any sharded crossdyn sweep (verify, study, stability, converge) on one machine with GNU parallel (Debian
 # package `parallel`): N shards at once, then `crossdyn merge` (README "Sharding a sweep").
 #
 #   scripts/sweep_parallel.sh COMMAND N OUTDIR [COMMAND's options and scenes ...] [--merge MERGE OPTIONS ...]
@@ -8,6 +8,7 @@
 # merges the parts. The merge writes, besides any MERGE OPTIONS (e.g. --report=OUTDIR/report):
 #   verify:           OUTDIR/summary.json and OUTDIR/junit.xml
 #   study, stability: OUTDIR/COMMAND.csv
+#   converge:         OUTDIR/converge.json
 # and prints the table the unsharded command prints. The same as the one-liner
 #
 #   seq 0 $((N-1)) | parallel crossdyn study -q SCENES... --shard {}/N --part out/part-{}.json; \
@@ -18,7 +19,7 @@
 # crossdyn on PATH, else build/crossdyn of this source tree).
 set -uo pipefail
 if [ $# -lt 3 ]; then
-  echo "usage: $0 verify|study|stability N OUTDIR [options and scenes ...] [--merge merge options ...]" >&2
+  echo "usage: $0 verify|study|stability|converge N OUTDIR [options and scenes ...] [--merge merge options ...]" >&2
   exit 2
 fi
 command=$1
@@ -26,8 +27,8 @@ n=$2
 out=$3
 shift 3
 case "$command" in
-  verify | study | stability) ;;
-  *) echo "$0: '$command' is not sharded (verify, study or stability)" >&2; exit 2 ;;
+  verify | study | stability | converge) ;;
+  *) echo "$0: '$command' is not sharded (verify, study, stability or converge)" >&2; exit 2 ;;
 esac
 args=()
 merge_args=()
@@ -50,6 +51,7 @@ seq 0 $((n - 1)) | parallel -q --halt never -j "$n" \
   "$crossdyn" "$command" --quiet --shard "{}/$n" --part "$out/part-{}.json" "${args[@]}" >/dev/null
 case "$command" in
   verify) outputs=(--json "$out/summary.json" --junit "$out/junit.xml") ;;
+  converge) outputs=(--json "$out/converge.json") ;;
   *) outputs=(--csv "$out/$command.csv") ;;
 esac
 "$crossdyn" merge "$out"/part-*.json "${outputs[@]}" "${merge_args[@]}"

@@ -7,10 +7,11 @@
 # Sharded `crossdyn verify` on a Slurm cluster: a job array with one shard per task, and a merge
 # job that starts when every task has succeeded (README "Sharding a sweep").
 #
-#   scripts/verify_slurm.sh [study|stability] N OUTDIR [options and scenes ...]     (on a login node)
+#   scripts/verify_slurm.sh [study|stability|converge] N OUTDIR [options and scenes ...]     (on a login node)
 #
 # shards `crossdyn verify`, or the command named first (`study`, `stability`: their merge writes
-# OUTDIR/COMMAND.csv and OUTDIR/COMMAND.txt, the table, instead of summary.json and junit.xml).
+# OUTDIR/COMMAND.csv and OUTDIR/COMMAND.txt, the table, instead of summary.json and junit.xml;
+# `converge`: OUTDIR/converge.json and OUTDIR/converge.txt).
 #
 # submits
 #   sbatch --array=0-(N-1) scripts/verify_slurm.sh ...   task K: crossdyn verify --shard K/N --part OUTDIR/part-K.json
@@ -30,10 +31,10 @@
 set -uo pipefail
 command=verify
 case "${1:-}" in
-  verify | study | stability) command=$1; shift ;;
+  verify | study | stability | converge) command=$1; shift ;;
 esac
 if [ $# -lt 2 ]; then
-  echo "usage: $0 [verify|study|stability] N OUTDIR [options and scenes ...]" >&2
+  echo "usage: $0 [verify|study|stability|converge] N OUTDIR [options and scenes ...]" >&2
   exit 2
 fi
 n=$1
@@ -54,6 +55,8 @@ elif [ -n "${SLURM_JOB_ID:-}" ]; then
   crossdyn=${CROSSDYN:-$(command -v crossdyn || echo "${SLURM_SUBMIT_DIR:-.}/build/crossdyn")}
   if [ "$command" = verify ]; then
     "$crossdyn" merge "$out"/part-*.json --json "$out/summary.json" --junit "$out/junit.xml"
+  elif [ "$command" = converge ]; then
+    "$crossdyn" merge "$out"/part-*.json --json "$out/converge.json" > "$out/converge.txt"
   else
     "$crossdyn" merge "$out"/part-*.json --csv "$out/$command.csv" > "$out/$command.txt"
   fi
@@ -71,6 +74,8 @@ else
   echo "shards: job array ${array} (tasks 0-$((n - 1))); merge: job ${merge%%;*} (after all shards succeed)"
   if [ "$command" = verify ]; then
     echo "results: $out/summary.json, $out/junit.xml"
+  elif [ "$command" = converge ]; then
+    echo "results: $out/converge.txt, $out/converge.json"
   else
     echo "results: $out/$command.txt, $out/$command.csv"
   fi
