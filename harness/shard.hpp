@@ -1,5 +1,10 @@
-// Sharding `crossdyn verify` across processes or machines, and merging the parts (README
-// "Sharding a sweep").
+// Sharding `crossdyn verify`, `study`, `stability` and `converge` across processes or machines,
+// and merging the parts (README "Sharding a sweep"). The unit of work: a scene (verify, study),
+// a parameter value (stability), a model (converge); all are sliced by plan_units and their
+// parts checked by check_parts. Study, stability and converge parts ("sweep parts") carry the
+// command, its options and one JSON item per unit (sweep_part_json); the commands turn their
+// results into items and back (the *_item_json / *_from functions below) and put them together
+// as the unsharded command does (harness/*_command.cpp merge_*_parts).
 //
 // `verify --shard K/N --part FILE` (K = 0 .. N-1, zero-based like Slurm's SLURM_ARRAY_TASK_ID and
 // GNU parallel's {%}-1) compares only the scenes of slice K and writes a part file (JSON, below).
@@ -13,12 +18,13 @@
 // set of scenes, never on the order they were named in, and is the same in every shard.
 //
 // The part file: {"tool": "crossdyn-part", "format": 1, "version": harness::version(),
-// "shard": {"index": K, "count": N}, "scenes": [{"path", "sha256", "cost", "shard"} for every
-// scene of the whole run, in the run's order], "outcomes": [the full SceneOutcome of every scene
+// "command": "verify" (absent: verify), "shard": {"index": K, "count": N}, "scenes": [{"path",
+// "sha256", "cost", "shard"} for every scene of the whole run, in the run's order], "outcomes": [the full SceneOutcome of every scene
 // of slice K: the scene as read (write_scene_text), the comparison with its runs' rows, checks and
 // notes, converge's result]}. Doubles are written in shortest round-trip form, and NaN and
 // infinities as the strings "nan", "inf", "-inf", so a merged file carries the same numbers to
-// the last bit. Run times (wall_seconds) are each part's own.
+// the last bit. Run times (wall_seconds) are each part's own. A sweep part has "options" ([[option,
+// value], ...]), "scenes" (the units, each with its "item"), "frame" and "items" instead.
 #pragma once
 
 #include "harness/converge.hpp"
