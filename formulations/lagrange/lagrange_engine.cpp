@@ -1235,19 +1235,24 @@ void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const d
 // b => x in place; U is scratch of M's size and inv_diag of its diagonal's (the reciprocals of
 // U's diagonal: one division per column, the rest multiplications). Returns false when M is not
 // positive definite (a pivot <= 0, or NaN). A plain loop: at this engine's sizes (n up to a few
-// dozen) it is faster than a blocked, dynamically dispatched factorisation.
-bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
-                    Eigen::VectorXd& x) {
-  const Eigen::Index n = M.rows();
-  double* r = inv_diag.data();
-  for (Eigen::Index j = 0; j < n; ++j) {
-    double* uj = &U(0, j);
-    const double* mj = &M(0, j);
+// dozen) it is faster than a blocked, dynamically dispatched factorisation. The kernel is written
+// once, for a size known at compile time (N > 0, n <= kFixedCholesky: the loops unroll completely,
+// about half the instructions at n = 8) and for one known at run time (N = 0); both do the same
+// operations in the same order (unrolling reorders nothing), so their results are identical.
+constexpr int kFixedCholesky = 12;
+
+#define CROSSDYN_UNROLL _Pragma("GCC unroll 12")
+template <int N>
+bool cholesky_kernel(Eigen::Index n_runtime, const double* M, double* U, double* r, double* v) {
+  const Eigen::Index n = N > 0 ? N : n_runtime;
+  CROSSDYN_UNROLL for (Eigen::Index j = 0; j < n; ++j) {
+    double* uj = U + j * n;
+    const double* mj = M + j * n;
     double d = mj[j];
-    for (Eigen::Index i = 0; i < j; ++i) {
-      const double* ui = &U(0, i);
+    CROSSDYN_UNROLL for (Eigen::Index i = 0; i < j; ++i) {
+      const double* ui = U + i * n;
       double s = mj[i];
-      for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
+      CROSSDYN_UNROLL for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
       uj[i] = s * r[i];
       d -= uj[i] * uj[i];
     }
@@ -1255,20 +1260,35 @@ bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorX
     uj[j] = std::sqrt(d);
     r[j] = 1.0 / uj[j];
   }
-  double* v = x.data();
-  for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j of U
-    const double* uj = &U(0, j);
+  CROSSDYN_UNROLL for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j
+    const double* uj = U + j * n;
     double s = v[j];
-    for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
+    CROSSDYN_UNROLL for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
     v[j] = s * r[j];
   }
-  for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
-    const double* uj = &U(0, j);
+  CROSSDYN_UNROLL for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
+    const double* uj = U + j * n;
     const double vj = v[j] * r[j];
     v[j] = vj;
-    for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
+    CROSSDYN_UNROLL for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
   }
   return true;
+}
+#undef CROSSDYN_UNROLL
+
+template <int... N>
+bool cholesky_dispatch(std::integer_sequence<int, N...>, Eigen::Index n, const double* M, double* U,
+                       double* r, double* v) {
+  bool ok = false;
+  const bool fixed =
+      ((n == N + 1 ? (ok = cholesky_kernel<N + 1>(n, M, U, r, v), true) : false) || ...);
+  return fixed ? ok : cholesky_kernel<0>(n, M, U, r, v);
+}
+
+bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
+                    Eigen::VectorXd& x) {
+  return cholesky_dispatch(std::make_integer_sequence<int, kFixedCholesky>(), M.rows(), M.data(),
+                           U.data(), inv_diag.data(), x.data());
 }
 
 }  // namespace
