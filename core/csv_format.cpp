@@ -165,7 +165,17 @@ void write_csv_header(std::ostream& out, const std::vector<std::string>& columns
   out << '\n';
 }
 
-[[gnu::flatten]] void write_csv_row(std::ostream& out, const double* row, std::size_t n) {
+// On x86-64 with GCC the row writer is compiled twice, for the baseline instruction set and for
+// x86-64-v3 (BMI2 shifts and multiplies, LZCNT, AVX2), and the loader picks the one the processor
+// runs (GCC function multiversioning, an ifunc). The formatting is integer arithmetic only, so
+// both write the same bytes; the v3 one is about 8 % faster (issue 12).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define CROSSDYN_CSV_CLONES gnu::target_clones("arch=x86-64-v3", "default"),
+#else
+#define CROSSDYN_CSV_CLONES
+#endif
+[[CROSSDYN_CSV_CLONES gnu::flatten]] void write_csv_row(std::ostream& out, const double* row,
+                                                        std::size_t n) {
   // Formatted into a local block and handed to the stream in one write per block (one per row
   // up to ~80 columns); a failed write sets the stream's badbit as before. The decimal digits of
   // a batch of values are found first, then laid out: the searches are independent of each other
