@@ -165,7 +165,17 @@ void write_csv_header(std::ostream& out, const std::vector<std::string>& columns
   out << '\n';
 }
 
-void write_csv_row(std::ostream& out, const double* row, std::size_t n) {
+// On x86-64 with GCC the row writer is compiled twice, for the baseline instruction set and for
+// x86-64-v3 (BMI2 shifts and multiplies, LZCNT, AVX2), and the loader picks the one the processor
+// runs (GCC function multiversioning, an ifunc). The formatting is integer arithmetic only, so
+// both write the same bytes; the v3 one is about 8 % faster (issue 12).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define CROSSDYN_CSV_CLONES gnu::target_clones("arch=x86-64-v3", "default"),
+#else
+#define CROSSDYN_CSV_CLONES
+#endif
+[[CROSSDYN_CSV_CLONES gnu::flatten]] void write_csv_row(std::ostream& out, const double* row,
+                                                        std::size_t n) {
   // Formatted into a local block and handed to the stream in one write per block (one per row
   // up to ~80 columns); a failed write sets the stream's badbit as before. The decimal digits of
   // a batch of values are found first, then laid out: the searches are independent of each other
@@ -175,19 +185,22 @@ void write_csv_row(std::ostream& out, const double* row, std::size_t n) {
   char* const end = block + sizeof block;
   char* p = block;
   Decimal decimals[kBatch];
+  // Every value is followed by a comma, the last one's replaced by the newline; the room for a
+  // batch (each value's stores stay within kMaxValueChars of its start) is checked once.
   for (std::size_t i = 0; i < n; i += kBatch) {
     const std::size_t m = std::min(kBatch, n - i);
     for (std::size_t j = 0; j < m; ++j) decimals[j] = decimal_of(row[i + j]);
+    if (static_cast<std::size_t>(end - p) < kBatch * (kMaxValueChars + 1)) {
+      out.write(block, p - block);
+      p = block;
+    }
     for (std::size_t j = 0; j < m; ++j) {
-      if (static_cast<std::size_t>(end - p) < kMaxValueChars + 2) {
-        out.write(block, p - block);
-        p = block;
-      }
-      if (i + j) *p++ = ',';
       p = write_value(p, row[i + j], decimals[j]);
+      *p++ = ',';
     }
   }
-  *p++ = '\n';
+  if (n == 0) ++p;
+  p[-1] = '\n';
   out.write(block, p - block);
 }
 

@@ -90,7 +90,10 @@ std::vector<std::string> available_knobs(const System& s) {
       k.push_back(j.name + ".stiffness");
   }
   for (const Body& b : s.bodies)
-    if (b.flex && b.flex->modes() > 0) k.push_back(b.name + ".modal_stiffness");
+    if (b.flex && b.flex->modes() > 0) {
+      k.push_back(b.name + ".modal_stiffness");
+      k.push_back(b.name + ".modal_damping");
+    }
   k.push_back("duration");
   if (s.name.rfind("chain", 0) == 0) k.push_back("links");
   return k;
@@ -154,6 +157,12 @@ Knob parse_knob(const System& s, const std::string& spec) {
       k.description = "the modal stiffness of body '" + name + "' (scale on K)";
       return k;
     }
+    if (what == "modal_damping" && s.bodies[static_cast<std::size_t>(body)].flex) {
+      k.kind = Knob::Kind::ModalDamping;
+      k.index = body;
+      k.description = "the modal damping ratio of body '" + name + "' (every mode)";
+      return k;
+    }
     fail("body '" + name + "' has no '" + what + "' to vary");
   }
   fail("no joint or body '" + name + "'");
@@ -192,6 +201,18 @@ System apply_knob(const System& s, const Knob& k, double v) {
       f.K *= v;
       break;
     }
+    case Knob::Kind::ModalDamping: {
+      if (!(v >= 0) || v > 100) bad("a damping ratio must be from 0 to 100");
+      FlexBody& f = *c.bodies[static_cast<std::size_t>(k.index)].flex;
+      if (!f.K.isDiagonal(0.0)) bad("the body's K is not diagonal, so its modes have no ratio of their own");
+      f.D.setZero();
+      for (int m = 0; m < f.modes(); ++m) {
+        double M = 0;  // the node-sum modal mass sum_i m_i |Phi_im|^2
+        for (const FlexNode& node : f.nodes) M += node.mass * node.Phi_B.col(m).squaredNorm();
+        f.D(m, m) = 2 * v * std::sqrt(f.K(m, m) * M);
+      }
+      break;
+    }
     case Knob::Kind::Duration:
       if (!(v > 0) || v > 1e7) bad("the duration must be positive and at most 1e7 s");
       c.run.duration = v;
@@ -202,6 +223,23 @@ System apply_knob(const System& s, const Knob& k, double v) {
     case Knob::Kind::Links: break;
   }
   return c;
+}
+
+System apply_setting(const System& system, const std::string& setting) {
+  const std::size_t eq = setting.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == setting.size())
+    throw InputError("--set '" + setting + "': expected KNOB=VALUE, e.g. array.modal_stiffness=1000");
+  const std::string value = setting.substr(eq + 1);
+  std::size_t used = 0;
+  double v = 0;
+  try {
+    v = std::stod(value, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != value.size())
+    throw InputError("--set '" + setting + "': '" + value + "' is not a number");
+  return apply_knob(system, parse_knob(system, setting.substr(0, eq)), v);
 }
 
 // ---- the sweep ---------------------------------------------------------------------------------

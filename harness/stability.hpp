@@ -85,10 +85,14 @@ Classified classify(const CellFacts& facts, const ClassLimits& limits);
 //   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s
 //   <joint>.prescribed_rate   a prescribed joint's final rate Omega_s, rad/s
 //   <body>.modal_stiffness    a flexible body's modal stiffness K, scaled by the value
+//   <body>.modal_damping      a flexible body's modal damping ratio zeta, the same for every mode:
+//                             D = diag(2 zeta sqrt(K_kk M_kk)), M_kk = sum_i m_i |Phi_ik|^2 (the
+//                             node-sum modal mass; K diagonal, as the beam generator makes it)
 //   duration                  the run's duration (the horizon), s
 //   links                     the number of links of chainN (the scene must be a chainN)
 struct Knob {
-  enum class Kind { JointStiffness, JointRate, PrescribedRate, ModalStiffness, Duration, Links };
+  enum class Kind { JointStiffness, JointRate, PrescribedRate, ModalStiffness, ModalDamping, Duration,
+                    Links };
   Kind kind = Kind::Duration;
   std::string spec;         // as given: "hinge.stiffness"
   int index = -1;           // the joint or body
@@ -102,6 +106,9 @@ Knob parse_knob(const System& system, const std::string& spec);
 System apply_knob(const System& system, const Knob& knob, double value);
 // The knobs this scene offers, for messages and --help ("hinge.stiffness", "duration", ...).
 std::vector<std::string> available_knobs(const System& system);
+// "--set KNOB=VALUE": the scene with that knob set before the sweep (several may be given, applied
+// in order). InputError naming the option for a malformed setting, an unknown knob or a bad value.
+System apply_setting(const System& system, const std::string& setting);
 
 struct StabilityCell {
   std::string engine, integrator;

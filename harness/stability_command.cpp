@@ -34,6 +34,7 @@ struct StabilityCliOptions {
   long max_steps = 200000;
   double timeout = 20;
   std::optional<double> duration;
+  std::vector<std::string> settings;
   std::string report, csv;
   bool quiet = false;
   std::string shard, part;  // --shard K/N --part FILE
@@ -131,6 +132,7 @@ int stability(const StabilityCliOptions& o) {
     system.run.output_step = std::min(system.run.output_step, *o.duration);
   }
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  for (const std::string& setting : o.settings) system = harness::apply_setting(system, setting);
   if (o.vary.empty()) {
     std::string list;
     for (const std::string& k : harness::available_knobs(system)) list += (list.empty() ? "" : ", ") + k;
@@ -195,7 +197,12 @@ int stability(const StabilityCliOptions& o) {
       {"--drift-limit", harness::shortest_text(o.drift_limit)},
       {"--max-steps", std::to_string(o.max_steps)},
       {"--timeout", harness::shortest_text(o.timeout)},
-      {"--duration", o.duration ? harness::shortest_text(*o.duration) : "(scene's)"}};
+      {"--duration", o.duration ? harness::shortest_text(*o.duration) : "(scene's)"},
+      {"--set", [&o] {
+         std::string all;
+         for (const std::string& x : o.settings) all += (all.empty() ? "" : " ") + x;
+         return all.empty() ? std::string("(none)") : all;
+       }()}};
   part_file.stream() << harness::sweep_part_json("stability", part_options, shard, plan,
                                                  harness::stability_frame_json(frame), items);
   part_file.commit();
@@ -230,7 +237,8 @@ void add_stability_command(CLI::App& app, int& exit_code) {
       "the largest |eigenvalue| of the right-hand side's Jacobian per value (rk4 diverges above\n"
       "h |lambda|max ~ 2.8), and the findings in words: where it fails, how, and the remedy.\n\n"
       "--vary: <joint>.stiffness, <joint>.rate (initial rate: a rotor speed),\n"
-      "<joint>.prescribed_rate, <body>.modal_stiffness (scale on K), duration, links (chainN).\n\n"
+      "<joint>.prescribed_rate, <body>.modal_stiffness (scale on K), <body>.modal_damping (ratio),\n"
+      "duration, links (chainN). --set KNOB=VALUE fixes another of them first.\n\n"
       "Exit status 0 done (whatever the map shows), 2 bad input, 3 a write failed, 130 interrupted.");
   sub->add_option("scene", o->scene, "Scene file (YAML) or scene name")->required();
   sub->add_option("--vary", o->vary, "The scene parameter to sweep");
@@ -249,6 +257,9 @@ void add_stability_command(CLI::App& app, int& exit_code) {
   sub->add_option("--max-steps", o->max_steps, "Per run: too costly after N steps (default 200000)");
   sub->add_option("--timeout", o->timeout, "Per run: too costly after SECONDS (default 20; 0: none)");
   sub->add_option("--duration", o->duration, "Run every cell for T s instead of the scene's duration");
+  sub->add_option("--set", o->settings,
+                  "KNOB=VALUE: set another scene parameter before the sweep (repeatable), e.g. "
+                  "--set array.modal_stiffness=1000 --vary array.modal_damping");
   sub->add_option("--report", o->report, "Write the pages (index.html, one page per map, PNG maps, CSV) into DIR");
   sub->add_option("--csv", o->csv, "Write one CSV line per cell to FILE");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");

@@ -2,7 +2,7 @@
 # The standard stability maps of issue 13, as committed in reports/example/stability/: one
 # `crossdyn stability` command per map. Usage: scripts/stability_examples.sh [OUT_DIR]
 # (default /tmp/stability_examples). About 8 minutes on 2 cores (measured 2026-11-24:
-# hinge 104 s, modal 55 s, rotor 64 s, horizon 122 s, chain 116 s, lock 2 s).
+# hinge 104 s, modal 55 s, damping ~60 s, rotor 64 s, horizon 122 s, chain 116 s, lock 2 s).
 set -euo pipefail
 C=${CROSSDYN:-build/crossdyn}
 O=${1:-/tmp/stability_examples}
@@ -11,6 +11,9 @@ mkdir -p "$O"
 $C stability hub_two_panels --vary hinge1.stiffness --values 500..5e6 --timeout 60 -q --report "$O/hinge" > "$O/hinge.txt"
 # A stiff flexible appendage: the solar array's modal stiffness x 1 ... x 1e4 (EI x 1e4).
 $C stability hub_flex_array --vary array.modal_stiffness --values 1..1e4 --duration 6 --tolerance 1e-6 --timeout 60 -q --report "$O/modal" > "$O/modal.txt"
+# Where the implicit method wins: the array's modes 1000 x stiffer, damped from 0.5 % to twice
+# critical (decaying stiff modes, which BDF steps over and an explicit method must resolve).
+$C stability hub_flex_array --set array.modal_stiffness=1000 --vary array.modal_damping --values 0.005,0.05,0.5,2 --duration 6 --tolerance 1e-6 --timeout 60 -q --report "$O/damping" > "$O/damping.txt"
 # Fast rotors: the wheel from 10 rad/s to 10,000 rpm.
 $C stability dual_spin --vary bearing.rate --values 10,104.7,314,1047 --duration 5 --tolerance 1e-6 -q --report "$O/rotor" > "$O/rotor.txt"
 # Long horizons, with newton-euler's constraint stabilisation none / baumgarte / projection.

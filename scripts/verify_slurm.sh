@@ -24,9 +24,10 @@
 # The #SBATCH lines above are defaults; override them on the command line through SBATCH_*
 # variables (SBATCH_PARTITION, SBATCH_TIMELIMIT, ...) or edit them for your site.
 #
-# Slurm is not installed on the machine crossdyn is developed on: this script has been checked
-# with `bash -n` and with stand-in sbatch commands that run the tasks one after the other, never
-# on a real cluster. CROSSDYN names the program (default: crossdyn on PATH, else build/crossdyn
+# Checked on a real single-node Slurm (Debian's Slurm 22.05, started by scripts/slurm_localhost.sh):
+# tests/harness/test_slurm.sh submits a 2-task array and the merge job and compares the merged
+# summary and JUnit with an unsharded verify (CI installs Slurm for it). Not yet run on a
+# multi-node cluster. CROSSDYN names the program (default: crossdyn on PATH, else build/crossdyn
 # of this source tree, resolved at submission).
 set -uo pipefail
 command=verify

@@ -1218,9 +1218,16 @@ void flex_mass_pass(const Model& m, LagrangeEngine::Workspace& w, std::size_t b)
 // their rates Xd), xi = sum Y_i pi'_i:
 //   M_ij += Y_i . D Y_j (j >= i, upper triangle),   p_i += D Y_i . xi,
 //   (dM/dt pi')_i += Ydot_i . D xi + D Y_i . xidot.
-// Only the supporting columns sup are visited. Defined after the Workspace.
+// Only the supporting columns sup are visited. With a free base (`translation`), the first three
+// of sup are its translation seeds, Y_a = (0, R^T e_a) with R = R_NB of the body (its Dual<1>
+// rate R'), and their rows are written in closed form instead of as inner products:
+//   M_ab += m e_a . R R^T e_b = m delta_ab,       M_aj += m (R v_j)_a  (v_j: Y_j's linear part),
+//   p_a += m (R v_xi)_a,                           (dM/dt pi')_a += m (R' v_xi + R v_xidot)_a,
+// i.e. the N components of the seeds' linear momenta (the same bilinear form, paper Eq. 26,
+// with R R^T = 1). Defined after the Workspace.
 void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
-                     const double* Xd, const double* u, LagrangeEngine::Workspace& w);
+                     const double* Xd, const double* u, const Mat3<Dual<1>>& R, bool translation,
+                     LagrangeEngine::Workspace& w);
 
 // solve: M x = b for symmetric positive definite M (upper triangle read), by Cholesky M = U^T U
 // (Golub & Van Loan 2013, "Matrix Computations", 4th ed., Alg. 4.2.1, in its column (gaxpy) form:
@@ -1228,19 +1235,24 @@ void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const d
 // b => x in place; U is scratch of M's size and inv_diag of its diagonal's (the reciprocals of
 // U's diagonal: one division per column, the rest multiplications). Returns false when M is not
 // positive definite (a pivot <= 0, or NaN). A plain loop: at this engine's sizes (n up to a few
-// dozen) it is faster than a blocked, dynamically dispatched factorisation.
-bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
-                    Eigen::VectorXd& x) {
-  const Eigen::Index n = M.rows();
-  double* r = inv_diag.data();
-  for (Eigen::Index j = 0; j < n; ++j) {
-    double* uj = &U(0, j);
-    const double* mj = &M(0, j);
+// dozen) it is faster than a blocked, dynamically dispatched factorisation. The kernel is written
+// once, for a size known at compile time (N > 0, n <= kFixedCholesky: the loops unroll completely,
+// about half the instructions at n = 8) and for one known at run time (N = 0); both do the same
+// operations in the same order (unrolling reorders nothing), so their results are identical.
+constexpr int kFixedCholesky = 12;
+
+#define CROSSDYN_UNROLL _Pragma("GCC unroll 12")
+template <int N>
+bool cholesky_kernel(Eigen::Index n_runtime, const double* M, double* U, double* r, double* v) {
+  const Eigen::Index n = N > 0 ? N : n_runtime;
+  CROSSDYN_UNROLL for (Eigen::Index j = 0; j < n; ++j) {
+    double* uj = U + j * n;
+    const double* mj = M + j * n;
     double d = mj[j];
-    for (Eigen::Index i = 0; i < j; ++i) {
-      const double* ui = &U(0, i);
+    CROSSDYN_UNROLL for (Eigen::Index i = 0; i < j; ++i) {
+      const double* ui = U + i * n;
       double s = mj[i];
-      for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
+      CROSSDYN_UNROLL for (Eigen::Index k = 0; k < i; ++k) s -= ui[k] * uj[k];
       uj[i] = s * r[i];
       d -= uj[i] * uj[i];
     }
@@ -1248,20 +1260,35 @@ bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorX
     uj[j] = std::sqrt(d);
     r[j] = 1.0 / uj[j];
   }
-  double* v = x.data();
-  for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j of U
-    const double* uj = &U(0, j);
+  CROSSDYN_UNROLL for (Eigen::Index j = 0; j < n; ++j) {  // U^T y = b: row j of U^T is column j
+    const double* uj = U + j * n;
     double s = v[j];
-    for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
+    CROSSDYN_UNROLL for (Eigen::Index k = 0; k < j; ++k) s -= uj[k] * v[k];
     v[j] = s * r[j];
   }
-  for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
-    const double* uj = &U(0, j);
+  CROSSDYN_UNROLL for (Eigen::Index j = n - 1; j >= 0; --j) {  // U x = y, column by column
+    const double* uj = U + j * n;
     const double vj = v[j] * r[j];
     v[j] = vj;
-    for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
+    CROSSDYN_UNROLL for (Eigen::Index k = 0; k < j; ++k) v[k] -= uj[k] * vj;
   }
   return true;
+}
+#undef CROSSDYN_UNROLL
+
+template <int... N>
+bool cholesky_dispatch(std::integer_sequence<int, N...>, Eigen::Index n, const double* M, double* U,
+                       double* r, double* v) {
+  bool ok = false;
+  const bool fixed =
+      ((n == N + 1 ? (ok = cholesky_kernel<N + 1>(n, M, U, r, v), true) : false) || ...);
+  return fixed ? ok : cholesky_kernel<0>(n, M, U, r, v);
+}
+
+bool cholesky_solve(const Eigen::MatrixXd& M, Eigen::MatrixXd& U, Eigen::VectorXd& inv_diag,
+                    Eigen::VectorXd& x) {
+  return cholesky_dispatch(std::make_integer_sequence<int, kFixedCholesky>(), M.rows(), M.data(),
+                           U.data(), inv_diag.data(), x.data());
 }
 
 }  // namespace
@@ -1273,15 +1300,23 @@ namespace {
 // p_S += DY^T xi, (dM/dt pi')_S += Yd^T D xi + DY^T xidot. Fixed 6-row blocks, so every product
 // is a vectorised 6-term inner product.
 void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const double* X,
-                     const double* Xd, const double* u, LagrangeEngine::Workspace& w) {
+                     const double* Xd, const double* u, const Mat3<Dual<1>>& R, bool translation,
+                     LagrangeEngine::Workspace& w) {
   using Vec6 = Eigen::Matrix<double, 6, 1>;
-  const auto s = static_cast<Eigen::Index>(sup.size());
+  const int t = translation ? 3 : 0;  // sup[0..t) are the base translation seeds
+  const auto s = static_cast<Eigen::Index>(sup.size()) - t;
+  const int* const sr = sup.data() + t;  // the other columns
   auto Y = w.Y.leftCols(s);
   auto Yd = w.Yd.leftCols(s);
   auto DY = w.DX.leftCols(s);
   Vec6 xi = Vec6::Zero(), xid = Vec6::Zero();
-  for (Eigen::Index k = 0; k < s; ++k) {
+  for (int k = 0; k < t; ++k) {
     const int i = sup[static_cast<std::size_t>(k)];
+    xi += Eigen::Map<const Vec6>(X + 6 * i) * u[i];
+    xid += Eigen::Map<const Vec6>(Xd + 6 * i) * u[i];
+  }
+  for (Eigen::Index k = 0; k < s; ++k) {
+    const int i = sr[k];
     Y.col(k) = Eigen::Map<const Vec6>(X + 6 * i);
     Yd.col(k) = Eigen::Map<const Vec6>(Xd + 6 * i);
     xi += Y.col(k) * u[i];
@@ -1292,11 +1327,35 @@ void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const d
   Vec6 Dxi;
   Dxi << B.I_BBo_B * xi.head<3>(), B.mass * xi.tail<3>();
   for (Eigen::Index a = 0; a < s; ++a) {
-    const int i = sup[static_cast<std::size_t>(a)];
+    const int i = sr[a];
     const auto Dya = DY.col(a);
-    for (Eigen::Index b = a; b < s; ++b) w.M(i, sup[static_cast<std::size_t>(b)]) += Dya.dot(Y.col(b));
+    for (Eigen::Index b = a; b < s; ++b) w.M(i, sr[b]) += Dya.dot(Y.col(b));
     w.p(i) += Dya.dot(xi);
     w.Mdot_u(i) += Yd.col(a).dot(Dxi) + Dya.dot(xid);
+  }
+  if (t == 0) return;
+  // The translation rows in closed form (see the declaration); the translation seeds come first
+  // in sup, so their entries are in M's upper triangle as M(a, j).
+  Eigen::Matrix3d R0, R1;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) {
+      R0(r, c) = R(r, c).v;
+      R1(r, c) = R(r, c).d[0];
+    }
+  for (int a = 0; a < 3; ++a) {
+    const int ia = sup[static_cast<std::size_t>(a)];
+    w.M(ia, ia) += B.mass;
+  }
+  for (Eigen::Index k = 0; k < s; ++k) {
+    const Eigen::Vector3d Rv = R0 * DY.col(k).tail<3>();
+    for (int a = 0; a < 3; ++a) w.M(sup[static_cast<std::size_t>(a)], sr[k]) += Rv(a);
+  }
+  const Eigen::Vector3d mv = B.mass * xi.tail<3>(), mvd = B.mass * xid.tail<3>();
+  const Eigen::Vector3d pa = R0 * mv, pda = R1 * mv + R0 * mvd;
+  for (int a = 0; a < 3; ++a) {
+    const int ia = sup[static_cast<std::size_t>(a)];
+    w.p(ia) += pa(a);
+    w.Mdot_u(ia) += pda(a);
   }
 }
 
@@ -1392,7 +1451,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
     if (B.flex >= 0) {
       flex_mass_pass(m, w, b);
     } else {
-      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w);
+      rigid_mass_pass(B, sup, X.data(), Xd.data(), w.u.data(), w.k1.R_NB[b], m.base_free, w);
     }
     // Body torque (on the body frame): virtual power tau . w_NB_B(pi') => N_i = tau . w(e_i).
     if (!B.torque.empty()) {

@@ -108,6 +108,20 @@ TEST_CASE("stability: the scene parameters, their values and their errors") {
   const int b = flex.body_index("array");
   CHECK(stiff.bodies[static_cast<std::size_t>(b)].flex->K(0, 0) ==
         1e4 * flex.bodies[static_cast<std::size_t>(b)].flex->K(0, 0));
+  // A damping ratio: D_k = 2 zeta sqrt(K_k M_k), M_k the node-sum modal mass (so that every mode
+  // decays at zeta omega_k); --set applies a second parameter before the sweep.
+  const System damped = apply_setting(apply_setting(flex, "array.modal_stiffness=1000"), "array.modal_damping=0.5");
+  const FlexBody& f = *damped.bodies[static_cast<std::size_t>(b)].flex;
+  for (int k = 0; k < f.modes(); ++k) {
+    double M = 0;
+    for (const FlexNode& node : f.nodes) M += node.mass * node.Phi_B.col(k).squaredNorm();
+    const double omega = std::sqrt(f.K(k, k) / M);
+    CHECK(std::abs(f.D(k, k) / (2 * M * omega) - 0.5) <= 1e-12);
+    CHECK(f.K(k, k) == 1000 * flex.bodies[static_cast<std::size_t>(b)].flex->K(k, k));
+  }
+  CHECK_THROWS_WITH(apply_setting(flex, "array.modal_damping"), Catch::Contains("expected KNOB=VALUE"));
+  CHECK_THROWS_WITH(apply_setting(flex, "array.modal_damping=x"), Catch::Contains("'x' is not a number"));
+  CHECK_THROWS_WITH(apply_setting(flex, "array.modal_damping=-1"), Catch::Contains("from 0 to 100"));
   const System chain = read_scene(test::scene_path("chain5"));
   CHECK(apply_knob(chain, parse_knob(chain, "links"), 3).bodies.size() == 3);
 }
