@@ -42,9 +42,19 @@ std::string fmt_g(double v, int digits = 3) {
   return b;
 }
 
-// "1e-08" style for settings (tolerances, steps): at most 3 significant digits.
+// "1e-08" style for settings (tolerances, steps): at most 3 significant digits, and an exponent
+// below 1e-3 ("1e-04", not %g's "0.0001", so that a tolerance list reads alike).
 std::string setting_text(double v) {
   char b[64];
+  if (v > 0 && v < 1e-3) {
+    std::snprintf(b, sizeof b, "%.2e", v);  // "1.00e-04": drop the mantissa's trailing zeros
+    std::string t = b;
+    const std::size_t e = t.find('e');
+    std::string mantissa = t.substr(0, e);
+    while (mantissa.find('.') != std::string::npos && (mantissa.back() == '0' || mantissa.back() == '.'))
+      mantissa.pop_back();
+    return mantissa + t.substr(e);
+  }
   std::snprintf(b, sizeof b, "%.3g", v);
   return b;
 }
