@@ -50,6 +50,9 @@ struct TreeState {
   // System::zero_linear_momentum is set, v_NBo_N is a placeholder: pack() must replace it by the
   // base velocity that makes the total linear momentum zero.
   static TreeState initial(const System& system);
+  // A prescribed base (System::base_is_free() false, rigidly attached) at joint angle `angle` and
+  // rate `rate`: sets p_NoBo_N, q_NB, v_NBo_N, w_NB_B (docs/prescribed-motion.md "Kinematics").
+  void place_prescribed_base(const Joint& base, double angle, double rate);
 };
 
 // Engine-neutral accelerations at one state, for cross-checking engines (STYLE item 6).

@@ -43,6 +43,17 @@ std::vector<double> System::breakpoints() const {
   return t;
 }
 
+// A prescribed base turning about an axis fixed in N (system.hpp): R_NB = R_NJ0 Rot(axis_J, angle),
+// axis_J = R_NJ0^T axis_N; the joint point is fixed in N.
+void TreeState::place_prescribed_base(const Joint& J, double angle, double rate) {
+  const Eigen::Vector3d axis_J = J.q_PJ0.conjugate() * J.axis_P;
+  q_NB = (J.q_PJ0 * Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis_J))).normalized();
+  w_NB_B = rate * axis_J;
+  const Eigen::Vector3d p_JBo_N = -(q_NB * J.p_CoJ_C);
+  p_NoBo_N = J.p_PoJ_P + p_JBo_N;
+  v_NBo_N = (q_NB * w_NB_B).cross(p_JBo_N);
+}
+
 TreeState TreeState::initial(const System& system) {
   TreeState s;
   s.joints.resize(system.joints.size());
@@ -58,16 +69,7 @@ TreeState TreeState::initial(const System& system) {
       case JointType::Revolute:
         s.joints[j].angle = J.angle0;
         s.joints[j].rate = J.prescribed ? J.prescribed->velocity(0) : J.rate0;
-        if (j == 0) {
-          // A prescribed base turning about an axis fixed in N (system.hpp): R_NB = R_NJ0
-          // Rot(axis_J, angle), axis_J = R_NJ0^T axis_N; the joint point is fixed in N.
-          const Eigen::Vector3d axis_J = J.q_PJ0.conjugate() * J.axis_P;
-          s.q_NB = (J.q_PJ0 * Eigen::Quaterniond(Eigen::AngleAxisd(J.angle0, axis_J))).normalized();
-          s.w_NB_B = s.joints[j].rate * axis_J;
-          const Eigen::Vector3d p_JBo_N = -(s.q_NB * J.p_CoJ_C);
-          s.p_NoBo_N = J.p_PoJ_P + p_JBo_N;
-          s.v_NBo_N = (s.q_NB * s.w_NB_B).cross(p_JBo_N);
-        }
+        if (j == 0) s.place_prescribed_base(J, J.angle0, s.joints[j].rate);
         break;
       case JointType::Spherical:
         s.joints[j].q_J = J.q_J0.normalized();

@@ -54,25 +54,6 @@ void write_stability_outputs(const harness::StabilityMap& map, const std::string
   if (!report.empty()) harness::write_stability_report(report, {map});
 }
 
-std::vector<std::string> split_names(const std::string& text, const std::string& option,
-                                     const std::vector<std::string>& known, const std::string& noun) {
-  std::vector<std::string> out;
-  if (text.empty()) return out;
-  std::stringstream in(text);
-  std::string name;
-  while (std::getline(in, name, ',')) {
-    if (std::find(known.begin(), known.end(), name) == known.end()) {
-      std::string list;
-      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      throw InputError(option + ": unknown " + noun + " '" + name + "' (known: " + list + ")");
-    }
-    if (std::find(out.begin(), out.end(), name) != out.end())
-      throw InputError(option + ": '" + name + "' is listed twice");
-    out.push_back(name);
-  }
-  return out;
-}
-
 // "1,10,100" or "1..1e4" (one per decade); negative and zero values allowed in lists (a rate).
 std::vector<double> parse_parameter_values(const std::string& text) {
   if (text.find("..") != std::string::npos) return harness::parse_values(text, "--values", true);
@@ -98,7 +79,7 @@ std::vector<double> parse_parameter_values(const std::string& text) {
 int stability(const StabilityCliOptions& o) {
   harness::StabilityOptions options;
   options.engine_specs = harness::parse_engine_variants(o.engines, "--engines");
-  options.integrators = split_names(o.integrators, "--integrators", integrator_names(), "integrator");
+  options.integrators = harness::parse_names(o.integrators, "--integrators", integrator_names(), "integrator");
   if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
   if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
   if (o.tolerance && !(*o.tolerance > 0)) throw InputError("--tolerance: must be positive");

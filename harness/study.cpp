@@ -295,6 +295,26 @@ std::vector<double> default_tolerances() {
   return t;
 }
 
+std::vector<std::string> parse_names(const std::string& text, const std::string& option,
+                                     const std::vector<std::string>& known, const std::string& noun) {
+  std::vector<std::string> out;
+  if (text.empty()) return out;
+  std::stringstream in(text);
+  std::string name;
+  while (std::getline(in, name, ',')) {
+    if (name.empty()) throw InputError(option + ": empty " + noun + " name in '" + text + "'");
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError(option + ": unknown " + noun + " '" + name + "' (known: " + list + ")");
+    }
+    if (std::find(out.begin(), out.end(), name) != out.end())
+      throw InputError(option + ": '" + name + "' is listed twice");
+    out.push_back(name);
+  }
+  return out;
+}
+
 std::vector<double> parse_values(const std::string& text, const std::string& option, bool allow_range) {
   auto number = [&](const std::string& s) {
     std::size_t used = 0;

@@ -122,6 +122,10 @@ std::vector<double> default_tolerances();
 // "1e-4..1e-13" (one per decade, either direction) or "1e-4,1e-6,1e-8"; InputError naming
 // `option` for anything else (non-positive, not a number, more than 40 values).
 std::vector<double> parse_values(const std::string& text, const std::string& option, bool allow_range);
+// "kane,lagrange": names from `known`, each once, in the order given; InputError naming `option`
+// and the `noun` ("engine") for an empty, unknown or repeated name. Empty text: none.
+std::vector<std::string> parse_names(const std::string& text, const std::string& option,
+                                     const std::vector<std::string>& known, const std::string& noun);
 
 struct StudyRow {
   std::string engine, integrator;

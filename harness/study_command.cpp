@@ -54,33 +54,13 @@ void write_study_outputs(const std::vector<harness::SceneStudy>& results,
   if (!report.empty()) harness::write_study_report(report, results, scaling);
 }
 
-std::vector<std::string> split_names(const std::string& text, const std::string& option,
-                                     const std::vector<std::string>& known, const std::string& noun) {
-  std::vector<std::string> out;
-  if (text.empty()) return out;
-  std::stringstream in(text);
-  std::string name;
-  while (std::getline(in, name, ',')) {
-    if (name.empty()) throw InputError(option + ": empty " + noun + " name in '" + text + "'");
-    if (std::find(known.begin(), known.end(), name) == known.end()) {
-      std::string list;
-      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      throw InputError(option + ": unknown " + noun + " '" + name + "' (known: " + list + ")");
-    }
-    if (std::find(out.begin(), out.end(), name) != out.end())
-      throw InputError(option + ": '" + name + "' is listed twice");
-    out.push_back(name);
-  }
-  return out;
-}
-
 int study(const StudyCliOptions& o) {
   // Everything that can be refused is refused before any run (exit 2).
   if (o.scenes.empty() && !o.scaling)
     throw InputError("study: give at least one scene, or --scaling");
   harness::StudyOptions options;
-  options.engines = split_names(o.engines, "--engines", engine_names(), "engine");
-  options.integrators = split_names(o.integrators, "--integrators", integrator_names(), "integrator");
+  options.engines = harness::parse_names(o.engines, "--engines", engine_names(), "engine");
+  options.integrators = harness::parse_names(o.integrators, "--integrators", integrator_names(), "integrator");
   if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
   if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
   if (o.repeat < 1 || o.repeat > 1000)

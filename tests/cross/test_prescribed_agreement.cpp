@@ -43,14 +43,7 @@ void follow_profile(const System& system, TreeState& s, double t) {
     if (!J.prescribed) continue;
     s.joints[j].angle = J.angle0 + J.prescribed->angle(t);
     s.joints[j].rate = J.prescribed->velocity(t);
-    if (j == 0) {
-      const Eigen::Vector3d axis_J = J.q_PJ0.conjugate() * J.axis_P;
-      s.q_NB = (J.q_PJ0 * Eigen::Quaterniond(Eigen::AngleAxisd(s.joints[j].angle, axis_J))).normalized();
-      s.w_NB_B = s.joints[j].rate * axis_J;
-      const Eigen::Vector3d p_JBo_N = -(s.q_NB * J.p_CoJ_C);
-      s.p_NoBo_N = J.p_PoJ_P + p_JBo_N;
-      s.v_NBo_N = (s.q_NB * s.w_NB_B).cross(p_JBo_N);
-    }
+    if (j == 0) s.place_prescribed_base(J, s.joints[j].angle, s.joints[j].rate);
   }
 }
 
