@@ -139,7 +139,7 @@ constexpr double kBeta = 0.04;
 
 }  // namespace
 
-void Dop853::initialize(const State& x, double t, double dt) {
+void Dop853::initialize(const State& x, double t, double dt, const State* f_x) {
   const std::size_t n = x.size();
   x_ = x;
   t_ = t;
@@ -155,18 +155,60 @@ void Dop853::initialize(const State& x, double t, double dt) {
     x_old_.assign(n, 0.0);
     x_trial_.assign(n, 0.0);
     x_stage_.assign(n, 0.0);
+    est5_.assign(n, 0.0);
+    est3_.assign(n, 0.0);
+  }
+  if (f_x != nullptr && f_x->size() == n) {
+    k_[0] = *f_x;
+    have_k1_ = true;
+  }
+}
+
+// out = base + sum_j c_j k_j over the stages with c_j != 0 (base null: 0), four stages per pass
+// over the vectors so that out is loaded and stored once per four terms.
+void Dop853::sum_stages(const double* c, int stages, const double* base, double* out) const {
+  const std::size_t n = x_.size();
+  double coef[kExtended];
+  const double* vec[kExtended];
+  int m = 0;
+  for (int j = 0; j < stages; ++j)
+    if (c[j] != 0.0) {
+      coef[m] = c[j];
+      vec[m++] = k_[static_cast<std::size_t>(j)].data();
+    }
+  double* __restrict o = out;
+  if (base != nullptr) {
+    const double* __restrict b = base;
+    for (std::size_t i = 0; i < n; ++i) o[i] = b[i];
+  } else {
+    std::fill(o, o + n, 0.0);
+  }
+  int j = 0;
+  for (; j + 4 <= m; j += 4) {
+    const double c0 = coef[j], c1 = coef[j + 1], c2 = coef[j + 2], c3 = coef[j + 3];
+    const double* __restrict k0 = vec[j];
+    const double* __restrict k1 = vec[j + 1];
+    const double* __restrict k2 = vec[j + 2];
+    const double* __restrict k3 = vec[j + 3];
+    for (std::size_t i = 0; i < n; ++i) o[i] += (c0 * k0[i] + c1 * k1[i]) + (c2 * k2[i] + c3 * k3[i]);
+  }
+  for (; j + 2 <= m; j += 2) {
+    const double c0 = coef[j], c1 = coef[j + 1];
+    const double* __restrict k0 = vec[j];
+    const double* __restrict k1 = vec[j + 1];
+    for (std::size_t i = 0; i < n; ++i) o[i] += c0 * k0[i] + c1 * k1[i];
+  }
+  for (; j < m; ++j) {
+    const double c0 = coef[j];
+    const double* __restrict k0 = vec[j];
+    for (std::size_t i = 0; i < n; ++i) o[i] += c0 * k0[i];
   }
 }
 
 void Dop853::combine(const double* a, int stages, double h, const State& x, State& x_out) const {
-  const std::size_t n = x.size();
-  std::copy(x.begin(), x.end(), x_out.begin());
-  for (int j = 0; j < stages; ++j) {
-    if (a[j] == 0.0) continue;
-    const double ha = h * a[j];
-    const double* k = k_[static_cast<std::size_t>(j)].data();
-    for (std::size_t i = 0; i < n; ++i) x_out[i] += ha * k[i];
-  }
+  double ha[kExtended];
+  for (int j = 0; j < stages; ++j) ha[j] = h * a[j];
+  sum_stages(ha, stages, x.data(), x_out.data());
 }
 
 std::pair<double, double> Dop853::step(Rhs f) {
@@ -195,18 +237,20 @@ std::pair<double, double> Dop853::step(Rhs f) {
     // stepsize control"): two estimators of orders 5 and 3 combined as
     //   err = |h| e5^2 / sqrt(n (e5^2 + 0.01 e3^2)),  e_p^2 = sum_i (est_p,i / sk_i)^2,
     //   sk_i = atol + rtol max(|x_i|, |x_new,i|).
+    // est5 = sum_j e5_j k_j, est3 = sum_j (b_j - bhh_j) k_j (both without the factor h).
+    double b_minus_bhh[kStages];
+    for (int j = 0; j < kStages; ++j) b_minus_bhh[j] = kA[kStages][j];
+    b_minus_bhh[0] -= kBhh0;
+    b_minus_bhh[8] -= kBhh8;
+    b_minus_bhh[11] -= kBhh11;
+    sum_stages(kE5, kStages, nullptr, est5_.data());
+    sum_stages(b_minus_bhh, kStages, nullptr, est3_.data());
     double e5 = 0, e3 = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const double sk = atol_ + rtol_ * std::max(std::abs(x_[i]), std::abs(x_trial_[i]));
-      double est5 = 0, est3 = 0;
-      for (int j = 0; j < kStages; ++j) {
-        const double kj = k_[static_cast<std::size_t>(j)][i];
-        est5 += kE5[j] * kj;
-        est3 += kA[kStages][j] * kj;
-      }
-      est3 -= kBhh0 * k_[0][i] + kBhh8 * k_[8][i] + kBhh11 * k_[11][i];
-      e5 += (est5 / sk) * (est5 / sk);
-      e3 += (est3 / sk) * (est3 / sk);
+      const double q5 = est5_[i] / sk, q3 = est3_[i] / sk;
+      e5 += q5 * q5;
+      e3 += q3 * q3;
     }
     double denominator = e5 + 0.01 * e3;
     if (!(denominator > 0)) denominator = 1;
@@ -260,14 +304,9 @@ void Dop853::prepare_dense() {
     r_[2][i] = 2.0 * delta - h * (f_new[i] + f_old[i]);
   }
   for (int m = 0; m < 4; ++m) {
-    State& r = r_[static_cast<std::size_t>(m + 3)];
-    std::fill(r.begin(), r.end(), 0.0);
-    for (int j = 0; j < kExtended; ++j) {
-      if (kD[m][j] == 0.0) continue;
-      const double hd = h * kD[m][j];
-      const double* k = k_[static_cast<std::size_t>(j)].data();
-      for (std::size_t i = 0; i < n; ++i) r[i] += hd * k[i];
-    }
+    double hd[kExtended];
+    for (int j = 0; j < kExtended; ++j) hd[j] = h * kD[m][j];
+    sum_stages(hd, kExtended, nullptr, r_[static_cast<std::size_t>(m + 3)].data());
   }
   dense_ready_ = true;
 }

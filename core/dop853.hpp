@@ -40,8 +40,9 @@ class Dop853 {
   Dop853(double atol, double rtol) : atol_(atol), rtol_(rtol) {}
   void set_reject_hook(RejectHook hook) { on_reject_ = std::move(hook); }
 
-  // Starts (or restarts) from (x, t) with first trial step dt: the first stage is recomputed.
-  void initialize(const State& x, double t, double dt);
+  // Starts (or restarts) from (x, t) with first trial step dt. The first stage is f(t, x): given
+  // as `f_x` when the caller has it (the starting-step estimate computes it), else recomputed.
+  void initialize(const State& x, double t, double dt, const State* f_x = nullptr);
 
   // One accepted step (trial steps rejected by the error test are retried shorter, the hook told
   // of each). Returns (t_old, t_new). A stage that throws leaves the stepper at its last accepted
@@ -64,6 +65,8 @@ class Dop853 {
   std::pair<double, double> step(Rhs f);
   // x_out = x + h * sum_j a[j] k_[j] over the nonzero a[j], j < stages.
   void combine(const double* a, int stages, double h, const State& x, State& x_out) const;
+  // out = base + sum_j c[j] k_[j] over the nonzero c[j], j < stages (base null: 0).
+  void sum_stages(const double* c, int stages, const double* base, double* out) const;
   void prepare_dense();  // the extension's stages 14-16 and its 7 coefficient vectors
 
   double atol_, rtol_;
@@ -78,6 +81,7 @@ class Dop853 {
   bool last_rejected_ = false;
   double facold_ = 1e-4;          // max(err, 1e-4) of the last accepted step (PI control)
   State x_, x_old_, x_trial_, x_stage_;
+  State est5_, est3_;             // the error estimators' sums (step())
   std::vector<State> k_;          // 16 stages (12 of the step, k_[12] = f at the new point, 3 extra)
   std::vector<State> r_;          // the extension's 7 coefficient vectors
 };

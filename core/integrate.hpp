@@ -47,14 +47,17 @@ struct IntegratorSettings {
   Choice<Integrator> method = Integrator::Rkf78;  // core/names.hpp
   double rtol = 1e-10;
   double atol = 1e-10;
-  double dt = 1e-3;              // rk4 step; first trial step of adaptive methods
+  double dt = 1e-3;              // rk4 step, s
+  double first_step = 0;         // adaptive methods' first trial step, s; 0: estimated from the
+                                 // derivatives at the start (integrate.cpp, Runner::first_step)
   double duration = 0;           // s
   double output_step = 0;        // s
   long max_steps = 20'000'000;   // accepted + rejected steps before the run is declared failed
   double min_step = 1e-13;       // s; an adaptive step below this is a step-size underflow
   bool keep_rows = true;         // false: rows go only to the RowCallback (long streamed runs);
                                  // true: kept in RunResult, in memory or a temporary file (rows.hpp)
-  // From a scene's run block (duration, output step, method, tolerances, dt).
+  // From a scene's run block (duration, output step, method, tolerances, dt; a `run.dt` the scene
+  // gives is also the first trial step).
   static IntegratorSettings from(const RunSpec& run);
 };
 

@@ -142,7 +142,8 @@ void Runner::cvode(State& x) {
   ok(CVodeInit(cv.mem, cvode_rhs, 0.0, cv.y), "CVodeInit");
   ok(CVodeSetUserData(cv.mem, &cb), "CVodeSetUserData");
   ok(CVodeSStolerances(cv.mem, s_.rtol, s_.atol), "CVodeSStolerances");
-  ok(CVodeSetInitStep(cv.mem, s_.dt), "CVodeSetInitStep");  // the first trial step, as for Odeint
+  // The user's first trial step (a scene's run.dt or --dt), else 0: CVODE's own estimate.
+  ok(CVodeSetInitStep(cv.mem, std::min(s_.first_step, s_.duration)), "CVodeSetInitStep");
   ok(CVodeSetMinStep(cv.mem, s_.min_step), "CVodeSetMinStep");
   ok(CVodeSetMaxErrTestFails(cv.mem, kMaxFailuresPerStep), "CVodeSetMaxErrTestFails");
   ok(CVodeSetMaxConvFails(cv.mem, kMaxFailuresPerStep), "CVodeSetMaxConvFails");

@@ -69,9 +69,12 @@ class Runner {
   template <class Stepper>
   void controlled(Stepper& stepper, State& x);
   template <class Stepper>
-  void dense(Stepper& stepper, State& x, int stages_per_rejection);
+  void dense(Stepper& stepper, State& x, int stages_per_rejection, int order);
   void cvode(State& x);
   double weighted_rms_change(const double* y, const State& x) const;
+  // The first trial step from (0, x) for a method of order `order`, at most h_max: the user's
+  // (IntegratorSettings::first_step) or estimated; f0 is set to f(0, x) when it was computed.
+  double first_step(const State& x, double h_max, int order, State& f0);
 
   // Computes, checks and stores (or hands on) the output row at t.
   void emit(double t, const double* x);

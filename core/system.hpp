@@ -233,6 +233,8 @@ struct RunSpec {
   Choice<Integrator> integrator = Integrator::Rkf78;  // core/names.hpp
   double rtol = 1e-10, atol = 1e-10;
   double dt = 1e-3;             // fixed step for rk4; first trial step for adaptive methods
+  bool dt_given = false;        // the scene sets run.dt (else adaptive methods estimate their
+                                // first step: core/integrate.hpp, IntegratorSettings::first_step)
 };
 
 struct System {

@@ -579,7 +579,7 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   if (options.integrator) settings.method = *options.integrator;
   if (options.rtol) settings.rtol = *options.rtol;
   if (options.atol) settings.atol = *options.atol;
-  if (options.dt) settings.dt = *options.dt;
+  if (options.dt) settings.dt = settings.first_step = *options.dt;
   if (options.max_steps) settings.max_steps = *options.max_steps;
 
   std::vector<EngineSpec> specs = options.engines;

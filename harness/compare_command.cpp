@@ -33,7 +33,7 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
                  known_names<Integrator>() + " (default: the scene's)");
   sub.add_option("--rtol", o.rtol, "Relative tolerance of adaptive integrators (default: the scene's)");
   sub.add_option("--atol", o.atol, "Absolute tolerance of adaptive integrators (default: the scene's)");
-  sub.add_option("--dt", o.dt, "rk4 step, or first trial step of adaptive integrators, s");
+  sub.add_option("--dt", o.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
   sub.add_flag("--no-analytic", o.no_analytic,
                "Leave out the analytic solution even where the scene has one");
   sub.add_option("--max-steps", o.max_steps,

@@ -169,7 +169,7 @@ void add_converge_command(CLI::App& app, int& exit_code) {
                   known_names<Integrator>() + " (default: the scene's)");
   sub->add_option("--rtol", o->common.rtol, "Relative tolerance (default: the scene's)");
   sub->add_option("--atol", o->common.atol, "Absolute tolerance (default: the scene's)");
-  sub->add_option("--dt", o->common.dt, "rk4 step, or first trial step, s");
+  sub->add_option("--dt", o->common.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
   sub->add_option("--max-steps", o->common.max_steps, "Per run: fail the run after N steps");
   sub->add_option("--timeout", o->common.timeout, "Per run: fail the run after SECONDS");
   sub->add_option("--json", o->json, "Also write the result as JSON to FILE (atomically)");

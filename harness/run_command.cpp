@@ -102,7 +102,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
                   integrator_help() + "; default: the scene's (README \"Integrators\")");
   sub->add_option("--rtol", o->overrides.rtol, "Relative tolerance of adaptive integrators (> 0)");
   sub->add_option("--atol", o->overrides.atol, "Absolute tolerance of adaptive integrators (> 0)");
-  sub->add_option("--dt", o->overrides.dt, "rk4 step, or first trial step of adaptive integrators, s");
+  sub->add_option("--dt", o->overrides.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
   sub->add_option("--duration", o->overrides.duration, "Override the scene's run length, s");
   sub->add_option("--output-step", o->overrides.output_step,
                   "Override the scene's output step, s (at most 1e7 output rows)");

@@ -42,7 +42,7 @@ IntegratorSettings settings_for(const System& system, const RunOverrides& o) {
   if (o.integrator) s.method = *o.integrator;
   if (o.rtol) s.rtol = *o.rtol;
   if (o.atol) s.atol = *o.atol;
-  if (o.dt) s.dt = *o.dt;
+  if (o.dt) s.dt = s.first_step = *o.dt;  // rk4's step and the adaptive methods' first trial step
   if (o.duration) s.duration = *o.duration;
   if (o.output_step) s.output_step = *o.output_step;
   if (o.max_steps) s.max_steps = *o.max_steps;

@@ -257,7 +257,7 @@ EngineRun run_from(const json& j) {
 
 json settings_to(const IntegratorSettings& s) {
   return {{"method", s.method.str()}, {"rtol", num(s.rtol)}, {"atol", num(s.atol)},
-          {"dt", num(s.dt)}, {"duration", num(s.duration)}, {"output_step", num(s.output_step)},
+          {"dt", num(s.dt)}, {"first_step", num(s.first_step)}, {"duration", num(s.duration)}, {"output_step", num(s.output_step)},
           {"max_steps", s.max_steps}, {"min_step", num(s.min_step)}, {"keep_rows", s.keep_rows}};
 }
 
@@ -267,6 +267,7 @@ IntegratorSettings settings_from(const json& j) {
   s.rtol = get_num(j.at("rtol"));
   s.atol = get_num(j.at("atol"));
   s.dt = get_num(j.at("dt"));
+  s.first_step = get_num(j.at("first_step"));
   s.duration = get_num(j.at("duration"));
   s.output_step = get_num(j.at("output_step"));
   s.max_steps = j.at("max_steps").get<long>();

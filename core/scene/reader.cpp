@@ -553,6 +553,7 @@ void read_run(const Reader& r, const MapView& top, System& s) {
     }
   if (auto f = m.get("dt")) {
     s.run.dt = r.number(*f);
+    s.run.dt_given = true;
     limit(f->val, run_limits::dt_problem(s.run.dt));
   }
 }

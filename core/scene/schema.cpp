@@ -291,7 +291,8 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "run.atol", .type = Number, .default_value = "1e-10",
  .doc = "Absolute tolerance of the adaptive integrators, > 0."},
 {.path = "run.dt", .type = Quantity, .dimension = Dimension::Time, .default_value = "1 ms",
- .doc = "rk4's fixed step; the first trial step of the adaptive integrators. > 0."},
+ .doc = "rk4's fixed step; when given, also the adaptive integrators' first trial step (else "
+        "they estimate it from the derivatives at the start). > 0."},
 
 // ----- compare --------------------------------------------------------------------------------
 {.path = "compare.tolerances", .type = Map, .noun = "the tolerances",

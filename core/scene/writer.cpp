@@ -233,7 +233,7 @@ void write_run(Out& o, const RunSpec& run) {
   o.key("run.integrator") << run.integrator.str();
   o.number("run.rtol", run.rtol);
   o.number("run.atol", run.atol);
-  o.number("run.dt", run.dt);
+  if (run.dt_given) o.number("run.dt", run.dt);  // else the default, and the first step estimated
   o.yaml() << YAML::EndMap;
 }
 

@@ -54,7 +54,7 @@ IntegratorSettings settings(const std::string& method) {
   IntegratorSettings s;
   s.method = method;
   s.rtol = s.atol = 1e-10;
-  s.dt = 1e-3;  // the over-large first trial step
+  s.dt = s.first_step = 1e-3;  // the over-large first trial step (not estimated)
   s.duration = 1.0;
   s.output_step = 0.1;
   return s;
