@@ -93,6 +93,8 @@ void register_kane_solvers(const std::vector<crossdyn::System>& committed) {
 
 }  // namespace
 
+void register_integrate_benchmarks();  // integrate_bench.cpp
+
 int main(int argc, char** argv) {
   static std::vector<crossdyn::System> systems;  // outlives the registered benchmarks
   std::vector<std::filesystem::path> scenes;
@@ -120,6 +122,7 @@ int main(int argc, char** argv) {
                                    [&system, name](benchmark::State& s) { bench_rhs(s, system, name); });
     }
   register_kane_solvers(systems);
+  register_integrate_benchmarks();
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
