@@ -60,12 +60,6 @@ class TempFolder {
   fs::path path_;
 };
 
-std::string file_safe(std::string s) {
-  for (char& ch : s)
-    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_') ch = '_';
-  return s.empty() ? "scene" : s;
-}
-
 std::string lower(std::string s) {
   for (char& ch : s) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
   return s;
@@ -76,7 +70,7 @@ int draw(const DrawOptions& o) {
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
-  const std::string out = o.output.empty() ? file_safe(system.name) + ".png" : o.output;
+  const std::string out = o.output.empty() ? harness::file_safe(system.name, true, "scene") + ".png" : o.output;
   // The picture is a PNG: a name without .png is a mistake (and keeps `-o scene.yaml` from ever
   // replacing an input).
   if (lower(fs::path(out).extension().string()) != ".png")

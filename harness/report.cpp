@@ -176,25 +176,12 @@ const char* run_state(EngineRun::State s) {
   return "?";
 }
 
-// A name safe in a file name: letters, digits, '.', '-', '_'; anything else becomes '_'.
-std::string file_safe(std::string s) {
-  for (char& ch : s)
-    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '-' && ch != '_') ch = '_';
-  return s.empty() ? "_" : s;
-}
-
 // Unique page ids, one per scene: the scene's name (file stem when unreadable).
 std::vector<std::string> scene_ids(const std::vector<SceneOutcome>& scenes) {
-  std::vector<std::string> ids;
-  std::set<std::string> taken{"index", "summary", "data"};
-  for (const SceneOutcome& s : scenes) {
-    std::string base = file_safe(s.system ? s.system->name : fs::path(s.path).stem().string());
-    std::string id = base;
-    for (int k = 2; taken.count(id); ++k) id = base + "-" + std::to_string(k);
-    taken.insert(id);
-    ids.push_back(id);
-  }
-  return ids;
+  std::vector<std::string> bases;
+  for (const SceneOutcome& s : scenes)
+    bases.push_back(file_safe(s.system ? s.system->name : fs::path(s.path).stem().string()));
+  return unique_ids(bases, {"index", "summary", "data"}, '-');
 }
 
 json summary_document(const std::vector<SceneOutcome>& scenes,
@@ -471,6 +458,25 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
 }
 
 
+
+std::string file_safe(std::string s, bool keep_dots, const std::string& empty) {
+  for (char& ch : s)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_' && !(keep_dots && ch == '.'))
+      ch = '_';
+  return s.empty() ? empty : s;
+}
+
+std::vector<std::string> unique_ids(const std::vector<std::string>& bases, std::set<std::string> taken,
+                                    char separator) {
+  std::vector<std::string> ids;
+  for (const std::string& base : bases) {
+    std::string id = base;
+    for (int k = 2; taken.count(id); ++k) id = base + separator + std::to_string(k);
+    taken.insert(id);
+    ids.push_back(id);
+  }
+  return ids;
+}
 
 void run_python(const std::string& python, const std::vector<std::string>& args) {
   std::vector<std::string> all{python};

@@ -6,6 +6,7 @@
 #include "harness/compare.hpp"
 
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -78,6 +79,15 @@ void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& 
 // Runs `python ARGS...` (with PYTHONDONTWRITEBYTECODE=1) and waits; Ctrl-C ends it (RunFailure
 // "interrupted"); InputError naming args[0] when it cannot start or fails.
 void run_python(const std::string& python, const std::vector<std::string>& args);
+
+// A name safe in a file name: letters, digits, '-', '_' (and '.' when keep_dots); anything else
+// becomes '_'; an empty name becomes `empty`.
+std::string file_safe(std::string s, bool keep_dots = true, const std::string& empty = "_");
+
+// One id per base, in order, unique among themselves and `taken` (reserved page names): a base
+// already taken gets `<base><separator>2`, `<base><separator>3`, ...
+std::vector<std::string> unique_ids(const std::vector<std::string>& bases, std::set<std::string> taken,
+                                    char separator);
 
 // Creates a folder and its parents; InputError naming it when that fails.
 void make_directories(const std::string& dir);

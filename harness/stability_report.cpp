@@ -23,24 +23,11 @@ using json = nlohmann::json;
 
 json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-std::string safe_id(std::string s) {
-  for (char& ch : s)
-    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_') ch = '_';
-  return s.empty() ? "_" : s;
-}
-
 // Unique ids, one per map: <scene>-<knob> (page <id>.html, <id>.csv).
 std::vector<std::string> map_ids(const std::vector<StabilityMap>& maps) {
-  std::vector<std::string> ids;
-  std::set<std::string> taken{"index"};
-  for (const StabilityMap& m : maps) {
-    const std::string base = safe_id(m.scene + "-" + m.knob.spec);
-    std::string id = base;
-    for (int k = 2; taken.count(id); ++k) id = base + "_" + std::to_string(k);
-    taken.insert(id);
-    ids.push_back(id);
-  }
-  return ids;
+  std::vector<std::string> bases;
+  for (const StabilityMap& m : maps) bases.push_back(file_safe(m.scene + "-" + m.knob.spec, false));
+  return unique_ids(bases, {"index"}, '_');
 }
 
 json map_json(const StabilityMap& m, const std::string& id) {

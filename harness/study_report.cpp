@@ -23,23 +23,11 @@ using json = nlohmann::json;
 
 json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-std::string safe_id(std::string s) {
-  for (char& ch : s)
-    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_') ch = '_';
-  return s.empty() ? "_" : s;
-}
-
 // Unique ids, one per scene (page <id>-study.html, <id>-study.csv).
 std::vector<std::string> study_ids(const std::vector<SceneStudy>& scenes) {
-  std::vector<std::string> ids;
-  std::set<std::string> taken{"index", "scaling"};
-  for (const SceneStudy& s : scenes) {
-    std::string id = safe_id(s.scene);
-    for (int k = 2; taken.count(id); ++k) id = safe_id(s.scene) + "_" + std::to_string(k);
-    taken.insert(id);
-    ids.push_back(id);
-  }
-  return ids;
+  std::vector<std::string> bases;
+  for (const SceneStudy& s : scenes) bases.push_back(file_safe(s.scene, false));
+  return unique_ids(bases, {"index", "scaling"}, '_');
 }
 
 json scene_json(const SceneStudy& s, const std::string& id) {
