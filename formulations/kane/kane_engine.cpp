@@ -484,6 +484,10 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     nodes_[k].parent_start = p.sums_start;
     p.sums_start = false;
   }
+  for (Node& n : nodes_) {
+    n.leaf_rigid = n.sums_start && n.flex < 0 && n.parent >= 0 && !n.parent_attach;
+    n.parent_free_base = n.parent >= 0 && nodes_[static_cast<std::size_t>(n.parent)].type == JointType::Free;
+  }
 
   // State labels.
   labels_.assign(static_cast<std::size_t>(n_q_ + n_u_), "");
@@ -1002,8 +1006,14 @@ void KaneEngine::propagate_accelerations(const double* udot, bool full) {
     const Vector3d& a_P = full ? P.a_N : P.a_t_N;
     const Vector3d& p_PoOk_N = w.p_PoOk_N;
     const Vector3d& p_OkCo_N = w.p_OkBo_N;
-    Vector3d a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
-    Vector3d alpha_C = alpha_P;
+    Vector3d a_Ok, alpha_C;
+    if (n.parent_free_base && !full) {  // a free base's remainder accelerations are zero
+      a_Ok.noalias() = P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C.setZero();
+    } else {
+      a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C = alpha_P;
+    }
     if (n.parent_attach) {
       a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N) + w.b_att_N;  // b: stiffening's R e eta'^T G eta'
       alpha_C += P.w_NB_N.cross(w.w_att_N) + w.jdot_att_N;
@@ -1066,9 +1076,28 @@ void KaneEngine::subtree_pass(double t, bool full) {
     const Vector3d& alpha_t = full ? w.alpha_N : w.alpha_t_N;
     put(start, w.m_sub, n.mass);
     Vector3d R_B, T_B;
+    if (n.flex < 0 && n.type == JointType::Free) {
+      // A rigid free base: Bo = Ok (d = 0), and its remainder accelerations are zero.
+      if (start) w.s_sub_N.setZero();
+      put(start, w.J_sub_N, w.I_BBo_N);
+      if (full) {
+        R_B = -n.mass * a_t;
+        T_B = rigid_residual_torque(n, w, alpha_t);
+      } else {
+        R_B.setZero();
+        T_B = Vector3d::Zero();  // -I alpha_t - w x I w with alpha_t = 0
+        if (n.inertia != Node::Inertia::Isotropic)
+          T_B.noalias() -= w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+      }
+      if (n.body_torque) add_body_torque(n, w, t, T_B);
+      put(start, w.F_sub_N, R_B);
+      put(start, w.M_sub_N, T_B);
+      continue;  // the root
+    }
     if (n.flex < 0) {
       put(start, w.s_sub_N, n.mass * d);
-      add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d, start);
+      // A rigid leaf's inertia about Ok is not formed (Node::leaf_rigid): see the move below.
+      if (!n.leaf_rigid) add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d, start);
       R_B = -n.mass * a_t;
       T_B = rigid_residual_torque(n, w, alpha_t);
     } else {
@@ -1104,7 +1133,10 @@ void KaneEngine::subtree_pass(double t, bool full) {
     const Vector3d e = w.p_B0oOk_N - P.p_B0oOk_N;
     put(first, P.m_sub, w.m_sub);
     put(first, P.s_sub_N, w.s_sub_N + w.m_sub * e);
-    add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e, first);
+    if (n.leaf_rigid)  // the body's central inertia shifted straight from Bo to Op (d + e)
+      add_shifted_inertia(P.J_sub_N, w.I_BBo_N, n.mass, d + e, first);
+    else
+      add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e, first);
     put(first, P.F_sub_N, w.F_sub_N);
     put(first, P.M_sub_N, w.M_sub_N + e.cross(w.F_sub_N));
   }
@@ -1196,7 +1228,17 @@ void KaneEngine::mass_matrix_pass() {
         const int r = n.u0 + i;
         const Vector3d W_r = w.W_N.col(i);
         const Vector3d p_r = W_r.cross(w.s_sub_N);
-        const Vector3d h_r = w.J_sub_N * W_r;
+        Vector3d h_r;
+        if (n.leaf_rigid) {  // J_k W = I W + m (|d|^2 W - d (d . W)) = I W + m d x (W x d)
+          const Vector3d& d = w.p_OkBo_N;
+          h_r = n.mass * d.cross(W_r.cross(d));
+          if (n.inertia == Node::Inertia::Isotropic)
+            h_r += n.I_BBo_B(0, 0) * W_r;
+          else
+            h_r.noalias() += w.I_BBo_N * W_r;
+        } else {
+          h_r.noalias() = w.J_sub_N * W_r;
+        }
         for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
         mass_matrix_ancestors(n, r, p_r, h_r);
       }
@@ -1764,8 +1806,16 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
     Vector3d h_Bo;
     double T = 0.5 * n.mass * w.v_NBo_N.squaredNorm();
     first_moment += n.mass * w.p_B0oBo_N;
-    if (n.flex < 0) {
-      const Vector3d h_B = n.I_BBo_B * w.w_NB_B;
+    if (n.flex < 0 && n.inertia == Node::Inertia::Isotropic) {  // I w = c w in any frame
+      const double c = n.I_BBo_B(0, 0);
+      T += 0.5 * c * w.w_NB_N.squaredNorm();
+      h_Bo = c * w.w_NB_N;
+    } else if (n.flex < 0) {
+      Vector3d h_B;
+      if (n.inertia == Node::Inertia::Diagonal)
+        h_B = n.I_BBo_B.diagonal().cwiseProduct(w.w_NB_B);
+      else
+        h_B.noalias() = n.I_BBo_B * w.w_NB_B;
       T += 0.5 * w.w_NB_B.dot(h_B);
       h_Bo.noalias() = w.R_NB * h_B;
     } else {

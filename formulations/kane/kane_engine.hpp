@@ -241,13 +241,17 @@ struct Node {
   //   body_torque the child body carries an external torque;  hinge_load the joint has a
   //               spring, damper or motor;
   //   sums_start  no child node (subtree_pass starts S(k)'s sums with the body's own terms);
-  //   parent_start the highest-index child of its parent (the first whose sums reach it).
+  //   parent_start the highest-index child of its parent (the first whose sums reach it);
+  //   leaf_rigid  a rigid body with no child node, not at a flexible parent's node: S(k) is the
+  //               body alone, so its inertia about Ok is never formed (subtree_pass shifts I_BBo_N
+  //               straight to the parent's point, mass_matrix_pass uses J W = I W + m d x (W x d));
+  //   parent_free_base  the parent is a free base, whose remainder accelerations are zero.
   enum class Inertia { Isotropic, Diagonal, General };
   int axis_index = -1;
   double axis_sign = 1;
   Inertia inertia = Inertia::General;
   bool body_torque = false, hinge_load = false;
-  bool sums_start = true, parent_start = false;
+  bool sums_start = true, parent_start = false, leaf_rigid = false, parent_free_base = false;
   // Attachment at a node of a flexible parent whose shape or slope there is not zero: the
   // node's shapes Phi_Pj and slopes Psi_Pj (3 x pm, parent frame; pm the parent's modes).
   bool parent_attach = false;
