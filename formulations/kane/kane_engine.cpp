@@ -78,10 +78,10 @@ void add_moved_inertia(Matrix3d& acc, const Matrix3d& J, double m, const Vector3
     }
 }
 
-// I_N = R I_B R^T for a symmetric I_B (the transformation of inertia components to N axes,
-// [KLL] Sec. 3.5), formed on the lower triangle and mirrored: with A = R I_B (for an I_B diagonal in
-// B, column j of R times I_jj), I_N,ij = sum_l A_il R_jl.  27 (diagonal: 9) + 18 products
-// instead of the 54 of the two full matrix products.
+// I_N = R I_B R^T for a symmetric I_B (the inertia matrix for N axes, [KLL] Ch. 3, as
+// position_pass formed it before), formed on the lower triangle and mirrored: with A = R I_B
+// (for an I_B diagonal in B, column j of R times I_jj), I_N,ij = sum_l A_il R_jl.  27
+// (diagonal: 9) + 18 products instead of the 54 of the two full matrix products.
 void rotate_inertia(Matrix3d& I_N, const Matrix3d& R, const Matrix3d& I_B, bool diagonal) {
   Matrix3d A;
   if (diagonal)
@@ -1142,9 +1142,9 @@ void KaneEngine::subtree_pass(double t, bool full) {
   }
 }
 
-// A rigid body's residual torque about Bo, T_B = -I alpha - w x I w (Euler's equations for the
-// inertia torque, [KLL] Sec. 4.6; Eq. (36) of the paper).  Isotropic I: I w is parallel to w, so
-// the gyroscopic term is zero.
+// A rigid body's residual torque about Bo, T_B = -I alpha - w x I w (the inertia torque of
+// Eq. (36) of the paper; Pass 4 above).  Isotropic I: I w is parallel to w, so the gyroscopic
+// term is zero.
 Vector3d KaneEngine::rigid_residual_torque(const Node& n, const NodeWork& w,
                                            const Vector3d& alpha) const {
   if (n.inertia == Node::Inertia::Isotropic) return -(n.I_BBo_B(0, 0) * alpha);
