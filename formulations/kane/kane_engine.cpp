@@ -39,31 +39,60 @@ Matrix3d axis_angle_matrix(const Vector3d& k, double sh, double ch) {
 // The symmetric inertia matrices below are formed entry by entry on the lower triangle and
 // mirrored (J_ji = J_ij): half the products of the full matrix expressions, no temporaries.
 
+// acc = v (the sum's first term: 0 + v = v exactly, so no accumulator needs zeroing) or acc += v.
+template <class T, class V>
+void put(bool first, T& acc, const V& v) {
+  if (first)
+    acc = v;
+  else
+    acc += v;
+}
+
 // Inertia about a point O of a mass m whose centre is at d from O, plus its central inertia:
 // J = I + m (|d|^2 1 - d d^T)  (the parallel-axis or transfer theorem for inertia dyadics).
-// Adds J to acc.
-void add_shifted_inertia(Matrix3d& acc, const Matrix3d& I, double m, const Vector3d& d) {
+// Adds J to acc (first: acc = J).
+void add_shifted_inertia(Matrix3d& acc, const Matrix3d& I, double m, const Vector3d& d,
+                         bool first) {
   const double md2 = m * d.squaredNorm();
   for (int j = 0; j < 3; ++j)
     for (int i = j; i < 3; ++i) {
       const double v = I(i, j) - m * d(i) * d(j) + (i == j ? md2 : 0.0);
-      acc(i, j) += v;
-      if (i != j) acc(j, i) += v;
+      put(first, acc(i, j), v);
+      if (i != j) acc(j, i) = acc(i, j);
     }
 }
 
 // The first moment s about O of a mass m moved to the point O' = O - e:  s' = s + m e, and its
 // inertia J_O' = J_O + (2 s.e + m |e|^2) 1 - s e^T - e s^T - m e e^T (the transfer theorem for
-// a mass distribution whose centre is not at O; [KLL] Sec. 3.4).  Adds J_O' to acc.
+// a mass distribution whose centre is not at O; [KLL] Sec. 3.4).  Adds J_O' to acc (first:
+// acc = J_O').
 void add_moved_inertia(Matrix3d& acc, const Matrix3d& J, double m, const Vector3d& s,
-                       const Vector3d& e) {
+                       const Vector3d& e, bool first) {
   const double c = 2.0 * s.dot(e) + m * e.squaredNorm();
   for (int j = 0; j < 3; ++j)
     for (int i = j; i < 3; ++i) {
       const double v =
           J(i, j) - s(i) * e(j) - e(i) * s(j) - m * e(i) * e(j) + (i == j ? c : 0.0);
-      acc(i, j) += v;
-      if (i != j) acc(j, i) += v;
+      put(first, acc(i, j), v);
+      if (i != j) acc(j, i) = acc(i, j);
+    }
+}
+
+// I_N = R I_B R^T for a symmetric I_B (the inertia matrix for N axes, [KLL] Ch. 3, as
+// position_pass formed it before), formed on the lower triangle and mirrored: with A = R I_B
+// (for an I_B diagonal in B, column j of R times I_jj), I_N,ij = sum_l A_il R_jl.  27
+// (diagonal: 9) + 18 products instead of the 54 of the two full matrix products.
+void rotate_inertia(Matrix3d& I_N, const Matrix3d& R, const Matrix3d& I_B, bool diagonal) {
+  Matrix3d A;
+  if (diagonal)
+    for (int j = 0; j < 3; ++j) A.col(j) = R.col(j) * I_B(j, j);
+  else
+    A.noalias() = R * I_B;
+  for (int j = 0; j < 3; ++j)
+    for (int i = j; i < 3; ++i) {
+      const double v = A(i, 0) * R(j, 0) + A(i, 1) * R(j, 1) + A(i, 2) * R(j, 2);
+      I_N(i, j) = v;
+      if (i != j) I_N(j, i) = v;
     }
 }
 
@@ -337,10 +366,26 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     n.has_offset = !n.R_PJ0.isIdentity(0.0);
     n.p_PoJ_P = J.p_PoJ_P;
     n.p_CoJ_C = J.p_CoJ_C;
+    n.body_torque = !B.torque.empty();
+    n.hinge_load = J.stiffness != 0 || J.damping != 0 || !J.motor_revolute.empty() ||
+                   !J.motor_spherical.empty();
+    if (n.flex < 0) {
+      const Matrix3d& I = n.I_BBo_B;
+      if (I(1, 0) == 0 && I(2, 0) == 0 && I(2, 1) == 0)
+        n.inertia = I(0, 0) == I(1, 1) && I(1, 1) == I(2, 2) ? Node::Inertia::Isotropic
+                                                              : Node::Inertia::Diagonal;
+    }
     if (J.type == JointType::Revolute) {
       if (!(J.axis_P.norm() > 0)) throw InputError(jname + ": revolute axis must be non-zero");
       n.axis_P = J.axis_P.normalized();
       n.axis_J = n.R_PJ0.transpose() * n.axis_P;
+      for (int i = 0; i < 3; ++i) {
+        const int j = (i + 1) % 3, l = (i + 2) % 3;
+        if (std::abs(n.axis_J(i)) == 1.0 && n.axis_J(j) == 0 && n.axis_J(l) == 0) {
+          n.axis_index = i;
+          n.axis_sign = n.axis_J(i);
+        }
+      }
       if (J.prescribed) {  // docs/prescribed-motion.md: not a degree of freedom
         n.prescribed = true;
         n.motion = *J.prescribed;
@@ -432,6 +477,17 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   }
   n_q_ = nq;
   n_u_ = nu;
+  // subtree_pass's first terms: visiting nodes last first, the first child to reach a parent is
+  // its highest-index one; a node no child reaches starts with its own body.
+  for (std::size_t k = nj; k-- > 1;) {
+    Node& p = nodes_[static_cast<std::size_t>(nodes_[k].parent)];
+    nodes_[k].parent_start = p.sums_start;
+    p.sums_start = false;
+  }
+  for (Node& n : nodes_) {
+    n.leaf_rigid = n.sums_start && n.flex < 0 && n.parent >= 0 && !n.parent_attach;
+    n.parent_free_base = n.parent >= 0 && nodes_[static_cast<std::size_t>(n.parent)].type == JointType::Free;
+  }
 
   // State labels.
   labels_.assign(static_cast<std::size_t>(n_q_ + n_u_), "");
@@ -480,7 +536,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     w->R_NB.setIdentity();
     w->I_BBo_N.setZero();
     w->W_N.setZero();
-    for (Vector3d* v : {&w->p_B0oBo_N, &w->p_B0oOk_N, &w->w_NB_N, &w->v_NBo_N, &w->w_NB_B,
+    for (Vector3d* v : {&w->p_B0oBo_N, &w->p_B0oOk_N, &w->p_PoOk_N, &w->p_OkBo_N, &w->w_NB_N, &w->v_NBo_N, &w->w_NB_B,
                         &w->w_PC_N, &w->w_NJp_N, &w->alpha_t_N, &w->a_t_N, &w->alpha_N, &w->a_N})
       v->setZero();
   }
@@ -488,10 +544,17 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
     w.R_NB.setIdentity();
-    w.I_BBo_N.setZero();
+    // An isotropic rigid body's inertia has the same components in every frame (position_pass
+    // does not touch it).
+    if (n.flex < 0 && n.inertia == Node::Inertia::Isotropic)
+      w.I_BBo_N = n.I_BBo_B;
+    else
+      w.I_BBo_N.setZero();
     w.W_N.setZero();
     w.p_B0oBo_N.setZero();
     w.p_B0oOk_N.setZero();
+    w.p_PoOk_N.setZero();
+    w.p_OkBo_N.setZero();
     w.w_NB_N.setZero();
     w.w_NB_B.setZero();
     w.v_NBo_N.setZero();
@@ -643,10 +706,9 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
     if (n.type == JointType::Free) {
+      // W_r = b_r for u_r = w_NB_B,r (r = 1..3): the passes read R_NB itself (W_N is not formed);
+      // Bo = Ok = B0o, so p_B0oBo_N, p_B0oOk_N, p_PoOk_N and p_OkBo_N stay zero (constructor).
       w.R_NB = read_quat(x, n.q0 + 3).toRotationMatrix();
-      w.p_B0oBo_N.setZero();
-      w.p_B0oOk_N.setZero();
-      w.W_N = w.R_NB;  // W_r = b_r for u_r = w_NB_B,r (r = 1..3)
     } else {
       // A prescribed base's parent is N (ground_: at rest, origin No, so that the positions of
       // such a tree are measured from No; docs/prescribed-motion.md "A prescribed base").
@@ -690,9 +752,23 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
           const double sh = std::sin(half), ch = std::cos(half);  // one sincos
           w.sin_half = sh;
           w.cos_half = ch;
-          R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, sh, ch);
+          if (n.axis_index >= 0) {
+            // axis_J = sign e_i: R_J e_i = e_i, and with (i, j, l) cyclic R_J e_j = c e_j + s e_l,
+            // R_J e_l = c e_l - s e_j (Rodrigues' formula above with [e_i x] e_j = e_l, s =
+            // sign sin(a), c = cos(a) = 1 - 2 sh^2), so R_NJ0 R_J turns two columns of R_NJ0.
+            const int i = n.axis_index, j = (i + 1) % 3, l = (i + 2) % 3;
+            const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
+            const Matrix3d& R0 = *R_NJ0;
+            R_NJc.col(i) = R0.col(i);
+            R_NJc.col(j) = ca * R0.col(j) + sa * R0.col(l);
+            R_NJc.col(l) = ca * R0.col(l) - sa * R0.col(j);
+            // W_r = axis (fixed in Jp and in Jc): R_NJp axis_P = R_NJ0 axis_J.
+            w.W_N.col(0) = n.axis_sign * R0.col(i);
+          } else {
+            R_NJc.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, sh, ch);
+            w.W_N.col(0).noalias() = *R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
+          }
         }
-          w.W_N.col(0).noalias() = *R_NJp * n.axis_P;  // W_r = axis (fixed in Jp and in Jc)
           break;
         case JointType::Spherical:
           R_NJc.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
@@ -702,7 +778,8 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
           R_NJc = *R_NJ0;
           break;
       }
-      w.p_B0oOk_N.noalias() = P.p_B0oBo_N + P.R_NB * r_Pj;
+      w.p_PoOk_N.noalias() = P.R_NB * r_Pj;
+      w.p_B0oOk_N = P.p_B0oBo_N + w.p_PoOk_N;
       Vector3d r_Cj = n.p_CoJ_C;
       if (n.child_attach) {
         const double* eta = x + n.q0 + n.nqj;
@@ -719,12 +796,14 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
             w.Vm_N.col(l).noalias() = -(w.R_NB * n.Phi_Cj.col(l));
         }
       }
-      w.p_B0oBo_N.noalias() = w.p_B0oOk_N - w.R_NB * r_Cj;
+      w.p_OkBo_N.noalias() = -(w.R_NB * r_Cj);
+      w.p_B0oBo_N = w.p_B0oOk_N + w.p_OkBo_N;
     }
+    // An isotropic rigid body's I_BBo_N is I_BBo_B, set once in the constructor.
     if (n.flex >= 0)
       flex_position(n, w, x + n.q0 + n.nqj);
-    else if (rigid_inertia)
-      w.I_BBo_N.noalias() = w.R_NB * n.I_BBo_B * w.R_NB.transpose();
+    else if (rigid_inertia && n.inertia != Node::Inertia::Isotropic)
+      rotate_inertia(w.I_BBo_N, w.R_NB, n.I_BBo_B, n.inertia == Node::Inertia::Diagonal);
   }
 }
 
@@ -809,9 +888,8 @@ void KaneEngine::velocity_pass(const double* u) {
       w.w_PC_N = w.w_NB_N;
     } else {
       const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
-      const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
-      const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
-      Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(p_PoOk_N);
+      const Vector3d& p_OkCo_N = w.p_OkBo_N;
+      Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(w.p_PoOk_N);
       w.w_NJp_N = P.w_NB_N;
       if (n.parent_attach) {
         const Node& pn = nodes_[static_cast<std::size_t>(n.parent)];
@@ -926,10 +1004,16 @@ void KaneEngine::propagate_accelerations(const double* udot, bool full) {
     const NodeWork& P = n.parent >= 0 ? work_[static_cast<std::size_t>(n.parent)] : ground_;
     const Vector3d& alpha_P = full ? P.alpha_N : P.alpha_t_N;
     const Vector3d& a_P = full ? P.a_N : P.a_t_N;
-    const Vector3d p_PoOk_N = w.p_B0oOk_N - P.p_B0oBo_N;
-    const Vector3d p_OkCo_N = w.p_B0oBo_N - w.p_B0oOk_N;
-    Vector3d a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
-    Vector3d alpha_C = alpha_P;
+    const Vector3d& p_PoOk_N = w.p_PoOk_N;
+    const Vector3d& p_OkCo_N = w.p_OkBo_N;
+    Vector3d a_Ok, alpha_C;
+    if (n.parent_free_base && !full) {  // a free base's remainder accelerations are zero
+      a_Ok.noalias() = P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C.setZero();
+    } else {
+      a_Ok = a_P + alpha_P.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C = alpha_P;
+    }
     if (n.parent_attach) {
       a_Ok += 2.0 * P.w_NB_N.cross(w.v_att_N) + w.b_att_N;  // b: stiffening's R e eta'^T G eta'
       alpha_C += P.w_NB_N.cross(w.w_att_N) + w.jdot_att_N;
@@ -979,35 +1063,49 @@ void KaneEngine::remainder_pass() { propagate_accelerations(nullptr, false); }
 //   full (prescribed joints' torques): a_t, alpha_t replaced by the full a, alpha and, for a
 //   flexible body, the nodes' R Phi_i eta'' added: R_B -= R S eta'', T_B -= R A eta''.
 void KaneEngine::subtree_pass(double t, bool full) {
-  for (NodeWork& w : work_) {
-    w.m_sub = 0;
-    w.s_sub_N.setZero();
-    w.J_sub_N.setZero();
-    w.F_sub_N.setZero();
-    w.M_sub_N.setZero();
-  }
+  // No zeroing: every sum starts with its first term (Node::sums_start, parent_start; x = 0 + x,
+  // so the sums are those of zeroed accumulators, bit for bit).
   for (std::size_t kk = nodes_.size(); kk-- > 0;) {
     const Node& n = nodes_[kk];
     NodeWork& w = work_[kk];
-    const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
 
     // This node's own body.
-    const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    const bool start = n.sums_start;
+    const Vector3d& d = w.p_OkBo_N;
     const Vector3d& a_t = full ? w.a_N : w.a_t_N;
     const Vector3d& alpha_t = full ? w.alpha_N : w.alpha_t_N;
-    w.m_sub += n.mass;
+    put(start, w.m_sub, n.mass);
     Vector3d R_B, T_B;
+    if (n.flex < 0 && n.type == JointType::Free) {
+      // A rigid free base: Bo = Ok (d = 0), and its remainder accelerations are zero.
+      if (start) w.s_sub_N.setZero();
+      put(start, w.J_sub_N, w.I_BBo_N);
+      if (full) {
+        R_B = -n.mass * a_t;
+        T_B = rigid_residual_torque(n, w, alpha_t);
+      } else {
+        R_B.setZero();
+        T_B = Vector3d::Zero();  // -I alpha_t - w x I w with alpha_t = 0
+        if (n.inertia != Node::Inertia::Isotropic)
+          T_B.noalias() -= w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+      }
+      if (n.body_torque) add_body_torque(n, w, t, T_B);
+      put(start, w.F_sub_N, R_B);
+      put(start, w.M_sub_N, T_B);
+      continue;  // the root
+    }
     if (n.flex < 0) {
-      w.s_sub_N += n.mass * d;
-      add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d);
+      put(start, w.s_sub_N, n.mass * d);
+      // A rigid leaf's inertia about Ok is not formed (Node::leaf_rigid): see the move below.
+      if (!n.leaf_rigid) add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d, start);
       R_B = -n.mass * a_t;
-      T_B = -(w.I_BBo_N * alpha_t) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+      T_B = rigid_residual_torque(n, w, alpha_t);
     } else {
       const FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
       const Vector3d& c = fw.c_N;
       const Vector3d& wN = w.w_NB_N;
-      w.s_sub_N += n.mass * d + c;
-      add_moved_inertia(w.J_sub_N, w.I_BBo_N, n.mass, c, d);
+      put(start, w.s_sub_N, n.mass * d + c);
+      add_moved_inertia(w.J_sub_N, w.I_BBo_N, n.mass, c, d, start);
       R_B = -(n.mass * a_t + alpha_t.cross(c) + wN.cross(wN.cross(c)) +
               2.0 * wN.cross(fw.cdot_N));
       const Vector3d w_B = w.R_NB.transpose() * wN;
@@ -1024,26 +1122,43 @@ void KaneEngine::subtree_pass(double t, bool full) {
         T_B -= combine(fw.A_N, eta_dd);
       }
     }
-    if (!body.torque.empty()) {
-      const Vector3d T = body.torque.value(t);
-      if (body.torque_frame == Body::Frame::Body)
-        T_B.noalias() += w.R_NB * T;
-      else
-        T_B += T;
-    }
-    w.F_sub_N += R_B;
-    w.M_sub_N += T_B + d.cross(R_B);
+    if (n.body_torque) add_body_torque(n, w, t, T_B);
+    put(start, w.F_sub_N, R_B);
+    put(start, w.M_sub_N, T_B + d.cross(R_B));
 
     // Move the finished subtree sums to the parent's reference point.
     if (n.parent < 0) continue;
     NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+    const bool first = n.parent_start;
     const Vector3d e = w.p_B0oOk_N - P.p_B0oOk_N;
-    P.m_sub += w.m_sub;
-    P.s_sub_N += w.s_sub_N + w.m_sub * e;
-    add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e);
-    P.F_sub_N += w.F_sub_N;
-    P.M_sub_N += w.M_sub_N + e.cross(w.F_sub_N);
+    put(first, P.m_sub, w.m_sub);
+    put(first, P.s_sub_N, w.s_sub_N + w.m_sub * e);
+    if (n.leaf_rigid)  // the body's central inertia shifted straight from Bo to Op (d + e)
+      add_shifted_inertia(P.J_sub_N, w.I_BBo_N, n.mass, d + e, first);
+    else
+      add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e, first);
+    put(first, P.F_sub_N, w.F_sub_N);
+    put(first, P.M_sub_N, w.M_sub_N + e.cross(w.F_sub_N));
   }
+}
+
+// A rigid body's residual torque about Bo, T_B = -I alpha - w x I w (the inertia torque of
+// Eq. (36) of the paper; Pass 4 above).  Isotropic I: I w is parallel to w, so the gyroscopic
+// term is zero.
+Vector3d KaneEngine::rigid_residual_torque(const Node& n, const NodeWork& w,
+                                           const Vector3d& alpha) const {
+  if (n.inertia == Node::Inertia::Isotropic) return -(n.I_BBo_B(0, 0) * alpha);
+  return -(w.I_BBo_N * alpha) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+}
+
+// The body's external torque at t (Eq. (35): it works through W_r), added to T_B in N components.
+void KaneEngine::add_body_torque(const Node& n, const NodeWork& w, double t, Vector3d& T_B) const {
+  const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
+  const Vector3d T = body.torque.value(t);
+  if (body.torque_frame == Body::Frame::Body)
+    T_B.noalias() += w.R_NB * T;
+  else
+    T_B += T;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -1091,10 +1206,17 @@ void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, 
 
 void KaneEngine::mass_matrix_pass() {
   if (nodes_[0].type == JointType::Free) {
+    // Lower triangle only (what solve() reads): M(w_i, w_j) = b_i . J_0 b_j with b_j = R_NB e_j,
+    // M(v_i, w_j) = n_i . (b_j x s_0), i.e. column j is R_NB e_j x s_0.
     const NodeWork& base = work_[0];
     const int r0 = nodes_[0].u0;
-    M_.block<3, 3>(r0, r0).noalias() = base.R_NB.transpose() * base.J_sub_N * base.R_NB;
-    M_.block<3, 3>(r0 + 3, r0).noalias() = -rot::skew(base.s_sub_N) * base.R_NB;
+    const Matrix3d& R = base.R_NB;
+    Matrix3d JR;
+    JR.noalias() = base.J_sub_N * R;
+    for (int j = 0; j < 3; ++j) {
+      for (int i = j; i < 3; ++i) M_(r0 + i, r0 + j) = R.col(i).dot(JR.col(j));
+      M_.block<3, 1>(r0 + 3, r0 + j) = R.col(j).cross(base.s_sub_N);
+    }
     M_.block<3, 3>(r0 + 3, r0 + 3) = Matrix3d::Identity() * base.m_sub;
   }
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -1106,7 +1228,17 @@ void KaneEngine::mass_matrix_pass() {
         const int r = n.u0 + i;
         const Vector3d W_r = w.W_N.col(i);
         const Vector3d p_r = W_r.cross(w.s_sub_N);
-        const Vector3d h_r = w.J_sub_N * W_r;
+        Vector3d h_r;
+        if (n.leaf_rigid) {  // J_k W = I W + m (|d|^2 W - d (d . W)) = I W + m d x (W x d)
+          const Vector3d& d = w.p_OkBo_N;
+          h_r = n.mass * d.cross(W_r.cross(d));
+          if (n.inertia == Node::Inertia::Isotropic)
+            h_r += n.I_BBo_B(0, 0) * W_r;
+          else
+            h_r.noalias() += w.I_BBo_N * W_r;
+        } else {
+          h_r.noalias() = w.J_sub_N * W_r;
+        }
         for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
         mass_matrix_ancestors(n, r, p_r, h_r);
       }
@@ -1115,7 +1247,7 @@ void KaneEngine::mass_matrix_pass() {
     // Modal speeds of this node's flexible body.
     const FlexModel& F = flex_[static_cast<std::size_t>(n.flex)];
     FlexWork& fw = flex_work_[static_cast<std::size_t>(n.flex)];
-    const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    const Vector3d& d = w.p_OkBo_N;
     // Momenta of each attached child's subtree, about its Oc, in the elastic twists.
     for (int c : n.attached_children) {
       NodeWork& cw = work_[static_cast<std::size_t>(c)];
@@ -1192,6 +1324,7 @@ void KaneEngine::mass_matrix_pass() {
 //     (the generalised active forces of the strain energy and the modal damping, [KLL] Ch. 4).
 
 double KaneEngine::hinge_torque_revolute(const Node& n, double t, const double* x) const {
+  if (!n.hinge_load) return 0;
   const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
   double tau = 0;
   if (J.stiffness != 0) tau -= J.stiffness * (x[n.q0] - J.neutral_angle);
@@ -1201,6 +1334,7 @@ double KaneEngine::hinge_torque_revolute(const Node& n, double t, const double* 
 }
 
 Vector3d KaneEngine::hinge_torque_spherical(const Node& n, double t, const double* x) const {
+  if (!n.hinge_load) return Vector3d::Zero();
   const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
   Vector3d tau = Vector3d::Zero();
   if (J.stiffness != 0) tau -= J.stiffness * rot::rotation_vector(read_quat(x, n.q0));
@@ -1261,104 +1395,33 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
 // (k > i) only when i is on the chain i = lambda(k), lambda(lambda(k)), ... of parent speeds
 // ([Feath] Sec. 6.5, Table 6.3 "LTDL"; the square-root-free form of the Cholesky factorisation).
 // Then u' = L^-1 D^-1 L^-T f (Table 6.4).  M is positive definite exactly when every pivot D_kk
-// is positive.  In place: M_ holds L below its diagonal and D on it afterwards.
+// is positive.  In place: M_ holds L below its diagonal and D on it afterwards (but for a rigid
+// base's block on the fixed path, factorised in a local copy).
 //
 // The base's speeds 0 ... nb-1 (nb = the base node's speed count) are ancestors of every other
 // speed and form a dense block; the chain of any other speed ends with nb-1, nb-2, ..., 0.  So
 // each chain is walked through lambda down to nb and then over the base block as plain loops:
-// the same operations as walking lambda throughout.  For a rigid base (nb = 6) the base-block
-// kernels have constant sizes (B = 6) and unroll; B = 0 takes nb at run time (a flexible base).
-// Both give the same u' (tests/kane).
+// the same operations as walking lambda throughout.  For a rigid base (nb = 6, ltdl_solve_base6)
+// the base block is held in a local 6 x 6 array with constant loop bounds: it cannot alias H's
+// other rows, f or x, so it stays in registers and the loops unroll; a flexible base takes nb at
+// run time (ltdl_solve).  Both do the same operations in the same order, so they give the same
+// u' (tests/kane).
 namespace {
-
-// The base-block kernels: N = their size at compile time (unrolled), or N = 0 and n at run time.
-// H_ij -= a_i c_j for 0 <= j <= i < n (a rank-1 update of a lower triangle; a, c not in H).
-template <int N>
-void lower_rank1(double* H, Eigen::Index ld, const double* a, const double* c, int n) {
-  if constexpr (N > 0) {
-    lower_rank1<N - 1>(H, ld, a, c, N - 1);
-    double* Hi = H + (N - 1) * ld;
-    for (int j = 0; j < N; ++j) Hi[j] -= a[N - 1] * c[j];
-  } else {
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; j <= i; ++j) H[i * ld + j] -= a[i] * c[j];
-  }
-}
 
 // Eliminates row k against the base block's columns 0..n-1 (all of them ancestors of k):
 // a_i = H_ki / H_kk, H_ij -= a_i H_kj (j <= i < n), H_ki = a_i.
-template <int N>
 void eliminate_base(double* H, Eigen::Index ld, int k, double inv_d, int n) {
-  constexpr int kMax = N > 0 ? N : 1;
-  double c_fixed[kMax], a_fixed[kMax];
   double* Hk = H + k * ld;
-  if constexpr (N > 0) {
-    for (int j = 0; j < N; ++j) {
-      c_fixed[j] = Hk[j];
-      a_fixed[j] = c_fixed[j] * inv_d;
-    }
-    lower_rank1<N>(H, ld, a_fixed, c_fixed, N);
-    for (int j = 0; j < N; ++j) Hk[j] = a_fixed[j];
-  } else {
-    for (int i = n - 1; i >= 0; --i) {
-      const double a = Hk[i] * inv_d;
-      double* Hi = H + i * ld;
-      for (int j = i; j >= 0; --j) Hi[j] -= a * Hk[j];
-      Hk[i] = a;
-    }
+  for (int i = n - 1; i >= 0; --i) {
+    const double a = Hk[i] * inv_d;
+    double* Hi = H + i * ld;
+    for (int j = i; j >= 0; --j) Hi[j] -= a * Hk[j];
+    Hk[i] = a;
   }
 }
 
-// The base block's own factorisation, rows K-1 ... 0 (K = N, or n at run time).
-template <int K>
-bool factor_base(double* H, Eigen::Index ld, int n) {
-  if constexpr (K > 0) {
-    const double d = H[(K - 1) * ld + (K - 1)];
-    if (!(d > 0)) return false;
-    eliminate_base<K - 1>(H, ld, K - 1, 1.0 / d, K - 1);
-    return factor_base<K - 1>(H, ld, K - 1);
-  } else {
-    for (int k = n - 1; k >= 0; --k) {
-      const double d = H[k * ld + k];
-      if (!(d > 0)) return false;
-      eliminate_base<0>(H, ld, k, 1.0 / d, k);
-    }
-    return true;
-  }
-}
-
-// x_j -= H_ij x_i for j < i, i = K-1 ... 0 (L^T z = f on the base block).
-template <int K>
-void base_transpose_solve(const double* H, Eigen::Index ld, double* x, int n) {
-  if constexpr (K > 0) {
-    const double* Hi = H + (K - 1) * ld;
-    for (int j = 0; j < K - 1; ++j) x[j] -= Hi[j] * x[K - 1];
-    base_transpose_solve<K - 1>(H, ld, x, K - 1);
-  } else {
-    for (int i = n - 1; i >= 0; --i)
-      for (int j = i - 1; j >= 0; --j) x[j] -= H[i * ld + j] * x[i];
-  }
-}
-
-// x_i -= sum_{j < i} H_ij x_j, i = 0 ... K-1 (L u' = y on the base block).
-template <int K>
-void base_solve(const double* H, Eigen::Index ld, double* x, int n) {
-  if constexpr (K > 0) {
-    base_solve<K - 1>(H, ld, x, K - 1);
-    const double* Hi = H + (K - 1) * ld;
-    double xi = x[K - 1];
-    for (int j = K - 2; j >= 0; --j) xi -= Hi[j] * x[j];
-    x[K - 1] = xi;
-  } else {
-    for (int i = 0; i < n; ++i)
-      for (int j = i - 1; j >= 0; --j) x[i] -= H[i * ld + j] * x[j];
-  }
-}
-
-template <int B>
-bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb_run_time,
-                const double* f, double* x) {
-  const int nb = B > 0 ? B : nb_run_time;
+bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb, const double* f,
+                double* x) {
   // Speeds above the base block, last first.
   for (int k = n - 1; k >= nb; --k) {
     cancel::poll();
@@ -1373,9 +1436,14 @@ bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb_run
       for (int j = nb - 1; j >= 0; --j) Hi[j] -= a * Hk[j];
       Hk[i] = a;
     }
-    eliminate_base<B>(H, ld, k, inv_d, nb);
+    eliminate_base(H, ld, k, inv_d, nb);
   }
-  if (!factor_base<B>(H, ld, nb)) return false;
+  // The base block's own factorisation, rows nb-1 ... 0.
+  for (int k = nb - 1; k >= 0; --k) {
+    const double d = H[k * ld + k];
+    if (!(d > 0)) return false;
+    eliminate_base(H, ld, k, 1.0 / d, k);
+  }
   for (int i = 0; i < n; ++i) x[i] = f[i];
   for (int i = n - 1; i >= nb; --i) {  // L^T z = f
     const double* Hi = H + i * ld;
@@ -1383,9 +1451,11 @@ bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb_run
     for (int j = lambda[i]; j >= nb; j = lambda[j]) x[j] -= Hi[j] * xi;
     for (int j = nb - 1; j >= 0; --j) x[j] -= Hi[j] * xi;
   }
-  base_transpose_solve<B>(H, ld, x, nb);
+  for (int i = nb - 1; i >= 0; --i)
+    for (int j = i - 1; j >= 0; --j) x[j] -= H[i * ld + j] * x[i];
   for (int i = 0; i < n; ++i) x[i] /= H[i * ld + i];  // y = D^-1 z
-  base_solve<B>(H, ld, x, nb);                         // L u' = y
+  for (int i = 0; i < nb; ++i)                         // L u' = y
+    for (int j = i - 1; j >= 0; --j) x[i] -= H[i * ld + j] * x[j];
   for (int i = nb; i < n; ++i) {
     const double* Hi = H + i * ld;
     double xi = x[i];
@@ -1396,15 +1466,117 @@ bool ltdl_solve(double* H, Eigen::Index ld, const int* lambda, int n, int nb_run
   return true;
 }
 
+// The same with nb = 6 and the base block (lower triangle) in the local array b, every loop
+// over it of constant length and unrolled (#pragma GCC unroll: GCC and Clang).
+using Base6 = double[6][6];
+
+// b_ij -= a_i c_j for 0 <= j <= i < M (a rank-1 update of the lower triangle).
+template <int M>
+inline void rank1_lower(Base6& b, const double* a, const double* c) {
+#pragma GCC unroll 6
+  for (int i = 0; i < M; ++i)
+#pragma GCC unroll 6
+    for (int j = 0; j <= i; ++j) b[i][j] -= a[i] * c[j];
+}
+
+// The base block's own factorisation, rows K-1 ... 0.
+template <int K>
+inline bool factor_base6(Base6& b) {
+  if constexpr (K == 0) {
+    return true;
+  } else {
+    const double d = b[K - 1][K - 1];
+    if (!(d > 0)) return false;
+    const double inv_d = 1.0 / d;
+    double c[6], a[6];
+#pragma GCC unroll 6
+    for (int j = 0; j < K - 1; ++j) {
+      c[j] = b[K - 1][j];
+      a[j] = c[j] * inv_d;
+    }
+    rank1_lower<K - 1>(b, a, c);
+#pragma GCC unroll 6
+    for (int j = 0; j < K - 1; ++j) b[K - 1][j] = a[j];
+    return factor_base6<K - 1>(b);
+  }
+}
+
+bool ltdl_solve_base6(double* H, Eigen::Index ld, const int* lambda, int n, const double* f,
+                      double* x) {
+  constexpr int nb = 6;
+  Base6 b;
+#pragma GCC unroll 6
+  for (int i = 0; i < nb; ++i)
+#pragma GCC unroll 6
+    for (int j = 0; j <= i; ++j) b[i][j] = H[i * ld + j];
+  for (int k = n - 1; k >= nb; --k) {
+    cancel::poll();
+    double* Hk = H + k * ld;
+    const double d = Hk[k];
+    if (!(d > 0)) return false;
+    const double inv_d = 1.0 / d;
+    for (int i = lambda[k]; i >= nb; i = lambda[i]) {
+      const double a = Hk[i] * inv_d;
+      double* Hi = H + i * ld;
+      for (int j = i; j >= nb; j = lambda[j]) Hi[j] -= a * Hk[j];
+      for (int j = nb - 1; j >= 0; --j) Hi[j] -= a * Hk[j];
+      Hk[i] = a;
+    }
+    double c[nb], a[nb];
+#pragma GCC unroll 6
+    for (int j = 0; j < nb; ++j) {
+      c[j] = Hk[j];
+      a[j] = c[j] * inv_d;
+    }
+    rank1_lower<nb>(b, a, c);
+#pragma GCC unroll 6
+    for (int j = 0; j < nb; ++j) Hk[j] = a[j];
+  }
+  if (!factor_base6<nb>(b)) return false;
+  double xb[nb];
+#pragma GCC unroll 6
+  for (int i = 0; i < nb; ++i) xb[i] = f[i];
+  for (int i = nb; i < n; ++i) x[i] = f[i];
+  for (int i = n - 1; i >= nb; --i) {  // L^T z = f
+    const double* Hi = H + i * ld;
+    const double xi = x[i];
+    for (int j = lambda[i]; j >= nb; j = lambda[j]) x[j] -= Hi[j] * xi;
+#pragma GCC unroll 6
+    for (int j = nb - 1; j >= 0; --j) xb[j] -= Hi[j] * xi;
+  }
+#pragma GCC unroll 6
+  for (int i = nb - 1; i >= 0; --i)
+#pragma GCC unroll 6
+    for (int j = i - 1; j >= 0; --j) xb[j] -= b[i][j] * xb[i];
+#pragma GCC unroll 6
+  for (int i = 0; i < nb; ++i) xb[i] /= b[i][i];  // y = D^-1 z
+  for (int i = nb; i < n; ++i) x[i] /= H[i * ld + i];
+#pragma GCC unroll 6
+  for (int i = 0; i < nb; ++i)  // L u' = y
+#pragma GCC unroll 6
+    for (int j = i - 1; j >= 0; --j) xb[i] -= b[i][j] * xb[j];
+#pragma GCC unroll 6
+  for (int i = 0; i < nb; ++i) x[i] = xb[i];
+  for (int i = nb; i < n; ++i) {
+    const double* Hi = H + i * ld;
+    double xi = x[i];
+    for (int j = lambda[i]; j >= nb; j = lambda[j]) xi -= Hi[j] * x[j];
+#pragma GCC unroll 6
+    for (int j = nb - 1; j >= 0; --j) xi -= Hi[j] * xb[j];
+    x[i] = xi;
+  }
+  return true;
+}
+
 }  // namespace
 
 bool KaneEngine::solve(bool fixed_base_block) {
   const int nb = nodes_[0].nu;
   if (fixed_base_block && nb == 6)
-    return ltdl_solve<6>(M_.data(), M_.outerStride(), lambda_.data(), n_u_, nb, f_.data(),
-                         udot_.data());
-  return ltdl_solve<0>(M_.data(), M_.outerStride(), lambda_.data(), n_u_, nb, f_.data(),
-                       udot_.data());
+    return ltdl_solve_base6(M_.data(), M_.outerStride(), lambda_.data(), n_u_, f_.data(),
+                            udot_.data());
+  return ltdl_solve(M_.data(), M_.outerStride(), lambda_.data(), n_u_, nb, f_.data(),
+                    udot_.data());
 }
 
 Eigen::VectorXd KaneEngine::composite_udot(double t, const double* x, bool fixed_base_block) {
@@ -1634,8 +1806,16 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
     Vector3d h_Bo;
     double T = 0.5 * n.mass * w.v_NBo_N.squaredNorm();
     first_moment += n.mass * w.p_B0oBo_N;
-    if (n.flex < 0) {
-      const Vector3d h_B = n.I_BBo_B * w.w_NB_B;
+    if (n.flex < 0 && n.inertia == Node::Inertia::Isotropic) {  // I w = c w in any frame
+      const double c = n.I_BBo_B(0, 0);
+      T += 0.5 * c * w.w_NB_N.squaredNorm();
+      h_Bo = c * w.w_NB_N;
+    } else if (n.flex < 0) {
+      Vector3d h_B;
+      if (n.inertia == Node::Inertia::Diagonal)
+        h_B = n.I_BBo_B.diagonal().cwiseProduct(w.w_NB_B);
+      else
+        h_B.noalias() = n.I_BBo_B * w.w_NB_B;
       T += 0.5 * w.w_NB_B.dot(h_B);
       h_Bo.noalias() = w.R_NB * h_B;
     } else {
@@ -1660,6 +1840,7 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
 double KaneEngine::potential_energy(const double* x) const {
   double V = 0;
   for (const Node& n : nodes_) {
+    if (!n.hinge_load) continue;
     const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
     if (J.stiffness == 0) continue;
     if (n.type == JointType::Revolute) {

@@ -232,6 +232,26 @@ struct Node {
   Eigen::Vector3d axis_J = Eigen::Vector3d::UnitZ();  // the same axis in C (= R_PJ0^T axis_P)
   double mass = 0;
   Eigen::Matrix3d I_BBo_B = Eigen::Matrix3d::Zero();  // scaled by test_inertia_scale (rigid)
+  // Facts of the system read once so that rhs() skips work that would give zeros or copies
+  // (kane_engine.cpp, position_pass and subtree_pass):
+  //   axis_index  a revolute axis_J along a coordinate axis of Jc, axis_J = axis_sign e_i (i), so
+  //               that R_J turns the two other columns only; -1 for any other axis;
+  //   inertia     a rigid body's central inertia isotropic (I_BBo_N = I_BBo_B in every frame,
+  //               w x I w = 0), diagonal in B, or general;
+  //   body_torque the child body carries an external torque;  hinge_load the joint has a
+  //               spring, damper or motor;
+  //   sums_start  no child node (subtree_pass starts S(k)'s sums with the body's own terms);
+  //   parent_start the highest-index child of its parent (the first whose sums reach it);
+  //   leaf_rigid  a rigid body with no child node, not at a flexible parent's node: S(k) is the
+  //               body alone, so its inertia about Ok is never formed (subtree_pass shifts I_BBo_N
+  //               straight to the parent's point, mass_matrix_pass uses J W = I W + m d x (W x d));
+  //   parent_free_base  the parent is a free base, whose remainder accelerations are zero.
+  enum class Inertia { Isotropic, Diagonal, General };
+  int axis_index = -1;
+  double axis_sign = 1;
+  Inertia inertia = Inertia::General;
+  bool body_torque = false, hinge_load = false;
+  bool sums_start = true, parent_start = false, leaf_rigid = false, parent_free_base = false;
   // Attachment at a node of a flexible parent whose shape or slope there is not zero: the
   // node's shapes Phi_Pj and slopes Psi_Pj (3 x pm, parent frame; pm the parent's modes).
   bool parent_attach = false;
@@ -264,6 +284,8 @@ struct NodeWork {
   double pres_angle = 0, pres_rate = 0, pres_accel = 0;
   Eigen::Vector3d p_B0oBo_N;  // body-frame origin from the base CM
   Eigen::Vector3d p_B0oOk_N;  // reference point Ok (joint point; base: its Bo) from the base CM
+  Eigen::Vector3d p_PoOk_N;   // Ok from the parent's body-frame origin Po (R_NP r_Pj; base: 0)
+  Eigen::Vector3d p_OkBo_N;   // the body-frame origin Bo from Ok (-R_NB r_Cj; base: 0)
   Eigen::Vector3d w_NB_N, v_NBo_N;
   Eigen::Vector3d w_NB_B;            // w_NB_N in body components (sum_momenta only)
   Eigen::Vector3d w_PC_N;            // relative angular velocity of the joint (Jc in Jp)
@@ -441,6 +463,11 @@ class KaneEngine final : public Engine {
   void mass_matrix_ancestors(const Node& n, int r, const Eigen::Vector3d& p,
                              const Eigen::Vector3d& h);
 
+  // A rigid body's residual torque -I alpha - w x I w about Bo, and its external torque at t
+  // (only when Node::body_torque) added to T_B (N components).
+  Eigen::Vector3d rigid_residual_torque(const Node& n, const NodeWork& w,
+                                        const Eigen::Vector3d& alpha) const;
+  void add_body_torque(const Node& n, const NodeWork& w, double t, Eigen::Vector3d& T_B) const;
   double hinge_torque_revolute(const Node& n, double t, const double* x) const;
   Eigen::Vector3d hinge_torque_spherical(const Node& n, double t, const double* x) const;
   Eigen::Quaterniond read_quat(const double* x, int i) const;

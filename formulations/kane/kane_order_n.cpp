@@ -106,22 +106,15 @@ void KaneEngine::articulated_pass(double t, const double* x) {
     ArticulatedWork& a = art_[kk];
 
     // This node's own body: rigid inertia about Ok, residual loads (passes 3-4, kane_engine.cpp).
-    const Vector3d d = w.p_B0oBo_N - w.p_B0oOk_N;
+    const Vector3d& d = w.p_OkBo_N;
     const Vector3d s = n.mass * d;
     a.Iww_N += w.I_BBo_N - s * d.transpose();
     a.Iww_N.diagonal().array() += s.dot(d);
     a.Iwv_N += rot::skew(s);
     a.Ivv_N.diagonal().array() += n.mass;
     const Vector3d R_B = -n.mass * w.a_t_N;
-    Vector3d T_B = -(w.I_BBo_N * w.alpha_t_N) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
-    const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
-    if (!body.torque.empty()) {
-      const Vector3d T = body.torque.value(t);
-      if (body.torque_frame == Body::Frame::Body)
-        T_B.noalias() += w.R_NB * T;
-      else
-        T_B += T;
-    }
+    Vector3d T_B = rigid_residual_torque(n, w, w.alpha_t_N);
+    if (n.body_torque) add_body_torque(n, w, t, T_B);
     a.Z_M_N += T_B + d.cross(R_B);
     a.Z_F_N += R_B;
     if (n.parent < 0) continue;
