@@ -166,6 +166,15 @@ void Dop853::initialize(const State& x, double t, double dt, const State* f_x) {
 
 // out = base + sum_j c_j k_j over the stages with c_j != 0 (base null: 0), four stages per pass
 // over the vectors so that out is loaded and stored once per four terms.
+// On x86-64 with GCC it is compiled twice, for the baseline and for x86-64-v3 (AVX2: four doubles
+// per instruction), and the loader picks the one the processor runs (GCC function multiversioning,
+// as core/csv_format.cpp's row writer). Both give the same bits: the sums are element by element
+// in the same order, and this file is compiled with -ffp-contract=off (core/CMakeLists.txt), so no
+// multiply-add is fused (with it GCC fused them in the AVX2 clone: 1.5e-13 relative differences
+// on spear1_case1; without, the CSV is byte-identical to the baseline clone's).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+[[gnu::target_clones("arch=x86-64-v3", "default")]]
+#endif
 void Dop853::sum_stages(const double* c, int stages, const double* base, double* out) const {
   const std::size_t n = x_.size();
   double coef[kExtended];
