@@ -228,10 +228,12 @@ std::string format_verify_table(const VerifyResult& r) {
                                     : std::to_string(ran) + " ok";
         if (x.skipped) cell += ", " + std::to_string(x.skipped) + " skipped";
         row.push_back(cell);
-      } else if (x.status == CheckStatus::Pass || x.status == CheckStatus::Fail) {
-        row.push_back(std::string(to_string(x.status)) + " " + sci(x.worst, 2));
+      } else if (x.status == CheckStatus::Pass) {
+        row.push_back(sci(x.worst, 2));  // a passing cell is its number: the table fits 130 columns
+      } else if (x.status == CheckStatus::Fail) {
+        row.push_back("FAIL " + sci(x.worst, 2));
       } else {
-        row.push_back(x.status == CheckStatus::Excluded ? "excluded" : "skipped");
+        row.push_back(x.status == CheckStatus::Excluded ? "excl." : "skip");
       }
     }
     const SceneComparison& c = *s.comparison;
@@ -243,7 +245,8 @@ std::string format_verify_table(const VerifyResult& r) {
     n_skipped += c.count(CheckStatus::Skipped);
   }
   std::string out = text_table(rows);
-  out += "cells: worst normalised error of the group, error / (atol + rtol * scale); <= 1 passes\n";
+  out += "cells: worst normalised error of the group, error / (atol + rtol * scale); <= 1 passes\n"
+         "       FAIL: above 1; excl.: excluded by the scene; -: the scene has no such quantity\n";
   // Failures: per scene and quantity the worst pair (or engine), at most kMaxLines lines.
   constexpr int kMaxLines = 30;
   std::string failures;

@@ -7,6 +7,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <regex>
+#include <sstream>
+#include <string>
+
 using namespace crossdyn::test;
 
 namespace {
@@ -55,6 +59,29 @@ TEST_CASE("verify: the verdict, table, JSON and JUnit come first and never depen
       CHECK(nlohmann::json::parse(read_file(s.path("j.json")))["passed"] == !fail);
       CHECK(contains(read_file(s.path("u.xml")), "<testsuites"));
     }
+}
+
+TEST_CASE("verify: the summary table's cells are numbers, FAIL marks a failing group, lines fit 130 columns") {
+  Scratch s("table_cells");
+  s.write("scene.yaml", kSmallScene);
+  for (const bool fail : {false, true}) {
+    const Run r = run_in(s.dir(), std::string("verify scene.yaml -q") +
+                                      (fail ? " --test-inertia-scale kane=1.01" : ""));
+    INFO(r.out << r.err);
+    CHECK(r.status == (fail ? 1 : 0));
+    std::istringstream lines(r.out);
+    std::string line, row;
+    bool table = true;  // the table and its legend; the failure lines after it are prose
+    while (std::getline(lines, line)) {
+      if (line.rfind("cells:", 0) == 0) table = false;
+      if (table) CHECK(line.size() <= 130);
+      if (line.rfind("small ", 0) == 0) row = line;
+    }
+    REQUIRE_FALSE(row.empty());  // the scene's row
+    CHECK(std::regex_search(row, std::regex(" [0-9]\\.[0-9]e[-+][0-9][0-9] ")));  // a group's worst error
+    CHECK(contains(row, "FAIL ") == fail);                                      // a failing group's cell
+    CHECK(row.substr(row.size() - 4) == (fail ? "FAIL" : "PASS"));             // the scene's result
+  }
 }
 
 TEST_CASE("verify: Ctrl-C during the report ends the script and the command with status 130") {
