@@ -88,6 +88,8 @@ std::vector<std::string> available_knobs(const System& s) {
     else if (j.type == JointType::Revolute) k.push_back(j.name + ".rate");
     if ((j.type == JointType::Revolute || j.type == JointType::Spherical) && !j.prescribed)
       k.push_back(j.name + ".stiffness");
+    if (j.type == JointType::Free)
+      for (const char* c : {".wx", ".wy", ".wz"}) k.push_back(j.name + c);
   }
   for (const Body& b : s.bodies)
     if (b.flex && b.flex->modes() > 0) {
@@ -148,6 +150,13 @@ Knob parse_knob(const System& s, const std::string& spec) {
       k.description = "the final prescribed rate of joint '" + name + "'";
       return k;
     }
+    if ((what == "wx" || what == "wy" || what == "wz") && J.type == JointType::Free) {
+      k.kind = Knob::Kind::BaseRate;
+      k.component = what[1] - 'x';
+      k.unit = "rad/s";
+      k.description = "the initial angular velocity " + what + " of free joint '" + name + "' (w_NB_B)";
+      return k;
+    }
     fail("joint '" + name + "' has no '" + what + "' to vary");
   }
   if (body >= 0) {
@@ -194,6 +203,10 @@ System apply_knob(const System& s, const Knob& k, double v) {
     case Knob::Kind::PrescribedRate:
       if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
       c.joints[static_cast<std::size_t>(k.index)].prescribed->rate = v;
+      break;
+    case Knob::Kind::BaseRate:
+      if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
+      c.joints[static_cast<std::size_t>(k.index)].w_NB_B0[k.component] = v;
       break;
     case Knob::Kind::ModalStiffness: {
       if (!(v > 0)) bad("the scale must be positive");

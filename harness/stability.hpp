@@ -84,6 +84,8 @@ Classified classify(const CellFacts& facts, const ClassLimits& limits);
 //   <joint>.stiffness         a revolute or spherical joint's spring stiffness, N m/rad
 //   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s
 //   <joint>.prescribed_rate   a prescribed joint's final rate Omega_s, rad/s
+//   <joint>.wx, .wy, .wz      a free joint's initial angular velocity component w_NB_B, rad/s
+//                             (how close a tumbling base passes to an Euler-angle lock)
 //   <body>.modal_stiffness    a flexible body's modal stiffness K, scaled by the value
 //   <body>.modal_damping      a flexible body's modal damping ratio zeta, the same for every mode:
 //                             D = diag(2 zeta sqrt(K_kk M_kk)), M_kk = sum_i m_i |Phi_ik|^2 (the
@@ -91,11 +93,12 @@ Classified classify(const CellFacts& facts, const ClassLimits& limits);
 //   duration                  the run's duration (the horizon), s
 //   links                     the number of links of chainN (the scene must be a chainN)
 struct Knob {
-  enum class Kind { JointStiffness, JointRate, PrescribedRate, ModalStiffness, ModalDamping, Duration,
-                    Links };
+  enum class Kind { JointStiffness, JointRate, PrescribedRate, BaseRate, ModalStiffness, ModalDamping,
+                    Duration, Links };
   Kind kind = Kind::Duration;
   std::string spec;         // as given: "hinge.stiffness"
   int index = -1;           // the joint or body
+  int component = 0;        // BaseRate: 0, 1, 2 for x, y, z
   std::string unit;         // "N m/rad", "rad/s", "" (a scale), "s", "" (links)
   std::string description;  // "the spring stiffness of joint 'hinge'"
 };

@@ -218,7 +218,8 @@ void add_stability_command(CLI::App& app, int& exit_code) {
       "the largest |eigenvalue| of the right-hand side's Jacobian per value (rk4 diverges above\n"
       "h |lambda|max ~ 2.8), and the findings in words: where it fails, how, and the remedy.\n\n"
       "--vary: <joint>.stiffness, <joint>.rate (initial rate: a rotor speed),\n"
-      "<joint>.prescribed_rate, <body>.modal_stiffness (scale on K), <body>.modal_damping (ratio),\n"
+      "<joint>.prescribed_rate, <joint>.wx|wy|wz (a free base's initial w_NB_B),\n"
+      "<body>.modal_stiffness (scale on K), <body>.modal_damping (ratio),\n"
       "duration, links (chainN). --set KNOB=VALUE fixes another of them first.\n\n"
       "Exit status 0 done (whatever the map shows), 2 bad input, 3 a write failed, 130 interrupted.");
   sub->add_option("scene", o->scene, "Scene file (YAML) or scene name")->required();
