@@ -124,6 +124,16 @@ TEST_CASE("stability: the scene parameters, their values and their errors") {
   CHECK_THROWS_WITH(apply_setting(flex, "array.modal_damping=-1"), Catch::Contains("from 0 to 100"));
   const System chain = read_scene(test::scene_path("chain5"));
   CHECK(apply_knob(chain, parse_knob(chain, "links"), 3).bodies.size() == 3);
+  // A free base's initial angular velocity, one body-frame component at a time.
+  const System lock = read_scene(test::scene_path("gimbal_lock"));
+  const Knob wz = parse_knob(lock, "base.wz");
+  CHECK(wz.component == 2);
+  const System still = apply_setting(apply_knob(lock, wz, 0.0), "base.wx=0");
+  CHECK(still.joints[0].w_NB_B0 == Eigen::Vector3d(0, 0.5, 0));
+  CHECK_THROWS_WITH(apply_knob(lock, wz, 2e4), Catch::Contains("at most 1e4 rad/s"));
+  CHECK_THROWS_WITH(parse_knob(lock, "base.wq"), Catch::Contains("joint 'base' has no 'wq'") &&
+                                                     Catch::Contains("base.wx, base.wy, base.wz"));
+  CHECK_THROWS_WITH(parse_knob(s, "hinge1.wx"), Catch::Contains("joint 'hinge1' has no 'wx'"));
 }
 
 // The rk4 limit on a real scene: hub_two_panels' hinge springs set |lambda|max; a step with
