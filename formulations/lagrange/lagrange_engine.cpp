@@ -556,6 +556,12 @@ struct LagrangeEngine::Workspace {
   std::vector<int> chart;  // per Euler set, index into kSequences
   long recharts = 0;
   long wraps = 0;
+  // The middle angle of every Euler set at the last accepted state (pack(), after_step()) and its
+  // time, in the set's chart then: after_step() compares the lock sheet (lock_sheet()) with it.
+  std::vector<double> last_a2;
+  double last_t = 0;
+  bool have_last = false;  // false until pack(): no previous state to compare with
+  long lock_crossings = 0;  // locks crossed between accepted states (re-charting on: re-charted)
   std::vector<Eigen::Matrix3d> A, B;  // per Euler set at the current q*
   std::vector<Mat3<Dual<2>>> A_dual;  // per Euler set: A with dA/da2, dA/da3 (charts, hamel)
   Eigen::Matrix3d R_NB0;              // the base's attitude at the current q*
@@ -869,6 +875,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   const int nb = static_cast<int>(m->bodies.size());
   const std::size_t ns = m->euler_sets.size();
   w->chart.assign(ns, kDefaultChart);
+  w->last_a2.assign(ns, 0.0);
   w->A.assign(ns, Eigen::Matrix3d::Identity());
   w->A_dual.assign(ns, Mat3<Dual<2>>::Identity());
   w->B.assign(ns, Eigen::Matrix3d::Identity());
@@ -914,6 +921,9 @@ int LagrangeEngine::dof() const {
 }
 long LagrangeEngine::recharts() const {
   return ws_->recharts;
+}
+long LagrangeEngine::lock_crossings() const {
+  return ws_->lock_crossings;
 }
 int LagrangeEngine::euler_sets() const {
   return static_cast<int>(model_->euler_sets.size());
@@ -1046,6 +1056,12 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
       xs[a] = x[i];
       xs[m.nf + a] = x[n + i];
     }
+  // The run starts here (pack() is at t = 0): after_step() compares the first accepted state's
+  // lock sheets with these.
+  for (std::size_t set = 0; set < m.euler_sets.size(); ++set)
+    w.last_a2[set] = q[m.euler_sets[set].i0 + 1];
+  w.last_t = 0.0;
+  w.have_last = true;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -1592,7 +1608,43 @@ LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
 
 // ------------------------------------------------------------------------------------------------
 // after_step: detect the approach to an Euler-angle singularity; re-chart or stop.
+//
+// A chart's singularity (gimbal lock) is where its middle angle a2 is 90 deg + k 180 deg (det A =
+// -+cos a2 = 0; Kane, Likins & Levinson 1983, Sec. 1.16; Wertz 1978, App. E). The integrator
+// carries a2 on continuously (it is not wrapped), so the locks cut the a2 axis into sheets
+//   sheet(a2) = floor((a2 + 90 deg) / 180 deg)
+// (sheet 0: |a2| < 90 deg). A step whose accepted states lie on different sheets crossed a lock in
+// between, however far from it both states are (a long dense-output step in a spin goes from 60
+// to 120 deg, or across several locks, and |cos a2| is large at both ends). So the test here is
+// on the state AND on the step since the last accepted state (pack() or the last after_step()):
+//   limit      |cos a2| < cos(kFailDeg) at the state: within 1 deg of a lock;
+//   crossing   sheet(a2) differs from the last accepted state's (same chart: a re-chart records
+//              its new a2).
+// rechart == false: either one throws RunFailure naming the set and the angle; for a crossing the
+// reported time is the crossing of the first lock passed, estimated by linear interpolation of a2
+// between the two accepted states (the message says so and gives both states), not the time of
+// the accepted step, which may be seconds later.
+// rechart == true: the set is re-charted when the state is within 90 - kRechartDeg deg of a lock
+// (as before) OR a lock was crossed since the last accepted state. The engine cannot reject an
+// accepted step (Engine::after_step may only change the state or stop the run), so a step that
+// jumped over the re-chart zone is kept: the integrator's error test accepted it like any other.
+// The equations in the old chart hold on both sides of the lock (they are singular only AT it; a
+// stage within 1e-9 of it stops the run, prepare_charts), and a motion through the lock itself (a
+// pure spin) is smooth in that chart; for one passing near it, the step's accuracy rests on the
+// error test alone, as for any accepted step. The state it ended in is a valid attitude on
+// another sheet and is re-charted at once to the chart farthest from its singularity, so the
+// angles are back on sheet 0 of a well-conditioned chart; lock_crossings() counts these.
+// Outputs a dense-output step interpolated before after_step() ran are not changed: with
+// rechart == false a failed run may have rows past the reported crossing time.
 // ------------------------------------------------------------------------------------------------
+namespace {
+
+double lock_sheet(double a2) {
+  return std::floor((a2 + 0.5 * std::numbers::pi) / std::numbers::pi);
+}
+
+}  // namespace
+
 bool LagrangeEngine::after_step(double t, double* x) {
   const Model& m = *model_;
   Workspace& w = *ws_;
@@ -1603,13 +1655,32 @@ bool LagrangeEngine::after_step(double t, double* x) {
     double* a = x + at(m.euler_sets[s].i0);
     const EulerSequence& seq = kSequences[static_cast<std::size_t>(w.chart[s])];
     const double cos_a2 = std::abs(std::cos(a[1]));  // 0 at gimbal lock
+    const double a2_last = w.last_a2[s];
+    const bool crossed = w.have_last && lock_sheet(a[1]) != lock_sheet(a2_last);
+    if (!m.rechart && crossed) {
+      // The first lock passed after a2_last, in the direction of travel, and when (linear).
+      const double sheet = lock_sheet(a2_last);
+      const double lock = (a[1] > a2_last ? sheet + 0.5 : sheet - 0.5) * std::numbers::pi;
+      const double t_lock = w.last_t + (lock - a2_last) / (a[1] - a2_last) * (t - w.last_t);
+      throw RunFailure(
+          "lagrange", t_lock, full_label(m.euler_sets[s].i0 + 1),
+          m.euler_sets[s].what + " reached gimbal lock of its " + seq.name +
+              " Euler angles: second angle crossed " + format_number(lock / kDeg, "%.0f") +
+              " deg (limit " + format_number(kFailDeg) +
+              " deg) between the accepted states at t = " + format_number(w.last_t, "%.9g") +
+              " s (" + format_number(a2_last / kDeg, "%.3f") + " deg) and t = " +
+              format_number(t, "%.9g") + " s (" + format_number(a[1] / kDeg, "%.3f") +
+              " deg), at t = " + format_number(t_lock, "%.9g") +
+              " s by linear interpolation (the time reported), and re-charting is off "
+              "(EngineOptions::rechart = false)");
+    }
     if (!m.rechart && cos_a2 < std::cos(kFailDeg * kDeg))
       throw RunFailure("lagrange", t, full_label(m.euler_sets[s].i0 + 1),
                        m.euler_sets[s].what + " reached gimbal lock of its " + seq.name +
                            " Euler angles: second angle " + format_number(a[1] / kDeg, "%.3f") +
                            " deg (limit " + format_number(kFailDeg) +
                            " deg) and re-charting is off (EngineOptions::rechart = false)");
-    if (m.rechart && cos_a2 < std::cos(kRechartDeg * kDeg)) {
+    if (m.rechart && (crossed || cos_a2 < std::cos(kRechartDeg * kDeg))) {
       // Re-chart: the same attitude in the chart farthest from its singularity. pi' (w_NB_B or
       // w_PC_C) does not depend on the chart, so nothing else changes.
       const Eigen::Matrix3d R = euler_rotation(seq, a[0], a[1], a[2]);
@@ -1618,9 +1689,12 @@ bool LagrangeEngine::after_step(double t, double* x) {
       for (int i = 0; i < 3; ++i) a[i] = an(i);
       w.chart[s] = c;
       ++w.recharts;
+      if (crossed) ++w.lock_crossings;
+      w.last_a2[s] = a[1];
       changed = true;
       continue;
     }
+    w.last_a2[s] = a[1];
     // Keep the first and third angles bounded (they grow without limit while spinning) so that
     // the integrator's relative tolerance means the same thing all run long.
     for (int i : {0, 2})
@@ -1630,6 +1704,7 @@ bool LagrangeEngine::after_step(double t, double* x) {
         changed = true;
       }
   }
+  w.last_t = t;
   return changed;
 }
 

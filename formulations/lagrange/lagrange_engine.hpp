@@ -54,6 +54,10 @@
 // whose middle angle passes kRechartDeg, re-initialised from the same attitude (outputs do not
 // jump: they depend on the attitude and on pi', neither of which changes); with
 // EngineOptions::rechart == false it throws RunFailure once the middle angle passes kFailDeg.
+// Both tests also look at the step since the last accepted state (pack() starts it): a middle
+// angle that crossed a lock (90 deg + k 180 deg) in between, as a long step does in a spin, is
+// re-charted at once, or with rechart == false stops the run at the crossing time interpolated
+// between the two states, whatever the integrator's steps (lagrange_engine.cpp, "after_step").
 // after_step() also brings a first or third angle back to (-pi, pi] once it exceeds 4 pi (they grow
 // without bound in a spin), so that the integrator's tolerances keep their meaning.
 #pragma once
@@ -94,6 +98,7 @@ class LagrangeEngine final : public Engine {
   // x take the time t for that (ignored when nothing is prescribed).
   int dof() const;                           // the number of free quasi-velocities (x is 2 dof())
   long recharts() const;                     // charts switched since construction
+  long lock_crossings() const;               // of which after a lock crossed within a step
   int euler_sets() const;                    // number of Euler-angle sets
   std::string euler_set_owner(int s) const;  // "main" (base body) or the spherical joint's name
   int chart(int s) const;                    // current chart of set s (index into kSequences)
