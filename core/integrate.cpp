@@ -157,18 +157,32 @@ void Runner::run(State& x) {
 }
 
 void Runner::emit(double t, const double* x) {
+  hold(t, x);
+  release();
+}
+
+void Runner::hold(double t, const double* x) {
   engine_.output_row(t, x, row_.data());
   for (std::size_t i = 0; i < row_.size(); ++i)
     if (!std::isfinite(row_[i]))
       throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
-  if (rows_) {
-    try {
-      rows_->append(row_.data());
-    } catch (const RowStorageError& e) {
-      throw RunFailure(engine_.name(), t, "", e.what());
+  held_.insert(held_.end(), row_.begin(), row_.end());
+}
+
+void Runner::release() {
+  const std::size_t n = row_.size();
+  for (std::size_t r = 0; n > 0 && r < held_.size() / n; ++r) {
+    const double* row = held_.data() + r * n;
+    if (rows_) {
+      try {
+        rows_->append(row);
+      } catch (const RowStorageError& e) {
+        throw RunFailure(engine_.name(), row[0], "", e.what());
+      }
     }
+    if (on_row_) on_row_(row);
   }
-  if (on_row_) on_row_(row_.data());
+  held_.clear();
 }
 
 void Runner::guard(double t, const State& x) {
@@ -365,9 +379,12 @@ void Runner::dense(Stepper& stepper, State& x, int stages_per_rejection, int ord
                        "step-size underflow (step " + fmt(stepper.current_time_step()) + " s)");
     // A step meant to end on a breakpoint or the duration ends there, free of rounding.
     const bool landed = std::abs(t1 - stop) <= 1e-12 * std::max(1.0, std::abs(stop));
+    // The rows inside the step are computed now, in the coordinates the step was taken in (an
+    // engine may re-chart in after_step()), and written once after_step() has accepted the step:
+    // a step it refuses (a singularity crossed inside it) leaves no row past its start.
     while (k < outputs_.size() && (outputs_[k] <= t1 || (landed && outputs_[k] <= stop))) {
       if (outputs_[k] >= t1) {
-        emit(outputs_[k], stepper.current_state().data());
+        hold(outputs_[k], stepper.current_state().data());
       } else {
         try {
           stepper.calc_state(outputs_[k], xo);  // dop853 evaluates its extension's stages here
@@ -375,13 +392,15 @@ void Runner::dense(Stepper& stepper, State& x, int stages_per_rejection, int ord
           throw RunFailure(engine_.name(), outputs_[k], bad.quantity,
                            bad.reason + " in a stage of the dense output");
         }
-        emit(outputs_[k], xo.data());
+        hold(outputs_[k], xo.data());
       }
       ++k;
     }
     if (landed) t1 = stop;
     State xn = stepper.current_state();
-    if (accepted(t1, xn) || landed) stepper.initialize(xn, t1, stepper.current_time_step());
+    const bool changed = accepted(t1, xn);
+    release();
+    if (changed || landed) stepper.initialize(xn, t1, stepper.current_time_step());
   }
   x = stepper.current_state();
 }

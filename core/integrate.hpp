@@ -14,7 +14,9 @@
 //                    quotient Jacobian, dense output
 // Adaptive steps also end exactly at the scene's load breakpoints (System::breakpoints()) and at
 // the duration: no step straddles a change of load (a CVODE history restarts there).
-// After every accepted step the engine's after_step() runs; when it changes the state the stepper
+// After every accepted step the engine's after_step() runs, before the step's output rows are
+// written (they are computed first, in the coordinates the step was taken in; a step it refuses by
+// throwing leaves no row past its start); when it changes the state the stepper
 // is restarted (CVODE: only when the change exceeds the error it accepts in one step, weighted RMS
 // norm > 1; a smaller change is dropped, since a restart costs it its order). Every right-hand-side call is counted and its result checked for non-finite values.
 // The dense methods' steps and right-hand-side calls do not depend on the number of output rows.

@@ -194,12 +194,13 @@ void Runner::cvode(State& x) {
     const double t1 = t_reached;
     const double* y = N_VGetArrayPointer(cv.y);
     // The output times this step passed: interpolated (the step's own end: as returned).
+    // Held until after_step() accepts the step (see Runner::dense).
     while (k < outputs_.size() && outputs_[k] <= t1) {
       if (outputs_[k] == t1) {
-        emit(t1, y);
+        hold(t1, y);
       } else {
         ok(CVodeGetDky(cv.mem, outputs_[k], 0, cv.y_out), "CVodeGetDky");
-        emit(outputs_[k], N_VGetArrayPointer(cv.y_out));
+        hold(outputs_[k], N_VGetArrayPointer(cv.y_out));
       }
       ++k;
     }
@@ -207,6 +208,7 @@ void Runner::cvode(State& x) {
     t = t1;
     blow_up_.reset();
     const bool changed = accepted(t, x);
+    release();
     const bool at_stop = flag == CV_TSTOP_RETURN;
     if (k >= outputs_.size()) break;
     // A change smaller than the error CVODE accepts in one step (weighted RMS norm <= 1, the norm

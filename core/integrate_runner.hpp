@@ -78,6 +78,11 @@ class Runner {
 
   // Computes, checks and stores (or hands on) the output row at t.
   void emit(double t, const double* x);
+  // The rows of a step, computed as the step left them (the engine's coordinates as they were
+  // during the step) and held back until after_step() has accepted it: hold() computes and checks
+  // one, release() stores or hands on those held. A step the engine refuses leaves none.
+  void hold(double t, const double* x);
+  void release();
   // Called before every step attempt from the accepted state (t, x): cancellation, step limit.
   void guard(double t, const State& x);
   // Cancellation and the step limit (guard(), and each trial step retried inside a stepper).
@@ -111,6 +116,7 @@ class Runner {
   std::vector<double> outputs_;
   std::vector<double> breaks_;
   std::vector<double> row_;
+  std::vector<double> held_;  // rows computed by hold(), row-major
 };
 
 }  // namespace crossdyn::integrate_detail

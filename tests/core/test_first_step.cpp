@@ -8,6 +8,7 @@
 // and h = min(100 h0, h1) = h1 for tol small enough (1e-8 ... 1e-12 here).
 #include <catch2/catch.hpp>
 
+#include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "tests/core/oscillator.hpp"
 
@@ -90,5 +91,37 @@ TEST_CASE("every adaptive method solves the oscillator from its estimated first 
     const RunResult r = simulate(e, system, TreeState{}, s);
     REQUIRE_FALSE(r.failure);
     CHECK(test::max_error(system, r) < 1e-7);
+  }
+}
+
+// An engine that refuses a step (after_step() throws: a singularity crossed inside it, say) ends the
+// run before the step's rows are written: no row lies past the last step it accepted, whatever the
+// method (the dense ones interpolate rows inside a step; they used to write them first).
+namespace {
+class Refuses : public test::Oscillator {
+ public:
+  using test::Oscillator::Oscillator;
+  bool after_step(double t, double*) override {
+    if (t > 1.0) throw RunFailure(name(), t, "x", "refused by the engine");
+    last_accepted = t;
+    return false;
+  }
+  double last_accepted = 0;
+};
+}  // namespace
+
+TEST_CASE("a step the engine refuses writes no rows: none past the last accepted step") {
+  const System system = test::toy(false);
+  for (const std::string& m : integrator_names()) {
+    INFO(m);
+    Refuses e(system);
+    IntegratorSettings s = settings(m, 1e-8);
+    s.duration = 5.0;
+    s.output_step = 0.01;  // many rows inside each dense step
+    const RunResult r = simulate(e, system, TreeState{}, s);
+    REQUIRE(r.failure);
+    CHECK(r.failure->time() > 1.0);
+    REQUIRE(r.rows() > 0);
+    CHECK(r.at(r.rows() - 1, 0) <= e.last_accepted);
   }
 }
