@@ -646,6 +646,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     solver = order_n_ok && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
                                                           : KaneSolver::Composite;
   solver_ = solver;
+  rigid_fast_ = solver_ == KaneSolver::Composite && rigid && !has_prescribed_ &&
+                system_.base_is_free();
   if (solver_ == KaneSolver::OrderN) {
     art_.resize(nj);
     for (ArticulatedWork& a : art_) {
@@ -1610,9 +1612,221 @@ void KaneEngine::dynamics(double t, const double* x) {
 }
 
 // ------------------------------------------------------------------------------------------------
+// Rigid trees.  rhs() of a tree of rigid bodies with a free base on the composite solver (every
+// committed rigid scene but chain5, spear1_case1 among them): Passes 1-3 and the kinematical
+// equations fused into one forward loop (base first), Passes 4-6 into one backward loop (leaves
+// first), and the L^T D L solve of Pass 7 writing u' straight into xdot.  Each node's quantities
+// are formed by the expressions of the passes above, in the same order, so xdot is the same to
+// the last bit as dynamics() gives; what goes is the work that cannot arise in such a tree (the
+// flexible, attachment and prescribed branches), the passes' separate walks over the tree and
+// the copies of u' and of w_NJp_N (here w_P).  The backward loop can form node k's rows of M
+// (Pass 5) and its f_r (Pass 6) as soon as S(k)'s sums are complete: every descendant of k has a
+// larger index, so it has been visited; the rows need, besides these sums, only the positions of
+// k's ancestors (forward loop).
+
+void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
+  const double* u = x + n_q_;
+  const std::size_t nn = nodes_.size();
+  // Forward, base first: q => R_NB, W_N, positions (Pass 1); u => w_NB_N, v_NBo_N (Pass 2);
+  // alpha_t_N, a_t_N (Pass 3); the kinematical equations (rhs below).
+  {
+    const Node& n = nodes_[0];
+    NodeWork& w = work_[0];
+    w.R_NB = read_quat(x, n.q0 + 3).toRotationMatrix();
+    if (n.inertia != Node::Inertia::Isotropic)
+      rotate_inertia(w.I_BBo_N, w.R_NB, n.I_BBo_B, n.inertia == Node::Inertia::Diagonal);
+    const Eigen::Map<const Vector3d> w_NB_B(u + n.u0);
+    w.w_NB_N.noalias() = w.R_NB * w_NB_B;
+    w.v_NBo_N = Eigen::Map<const Vector3d>(u + n.u0 + 3);
+    // p_NoBo_N' = v_NBo_N;  q_NB' = 1/2 q_NB (x) (0, w_NB_B)  (KLL Sec. 1.13).
+    for (int i = 0; i < 3; ++i) xdot[n.q0 + i] = u[n.u0 + 3 + i];
+    const Quaterniond q(x[n.q0 + 3], x[n.q0 + 4], x[n.q0 + 5], x[n.q0 + 6]);
+    const Eigen::Vector4d qd = rot::quat_rate_body(q, w_NB_B);
+    for (int i = 0; i < 4; ++i) xdot[n.q0 + 3 + i] = qd(i);
+  }
+  for (std::size_t k = 1; k < nn; ++k) {
+    const Node& n = nodes_[k];
+    NodeWork& w = work_[k];
+    const NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+    const Matrix3d* R_NJ0 = &P.R_NB;
+    Matrix3d R_NJ0_offset;
+    if (n.has_offset) {
+      R_NJ0_offset.noalias() = P.R_NB * n.R_PJ0;
+      R_NJ0 = &R_NJ0_offset;
+    }
+    switch (n.type) {
+      case JointType::Revolute: {
+        const double half = 0.5 * x[n.q0];
+        const double sh = std::sin(half), ch = std::cos(half);  // one sincos
+        w.sin_half = sh;
+        w.cos_half = ch;
+        if (n.axis_index >= 0) {  // R_NJ0 R_J turns two columns of R_NJ0 (Pass 1)
+          const int i = n.axis_index, j = (i + 1) % 3, l = (i + 2) % 3;
+          const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
+          const Matrix3d& R0 = *R_NJ0;
+          w.R_NB.col(i) = R0.col(i);
+          w.R_NB.col(j) = ca * R0.col(j) + sa * R0.col(l);
+          w.R_NB.col(l) = ca * R0.col(l) - sa * R0.col(j);
+          w.W_N.col(0) = n.axis_sign * R0.col(i);
+        } else {
+          w.R_NB.noalias() = *R_NJ0 * axis_angle_matrix(n.axis_J, sh, ch);
+          w.W_N.col(0).noalias() = P.R_NB * n.axis_P;
+        }
+        w.w_PC_N = w.W_N.col(0) * u[n.u0];
+        xdot[n.q0] = u[n.u0];
+        break;
+      }
+      case JointType::Spherical: {
+        w.R_NB.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
+        w.W_N = w.R_NB;  // W_r = j_r for u_r = w_PC,r in Jc components
+        const Eigen::Map<const Vector3d> w_PC_C(u + n.u0);
+        w.w_PC_N.noalias() = w.W_N * w_PC_C;
+        // q_J' = 1/2 q_J (x) (0, w_PC_C): R_PC = R_PJ0 R(q_J) with R_PJ0 constant.
+        const Quaterniond q(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]);
+        const Eigen::Vector4d qd = rot::quat_rate_body(q, w_PC_C);
+        for (int i = 0; i < 4; ++i) xdot[n.q0 + i] = qd(i);
+        break;
+      }
+      default:
+        w.R_NB = *R_NJ0;
+        w.w_PC_N.setZero();
+        break;
+    }
+    w.p_PoOk_N.noalias() = P.R_NB * n.p_PoJ_P;
+    w.p_B0oOk_N = P.p_B0oBo_N + w.p_PoOk_N;
+    w.p_OkBo_N.noalias() = -(w.R_NB * n.p_CoJ_C);
+    w.p_B0oBo_N = w.p_B0oOk_N + w.p_OkBo_N;
+    if (n.inertia != Node::Inertia::Isotropic)
+      rotate_inertia(w.I_BBo_N, w.R_NB, n.I_BBo_B, n.inertia == Node::Inertia::Diagonal);
+    // Velocities (Pass 2; w_Jp = w_P).
+    const Vector3d& p_PoOk_N = w.p_PoOk_N;
+    const Vector3d& p_OkCo_N = w.p_OkBo_N;
+    const Vector3d v_Ok = P.v_NBo_N + P.w_NB_N.cross(p_PoOk_N);
+    w.w_NB_N = P.w_NB_N + w.w_PC_N;
+    w.v_NBo_N = v_Ok + w.w_NB_N.cross(p_OkCo_N);
+    // Remainder accelerations (Pass 3; a free base's are zero).
+    Vector3d a_Ok, alpha_C;
+    if (n.parent_free_base) {
+      a_Ok.noalias() = P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C.setZero();
+    } else {
+      a_Ok = P.a_t_N + P.alpha_t_N.cross(p_PoOk_N) + P.w_NB_N.cross(P.w_NB_N.cross(p_PoOk_N));
+      alpha_C = P.alpha_t_N;
+    }
+    alpha_C += P.w_NB_N.cross(w.w_PC_N);
+    w.a_t_N = a_Ok + alpha_C.cross(p_OkCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_OkCo_N));
+    w.alpha_t_N = alpha_C;
+  }
+
+  // Backward, leaves first: S(k)'s sums (Pass 4), then k's rows of M (Pass 5) and its f_r
+  // (Pass 6), then the sums moved to the parent's point.
+  for (std::size_t kk = nn; kk-- > 1;) {
+    cancel::poll();
+    const Node& n = nodes_[kk];
+    NodeWork& w = work_[kk];
+    const bool start = n.sums_start;
+    const Vector3d& d = w.p_OkBo_N;
+    put(start, w.m_sub, n.mass);
+    put(start, w.s_sub_N, n.mass * d);
+    if (!n.leaf_rigid) add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d, start);
+    const Vector3d R_B = -n.mass * w.a_t_N;
+    Vector3d T_B = rigid_residual_torque(n, w, w.alpha_t_N);
+    if (n.body_torque) add_body_torque(n, w, t, T_B);
+    put(start, w.F_sub_N, R_B);
+    put(start, w.M_sub_N, T_B + d.cross(R_B));
+
+    for (int i = 0; i < n.nuj; ++i) {
+      const int r = n.u0 + i;
+      const Vector3d W_r = w.W_N.col(i);
+      const Vector3d p_r = W_r.cross(w.s_sub_N);
+      Vector3d h_r;
+      if (n.leaf_rigid) {  // J_k W = I W + m d x (W x d) (Pass 5)
+        h_r = n.mass * d.cross(W_r.cross(d));
+        if (n.inertia == Node::Inertia::Isotropic)
+          h_r += n.I_BBo_B(0, 0) * W_r;
+        else
+          h_r.noalias() += w.I_BBo_N * W_r;
+      } else {
+        h_r.noalias() = w.J_sub_N * W_r;
+      }
+      for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
+      // mass_matrix_ancestors for rigid ancestors.
+      for (const Node::Ancestor& an : n.speed_ancestors) {
+        const Node& A = nodes_[static_cast<std::size_t>(an.node)];
+        const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
+        const Vector3d h_a = h_r + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p_r);
+        if (A.type == JointType::Free) {
+          M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
+          M_.block<1, 3>(r, A.u0 + 3) = p_r.transpose();
+        } else {
+          for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
+        }
+      }
+    }
+    switch (n.type) {
+      case JointType::Revolute:
+        f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
+        break;
+      case JointType::Spherical:
+        f_.segment<3>(n.u0).noalias() =
+            w.W_N.transpose() * w.M_sub_N + hinge_torque_spherical(n, t, x);
+        break;
+      default:
+        break;
+    }
+
+    NodeWork& P = work_[static_cast<std::size_t>(n.parent)];
+    const bool first = n.parent_start;
+    const Vector3d e = w.p_B0oOk_N - P.p_B0oOk_N;
+    put(first, P.m_sub, w.m_sub);
+    put(first, P.s_sub_N, w.s_sub_N + w.m_sub * e);
+    if (n.leaf_rigid)
+      add_shifted_inertia(P.J_sub_N, w.I_BBo_N, n.mass, d + e, first);
+    else
+      add_moved_inertia(P.J_sub_N, w.J_sub_N, w.m_sub, w.s_sub_N, e, first);
+    put(first, P.F_sub_N, w.F_sub_N);
+    put(first, P.M_sub_N, w.M_sub_N + e.cross(w.F_sub_N));
+  }
+  {
+    // The free base (Bo = Ok, zero remainder accelerations): its sums, the base block of M and
+    // f(w) = R_NB^T M_0, f(v) = F_0 (Passes 4-6).
+    const Node& n = nodes_[0];
+    NodeWork& w = work_[0];
+    const bool start = n.sums_start;
+    put(start, w.m_sub, n.mass);
+    if (start) w.s_sub_N.setZero();
+    put(start, w.J_sub_N, w.I_BBo_N);
+    Vector3d T_B = Vector3d::Zero();
+    if (n.inertia != Node::Inertia::Isotropic)
+      T_B.noalias() -= w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+    if (n.body_torque) add_body_torque(n, w, t, T_B);
+    if (start) w.F_sub_N.setZero();  // F_0 += 0 otherwise
+    put(start, w.M_sub_N, T_B);
+    const int r0 = n.u0;
+    const Matrix3d& R = w.R_NB;
+    Matrix3d JR;
+    JR.noalias() = w.J_sub_N * R;
+    for (int j = 0; j < 3; ++j) {
+      for (int i = j; i < 3; ++i) M_(r0 + i, r0 + j) = R.col(i).dot(JR.col(j));
+      M_.block<3, 1>(r0 + 3, r0 + j) = R.col(j).cross(w.s_sub_N);
+    }
+    M_.block<3, 3>(r0 + 3, r0 + 3) = Matrix3d::Identity() * w.m_sub;
+    f_.segment<3>(r0).noalias() = R.transpose() * w.M_sub_N;
+    f_.segment<3>(r0 + 3) = w.F_sub_N;
+  }
+  if (!ltdl_solve_base6(M_.data(), M_.outerStride(), lambda_.data(), n_u_, f_.data(),
+                        xdot + n_q_))
+    throw RunFailure("kane", t, "mass matrix", "not positive definite (a pivot of L^T D L <= 0)");
+}
+
+// ------------------------------------------------------------------------------------------------
 // (t, x) => xdot: kinematical equations for the positions, Kane's equations for the speeds.
 
 void KaneEngine::rhs(double t, const double* x, double* xdot) {
+  if (rigid_fast_) {
+    rigid_rhs(t, x, xdot);
+    return;
+  }
   dynamics(t, x);
   const double* u = x + n_q_;
   for (const Node& n : nodes_) {
