@@ -457,6 +457,9 @@ class KaneEngine final : public Engine {
   // the kinematical equations fused into one forward loop, Passes 4-6 into one backward loop,
   // the solve writing u' into xdot (kane_engine.cpp, "Rigid trees").
   void rigid_rhs(double t, const double* x, double* xdot);
+  // output_row() of such a tree (no prescribed joint): Passes 1-2, the attitudes and the sums
+  // of sum_momenta() in one loop, the row written as it goes.
+  void rigid_output_row(double t, const double* x, double* row);
   void dynamics(double t, const double* x);    // all of the above up to udot_
   // The remainder (full false) or full accelerations, into alpha_t/a_t or alpha/a.
   void propagate_accelerations(const double* udot, bool full);
