@@ -46,20 +46,24 @@ Matrix3d axis_angle_matrix(const Vector3d& k, double sh, double ch) {
 // of fdlibm (Sun Microsystems 1993, k_sin.c and k_cos.c, public domain; the ones musl and FreeBSD
 // use), each within 1 ulp; the quadrant n mod 4 then places them.  |x| >= 1e5 (a joint turned
 // some 30,000 times), infinities and NaN go to libm.
-void sin_cos(double x, double& s, double& c) {
+[[gnu::always_inline]] inline void sin_cos(double x, double& s, double& c) {
   constexpr double kInvPio2 = 6.36619772367581382433e-01;  // 2/pi
   constexpr double kPio2_1 = 1.57079632673412561417e+00;   // first 33 bits of pi/2
   constexpr double kPio2_1t = 6.07710050650619224932e-11;  // pi/2 - kPio2_1
   constexpr double kRound = 6755399441055744.0;            // 1.5 * 2^52: x + kRound - kRound
                                                            // rounds x to an integer
-  if (!(std::abs(x) < 1e5)) {
-    s = std::sin(x);
-    c = std::cos(x);
-    return;
+  double r = x;
+  int quadrant = 0;
+  if (!(std::abs(x) <= 0.785398163397448279)) {  // |x| > pi/4 (or NaN)
+    if (!(std::abs(x) < 1e5)) {
+      s = std::sin(x);
+      c = std::cos(x);
+      return;
+    }
+    const double fn = (x * kInvPio2 + kRound) - kRound;
+    r = (x - fn * kPio2_1) - fn * kPio2_1t;
+    quadrant = static_cast<int>(fn) & 3;
   }
-  const bool reduce = !(std::abs(x) <= 0.785398163397448279);  // |x| > pi/4
-  const double fn = reduce ? (x * kInvPio2 + kRound) - kRound : 0.0;
-  const double r = reduce ? (x - fn * kPio2_1) - fn * kPio2_1t : x;
   const double z = r * r, w = z * z;
   // fdlibm __kernel_sin(r, 0, 0)
   constexpr double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
@@ -74,12 +78,7 @@ void sin_cos(double x, double& s, double& c) {
   const double rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
   const double hz = 0.5 * z, v = 1.0 - hz;
   const double cr = v + (((1.0 - v) - hz) + z * rc);
-  if (!reduce) {
-    s = sr;
-    c = cr;
-    return;
-  }
-  switch (static_cast<int>(fn) & 3) {
+  switch (quadrant) {
     case 0:
       s = sr;
       c = cr;
@@ -96,6 +95,22 @@ void sin_cos(double x, double& s, double& c) {
       s = -cr;
       c = sr;
       break;
+  }
+}
+
+// q (x) (c, s e_i): the Hamilton product of q with the quaternion of a rotation about the
+// coordinate axis e_i (i = 0, 1, 2; c, s the cosine and sine of half its angle), as
+// c q + s q (x) (0, e_i) with q (x) (0, e_x) = (-x, w, z, -y), q (x) (0, e_y) = (-y, -z, w, x),
+// q (x) (0, e_z) = (-z, y, -x, w) (scalar first): 8 products instead of the general 16.
+Quaterniond times_axis_rotation(const Quaterniond& q, int i, double c, double s) {
+  const double w = q.w(), x = q.x(), y = q.y(), z = q.z();
+  switch (i) {
+    case 0:
+      return Quaterniond(c * w - s * x, c * x + s * w, c * y + s * z, c * z - s * y);
+    case 1:
+      return Quaterniond(c * w - s * y, c * x - s * z, c * y + s * w, c * z + s * x);
+    default:
+      return Quaterniond(c * w - s * z, c * x + s * y, c * y - s * x, c * z + s * w);
   }
 }
 
@@ -711,6 +726,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   solver_ = solver;
   rigid_fast_ = solver_ == KaneSolver::Composite && rigid && !has_prescribed_ &&
                 system_.base_is_free();
+  for (const Joint& J : system_.joints) has_potential_ = has_potential_ || J.stiffness != 0;
+  has_potential_ = has_potential_ || !flex_.empty();
   if (solver_ == KaneSolver::OrderN) {
     art_.resize(nj);
     for (ArticulatedWork& a : art_) {
@@ -821,7 +838,7 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
             // axis_J = sign e_i: R_J e_i = e_i, and with (i, j, l) cyclic R_J e_j = c e_j + s e_l,
             // R_J e_l = c e_l - s e_j (Rodrigues' formula above with [e_i x] e_j = e_l, s =
             // sign sin(a), c = cos(a) = 1 - 2 sh^2), so R_NJ0 R_J turns two columns of R_NJ0.
-            const int i = n.axis_index, j = (i + 1) % 3, l = (i + 2) % 3;
+            const int i = n.axis_index, j = i == 2 ? 0 : i + 1, l = i == 0 ? 2 : i - 1;
             const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
             const Matrix3d& R0 = *R_NJ0;
             R_NJc.col(i) = R0.col(i);
@@ -1723,7 +1740,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
         w.sin_half = sh;
         w.cos_half = ch;
         if (n.axis_index >= 0) {  // R_NJ0 R_J turns two columns of R_NJ0 (Pass 1)
-          const int i = n.axis_index, j = (i + 1) % 3, l = (i + 2) % 3;
+          const int i = n.axis_index, j = i == 2 ? 0 : i + 1, l = i == 0 ? 2 : i - 1;
           const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
           const Matrix3d& R0 = *R_NJ0;
           w.R_NB.col(i) = R0.col(i);
@@ -2399,7 +2416,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
   const double* u = x + n_q_;
   RowWriter out(layout_, row);
   out.time(t);
-  double quat_err = 0, T = 0;
+  double quat_err = 0, T2 = 0;
   Vector3d P = Vector3d::Zero(), H = Vector3d::Zero(), first_moment = Vector3d::Zero();
   std::vector<Quaterniond>& q_N = q_N_;
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -2407,8 +2424,9 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
     NodeWork& w = work_[k];
     if (n.type == JointType::Free) {
       const Quaterniond q(x[n.q0 + 3], x[n.q0 + 4], x[n.q0 + 5], x[n.q0 + 6]);
-      quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
-      q_N[k] = q.normalized();
+      const double norm = q.norm();
+      quat_err = std::abs(norm - 1.0);
+      q_N[k] = Quaterniond(q.coeffs() / norm);
       w.R_NB = q_N[k].toRotationMatrix();
       w.w_NB_B = Eigen::Map<const Vector3d>(u + n.u0);
       w.w_NB_N.noalias() = w.R_NB * w.w_NB_B;
@@ -2422,6 +2440,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
         R_NJ0 = &R_NJ0_offset;
       }
       Quaterniond q_J = Quaterniond::Identity();
+      bool q_done = false;
       Vector3d w_PC_N = Vector3d::Zero();
       switch (n.type) {
         case JointType::Revolute: {
@@ -2429,7 +2448,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
           double sh, ch;
           sin_cos(half, sh, ch);
           if (n.axis_index >= 0) {  // as in Pass 1
-            const int i = n.axis_index, j = (i + 1) % 3, l = (i + 2) % 3;
+            const int i = n.axis_index, j = i == 2 ? 0 : i + 1, l = i == 0 ? 2 : i - 1;
             const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
             const Matrix3d& R0 = *R_NJ0;
             w.R_NB.col(i) = R0.col(i);
@@ -2442,7 +2461,14 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
             w_PC_N *= u[n.u0];
           }
           // (cos a/2, sin a/2 k)
-          q_J = Quaterniond(ch, sh * n.axis_J.x(), sh * n.axis_J.y(), sh * n.axis_J.z());
+          if (n.axis_index >= 0 && !n.has_offset)  // q_NC = q_NP (ch, sign sh e_i)
+          {
+            q_N[k] = times_axis_rotation(q_N[static_cast<std::size_t>(n.parent)], n.axis_index,
+                                         ch, n.axis_sign * sh);
+            q_done = true;
+          } else {
+            q_J = Quaterniond(ch, sh * n.axis_J.x(), sh * n.axis_J.y(), sh * n.axis_J.z());
+          }
           out.revolute(n.joint, x[n.q0], u[n.u0]);
           break;
         }
@@ -2460,40 +2486,45 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
           w.R_NB = *R_NJ0;
           break;
       }
+      // A product of unit quaternions: unit to rounding, not renormalised.
       const Quaterniond& q_NP = q_N[static_cast<std::size_t>(n.parent)];
-      q_N[k] = (n.has_offset ? q_NP * n.q_PJ0 * q_J : q_NP * q_J).normalized();
-      w.p_PoOk_N.noalias() = Pw.R_NB * n.p_PoJ_P;
-      w.p_B0oOk_N = Pw.p_B0oBo_N + w.p_PoOk_N;
-      w.p_OkBo_N.noalias() = -(w.R_NB * n.p_CoJ_C);
-      w.p_B0oBo_N = w.p_B0oOk_N + w.p_OkBo_N;
+      if (!q_done) q_N[k] = n.has_offset ? q_NP * n.q_PJ0 * q_J : q_NP * q_J;
+      Vector3d p_PoOk_N, p_OkBo_N;
+      p_PoOk_N.noalias() = Pw.R_NB * n.p_PoJ_P;
+      p_OkBo_N.noalias() = -(w.R_NB * n.p_CoJ_C);
+      w.p_B0oBo_N = Pw.p_B0oBo_N + p_PoOk_N + p_OkBo_N;
       w.w_NB_N = Pw.w_NB_N + w_PC_N;
-      w.v_NBo_N = Pw.v_NBo_N + Pw.w_NB_N.cross(w.p_PoOk_N) + w.w_NB_N.cross(w.p_OkBo_N);
+      w.v_NBo_N = Pw.v_NBo_N + Pw.w_NB_N.cross(p_PoOk_N) + w.w_NB_N.cross(p_OkBo_N);
       w.w_NB_B.noalias() = w.R_NB.transpose() * w.w_NB_N;
     }
     out.body(n.body, w.w_NB_B, q_N[k]);
-    // sum_momenta, rigid bodies.
+    // sum_momenta, rigid bodies (T2 = 2 T; the base's origin is B0o itself, p = 0).
     const Vector3d P_B = n.mass * w.v_NBo_N;
     Vector3d h_Bo;
-    T += 0.5 * n.mass * w.v_NBo_N.squaredNorm();
-    first_moment += n.mass * w.p_B0oBo_N;
+    T2 += P_B.dot(w.v_NBo_N);
     if (n.inertia == Node::Inertia::Isotropic) {
-      const double c = n.I_BBo_B(0, 0);
-      T += 0.5 * c * w.w_NB_N.squaredNorm();
-      h_Bo = c * w.w_NB_N;
+      h_Bo = n.I_BBo_B(0, 0) * w.w_NB_N;
+      T2 += h_Bo.dot(w.w_NB_N);
     } else {
       Vector3d h_B;
       if (n.inertia == Node::Inertia::Diagonal)
         h_B = n.I_BBo_B.diagonal().cwiseProduct(w.w_NB_B);
       else
         h_B.noalias() = n.I_BBo_B * w.w_NB_B;
-      T += 0.5 * w.w_NB_B.dot(h_B);
+      T2 += w.w_NB_B.dot(h_B);
       h_Bo.noalias() = w.R_NB * h_B;
     }
     P += P_B;
-    H += h_Bo + w.p_B0oBo_N.cross(P_B);
+    if (k == 0) {
+      H += h_Bo;
+    } else {
+      first_moment += n.mass * w.p_B0oBo_N;
+      H += h_Bo + w.p_B0oBo_N.cross(P_B);
+    }
   }
+  const double T = 0.5 * T2;
   H -= (first_moment / total_mass_).cross(P);
-  const double V = potential_energy(x);
+  const double V = has_potential_ ? potential_energy(x) : 0.0;
   out.momentum(H.norm());
   out.energy(T + V);
   int c = extra0_;

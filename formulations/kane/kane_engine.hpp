@@ -509,7 +509,8 @@ class KaneEngine final : public Engine {
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
   NodeWork ground_;
   bool has_prescribed_ = false;
-  bool rigid_fast_ = false;  // rhs() takes rigid_rhs()
+  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
+  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
   std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
