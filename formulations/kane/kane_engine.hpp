@@ -453,6 +453,13 @@ class KaneEngine final : public Engine {
   //   I^A, Z, U, D^-1, g => udot_, increments dalpha, da_Ok          (forward, base first)
   void articulated_solve(double t);
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
+  // rhs() of a rigid tree with a free base on the composite solver (rigid_fast_): Passes 1-3 and
+  // the kinematical equations fused into one forward loop, Passes 4-6 into one backward loop,
+  // the solve writing u' into xdot (kane_engine.cpp, "Rigid trees").
+  void rigid_rhs(double t, const double* x, double* xdot);
+  // output_row() of such a tree (no prescribed joint): Passes 1-2, the attitudes and the sums
+  // of sum_momenta() in one loop, the row written as it goes.
+  void rigid_output_row(double t, const double* x, double* row);
   void dynamics(double t, const double* x);    // all of the above up to udot_
   // The remainder (full false) or full accelerations, into alpha_t/a_t or alpha/a.
   void propagate_accelerations(const double* udot, bool full);
@@ -502,6 +509,8 @@ class KaneEngine final : public Engine {
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
   NodeWork ground_;
   bool has_prescribed_ = false;
+  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
+  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
   std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
