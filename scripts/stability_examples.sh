@@ -22,4 +22,7 @@ $C stability chain5 --vary duration --values 10,100,1000 --engines kane,lagrange
 $C stability chain5 --vary links --values 2,4,8,16 --duration 2 -q --report "$O/chain" > "$O/chain.txt"
 # Euler-angle lock: lagrange with and without re-charting, runs that end before and after the lock.
 $C stability gimbal_lock --vary duration --values 1,2,3,5 --engines kane,lagrange,lagrange:no-rechart,newton-euler --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 -q --report "$O/lock" > "$O/lock.txt"
+# How close the pass comes to the lock: the wobble wx from 0.02 rad/s to none (wz = 0: with wx = 0
+# the body spins about y alone and its x axis passes through the lock itself).
+$C stability gimbal_lock --set base.wz=0 --vary base.wx --values 2e-2,2e-3,2e-4,2e-5,2e-6,0 --engines kane,lagrange,lagrange:no-rechart,newton-euler --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 -q --report "$O/lock_pass" > "$O/lock_pass.txt"
 echo "maps in $O"
