@@ -36,68 +36,6 @@ Matrix3d axis_angle_matrix(const Vector3d& k, double sh, double ch) {
   return R;
 }
 
-// sin x and cos x together, for a revolute joint's half angle in the rigid-tree rhs and
-// output_row (rigid_rhs, rigid_output_row: both at every call; libm's sincos costs about 110
-// instructions).  Passes 1-7 keep libm's sin and cos, so flexible and prescribed scenes are
-// unchanged to the bit (spinup_beam_linear, the linear model under spin-up, amplifies a 1 ulp
-// change to ~1e-7 of a modal rate).  The argument is reduced by the nearest
-// multiple n of pi/2, r = x - n pi/2 with pi/2 split in two parts (the leading one of 33 bits, so
-// n * part is exact for |n| < 2^20), and sin r, cos r (|r| <= pi/4) are the polynomial kernels
-// of fdlibm (Sun Microsystems 1993, k_sin.c and k_cos.c, public domain; the ones musl and FreeBSD
-// use), each within 1 ulp; the quadrant n mod 4 then places them.  |x| >= 1e5 (a joint turned
-// some 30,000 times), infinities and NaN go to libm.
-[[gnu::always_inline]] inline void sin_cos(double x, double& s, double& c) {
-  constexpr double kInvPio2 = 6.36619772367581382433e-01;  // 2/pi
-  constexpr double kPio2_1 = 1.57079632673412561417e+00;   // first 33 bits of pi/2
-  constexpr double kPio2_1t = 6.07710050650619224932e-11;  // pi/2 - kPio2_1
-  constexpr double kRound = 6755399441055744.0;            // 1.5 * 2^52: x + kRound - kRound
-                                                           // rounds x to an integer
-  double r = x;
-  int quadrant = 0;
-  if (!(std::abs(x) <= 0.785398163397448279)) {  // |x| > pi/4 (or NaN)
-    if (!(std::abs(x) < 1e5)) {
-      s = std::sin(x);
-      c = std::cos(x);
-      return;
-    }
-    const double fn = (x * kInvPio2 + kRound) - kRound;
-    r = (x - fn * kPio2_1) - fn * kPio2_1t;
-    quadrant = static_cast<int>(fn) & 3;
-  }
-  const double z = r * r, w = z * z;
-  // fdlibm __kernel_sin(r, 0, 0)
-  constexpr double S1 = -1.66666666666666324348e-01, S2 = 8.33333333332248946124e-03,
-                   S3 = -1.98412698298579493134e-04, S4 = 2.75573137070700676789e-06,
-                   S5 = -2.50507602534068634195e-08, S6 = 1.58969099521155010221e-10;
-  const double rs = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
-  const double sr = r + (z * r) * (S1 + z * rs);
-  // fdlibm __kernel_cos(r, 0)
-  constexpr double C1 = 4.16666666666666019037e-02, C2 = -1.38888888888741095749e-03,
-                   C3 = 2.48015872894767294178e-05, C4 = -2.75573143513906633035e-07,
-                   C5 = 2.08757232129817482790e-09, C6 = -1.13596475577881948265e-11;
-  const double rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
-  const double hz = 0.5 * z, v = 1.0 - hz;
-  const double cr = v + (((1.0 - v) - hz) + z * rc);
-  switch (quadrant) {
-    case 0:
-      s = sr;
-      c = cr;
-      break;
-    case 1:
-      s = cr;
-      c = -sr;
-      break;
-    case 2:
-      s = -sr;
-      c = -cr;
-      break;
-    default:
-      s = -cr;
-      c = sr;
-      break;
-  }
-}
-
 // q (x) (c, s e_i): the Hamilton product of q with the quaternion of a rotation about the
 // coordinate axis e_i (i = 0, 1, 2; c, s the cosine and sine of half its angle), as
 // c q + s q (x) (0, e_i) with q (x) (0, e_x) = (-x, w, z, -y), q (x) (0, e_y) = (-y, -z, w, x),
@@ -1735,8 +1673,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
     switch (n.type) {
       case JointType::Revolute: {
         const double half = 0.5 * x[n.q0];
-        double sh, ch;
-        sin_cos(half, sh, ch);
+        const double sh = std::sin(half), ch = std::cos(half);  // one libm sincos call
         w.sin_half = sh;
         w.cos_half = ch;
         if (n.axis_index >= 0) {  // R_NJ0 R_J turns two columns of R_NJ0 (Pass 1)
@@ -2445,8 +2382,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
       switch (n.type) {
         case JointType::Revolute: {
           const double half = 0.5 * x[n.q0];
-          double sh, ch;
-          sin_cos(half, sh, ch);
+          const double sh = std::sin(half), ch = std::cos(half);
           if (n.axis_index >= 0) {  // as in Pass 1
             const int i = n.axis_index, j = i == 2 ? 0 : i + 1, l = i == 0 ? 2 : i - 1;
             const double sa = n.axis_sign * 2.0 * sh * ch, ca = 1.0 - 2.0 * sh * sh;
