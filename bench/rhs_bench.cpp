@@ -64,7 +64,7 @@ crossdyn::System make_chain(int n) {
 void register_kane_solvers(const std::vector<crossdyn::System>& committed) {
   static std::deque<crossdyn::System> systems;  // outlives the registered benchmarks
   for (const crossdyn::System& s : committed) systems.push_back(s);
-  for (int n : {2, 3, 4, 5, 20, 40, 80, 128}) {
+  for (int n : {2, 3, 4, 5, 6, 8, 20, 40, 80, 128}) {
     try {
       systems.push_back(make_chain(n));
     } catch (const crossdyn::InputError& e) {

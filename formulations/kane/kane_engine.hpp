@@ -139,7 +139,7 @@
 //              per revolute joint): a scene with one uses composite, and forcing order-N is
 //              refused with InputError.
 //   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
-//   least KaneEngine::kOrderNMinDepth = 12 generalised speeds (the base's 6 included; chain3),
+//   least KaneEngine::kOrderNMinDepth = 16 generalised speeds (the base's 6 included; chain5),
 //   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
 //
 // Bibliography

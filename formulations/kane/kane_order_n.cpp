@@ -46,13 +46,18 @@
 // path (KaneEngine::kOrderNMinDepth below), measured with
 //   build/crossdyn_bench --benchmark_filter='^kane_(composite|order_n)/'
 //     --benchmark_min_time=0.3 --benchmark_repetitions=5   (one command line)
-// (Release, CPU ns per rhs, medians, 2026-11-23, a loaded 2-core machine), composite / order-N,
-// with the speeds on the deepest path:
-//   spear1_case1 (7) 973 / 1078;  hub_two_panels (7) 1030 / 1064;  dual_spin 727 / 850;
-//   basilisk_hinged_panels 1021 / 1171;  chain_motor 1018 / 1140;  chain2 (9) 907 / 1029;
-//   chain3 (12) 1692 / 1405;  chain4 (15) 2624 / 1645;  chain5 (18) 3406 / 2124;
-//   chain20 (63) 105696 / 6706;  chain80 (243) 5957471 / 28121;  chain128 (387) 23.8e6 / 56629;
-// so composite up to 9 speeds (every committed rigid scene but chain5), order-N from 12 (chain3).
+// (Release, CPU ns per rhs, medians, 2026-11-26, an idle 2-core machine), composite / order-N,
+// with the speeds on the deepest path; the composite path here is the rigid free-base one
+// (kane_engine.cpp, "Rigid trees"), which moved the crossover up from chain3 (12 speeds):
+//   spear1_case1 (7) 230 / 485;  hub_two_panels (7) 271 / 533;  dual_spin 199 / 401;
+//   basilisk_hinged_panels 258 / 519;  chain_motor 266 / 534;  chain2 (9) 258 / 441;
+//   chain3 (12) 539 / 660;  chain4 (15) 855 / 879;  chain5 (18) 1249 / 1080;  chain6 (21)
+//   1775 / 1276;  chain8 (27) 3137 / 1617;  chain20 (63) 47383 / 3885;  chain80 (243)
+//   3872490 / 14995;  chain128 (387) 16.6e6 / 23468;
+// chain3 ... chain5 again with --benchmark_min_time=0.5 --benchmark_repetitions=9
+// --benchmark_enable_random_interleaving=true: chain3 457 / 602, chain4 716 / 794, chain5
+// 1070 / 999.  So composite up to 15 speeds (chain4; every committed rigid scene but chain5),
+// order-N from 16 (chain5 has 18).
 
 // Bibliography: kane_engine.hpp ([KLL], [Feath], [Ban93]).
 #include "formulations/kane/kane_engine.hpp"
@@ -65,7 +70,7 @@
 
 namespace crossdyn::kane {
 
-const int KaneEngine::kOrderNMinDepth = 12;
+const int KaneEngine::kOrderNMinDepth = 16;
 
 namespace {
 
