@@ -504,8 +504,9 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
         if (c.engine == e && c.integrator == i) cells.push_back(&c);
       if (cells.empty()) continue;
       const bool fixed = cells.front()->fixed_step;
-      // Per column: the coarsest accurate setting, and the failure classes of coarser ones.
-      std::ostringstream where;
+      // Per column: the coarsest accurate setting, and the failure classes of coarser ones; then
+      // neighbouring columns with the same outcome said once ("x 1 ... 100 (3 values): ...").
+      std::vector<std::string> outcome(m.columns.size());
       std::map<StabilityClass, int> how;
       int failing_columns = 0;
       std::string h_lambda_note;
@@ -525,21 +526,34 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
           }
         }
         if (!fails.empty()) ++failing_columns;
-        where << (c ? "; " : "") << m.knob.spec << " " << g3(m.columns[c].value) << unit << ": ";
+        std::ostringstream o;
         if (!m.columns[c].reference) {
-          where << "no reference";
+          outcome[c] = "no reference";
           continue;
         }
-        if (std::isnan(coarsest)) where << "never accurate";
-        else where << "accurate up to " << (fixed ? "dt " : "rtol ") << g3(coarsest);
+        if (std::isnan(coarsest)) o << "never accurate";
+        else o << "accurate up to " << (fixed ? "dt " : "rtol ") << g3(coarsest);
         if (!fails.empty()) {
-          where << ", else ";
+          o << ", else ";
           bool first = true;
           for (const std::string& f : fails) {
-            where << (first ? "" : "/") << f;
+            o << (first ? "" : "/") << f;
             first = false;
           }
         }
+        outcome[c] = o.str();
+      }
+      std::ostringstream where;
+      for (std::size_t a = 0; a < outcome.size();) {
+        std::size_t b = a;
+        while (b + 1 < outcome.size() && outcome[b + 1] == outcome[a]) ++b;
+        where << (a ? "; " : "") << m.knob.spec << " " << g3(m.columns[a].value);
+        if (b > a)
+          where << " ... " << g3(m.columns[b].value) << unit << " (" << b - a + 1 << " values)";
+        else
+          where << unit;
+        where << ": " << outcome[a];
+        a = b + 1;
       }
       std::string sentence = e + " + " + i + ": ";
       if (failing_columns == 0) {

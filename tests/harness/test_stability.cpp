@@ -181,6 +181,46 @@ TEST_CASE("stability: rk4 diverges where h |lambda|max passes its stability limi
   CHECK(said);
 }
 
+// The findings say each outcome once: neighbouring values with the same outcome are one range,
+// and a value whose outcome differs keeps its own entry (a hand-made map: two engines, one
+// integrator, two tolerances, five values).
+TEST_CASE("stability: the findings group neighbouring values with the same outcome") {
+  StabilityMap m;
+  m.knob.spec = "base.wx";
+  m.knob.unit = "rad/s";
+  m.engines = {"kane", "lagrange"};
+  m.integrators = {"dop853"};
+  for (double v : {0.1, 0.01, 0.001, 1e-4, 0.0}) {
+    StabilityColumn c;
+    c.value = v;
+    m.columns.push_back(c);
+  }
+  // kane: accurate at 1e-9 and inaccurate at 1e-6 everywhere; lagrange: the same but singular at
+  // every setting at 1e-3 (the middle value).
+  for (const std::string e : {"kane", "lagrange"})
+    for (std::size_t col = 0; col < m.columns.size(); ++col)
+      for (double tol : {1e-6, 1e-9}) {
+        StabilityCell cell;
+        cell.engine = e;
+        cell.integrator = "dop853";
+        cell.setting = tol;
+        cell.column = col;
+        cell.result.cls = tol < 1e-8 ? StabilityClass::Accurate : StabilityClass::Inaccurate;
+        if (e == "lagrange" && col == 2) cell.result.cls = StabilityClass::Singular;
+        m.cells.push_back(cell);
+      }
+  const std::vector<std::string> f = stability_findings(m);
+  REQUIRE(f.size() == 2);
+  CHECK(f[0] ==
+        "kane + dop853: base.wx 0.1 ... 0 rad/s (5 values): accurate up to rtol 1e-09, else "
+        "inaccurate. Fails mostly as inaccurate. Remedy: a tighter tolerance.");
+  CHECK(f[1].rfind("lagrange + dop853: base.wx 0.1 ... 0.01 rad/s (2 values): accurate up to rtol "
+                   "1e-09, else inaccurate; base.wx 0.001 rad/s: never accurate, else singular; "
+                   "base.wx 0.0001 ... 0 rad/s (2 values): accurate up to rtol 1e-09, else "
+                   "inaccurate. Fails mostly as singular.",
+                   0) == 0);
+}
+
 TEST_CASE("stability: bad arguments exit 2, a tiny map writes its table, CSV and report") {
   const struct {
     const char* args;
