@@ -1,7 +1,7 @@
 #!/bin/bash
 # The standard stability maps of issue 13, as committed in reports/example/stability/: one
 # `crossdyn stability` command per map. Usage: scripts/stability_examples.sh [OUT_DIR]
-# (default /tmp/stability_examples). About 8 minutes on 2 cores (measured 2026-11-24:
+# (default /tmp/stability_examples). About 7 minutes on 2 cores (6 min 49 s measured 2026-11-26; 2026-11-24:
 # hinge 104 s, modal 55 s, damping ~60 s, rotor 64 s, horizon 122 s, chain 116 s, lock 2 s).
 set -euo pipefail
 C=${CROSSDYN:-build/crossdyn}
