@@ -1197,18 +1197,43 @@ void KaneEngine::add_body_torque(const Node& n, const NodeWork& w, double t, Vec
 //                    S(c) about Oc in the motion r.
 //   Base block: M(w, w) = R^T J_0 R;  M(v_i, w_j) = n_i . (b_j x s_0);  M(v, v) = m 1.
 
+// One ancestor's joint-speed entries of row r (above: a joint's W . h_a; a free base's R^T h_a
+// and p), returning h_a = h + (p_k - p_a) x p, the momentum moment about the ancestor's point.
+inline Vector3d KaneEngine::mass_matrix_ancestor_joint(const NodeWork& w,
+                                                       const Node::Ancestor& an, int r,
+                                                       const Vector3d& p, const Vector3d& h) {
+  const Node& A = nodes_[static_cast<std::size_t>(an.node)];
+  const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
+  const Vector3d h_a = h + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p);
+  if (A.type == JointType::Free) {
+    M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
+    M_.block<1, 3>(r, A.u0 + 3) = p.transpose();
+  } else {
+    for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
+  }
+  return h_a;
+}
+
+// J_k W: the subtree's inertia about Ok times W; for a rigid leaf (S(k) is the body alone, J_k
+// never formed) J_k W = I W + m (|d|^2 W - d (d . W)) = I W + m d x (W x d), d = p_OkBo_N.
+inline Vector3d KaneEngine::subtree_inertia_times(const Node& n, const NodeWork& w,
+                                                  const Vector3d& W) const {
+  if (!n.leaf_rigid) return w.J_sub_N * W;
+  const Vector3d& d = w.p_OkBo_N;
+  Vector3d h = n.mass * d.cross(W.cross(d));
+  if (n.inertia == Node::Inertia::Isotropic)
+    h += n.I_BBo_B(0, 0) * W;
+  else
+    h.noalias() += w.I_BBo_N * W;
+  return h;
+}
+
 void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, const Vector3d& h) {
   const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
   for (const Node::Ancestor& an : n.speed_ancestors) {
     const Node& A = nodes_[static_cast<std::size_t>(an.node)];
     const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
-    const Vector3d h_a = h + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p);
-    if (A.type == JointType::Free) {
-      M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
-      M_.block<1, 3>(r, A.u0 + 3) = p.transpose();
-    } else {
-      for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
-    }
+    const Vector3d h_a = mass_matrix_ancestor_joint(w, an, r, p, h);
     if (A.nm == 0) continue;
     // The ancestor's modal speeds: their twist (if A hangs at one of its nodes) and their elastic
     // twist at the node where the path to k leaves A (node `via`).
@@ -1248,17 +1273,7 @@ void KaneEngine::mass_matrix_pass() {
         const int r = n.u0 + i;
         const Vector3d W_r = w.W_N.col(i);
         const Vector3d p_r = W_r.cross(w.s_sub_N);
-        Vector3d h_r;
-        if (n.leaf_rigid) {  // J_k W = I W + m (|d|^2 W - d (d . W)) = I W + m d x (W x d)
-          const Vector3d& d = w.p_OkBo_N;
-          h_r = n.mass * d.cross(W_r.cross(d));
-          if (n.inertia == Node::Inertia::Isotropic)
-            h_r += n.I_BBo_B(0, 0) * W_r;
-          else
-            h_r.noalias() += w.I_BBo_N * W_r;
-        } else {
-          h_r.noalias() = w.J_sub_N * W_r;
-        }
+        const Vector3d h_r = subtree_inertia_times(n, w, W_r);
         for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
         mass_matrix_ancestors(n, r, p_r, h_r);
       }
@@ -1755,29 +1770,11 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
       const int r = n.u0 + i;
       const Vector3d W_r = w.W_N.col(i);
       const Vector3d p_r = W_r.cross(w.s_sub_N);
-      Vector3d h_r;
-      if (n.leaf_rigid) {  // J_k W = I W + m d x (W x d) (Pass 5)
-        h_r = n.mass * d.cross(W_r.cross(d));
-        if (n.inertia == Node::Inertia::Isotropic)
-          h_r += n.I_BBo_B(0, 0) * W_r;
-        else
-          h_r.noalias() += w.I_BBo_N * W_r;
-      } else {
-        h_r.noalias() = w.J_sub_N * W_r;
-      }
+      const Vector3d h_r = subtree_inertia_times(n, w, W_r);  // (Pass 5)
       for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
       // mass_matrix_ancestors for rigid ancestors.
-      for (const Node::Ancestor& an : n.speed_ancestors) {
-        const Node& A = nodes_[static_cast<std::size_t>(an.node)];
-        const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
-        const Vector3d h_a = h_r + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p_r);
-        if (A.type == JointType::Free) {
-          M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
-          M_.block<1, 3>(r, A.u0 + 3) = p_r.transpose();
-        } else {
-          for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
-        }
-      }
+      for (const Node::Ancestor& an : n.speed_ancestors)
+        mass_matrix_ancestor_joint(w, an, r, p_r, h_r);
     }
     switch (n.type) {
       case JointType::Revolute:

@@ -469,6 +469,12 @@ class KaneEngine final : public Engine {
   // (about Ok) of S(k) moving with speed r's partial velocities.
   void mass_matrix_ancestors(const Node& n, int r, const Eigen::Vector3d& p,
                              const Eigen::Vector3d& h);
+  // Its joint-speed part for one ancestor (rigid trees need no more); returns h about the
+  // ancestor's point.  And J_k W (a rigid leaf's without forming J_k).
+  Eigen::Vector3d mass_matrix_ancestor_joint(const NodeWork& w, const Node::Ancestor& an, int r,
+                                             const Eigen::Vector3d& p, const Eigen::Vector3d& h);
+  Eigen::Vector3d subtree_inertia_times(const Node& n, const NodeWork& w,
+                                        const Eigen::Vector3d& W) const;
 
   // A rigid body's residual torque -I alpha - w x I w about Bo, and its external torque at t
   // (only when Node::body_torque) added to T_B (N components).
