@@ -102,6 +102,26 @@ class Engine {
   const std::vector<std::string>& columns() const { return layout().names(); }
   // (t, x) => one row of layout().size() values, written through a RowWriter on layout().
   virtual void output_row(double t, const double* x, double* row) = 0;
+
+  // The linear system the engine solves for its accelerations at (t, x), written out dense:
+  // A z = b, A square and symmetric (a mass matrix, or a KKT matrix [M J^T; J 0]), so that its
+  // conditioning can be measured (harness: `crossdyn study --scaling`, the condition number
+  // sigma_max / sigma_min against chain length). z(i) = xdot[speed_index[i]] for i <
+  // speed_index.size() (the speed equations' unknowns, as rhs() would return them at (t, x)); the
+  // rest of z, if any, are multipliers. `what` names the system in a few words ("Kane's equations
+  // M u' = f, 24 generalised speeds"). Allocates; for tests and diagnostics, never the hot path.
+  // An engine that does not provide it returns A empty.
+  struct LinearSystem {
+    Eigen::MatrixXd A;
+    Eigen::VectorXd b;
+    std::vector<int> speed_index;
+    std::string what;
+  };
+  virtual LinearSystem linear_system(double t, const double* x) {
+    (void)t;
+    (void)x;
+    return {};
+  }
 };
 
 }  // namespace crossdyn
