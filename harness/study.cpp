@@ -9,6 +9,7 @@
 #include "core/progress.hpp"
 #include "core/rotation.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/conditioning.hpp"
 #include "harness/engines.hpp"
 
 #include <time.h>
@@ -772,7 +773,11 @@ ScalingStudy scaling_study(const ScalingOptions& o) {
   s.links = scaling_links(o.max_links);
   s.budget = o.budget;
   const std::vector<std::string> engines = o.engines.empty() ? engine_names() : o.engines;
-  for (const std::string& e : engines) s.lines.push_back({e, {}, kNaN});
+  for (const std::string& e : engines) {
+    ScalingLine line;
+    line.engine = e;
+    s.lines.push_back(line);
+  }
   Progress progress{o.progress};
   if (o.progress) o.progress->start("scaling", 0);
   for (int n : s.links) {
@@ -814,17 +819,31 @@ ScalingStudy scaling_study(const ScalingOptions& o) {
         p.calls += per_batch;
       }
       p.seconds_per_call = median(per_call);
+      const SolveConditioning c = solve_conditioning(*engine, 0.0, x.data());
+      p.condition = c.condition;
+      p.system_size = c.size;
+      if (!c.what.empty()) line.system = c.what;
       line.points.push_back(p);
     }
+    std::vector<std::string> names;
+    for (const ScalingLine& line : s.lines) names.push_back(line.engine);
+    const std::vector<double> dev = acceleration_deviation(system, names);
+    for (std::size_t e = 0; e < s.lines.size(); ++e) s.lines[e].points.back().accel_deviation = dev[e];
   }
   for (ScalingLine& line : s.lines) {
-    std::vector<double> x, y;
-    for (const ScalingPoint& p : line.points)
+    std::vector<double> x, y, xc, yc;
+    for (const ScalingPoint& p : line.points) {
       if (p.ok) {
         x.push_back(p.links);
         y.push_back(p.seconds_per_call);
       }
+      if (std::isfinite(p.condition)) {
+        xc.push_back(p.links);
+        yc.push_back(p.condition);
+      }
+    }
     line.exponent = fit_exponent(x, y);
+    line.condition_exponent = fit_exponent(xc, yc);
   }
   if (o.progress) o.progress->clear();
   return s;
@@ -853,16 +872,50 @@ std::string format_scaling(const ScalingStudy& s) {
   for (const ScalingLine& l : s.lines)
     for (const ScalingPoint& p : l.points)
       if (!p.ok) out << wrap100("note: " + l.engine + " on chain" + std::to_string(p.links) + ": " + p.note);
+  // The conditioning of each engine's linear solve (harness/conditioning.hpp).
+  out << "\n"
+      << wrap100("conditioning on chainN at its initial state: kappa = sigma_max / sigma_min of the "
+                 "system each engine solves for its accelerations (a solve may lose up to "
+                 "log10(kappa) digits), and dev = the largest deviation of its accelerations from "
+                 "the other engines' mean, relative to the largest of that kind; exponent: slope "
+                 "of log kappa against log N over the upper half of N")
+      << "\n";
+  std::vector<std::vector<std::string>> c{{"N"}};
+  for (const ScalingLine& l : s.lines) {
+    c[0].push_back(l.engine + " kappa");
+    c[0].push_back("dev");
+  }
+  for (std::size_t k = 0; k < s.links.size(); ++k) {
+    std::vector<std::string> r{std::to_string(s.links[k])};
+    for (const ScalingLine& l : s.lines) {
+      const ScalingPoint* p = k < l.points.size() ? &l.points[k] : nullptr;
+      r.push_back(p && std::isfinite(p->condition) ? fmt_g(p->condition, 3) : "-");
+      r.push_back(p && std::isfinite(p->accel_deviation) ? fmt_g(p->accel_deviation, 2) : "-");
+    }
+    c.push_back(r);
+  }
+  std::vector<std::string> ce{"exponent"};
+  for (const ScalingLine& l : s.lines) {
+    ce.push_back(std::isfinite(l.condition_exponent) ? fmt_g(l.condition_exponent, 3) : "-");
+    ce.push_back("");
+  }
+  c.push_back(ce);
+  out << text_table(c);
+  for (const ScalingLine& l : s.lines)
+    if (!l.system.empty()) out << wrap100(l.engine + " solves: " + l.system);
   return out.str();
 }
 
 std::string scaling_csv(const ScalingStudy& s) {
   std::ostringstream out;
-  out << "engine,links,us_per_call,calls,exponent\n";
+  out << "engine,links,us_per_call,calls,exponent,condition,system_size,accel_deviation,"
+         "condition_exponent\n";
   for (const ScalingLine& l : s.lines)
     for (const ScalingPoint& p : l.points)
       out << l.engine << ',' << p.links << ',' << (p.ok ? csv_number(p.seconds_per_call * 1e6) : "")
-          << ',' << p.calls << ',' << csv_number(l.exponent) << '\n';
+          << ',' << p.calls << ',' << csv_number(l.exponent) << ',' << csv_number(p.condition)
+          << ',' << p.system_size << ',' << csv_number(p.accel_deviation) << ','
+          << csv_number(l.condition_exponent) << '\n';
   return out.str();
 }
 

@@ -211,11 +211,19 @@ struct ScalingPoint {
   long calls = 0;
   bool ok = true;
   std::string note;
+  // The engine's linear solve at the initial state (harness/conditioning.hpp): its condition
+  // number (NaN: the engine gives no system) and size, and the deviation of the engine's
+  // accelerations from the other engines' mean (NaN with one engine).
+  double condition = std::numeric_limits<double>::quiet_NaN();
+  int system_size = 0;
+  double accel_deviation = std::numeric_limits<double>::quiet_NaN();
 };
 struct ScalingLine {
   std::string engine;
   std::vector<ScalingPoint> points;
   double exponent = std::numeric_limits<double>::quiet_NaN();
+  double condition_exponent = std::numeric_limits<double>::quiet_NaN();  // fit_exponent of kappa
+  std::string system;  // Engine::LinearSystem::what at the largest N
 };
 struct ScalingStudy {
   std::vector<int> links;  // 2, 4, 8, ... up to max_links, and max_links

@@ -95,8 +95,13 @@ json scaling_json(const ScalingStudy& s) {
                         {"seconds_per_call", p.ok ? number(p.seconds_per_call) : json(nullptr)},
                         {"calls", p.calls},
                         {"ok", p.ok},
-                        {"note", p.note}});
-    lines.push_back({{"engine", l.engine}, {"exponent", number(l.exponent)}, {"points", points}});
+                        {"note", p.note},
+                        {"condition", number(p.condition)},
+                        {"system_size", p.system_size},
+                        {"accel_deviation", number(p.accel_deviation)}});
+    lines.push_back({{"engine", l.engine}, {"exponent", number(l.exponent)},
+                     {"condition_exponent", number(l.condition_exponent)}, {"system", l.system},
+                     {"points", points}});
   }
   j["lines"] = lines;
   return j;

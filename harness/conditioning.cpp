@@ -1,0 +1,114 @@
+// The conditioning of each engine's linear solve and the deviation of its accelerations from the
+// other engines' (conditioning.hpp gives the definitions and sources).
+#include "harness/conditioning.hpp"
+
+#include "core/errors.hpp"
+#include "harness/engines.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+namespace crossdyn::harness {
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+// Every entry of a TreeAccel in one vector per kind (the kinds of conditioning.hpp).
+std::vector<std::vector<double>> kinds_of(const TreeAccel& a) {
+  std::vector<std::vector<double>> k(5);
+  for (const Eigen::Vector3d& v : a.wdot_NB_B) k[0].insert(k[0].end(), v.data(), v.data() + 3);
+  for (const Eigen::Vector3d& v : a.a_NBo_N) k[1].insert(k[1].end(), v.data(), v.data() + 3);
+  k[2] = a.angle_ddot;
+  for (const Eigen::Vector3d& v : a.wdot_PC_C) k[3].insert(k[3].end(), v.data(), v.data() + 3);
+  for (const Eigen::VectorXd& v : a.eta_ddot) k[4].insert(k[4].end(), v.data(), v.data() + v.size());
+  return k;
+}
+
+}  // namespace
+
+double condition_number(const Eigen::MatrixXd& A) {
+  if (A.size() == 0 || A.rows() != A.cols() || !A.allFinite()) return kNaN;
+  Eigen::VectorXd s;  // singular values
+  const double scale = A.cwiseAbs().maxCoeff();
+  if (scale == 0) return std::numeric_limits<double>::infinity();
+  if ((A - A.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * scale) {
+    // Golub & Van Loan Sec. 8.6.1: the singular values of a symmetric matrix are |eigenvalues|.
+    const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
+    s = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S, Eigen::EigenvaluesOnly).eigenvalues().cwiseAbs();
+  } else {
+    s = Eigen::BDCSVD<Eigen::MatrixXd>(A).singularValues();
+  }
+  const double hi = s.maxCoeff(), lo = s.minCoeff();
+  if (!(lo > 0)) return std::numeric_limits<double>::infinity();
+  return hi / lo;
+}
+
+SolveConditioning solve_conditioning(Engine& engine, double t, const double* x) {
+  SolveConditioning c;
+  const Engine::LinearSystem ls = engine.linear_system(t, x);
+  if (ls.A.size() == 0) return c;
+  c.size = static_cast<int>(ls.A.rows());
+  c.what = ls.what;
+  c.condition = condition_number(ls.A);
+  return c;
+}
+
+std::vector<double> acceleration_deviation(const System& system,
+                                           const std::vector<std::string>& engines,
+                                           const std::vector<EngineOptions>& options) {
+  const std::size_t n = engines.size();
+  std::vector<double> dev(n, kNaN);
+  if (n < 2) return dev;
+  std::vector<std::vector<std::vector<double>>> acc(n);  // engine, kind, entry
+  std::vector<bool> ok(n, false);
+  const TreeState s0 = TreeState::initial(system);
+  for (std::size_t e = 0; e < n; ++e) {
+    try {
+      std::unique_ptr<Engine> engine = make_engine(engines[e], system, e < options.size() ? options[e] : EngineOptions{});
+      std::vector<double> x(static_cast<std::size_t>(engine->state_size()));
+      engine->pack(s0, x.data());
+      TreeAccel a;
+      engine->accelerations(0.0, x.data(), a);
+      acc[e] = kinds_of(a);
+      ok[e] = true;
+      for (const auto& kind : acc[e])
+        for (double v : kind) ok[e] = ok[e] && std::isfinite(v);
+    } catch (const InputError&) {
+    } catch (const RunFailure&) {
+    }
+  }
+  for (std::size_t e = 0; e < n; ++e) {
+    if (!ok[e]) continue;
+    double worst = 0;
+    bool compared = false;
+    for (std::size_t k = 0; k < acc[e].size(); ++k) {
+      // S_kind over every engine that gave accelerations of the same shape.
+      double scale = 0;
+      for (std::size_t f = 0; f < n; ++f)
+        if (ok[f] && acc[f][k].size() == acc[e][k].size())
+          for (double v : acc[f][k]) scale = std::max(scale, std::abs(v));
+      if (scale == 0) scale = 1;
+      for (std::size_t i = 0; i < acc[e][k].size(); ++i) {
+        double sum = 0;
+        int others = 0;
+        for (std::size_t f = 0; f < n; ++f)
+          if (f != e && ok[f] && acc[f][k].size() == acc[e][k].size()) {
+            sum += acc[f][k][i];
+            ++others;
+          }
+        if (others == 0) continue;
+        compared = true;
+        worst = std::max(worst, std::abs(acc[e][k][i] - sum / others) / scale);
+      }
+    }
+    if (compared) dev[e] = worst;
+  }
+  return dev;
+}
+
+}  // namespace crossdyn::harness
