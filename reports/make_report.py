@@ -107,8 +107,16 @@ def study_report(summary, out_dir):
     if summary.get("scaling"):
         made = charts.chart_scaling(summary["scaling"], out_dir)
         chart = dict(name=made[0], caption=made[1]) if made else None
+        try:
+            made = charts.chart_conditioning(summary["scaling"], out_dir)
+        except Exception as e:  # a chart that cannot be drawn must not lose the page
+            warn("the conditioning chart failed: %r" % (e,))
+            plt.close("all")
+            made = None
+        cond_chart = dict(name=made[0], caption=made[1]) if made else None
         write_atomic(os.path.join(out_dir, summary["scaling"].get("page", "scaling.html")),
-                     pages.render(env, "scaling.html", pages.scaling_context(summary, chart)))
+                     pages.render(env, "scaling.html",
+                                  pages.scaling_context(summary, chart, cond_chart)))
     write_atomic(os.path.join(out_dir, "index.html"),
                  pages.render(env, "study_index.html", pages.study_index_context(summary)))
     return 0

@@ -322,20 +322,27 @@ def study_scene_context(summary, scene, chart):
         csv_header=summary.get("csv_header", "").strip())
 
 
-def scaling_context(summary, chart):
+def scaling_context(summary, chart, cond_chart=None):
     sc = summary.get("scaling") or {}
     lines = sc.get("lines", [])
-    table = []
+    table, cond_table = [], []
     for k, n in enumerate(sc.get("links", [])):
-        cells = []
+        cells, cond_cells = [], []
         for line in lines:
             p = line["points"][k] if k < len(line["points"]) else None
             cells.append("%.4g" % (1e6 * p["seconds_per_call"]) if p and p.get("seconds_per_call") else "-")
+            cond_cells.append("%.3g" % p["condition"] if p and p.get("condition") is not None else "-")
+            cond_cells.append("%.2g" % p["accel_deviation"] if p and p.get("accel_deviation") is not None else "-")
         table.append(dict(links=n, cells=cells))
+        cond_table.append(dict(links=n, cells=cond_cells))
+    fmt = lambda v: ("%.2f" % v) if v is not None else "-"
     return dict(title="crossdyn study: right-hand-side cost against chain length", chart=chart,
                 engines=[x["engine"] for x in lines],
-                exponents=[("%.2f" % x["exponent"]) if x.get("exponent") is not None else "-" for x in lines],
-                table=table, csv=sc.get("csv", ""), budget=gfmt(sc.get("budget")))
+                exponents=[fmt(x.get("exponent")) for x in lines],
+                table=table, csv=sc.get("csv", ""), budget=gfmt(sc.get("budget")),
+                cond_chart=cond_chart, cond_table=cond_table,
+                cond_exponents=[fmt(x.get("condition_exponent")) for x in lines],
+                systems=[dict(engine=x["engine"], what=x["system"]) for x in lines if x.get("system")])
 
 
 def study_index_context(summary):
