@@ -2257,6 +2257,33 @@ Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
   return f_;
 }
 
+// Kane's equations F_r + F_r* = 0 ([Paper] Eq. (34); [KLL] pp. 87-90 and Ch. 4), linear in u':
+// M(q) u' = f(t, q, u), M of Pass 5 and f = F_r + F_r*|_{u'=0} of Pass 6 at (t, x), the system
+// Pass 7 solves (the order-N solver eliminates the same equations without forming M).  The
+// unknowns are the generalised speeds' rates u' = xdot[n_q + r]: every joint and modal speed; a
+// prescribed joint has no speed (its u_r is known, [KL85] Sec. 6.1), so no row (a tree with no
+// speed at all gives A 0 x 0).  M_ is zeroed first so that A holds this pass's entries alone:
+// the pass writes only the lower triangle's structural entries (M_rs with one of r, s an
+// ancestor speed of the other), and M_ keeps elsewhere whatever an earlier call left there.
+// Allocates (the returned matrices); rhs() never calls it.
+Engine::LinearSystem KaneEngine::linear_system(double t, const double* x) {
+  set_time(t);
+  position_pass(x);
+  velocity_pass(x + n_q_);
+  remainder_pass();
+  subtree_pass(t);
+  M_.setZero();
+  mass_matrix_pass();
+  generalized_force_pass(t, x);
+  LinearSystem ls;
+  ls.A = M_.selfadjointView<Eigen::Lower>();
+  ls.b = f_;
+  ls.speed_index.resize(static_cast<std::size_t>(n_u_));
+  for (int r = 0; r < n_u_; ++r) ls.speed_index[static_cast<std::size_t>(r)] = n_q_ + r;
+  ls.what = "Kane's equations M u' = f, " + std::to_string(n_u_) + " generalised speeds";
+  return ls;
+}
+
 // ------------------------------------------------------------------------------------------------
 // (t, x) => one output row (columns() order).
 

@@ -400,6 +400,11 @@ class KaneEngine final : public Engine {
   void accelerations(double t, const double* x, TreeAccel& a) override;
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
+  // Kane's equations at (t, x) written out dense (Engine::linear_system): A = the full symmetric
+  // M(q) of Pass 5, b = f(t, q, u) of Pass 6 (F_r + F_r* = 0, [Paper] Eq. (34)), z = u', so
+  // speed_index = n_q .. n_q + n_u - 1 (joint and modal speeds; a prescribed joint has none).
+  // Formed by the composite passes whichever solver rhs() takes (order-N never forms M).
+  LinearSystem linear_system(double t, const double* x) override;
 
   // Introspection for tests (allocate; not for the hot path).  Prescribed joints take their
   // angle, rate and acceleration at the time of the last set_time() (rhs, accelerations,
