@@ -1607,6 +1607,56 @@ LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
 }
 
 // ------------------------------------------------------------------------------------------------
+// linear_system: (t, x) => the system of the solve pass written out (Engine::linear_system), for
+// the conditioning study. Boltzmann-Hamel equations (paper Eq. 23; Whittaker 1944, Ch. II,
+// equations for quasi-coordinates; Meirovitch 1970, Ch. 4, Lagrange's equations in terms of
+// quasi-coordinates):
+//   M(q*) pi'' = f,   f = N + B^T d(T - V)/dq* - (dM/dt) pi' - B^T W^T p,
+// M and f exactly as evaluate() leaves them for its Cholesky solve. The unknowns pi'' are the
+// derivatives of the quasi-velocities, joint rates and modal rates, i.e. of x's second half:
+// speed_index[i] = nf + i. The Euler angles enter through A(q*) and B = A^-1 of the set's current
+// chart (the one x is in; evaluate() reads the workspace's charts and changes none), as in rhs().
+// With prescribed joints the system solved is the free block (Greenwood 2003, Sec. 2.4, rheonomic
+// constraints; "solve" in evaluate()):
+//   M_ff pi''_f = f_f - M_fc theta'',
+// whose right-hand side evaluate() overwrites with pi''_f; it is formed again here from f, M and
+// theta'' (held in udot at the prescribed coordinates) by the same sums in the same order.
+// ------------------------------------------------------------------------------------------------
+Engine::LinearSystem LagrangeEngine::linear_system(double t, const double* x) {
+  const Model& m = *model_;
+  evaluate(t, expand(t, x));
+  const Workspace& w = *ws_;
+  const int nf = m.nf;
+  LinearSystem ls;
+  ls.speed_index.resize(static_cast<std::size_t>(nf));
+  for (int a = 0; a < nf; ++a) ls.speed_index[static_cast<std::size_t>(a)] = nf + a;
+  const std::string count = std::to_string(nf) + " velocities";
+  if (!m.has_prescribed) {
+    ls.A = w.M;  // evaluate() fills the upper triangle only (the one the Cholesky kernel reads)
+    ls.b = w.f;
+    ls.what = "Boltzmann-Hamel equations M(q*) pi'' = f, " + count;
+  } else {
+    ls.A = w.Mff;  // upper triangle, as above
+    ls.b = Eigen::VectorXd::Zero(nf);
+    auto Msym = [&w](int i, int j) { return i <= j ? w.M(i, j) : w.M(j, i); };
+    for (int a = 0; a < nf; ++a) {
+      const int i = m.free_index[static_cast<std::size_t>(a)];
+      double b = w.f(i);
+      for (int j : m.prescribed_joints) {
+        const int c = m.joints[static_cast<std::size_t>(j)].i0;
+        b -= Msym(i, c) * w.udot(c);
+      }
+      ls.b(a) = b;
+    }
+    ls.what = "Boltzmann-Hamel equations M_ff(q*) pi_f'' = f_f - M_fc theta'', " + count + " (" +
+              std::to_string(m.prescribed_joints.size()) + " prescribed joint" +
+              (m.prescribed_joints.size() == 1 ? "" : "s") + " eliminated)";
+  }
+  ls.A.triangularView<Eigen::StrictlyLower>() = ls.A.transpose();
+  return ls;
+}
+
+// ------------------------------------------------------------------------------------------------
 // after_step: detect the approach to an Euler-angle singularity; re-chart or stop.
 //
 // A chart's singularity (gimbal lock) is where its middle angle a2 is 90 deg + k 180 deg (det A =

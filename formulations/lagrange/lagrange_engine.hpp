@@ -91,6 +91,12 @@ class LagrangeEngine final : public Engine {
   void accelerations(double t, const double* x, TreeAccel& a) override;
   const OutputLayout& layout() const override;
   void output_row(double t, const double* x, double* row) override;
+  // The system the solve pass factors at (t, x), in the chart x is in (the workspace's current
+  // charts; nothing is re-charted): A = M (d2T/dpi'2, symmetric), b = N + B^T dL/dq* - (dM/dt) pi'
+  // - B^T W^T p (paper Eq. 23; Whittaker 1944, Ch. II; Meirovitch 1970, Ch. 4), z = pi'', i.e.
+  // speed_index = nf ... 2 nf - 1. With prescribed joints, the free block the engine solves
+  // (lagrange_engine.cpp, "solve"): A = M_ff, b = f_f - M_fc theta''. Allocates.
+  LinearSystem linear_system(double t, const double* x) override;
 
   // ---- Inspection (tests, reports) ----
   // The state x holds the free coordinates and quasi-velocities only; a prescribed joint's angle
