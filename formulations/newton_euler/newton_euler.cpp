@@ -76,6 +76,7 @@ class NewtonEulerEngine final : public Engine {
   void accelerations(double t, const double* x, TreeAccel& a) override;
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
+  LinearSystem linear_system(double t, const double* x) override;
 
  private:
   // State layout (newton_euler.hpp): body b's positions at pos(b), its velocities at vel(b); the
@@ -98,6 +99,7 @@ class NewtonEulerEngine final : public Engine {
   }
   double torque(int j) const;  // a prescribed joint's torque about its axis on the child
   void force_pass(double t);
+  void load_kkt();  // the first half of solve_pass: J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
   void dynamics(double t, const double* x);
 
@@ -490,8 +492,10 @@ void NewtonEulerEngine::force_pass(double t) {
   }
 }
 
-// (M, J, f, gamma) => accelerations nu_dot and multipliers (y = -lambda), [Baraff96].
-void NewtonEulerEngine::solve_pass(double t) {
+// (constraint rows) => J and gamma_s of the KKT system (kkt_): gamma_s = gamma, or with
+// Baumgarte's terms. solve_pass() and linear_system() both load the system through here
+// (inlined: rhs() costs what it did before the split).
+EIGEN_ALWAYS_INLINE void NewtonEulerEngine::load_kkt() {
   for (int j = 1; j < nj_; ++j) {
     const ConstraintRows& c = cr_[at(j)];
     const JointModel& m = joints_[at(j)];
@@ -512,6 +516,11 @@ void NewtonEulerEngine::solve_pass(double t) {
     if (stabilization_ == Stabilization::Baumgarte)  // [Baum72]
       kkt_.gamma_root() -= alpha_ * c.gdot + beta_ * c.g;
   }
+}
+
+// (M, J, f, gamma) => accelerations nu_dot and multipliers (y = -lambda), [Baraff96].
+void NewtonEulerEngine::solve_pass(double t) {
+  load_kkt();
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
   kkt_.solve(f_, gamma_, nu_dot_, y_);
   if (!nu_dot_.allFinite()) {
@@ -548,6 +557,70 @@ void NewtonEulerEngine::rhs(double t, const double* x, double* xdot) {
     for (int i = 0; i < modes(b); ++i) dp[7 + i] = k.eta_dot(i);
   }
   Eigen::Map<VectorXd>(xdot + vel_[0], nv_) = nu_dot_;
+}
+
+// (t, x) => the KKT system solve_pass() hands to TreeKkt, written out dense (core/engine.hpp):
+//   [ M  J^T ] [ nu'      ]   [ f       ]
+//   [ J  0   ] [ -lambda  ] = [ gamma_s ]
+// i.e. M nu' = f + J^T lambda (each body's Newton and Euler equations with the joint constraint
+// forces, paper Eqs. (1), (2), (7); flexible blocks modal_body.hpp) and J nu' = gamma_s (the
+// joints' acceleration equations, Haug 1989, Sec. 3.3 and 6.3, prescribed joints as rheonomic
+// rows; gamma_s with Baumgarte's terms [Baum72] when that stabilisation is on). Sign convention:
+// the engine's (tree_kkt.hpp): the multiplier unknowns are y = -lambda, so that A and b are the
+// blocks TreeKkt takes, unchanged (lambda's wrench on a body is J_b^T lambda).
+// Built by the same passes as rhs() (M by mass_pass, f by force_pass, J and gamma_s by
+// load_kkt), without the factorisation: so a system whose KKT pivots are not definite (where rhs()
+// would fail) is still returned, for its condition number.
+//   z = [nu'; y]: nu' stacked body by body in KKT order, then y joint by joint (a prescribed
+//   base's root rows first, then joints 1, 2, ...), rows_k per joint (no padding).
+// The state's velocities are the KKT unknowns themselves, in the same order: body b's
+// [v_NBo_N (N components); w_NB_B (B components); eta'] at vel(b) = vel(0) + nu(b), and rhs()
+// writes nu' there unchanged (the time derivative of w_NB_B's B components is alpha_NB_B, of
+// v_NBo_N's N components a_NBo_N). So speed_index = vel(0) .. vel(0) + nv - 1 and no transform
+// is needed. M's blocks are mirrored from their lower triangles: the only part TreeKkt's Cholesky
+// reads (a flexible block is symmetric only to round-off). Allocates; never called by rhs().
+Engine::LinearSystem NewtonEulerEngine::linear_system(double t, const double* x) {
+  body_pass(t, x);
+  mass_pass(t);
+  joint_pass(t);
+  force_pass(t);
+  load_kkt();
+  int m = kkt_.root_rows();
+  for (int k = 0; k < kkt_.links(); ++k) m += kkt_.link(k).rows;
+  LinearSystem ls;
+  ls.A = Eigen::MatrixXd::Zero(nv_ + m, nv_ + m);
+  ls.b = VectorXd::Zero(nv_ + m);
+  for (int b = 0; b < nb_; ++b) {
+    const int o = kkt_.offset(b), d = kkt_.dofs(b);
+    ls.A.block(o, o, d, d) = kkt_.M(b).selfadjointView<Eigen::Lower>();
+  }
+  ls.b.head(nv_) = f_;
+  // Row block r (rows rows_k at nv_ + r) of a joint's J on body b's columns, and its transpose.
+  auto put = [&](int r, int rows, int b, const Eigen::MatrixXd& J_b) {
+    const int o = kkt_.offset(b), d = kkt_.dofs(b);
+    ls.A.block(nv_ + r, o, rows, d) = J_b.topRows(rows);
+    ls.A.block(o, nv_ + r, d, rows) = J_b.topRows(rows).transpose();
+  };
+  int r = 0;
+  if (kkt_.root_rows() > 0) {  // the prescribed base's joint to N: N's columns are not unknowns
+    put(r, kkt_.root_rows(), kkt_.base(), kkt_.J_root());
+    ls.b.segment(nv_ + r, kkt_.root_rows()) = kkt_.gamma_root().head(kkt_.root_rows());
+    r += kkt_.root_rows();
+  }
+  for (int k = 0; k < kkt_.links(); ++k) {
+    const KktLink& l = kkt_.link(k);
+    put(r, l.rows, l.parent, kkt_.J_parent(k));
+    put(r, l.rows, l.child, kkt_.J_child(k));
+    ls.b.segment(nv_ + r, l.rows) = gamma_[at(k)].head(l.rows);
+    r += l.rows;
+  }
+  for (int i = 0; i < nv_; ++i) ls.speed_index.push_back(vel_[0] + i);
+  int modal = 0;
+  for (int b = 0; b < nb_; ++b) modal += modes(b);
+  ls.what = "KKT [M J^T; J 0], " + std::to_string(nv_) + " body speeds" +
+            (modal > 0 ? " (" + std::to_string(modal) + " modal)" : std::string()) + " + " +
+            std::to_string(m) + " constraints";
+  return ls;
 }
 
 void NewtonEulerEngine::write_state(double* x) const {

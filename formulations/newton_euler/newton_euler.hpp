@@ -29,6 +29,9 @@
 //                  none or projection), or gamma - alpha g' - beta g (Baumgarte 1972:
 //                  g'' + alpha g' + beta g = 0).
 //   xdot           p' = v, q' = 1/2 q (x) (0, w), eta' = eta', v' = a, w' = alpha, eta'' .
+//   linear_system  (t, x) => the same KKT system written out dense, A = [M J^T; J 0] (symmetric;
+//                  z = [nu'; -lambda]), b = [f; gamma_s], speed_index = the velocity block of the
+//                  state (it holds nu itself); a diagnostic (core/engine.hpp), not called by rhs.
 // Cost per call: O(bodies) for the tree, O(n_b^3) per flexible body (modal terms and its block),
 // independent of the number of nodes (the node sums are done once, at construction).
 // Stabilisation (EngineOptions::stabilization): "projection" (default) projects positions (Newton
