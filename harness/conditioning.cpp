@@ -69,7 +69,8 @@ std::vector<double> acceleration_deviation(const System& system,
   const TreeState s0 = TreeState::initial(system);
   for (std::size_t e = 0; e < n; ++e) {
     try {
-      std::unique_ptr<Engine> engine = make_engine(engines[e], system, e < options.size() ? options[e] : EngineOptions{});
+      const EngineOptions o = e < options.size() ? options[e] : EngineOptions{};
+      std::unique_ptr<Engine> engine = make_engine(engines[e], system, o);
       std::vector<double> x(static_cast<std::size_t>(engine->state_size()));
       engine->pack(s0, x.data());
       TreeAccel a;
@@ -82,31 +83,29 @@ std::vector<double> acceleration_deviation(const System& system,
     } catch (const RunFailure&) {
     }
   }
+  // S_kind over every engine that gave accelerations.
+  std::vector<double> scale;
+  for (std::size_t e = 0; e < n; ++e)
+    if (ok[e]) {
+      scale.resize(acc[e].size(), 0.0);
+      for (std::size_t k = 0; k < acc[e].size(); ++k)
+        for (double v : acc[e][k]) scale[k] = std::max(scale[k], std::abs(v));
+    }
+  for (double& s : scale)
+    if (s == 0) s = 1;
   for (std::size_t e = 0; e < n; ++e) {
     if (!ok[e]) continue;
-    double worst = 0;
-    bool compared = false;
-    for (std::size_t k = 0; k < acc[e].size(); ++k) {
-      // S_kind over every engine that gave accelerations of the same shape.
-      double scale = 0;
-      for (std::size_t f = 0; f < n; ++f)
-        if (ok[f] && acc[f][k].size() == acc[e][k].size())
-          for (double v : acc[f][k]) scale = std::max(scale, std::abs(v));
-      if (scale == 0) scale = 1;
-      for (std::size_t i = 0; i < acc[e][k].size(); ++i) {
-        double sum = 0;
-        int others = 0;
-        for (std::size_t f = 0; f < n; ++f)
-          if (f != e && ok[f] && acc[f][k].size() == acc[e][k].size()) {
-            sum += acc[f][k][i];
-            ++others;
-          }
-        if (others == 0) continue;
-        compared = true;
-        worst = std::max(worst, std::abs(acc[e][k][i] - sum / others) / scale);
+    for (std::size_t f = 0; f < n; ++f) {
+      if (f == e || !ok[f] || acc[f].size() != acc[e].size()) continue;
+      double worst = 0;
+      bool same_shape = true;
+      for (std::size_t k = 0; k < acc[e].size() && same_shape; ++k) {
+        same_shape = acc[f][k].size() == acc[e][k].size();
+        for (std::size_t i = 0; same_shape && i < acc[e][k].size(); ++i)
+          worst = std::max(worst, std::abs(acc[e][k][i] - acc[f][k][i]) / scale[k]);
       }
+      if (same_shape && !(worst >= dev[e])) dev[e] = worst;  // dev[e] NaN until the first
     }
-    if (compared) dev[e] = worst;
   }
   return dev;
 }

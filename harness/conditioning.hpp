@@ -12,9 +12,11 @@
 // The deviation of engine e: at the scene's initial state, every engine's engine-neutral
 // accelerations (TreeAccel: body angular and CM accelerations, joint angle and spherical-rate
 // accelerations, modal accelerations), and
-//   dev_e = max over kinds and entries of |a_e - mean of the other engines' a| / S_kind,
-// S_kind the largest |entry| of that kind over all engines (1 when all are zero). With three
-// engines, one that lost digits stands out (its deviation is large, the others' half of it).
+//   dev_e = min over the other engines f of ( max over kinds and entries of |a_e - a_f| / S_kind ),
+// S_kind the largest |entry| of that kind over all engines (1 when all are zero): how far e is
+// from the engine closest to it. When one engine has lost digits and the others have not, its
+// dev is its error and theirs stay at rounding; when all differ, each dev is at least half the
+// largest error among the engines compared.
 #pragma once
 
 #include "core/engine.hpp"

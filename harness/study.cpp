@@ -876,9 +876,10 @@ std::string format_scaling(const ScalingStudy& s) {
   out << "\n"
       << wrap100("conditioning on chainN at its initial state: kappa = sigma_max / sigma_min of the "
                  "system each engine solves for its accelerations (a solve may lose up to "
-                 "log10(kappa) digits), and dev = the largest deviation of its accelerations from "
-                 "the other engines' mean, relative to the largest of that kind; exponent: slope "
-                 "of log kappa against log N over the upper half of N")
+                 "log10(kappa) digits), and dev = the largest difference of its accelerations "
+                 "from those of the closest other engine, relative to the largest of that kind "
+                 "(the digits it lost where the others agree); exponent: slope of log kappa "
+                 "against log N over the upper half of N")
       << "\n";
   std::vector<std::vector<std::string>> c{{"N"}};
   for (const ScalingLine& l : s.lines) {

@@ -213,7 +213,7 @@ struct ScalingPoint {
   std::string note;
   // The engine's linear solve at the initial state (harness/conditioning.hpp): its condition
   // number (NaN: the engine gives no system) and size, and the deviation of the engine's
-  // accelerations from the other engines' mean (NaN with one engine).
+  // accelerations from the closest other engine's (NaN with one engine).
   double condition = std::numeric_limits<double>::quiet_NaN();
   int system_size = 0;
   double accel_deviation = std::numeric_limits<double>::quiet_NaN();

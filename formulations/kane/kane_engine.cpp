@@ -2280,7 +2280,9 @@ Engine::LinearSystem KaneEngine::linear_system(double t, const double* x) {
   ls.b = f_;
   ls.speed_index.resize(static_cast<std::size_t>(n_u_));
   for (int r = 0; r < n_u_; ++r) ls.speed_index[static_cast<std::size_t>(r)] = n_q_ + r;
-  ls.what = "Kane's equations M u' = f, " + std::to_string(n_u_) + " generalised speeds";
+  ls.what = "Kane's equations M u' = f, " + std::to_string(n_u_) + " generalised speeds" +
+            (solver_ == KaneSolver::OrderN ? " (solved by the order-N recursion, M not formed)"
+                                           : " (M factored by L^T D L)");
   return ls;
 }
 

@@ -1630,7 +1630,7 @@ Engine::LinearSystem LagrangeEngine::linear_system(double t, const double* x) {
   LinearSystem ls;
   ls.speed_index.resize(static_cast<std::size_t>(nf));
   for (int a = 0; a < nf; ++a) ls.speed_index[static_cast<std::size_t>(a)] = nf + a;
-  const std::string count = std::to_string(nf) + " velocities";
+  const std::string count = std::to_string(nf) + " velocities (M factored by Cholesky)";
   if (!m.has_prescribed) {
     ls.A = w.M;  // evaluate() fills the upper triangle only (the one the Cholesky kernel reads)
     ls.b = w.f;

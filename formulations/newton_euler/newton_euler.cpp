@@ -619,7 +619,7 @@ Engine::LinearSystem NewtonEulerEngine::linear_system(double t, const double* x)
   for (int b = 0; b < nb_; ++b) modal += modes(b);
   ls.what = "KKT [M J^T; J 0], " + std::to_string(nv_) + " body speeds" +
             (modal > 0 ? " (" + std::to_string(modal) + " modal)" : std::string()) + " + " +
-            std::to_string(m) + " constraints";
+            std::to_string(m) + " constraints (factored in linear time along the tree)";
   return ls;
 }
 

@@ -270,7 +270,7 @@ TEST_CASE("study: a tiny study writes its table, CSV and report (pages, PNG, CSV
   CHECK(std::count(table.begin(), table.end(), '\n') == 1 + 5);
   for (const char* f : {"index.html", "torque_free_axisymmetric-study.html", "torque_free_axisymmetric-study.png",
                         "torque_free_axisymmetric-study.csv", "scaling.html", "scaling.png", "scaling.csv",
-                        "study.json"}) {
+                        "conditioning.png", "study.json"}) {
     CAPTURE(f);
     CHECK(fs::is_regular_file(fs::path(report) / f));
   }
@@ -280,6 +280,9 @@ TEST_CASE("study: a tiny study writes its table, CSV and report (pages, PNG, CSV
   const std::string page = slurp(report + "/torque_free_axisymmetric-study.html");
   CHECK(page.find("src=\"torque_free_axisymmetric-study.png\"") != std::string::npos);
   CHECK(page.find("href=\"torque_free_axisymmetric-study.csv\"") != std::string::npos);
+  const std::string scaling = slurp(report + "/scaling.html");
+  CHECK(scaling.find("src=\"conditioning.png\"") != std::string::npos);
+  CHECK(scaling.find("<b>kane</b> solves Kane") != std::string::npos);
   // A second study may replace the report; a folder of other files is refused (exit 2).
   CHECK(test::run_crossdyn("study torque_free_axisymmetric --engines kane --integrators dopri5 "
                            "--tolerances 1e-4 --repeat 1 -q --report '" + report + "'").status == 0);
