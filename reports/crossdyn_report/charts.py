@@ -591,8 +591,8 @@ def chart_scaling(scaling, out_dir):
 
 def chart_conditioning(scaling, out_dir):
     """The conditioning of each engine's linear solve on chainN (harness/conditioning.hpp): left,
-    the condition number kappa against N; right, the deviation of its accelerations from the other
-    engines' mean. Log-log, one line per engine. Returns (file name, caption) or None."""
+    the condition number kappa against N; right, the deviation of its accelerations from the closest
+    other engine's. Log-log, one line per engine. Returns (file name, caption) or None."""
     lines = [l for l in scaling.get("lines", [])
              if any(p.get("condition") is not None for p in l.get("points", []))]
     if not lines:
@@ -617,15 +617,15 @@ def chart_conditioning(scaling, out_dir):
         ax.grid(True, which="both", alpha=0.25)
     ax_k.set_ylabel("condition number sigma_max / sigma_min")
     ax_k.set_title("Conditioning of the linear solve", fontsize="medium")
-    ax_d.set_ylabel("deviation from the other engines (relative)")
+    ax_d.set_ylabel("difference from the closest other engine (relative)")
     ax_d.set_title("What it costs: accelerations' deviation", fontsize="medium")
     outside_legend(fig, ax_k, title="engine: fitted growth")
     name = finish(fig, "conditioning.png", out_dir)
     return name, ("Left: the condition number of the linear system each engine solves for its "
                   "accelerations on chainN at its initial state (a backward-stable solve may lose "
-                  "up to log10 of it in digits). Right: the largest deviation of each engine's "
-                  "accelerations from the mean of the other engines', relative to the largest of "
-                  "that kind (exact agreement drawn at 1e-17): the digits actually lost.")
+                  "up to log10 of it in digits). Right: the largest difference of each engine's "
+                  "accelerations from those of the closest other engine, relative to the largest "
+                  "of that kind (exact agreement drawn at 1e-17): the digits actually lost.")
 
 
 CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_differences, chart_drift]
