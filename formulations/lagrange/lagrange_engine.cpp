@@ -1377,6 +1377,17 @@ void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const d
 
 }  // namespace
 
+// M holds its upper triangle only: M_ij = M(min(i, j), max(i, j)).
+inline double LagrangeEngine::reduced_rhs(const Model& m, const Workspace& w, int a) {
+  const int i = m.free_index[static_cast<std::size_t>(a)];
+  double b = w.f(i);
+  for (int j : m.prescribed_joints) {
+    const int c = m.joints[static_cast<std::size_t>(j)].i0;
+    b -= (i <= c ? w.M(i, c) : w.M(c, i)) * w.udot(c);
+  }
+  return b;
+}
+
 void LagrangeEngine::evaluate(double t, const double* x) {
   const Model& m = *model_;
   Workspace& w = *ws_;
@@ -1558,12 +1569,7 @@ void LagrangeEngine::evaluate(double t, const double* x) {
   const int nf = m.nf;
   for (int a = 0; a < nf; ++a) {
     const int i = m.free_index[static_cast<std::size_t>(a)];
-    double b = w.f(i);
-    for (int j : m.prescribed_joints) {
-      const int c = m.joints[static_cast<std::size_t>(j)].i0;
-      b -= Msym(i, c) * w.udot(c);
-    }
-    w.bf(a) = b;
+    w.bf(a) = reduced_rhs(m, w, a);
     for (int bb = a; bb < nf; ++bb) w.Mff(a, bb) = Msym(i, m.free_index[static_cast<std::size_t>(bb)]);
   }
   if (!cholesky_solve(w.Mff, w.Uff, w.inv_diag_f, w.bf))
@@ -1619,8 +1625,8 @@ LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
 // With prescribed joints the system solved is the free block (Greenwood 2003, Sec. 2.4, rheonomic
 // constraints; "solve" in evaluate()):
 //   M_ff pi''_f = f_f - M_fc theta'',
-// whose right-hand side evaluate() overwrites with pi''_f; it is formed again here from f, M and
-// theta'' (held in udot at the prescribed coordinates) by the same sums in the same order.
+// whose right-hand side evaluate() overwrites with pi''_f; it is formed again here by the same
+// reduced_rhs().
 // ------------------------------------------------------------------------------------------------
 Engine::LinearSystem LagrangeEngine::linear_system(double t, const double* x) {
   const Model& m = *model_;
@@ -1637,17 +1643,8 @@ Engine::LinearSystem LagrangeEngine::linear_system(double t, const double* x) {
     ls.what = "Boltzmann-Hamel equations M(q*) pi'' = f, " + count;
   } else {
     ls.A = w.Mff;  // upper triangle, as above
-    ls.b = Eigen::VectorXd::Zero(nf);
-    auto Msym = [&w](int i, int j) { return i <= j ? w.M(i, j) : w.M(j, i); };
-    for (int a = 0; a < nf; ++a) {
-      const int i = m.free_index[static_cast<std::size_t>(a)];
-      double b = w.f(i);
-      for (int j : m.prescribed_joints) {
-        const int c = m.joints[static_cast<std::size_t>(j)].i0;
-        b -= Msym(i, c) * w.udot(c);
-      }
-      ls.b(a) = b;
-    }
+    ls.b.resize(nf);
+    for (int a = 0; a < nf; ++a) ls.b(a) = reduced_rhs(m, w, a);
     ls.what = "Boltzmann-Hamel equations M_ff(q*) pi_f'' = f_f - M_fc theta'', " + count + " (" +
               std::to_string(m.prescribed_joints.size()) + " prescribed joint" +
               (m.prescribed_joints.size() == 1 ? "" : "s") + " eliminated)";

@@ -137,6 +137,9 @@ class LagrangeEngine final : public Engine {
   // Below, xf is the full (q*, pi'), prescribed coordinates included (expand).
   const double* expand(double t, const double* x);  // state x => xf at t (x itself if none)
   void evaluate(double t, const double* xf);  // (t, xf) => every term and pi'' in the workspace
+  // With prescribed joints: the free block's right-hand side f_f - M_fc theta'' at free
+  // coordinate a (evaluate()'s solve; theta'' held in udot at the prescribed coordinates).
+  static double reduced_rhs(const Model& m, const Workspace& w, int a);
   void prepare_charts(double t, const double* xf);
   std::string full_label(int i) const;  // label of index i of xf
   double kinetic_energy_full(const double* xf);
