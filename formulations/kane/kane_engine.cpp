@@ -2267,17 +2267,11 @@ Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
 // ancestor speed of the other), and M_ keeps elsewhere whatever an earlier call left there.
 // Allocates (the returned matrices); rhs() never calls it.
 Engine::LinearSystem KaneEngine::linear_system(double t, const double* x) {
-  set_time(t);
-  position_pass(x);
-  velocity_pass(x + n_q_);
-  remainder_pass();
-  subtree_pass(t);
+  LinearSystem ls;
+  ls.b = generalized_forces(t, x);  // Passes 1-4 and 6 at (t, x); Pass 5 reads what 1-4 left
   M_.setZero();
   mass_matrix_pass();
-  generalized_force_pass(t, x);
-  LinearSystem ls;
   ls.A = M_.selfadjointView<Eigen::Lower>();
-  ls.b = f_;
   ls.speed_index.resize(static_cast<std::size_t>(n_u_));
   for (int r = 0; r < n_u_; ++r) ls.speed_index[static_cast<std::size_t>(r)] = n_q_ + r;
   ls.what = "Kane's equations M u' = f, " + std::to_string(n_u_) + " generalised speeds" +

@@ -99,8 +99,11 @@ class NewtonEulerEngine final : public Engine {
   }
   double torque(int j) const;  // a prescribed joint's torque about its axis on the child
   void force_pass(double t);
-  void load_kkt();  // the first half of solve_pass: J and gamma_s into kkt_ (M is set by mass_pass)
+  void load_kkt();  // J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
+  // (t, x) => the KKT system in kkt_ and f_: the passes up to the solve (dynamics(),
+  // linear_system()).
+  void assemble(double t, const double* x);
   void dynamics(double t, const double* x);
 
   void validate_flex(const std::string& file, int b, const Body& body, const EngineOptions& o);
@@ -493,9 +496,8 @@ void NewtonEulerEngine::force_pass(double t) {
 }
 
 // (constraint rows) => J and gamma_s of the KKT system (kkt_): gamma_s = gamma, or with
-// Baumgarte's terms. solve_pass() and linear_system() both load the system through here
-// (inlined: rhs() costs what it did before the split).
-EIGEN_ALWAYS_INLINE void NewtonEulerEngine::load_kkt() {
+// Baumgarte's terms.
+void NewtonEulerEngine::load_kkt() {
   for (int j = 1; j < nj_; ++j) {
     const ConstraintRows& c = cr_[at(j)];
     const JointModel& m = joints_[at(j)];
@@ -520,7 +522,6 @@ EIGEN_ALWAYS_INLINE void NewtonEulerEngine::load_kkt() {
 
 // (M, J, f, gamma) => accelerations nu_dot and multipliers (y = -lambda), [Baraff96].
 void NewtonEulerEngine::solve_pass(double t) {
-  load_kkt();
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
   kkt_.solve(f_, gamma_, nu_dot_, y_);
   if (!nu_dot_.allFinite()) {
@@ -530,11 +531,16 @@ void NewtonEulerEngine::solve_pass(double t) {
   }
 }
 
-void NewtonEulerEngine::dynamics(double t, const double* x) {
+void NewtonEulerEngine::assemble(double t, const double* x) {
   body_pass(t, x);
   mass_pass(t);
   joint_pass(t);
   force_pass(t);
+  load_kkt();
+}
+
+void NewtonEulerEngine::dynamics(double t, const double* x) {
+  assemble(t, x);
   solve_pass(t);
 }
 
@@ -568,8 +574,8 @@ void NewtonEulerEngine::rhs(double t, const double* x, double* xdot) {
 // rows; gamma_s with Baumgarte's terms [Baum72] when that stabilisation is on). Sign convention:
 // the engine's (tree_kkt.hpp): the multiplier unknowns are y = -lambda, so that A and b are the
 // blocks TreeKkt takes, unchanged (lambda's wrench on a body is J_b^T lambda).
-// Built by the same passes as rhs() (M by mass_pass, f by force_pass, J and gamma_s by
-// load_kkt), without the factorisation: so a system whose KKT pivots are not definite (where rhs()
+// Built by the same passes as rhs() (assemble(): M by mass_pass, f by force_pass, J and gamma_s
+// by load_kkt), without the factorisation: so a system whose KKT pivots are not definite (where rhs()
 // would fail) is still returned, for its condition number.
 //   z = [nu'; y]: nu' stacked body by body in KKT order, then y joint by joint (a prescribed
 //   base's root rows first, then joints 1, 2, ...), rows_k per joint (no padding).
@@ -580,11 +586,7 @@ void NewtonEulerEngine::rhs(double t, const double* x, double* xdot) {
 // is needed. M's blocks are mirrored from their lower triangles: the only part TreeKkt's Cholesky
 // reads (a flexible block is symmetric only to round-off). Allocates; never called by rhs().
 Engine::LinearSystem NewtonEulerEngine::linear_system(double t, const double* x) {
-  body_pass(t, x);
-  mass_pass(t);
-  joint_pass(t);
-  force_pass(t);
-  load_kkt();
+  assemble(t, x);
   int m = kkt_.root_rows();
   for (int k = 0; k < kkt_.links(); ++k) m += kkt_.link(k).rows;
   LinearSystem ls;
