@@ -41,7 +41,9 @@ double condition_number(const Eigen::MatrixXd& A) {
     const Eigen::MatrixXd S = 0.5 * (A + A.transpose());
     s = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(S, Eigen::EigenvaluesOnly).eigenvalues().cwiseAbs();
   } else {
-    s = Eigen::BDCSVD<Eigen::MatrixXd>(A).singularValues();
+    // One-sided Jacobi SVD (Golub & Van Loan Sec. 8.6.3): square A needs no QR preconditioner.
+    // Not BDCSVD: it instantiates a second SVD and made this file a 35 s compile (issue 29).
+    s = Eigen::JacobiSVD<Eigen::MatrixXd, Eigen::NoQRPreconditioner>(A).singularValues();
   }
   const double hi = s.maxCoeff(), lo = s.minCoeff();
   if (!(lo > 0)) return std::numeric_limits<double>::infinity();

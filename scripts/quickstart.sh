@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Quick start, step 1: install what is missing (Debian packages), build into build/, and run the main
-# job (verify every scene, write the report). Safe to run again: it only installs what is missing.
+# Quick start, step 1: install what is missing (Debian packages), build the crossdyn program into
+# build/ (only the program: the tests are built by step 2, scripts/test.sh), and run the main job
+# (verify every scene, write the report). Safe to run again: it only installs what is missing.
 #   CROSSDYN_WERROR=ON    treat compiler warnings as errors (CI)
 #   CROSSDYN_NO_VERIFY=1  build only
 set -euo pipefail
@@ -9,11 +10,12 @@ cd "$(dirname "$0")/.."
 # The report and `crossdyn draw` run reports/*.py with /usr/bin/python3: matplotlib and Jinja2.
 # catch2 is Catch2 v2 on Debian 12 (bookworm); libsundials-dev is SUNDIALS 6.4 (the CVODE
 # integrators); libfmt-dev is fmt 9, used header-only (its Dragonbox writes the CSV numbers);
-# parallel is GNU parallel (scripts/verify_parallel.sh and its test). .ci/run uses this list (it
-# runs this script).
-packages=(build-essential cmake libeigen3-dev libboost-dev libyaml-cpp-dev catch2 libbenchmark-dev
-          libcli11-dev nlohmann-json3-dev libsundials-dev libfmt-dev python3-matplotlib python3-jinja2
-          parallel)
+# parallel is GNU parallel (scripts/verify_parallel.sh and its test); ninja-build schedules the
+# build (both cores busy to the end; CMake's Makefiles leave one idle while a library links).
+# .ci/run uses this list (it runs this script).
+packages=(build-essential cmake ninja-build libeigen3-dev libboost-dev libyaml-cpp-dev catch2
+          libbenchmark-dev libcli11-dev nlohmann-json3-dev libsundials-dev libfmt-dev
+          python3-matplotlib python3-jinja2 parallel)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -26,8 +28,11 @@ if ((${#missing[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq "${missing[@]}"
 fi
 
-cmake -S . -B build -DCMAKE_BUILD_TYPE=Release -DCROSSDYN_WERROR="${CROSSDYN_WERROR:-OFF}"
-cmake --build build -j2
+# Ninja for a new build folder; an existing one keeps the generator it was made with.
+generator=()
+[ -f build/CMakeCache.txt ] || generator=(-G Ninja)
+cmake -S . -B build "${generator[@]}" -DCMAKE_BUILD_TYPE=Release -DCROSSDYN_WERROR="${CROSSDYN_WERROR:-OFF}"
+cmake --build build -j2 --target crossdyn
 
 if [ -z "${CROSSDYN_NO_VERIFY:-}" ]; then
   build/crossdyn verify --report reports/latest

@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <string>
+#include <utility>
 
 #include "core/errors.hpp"
 
@@ -339,7 +341,12 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
           f.D(col, col) = s.damping.alpha * M_k + s.damping.beta * f.K(col, col);
           break;
       }
-      f.mode_names.push_back("q" + axis_name(d) + std::to_string(k));
+      // Appended piecewise: GCC 12 at -O3 reports a false -Warray-bounds / -Wstringop-overflow in
+      // the inlined `const char* + std::string&&` (GCC bugs 105329, 105651; fixed in GCC 13).
+      std::string name = "q";
+      name += axis_name(d);
+      name += std::to_string(k);
+      f.mode_names.push_back(std::move(name));
     }
   }
 
