@@ -111,25 +111,122 @@ std::string model_label(const System& system, const std::vector<ModeGroup>& grou
   return out;
 }
 
-std::optional<System> reslice(const System& system, int body, int slices) {
-  const auto& flex = system.bodies[static_cast<std::size_t>(body)].flex;
-  static const std::regex kSlices(R"(\bslices: *[0-9]+)");
-  if (!flex || flex->scene_form.rfind("{beam:", 0) != 0 ||
-      !std::regex_search(flex->scene_form, kSlices))
-    return std::nullopt;
-  System s = system;
-  auto& form = s.bodies[static_cast<std::size_t>(body)].flex->scene_form;
-  form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
-  System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
-  out.name = system.name;
-  out.file = system.file;
-  return out;
-}
-
 int beam_slices(const FlexBody& f) {
   std::smatch m;
   static const std::regex kSlices(R"(\bslices: *([0-9]+))");
   return std::regex_search(f.scene_form, m, kSlices) ? std::stoi(m[1].str()) : 0;
+}
+
+namespace {
+
+// A joint attached at a node of body `body` (Joint::parent_node or child_node).
+struct Attachment {
+  std::size_t joint;
+  bool parent_side;
+  int node;
+};
+
+std::vector<Attachment> attachments_of(const System& s, int body) {
+  std::vector<Attachment> out;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const Joint& J = s.joints[j];
+    if (J.parent == body && J.parent_node >= 0) out.push_back({j, true, J.parent_node});
+    if (J.child == body && J.child_node >= 0) out.push_back({j, false, J.child_node});
+  }
+  return out;
+}
+
+std::string point_text(const Eigen::Vector3d& p) {
+  char b[96];
+  std::snprintf(b, sizeof b, "(%.4g, %.4g, %.4g) m", p.x(), p.y(), p.z());
+  return b;
+}
+
+// Per mode k, the factor r_k that turns the `from` beam's normalised shapes into the `to` beam's
+// (the same closed-form modes, the same order). Normalised to a unit end displacement the shapes
+// do not depend on the slicing (r_k = 1); normalised to unit modal mass (a node sum) they differ
+// by the ratio of the two beams' displacements at an end node where the mode does not vanish.
+std::vector<double> shape_ratios(const FlexBody& from, const FlexBody& to) {
+  std::vector<double> r(static_cast<std::size_t>(from.modes()), 1.0);
+  const FlexNode* ends_from[] = {&from.nodes.front(), &from.nodes.back()};
+  const FlexNode* ends_to[] = {&to.nodes.front(), &to.nodes.back()};
+  for (int k = 0; k < from.modes(); ++k) {
+    const int e = ends_from[1]->Phi_B.col(k).norm() >= ends_from[0]->Phi_B.col(k).norm() ? 1 : 0;
+    const Eigen::Vector3d a = ends_from[e]->Phi_B.col(k), b = ends_to[e]->Phi_B.col(k);
+    if (a.squaredNorm() > 0) r[static_cast<std::size_t>(k)] = b.dot(a) / a.squaredNorm();
+  }
+  return r;
+}
+
+}  // namespace
+
+std::optional<System> reslice(const System& system, int body, int slices,
+                              std::vector<std::string>* kept) {
+  const std::size_t b = static_cast<std::size_t>(body);
+  const auto& flex = system.bodies[b].flex;
+  static const std::regex kSlices(R"(\bslices: *[0-9]+)");
+  if (!flex || flex->scene_form.rfind("{beam:", 0) != 0 ||
+      !std::regex_search(flex->scene_form, kSlices))
+    return std::nullopt;
+  const int old_slices = beam_slices(*flex);
+  // The joints at the beam's nodes are written at `bottom` (a node of every slicing) and put back
+  // below, each at the same physical point: a node's name would name another point of the
+  // re-sliced beam (slice30 is mid-beam of 60 slices, the tip of 30) or none at all.
+  const std::vector<Attachment> at = attachments_of(system, body);
+  System s = system;
+  auto& form = s.bodies[b].flex->scene_form;
+  form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
+  for (const Attachment& a : at) (a.parent_side ? s.joints[a.joint].parent_node : s.joints[a.joint].child_node) = 0;
+  System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
+  out.name = system.name;
+  out.file = system.file;
+  // Every joint point at a node keeps its physical place (the same point of the continuous beam):
+  // the end nodes `bottom` and `top` are ends at any slicing; a slice node is a slice centre, and
+  // halving or doubling the slices never puts a slice centre there again, so the re-sliced beam
+  // gets a massless node at that point, with the continuous beam's shape, slope and
+  // foreshortening there. These do not depend on the slicing (beam.hpp: closed-form modes sampled
+  // at the node), so they are the original node's, scaled by shape_ratios for unit-modal-mass
+  // normalisation. The beam's mass, inertia and modes are those of the new slicing.
+  FlexBody& to = *out.bodies[b].flex;
+  const FlexBody& from = *flex;
+  const int from_top = static_cast<int>(from.nodes.size()) - 1;
+  const int to_top = static_cast<int>(to.nodes.size()) - 1;
+  const std::vector<double> r = shape_ratios(from, to);
+  std::vector<std::pair<int, int>> placed;  // (node of `from`, node of `to`)
+  for (const Attachment& a : at) {
+    int node = a.node == 0 ? 0 : a.node == from_top ? to_top : -1;
+    for (const auto& [f, t] : placed)
+      if (f == a.node) node = t;
+    const FlexNode& original = from.nodes[static_cast<std::size_t>(a.node)];
+    if (node < 0) {
+      FlexNode x = original;
+      x.name = original.name + "-of-" + std::to_string(old_slices);
+      x.mass = 0;
+      x.J_Ni_B.setZero();
+      for (int k = 0; k < from.modes(); ++k) {
+        x.Phi_B.col(k) *= r[static_cast<std::size_t>(k)];
+        x.Psi_B.col(k) *= r[static_cast<std::size_t>(k)];
+        if (x.G.size() > 0) {
+          x.G.row(k) *= r[static_cast<std::size_t>(k)];
+          x.G.col(k) *= r[static_cast<std::size_t>(k)];
+        }
+      }
+      to.nodes.push_back(std::move(x));
+      node = static_cast<int>(to.nodes.size()) - 1;
+      placed.emplace_back(a.node, node);
+    }
+    if (node > to_top && kept)
+      kept->push_back("joint '" + system.joints[a.joint].name + "' (" +
+                        (a.parent_side ? "parent" : "child") + " side) stays at node " +
+                        original.name + " of the " + std::to_string(old_slices) +
+                        "-slice beam, at " + point_text(original.p_BoNi_B) +
+                        ", a massless node of the " + std::to_string(slices) + "-slice beam (" +
+                        original.name + "-of-" + std::to_string(old_slices) + ")");
+    Joint& J = out.joints[a.joint];
+    (a.parent_side ? J.parent_node : J.child_node) = node;
+    (a.parent_side ? J.p_PoJ_P : J.p_CoJ_C) = to.nodes[static_cast<std::size_t>(node)].p_BoNi_B;
+  }
+  return out;
 }
 
 namespace {
@@ -245,8 +342,9 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
   }
   const std::size_t b = static_cast<std::size_t>(job.slice_body);
   std::optional<System> s;
+  std::vector<std::string> kept;
   try {
-    s = reslice(system, job.slice_body, job.slices);
+    s = reslice(system, job.slice_body, job.slices, &kept);
   } catch (const InputError& e) {
     if (note)
       *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: not run (" +
@@ -254,6 +352,10 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
     return std::nullopt;
   }
   if (!s) return std::nullopt;
+  if (note && !kept.empty()) {
+    *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: ";
+    for (std::size_t k = 0; k < kept.size(); ++k) *note += (k ? "; " : "") + kept[k];
+  }
   m.slices = job.slices;
   m.slice_body = job.slice_body;
   m.label += ", " + system.bodies[b].name + " " + std::to_string(job.slices) + " slices";
