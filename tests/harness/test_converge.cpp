@@ -3,6 +3,7 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <limits>
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
@@ -377,5 +378,59 @@ TEST_CASE("class 7, converge on the issue's example: the slicing rows measure th
   const double order = std::log2(r.models[1].worst_normalised / r.models[2].worst_normalised);
   CHECK(order > 1.8);
   CHECK(order < 2.2);
-  CHECK_THAT(table, Catch::Contains("observed order") && Catch::Contains("massless node"));
+  CHECK_THAT(table, Catch::Contains("massless node"));
+  const std::size_t at = table.find("(observed order ");
+  REQUIRE(at != std::string::npos);
+  const double printed = std::stod(table.substr(at + 16));
+  CHECK(printed > 1.8);
+  CHECK(printed < 2.2);
+}
+
+TEST_CASE("class 11, converge's sentences follow from its rows: the order on one quantity, a "
+          "failed re-sliced run said as such") {
+  auto check = [](const std::string& q, double normalised) {
+    Check k;
+    k.quantity = q;
+    k.b = "x";
+    k.normalised = normalised;
+    return k;
+  };
+  ConvergeResult r;
+  r.scene = "s";
+  r.engine = "kane";
+  ConvergeModel full;
+  full.full = true;
+  full.label = "beam qx2 (full)";
+  full.modes = 2;
+  full.passed = true;
+  ConvergeModel coarse = full, fine = full;
+  coarse.full = fine.full = false;
+  coarse.slices = 25;
+  fine.slices = 100;
+  coarse.slice_body = fine.slice_body = 0;
+  coarse.label = "beam qx2, beam 25 slices";
+  fine.label = "beam qx2, beam 100 slices";
+  // The coarse row's largest change is in a.wx (400); the fine row's largest is elsewhere (b.wx
+  // 300), and a.wx changed 25 there: the order is measured on a.wx, 400 / 25 = 16 per doubling.
+  coarse.checks = {check("a.wx", 400), check("b.wx", 100)};
+  coarse.worst_normalised = 400;
+  coarse.worst_quantity = "a.wx";
+  fine.checks = {check("a.wx", 25), check("b.wx", 300)};
+  fine.worst_normalised = 300;
+  fine.worst_quantity = "b.wx";
+  r.models = {full, coarse, fine};
+  converge_finish(r);
+  std::string text = format_converge(r);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("slicing order: the change in a.wx falls 16.00 times per doubling "
+                                   "of the slices (observed order 4.00)"));
+  // A re-sliced run that failed: said so, and no order from it.
+  r.models[2].checks.clear();
+  r.models[2].worst_normalised = std::numeric_limits<double>::infinity();
+  r.models[2].worst_quantity = "run: kane: non-finite state at t = 0.5 s";
+  text = format_converge(r);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("slicing: with 100 slices the run did not reach the end (kane: "
+                                   "non-finite state at t = 0.5 s), so nothing was compared"));
+  CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices the answer"));
 }
