@@ -84,6 +84,24 @@ System truncate_modes(const System& system, const std::vector<ModeGroup>& groups
         t.nodes[i].Phi_B.col(c) = flex->nodes[i].Phi_B.col(keep[static_cast<std::size_t>(c)]);
         t.nodes[i].Psi_B.col(c) = flex->nodes[i].Psi_B.col(keep[static_cast<std::size_t>(c)]);
       }
+      // Geometric stiffening: the foreshortening e (1/2 eta^T G eta) with the dropped modes held
+      // at zero keeps the rows and columns of G of the kept modes.
+      if (flex->nodes[i].G.size() > 0) {
+        t.nodes[i].G.resize(n, n);
+        for (int r = 0; r < n; ++r)
+          for (int c = 0; c < n; ++c)
+            t.nodes[i].G(r, c) = flex->nodes[i].G(keep[static_cast<std::size_t>(r)],
+                                                  keep[static_cast<std::size_t>(c)]);
+      }
+    }
+    if (n == 0 && t.geometric_stiffening) {
+      // No modes, no foreshortening (e (1/2 eta^T G eta) with eta empty is zero): the linear
+      // model, which the engines expect when G is empty.
+      t.geometric_stiffening = false;
+      for (FlexNode& x : t.nodes) {
+        x.G.resize(0, 0);
+        x.e_B.setZero();
+      }
     }
     t.K.resize(n, n);
     t.D.resize(n, n);

@@ -9,7 +9,7 @@
 // one model; the full model (every c_g = n_g) is the reference.
 //
 // Truncation (core/system.hpp FlexBody): keeping the mode subset S of a body keeps the columns S
-// of every node's Phi_B and Psi_B and the rows and columns S of K and D; the nodes, their masses,
+// of every node's Phi_B and Psi_B, the rows and columns S of K, D and every node's G; the nodes, their masses,
 // positions and rigid inertias are unchanged, so the rigid body (and every rigid quantity) is the
 // same. This is a Galerkin (Ritz) truncation of the same modal basis: the model with fewer modes
 // is exactly the full model with the dropped modal coordinates held at zero.

@@ -434,3 +434,37 @@ TEST_CASE("class 11, converge's sentences follow from its rows: the order on one
                                    "non-finite state at t = 0.5 s), so nothing was compared"));
   CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices the answer"));
 }
+
+TEST_CASE("converge: truncating a geometrically stiffened beam keeps the kept modes' rows and "
+          "columns of every node's G, and none with no modes (spinup_beam)") {
+  const System full = read_scene(test::scene_path("spinup_beam"));
+  const std::vector<ModeGroup> g = mode_groups(full);
+  REQUIRE(g.size() == 1);
+  const int b = g[0].body;
+  const FlexBody& ff = *full.bodies[static_cast<std::size_t>(b)].flex;
+  REQUIRE(ff.geometric_stiffening);
+  for (int keep = 0; keep <= static_cast<int>(g[0].modes.size()); ++keep) {
+    CAPTURE(keep);
+    const System cut = truncate_modes(full, g, {keep});
+    const FlexBody& fc = *cut.bodies[static_cast<std::size_t>(b)].flex;
+    CHECK(fc.geometric_stiffening == (keep > 0));
+    for (std::size_t i = 0; i < fc.nodes.size(); ++i) {
+      if (keep == 0) {
+        CHECK(fc.nodes[i].G.size() == 0);
+        continue;
+      }
+      REQUIRE(fc.nodes[i].G.rows() == keep);
+      REQUIRE(fc.nodes[i].G.cols() == keep);
+      CHECK(fc.nodes[i].G == ff.nodes[i].G.topLeftCorner(keep, keep));
+    }
+    // Every engine takes the truncated model (0 modes used to reach an engine with a full-size G).
+    for (const std::string& engine : engine_names()) {
+      CAPTURE(engine);
+      auto e = make_engine(engine, cut);
+      std::vector<double> x(static_cast<std::size_t>(e->state_size())), xdot(x.size());
+      e->pack(TreeState::initial(cut), x.data());
+      e->rhs(0.5, x.data(), xdot.data());
+      CHECK(std::all_of(xdot.begin(), xdot.end(), [](double v) { return std::isfinite(v); }));
+    }
+  }
+}
