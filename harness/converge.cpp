@@ -438,7 +438,12 @@ std::string format_converge(const ConvergeResult& r) {
   for (std::size_t i = 0; i + 1 < r.models.size(); ++i) {
     const ConvergeModel& a = r.models[i];
     const ConvergeModel& b = r.models[i + 1];
-    if (!(a.slices > 0 && b.slice_body == a.slice_body && b.slices == 4 * a.slices)) continue;
+    if (!(a.slices > 0 && b.slices > a.slices && b.slice_body == a.slice_body)) continue;
+    if (b.slices != 4 * a.slices) {
+      out << "slicing order: not measured (" << a.slices << " and " << b.slices
+          << " slices are not half and twice the scene's: its slices are odd)\n";
+      continue;
+    }
     double fine = std::numeric_limits<double>::quiet_NaN();
     for (const Check& k : b.checks)
       if (k.quantity == a.worst_quantity) fine = k.normalised;

@@ -641,6 +641,8 @@ std::string recommendation(const SceneStudy& s, double target, bool history) {
   if (closest)
     out += " (the smallest: " + sci(history ? closest->error.history : closest->error.end, 2) +
            " with " + config_text(*closest) + ")";
+  else
+    out += " (no configuration ran to the end)";
   return out;
 }
 
