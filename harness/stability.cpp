@@ -498,6 +498,10 @@ std::string remedy(StabilityClass c, const Evidence& ev) {
       return "turn Euler-angle re-charting on (lagrange's default) or use an engine with "
              "quaternions (kane, newton-euler)";
     case StabilityClass::TooCostly: {
+      // Stopped only by the per-run time limit: that is all the cells show (not stiffness).
+      if (ev.timed_out && !ev.step_limit)
+        return "allow each run more time (--timeout: every too costly run here was stopped by it), "
+               "or a method that needs fewer steps here";
       std::string r;
       if (ev.fixed)
         r = "a longer step where it stays stable (h |lambda|max below 2.8) and accurate, or an "
@@ -511,8 +515,8 @@ std::string remedy(StabilityClass c, const Evidence& ev) {
       else
         r = "the scene is stiff for an explicit method: use the implicit cvode-bdf, or leave out "
             "the fast modes or stiff springs that do not change the answer";
-      if (ev.timed_out) r += "; or allow each run more time (--timeout)";
-      if (ev.step_limit) r += "; or allow each run more steps (--max-steps)";
+      r += "; or allow each run more steps (--max-steps)";
+      if (ev.timed_out) r += " or more time (--timeout)";
       return r;
     }
     case StabilityClass::Drift:

@@ -373,8 +373,13 @@ TEST_CASE("class 11, findings say what happened: every failure class and combina
        {"re-charting"}, {"tolerance"}},
       {"too costly by the time limit", {true}, "dop853",
        two_settings({{A, T}}, "timed out after 0.001 s"),
-       "Fails in 1 of 2 measured cells: 1 too costly.", {"implicit cvode-bdf", "(--timeout)"},
-       {"--max-steps"}},
+       "Fails in 1 of 2 measured cells: 1 too costly.",
+       {"allow each run more time (--timeout: every too costly run here was stopped by it)"},
+       {"--max-steps", "is stiff", "cvode-bdf"}},
+      {"too costly by the step limit, adaptive", {true}, "dop853",
+       two_settings({{A, T}}, "step limit 200000 reached"),
+       "Fails in 1 of 2 measured cells: 1 too costly.", {"implicit cvode-bdf", "(--max-steps)"},
+       {"--timeout"}},
       {"too costly by the step limit, rk4", {true}, "rk4",
        {{0, 0.1, A, "", nan}, {0, 1e-6, T, "step limit 200000 reached", nan}},
        "Fails in 1 of 2 measured cells: 1 too costly.", {"a longer step", "(--max-steps)"},
@@ -385,7 +390,7 @@ TEST_CASE("class 11, findings say what happened: every failure class and combina
        {{0, 1e-3, X}, {0, 1e-9, A}, {1, 1e-3, S}, {1, 1e-9, S}, {2, 1e-3, T, "timed out after 1 s"},
         {2, 1e-6, D}, {2, 1e-9, I}, {2, 1e-12, A}, {3, 1e-3, Q}, {3, 1e-9, Q}},
        "Fails in 6 of 8 measured cells: 1 diverged, 2 singular, 1 too costly, 1 drift, 1 inaccurate.",
-       {"diverged: tighten the tolerance", "singular: turn Euler-angle", "too costly: the scene is stiff",
+       {"diverged: tighten the tolerance", "singular: turn Euler-angle", "too costly: allow each run more time (--timeout",
         "drift: tighten the tolerance", "inaccurate: a tighter tolerance: rtol 1e-12 or less was accurate"},
        {"no reference:", "Fails mostly"}},
   };
@@ -413,7 +418,9 @@ TEST_CASE("class 11, the reference runs have their own budget: a tiny --timeout 
   INFO(r.output);
   REQUIRE(r.status == 0);
   CHECK_THAT(r.output, !Catch::Contains("No reference") && !Catch::Contains("no reference at any"));
-  CHECK_THAT(r.output, Catch::Contains("1 too costly") && Catch::Contains("(--timeout)"));
+  CHECK_THAT(r.output, Catch::Contains("1 too costly") &&
+                           Catch::Contains("allow each run more time (--timeout: every too costly run"));
+  CHECK_THAT(r.output, !Catch::Contains("is stiff"));
   CHECK_THAT(r.output, Catch::Contains("note: the reference runs had their own time budget, 600 s "
                                        "each (--reference-timeout), independent of the per-run "
                                        "--timeout (1e-09 s)"));
