@@ -423,12 +423,19 @@ std::string format_converge(const ConvergeResult& r) {
   const ConvergeModel& s = r.models[static_cast<std::size_t>(r.smallest)];
   out << "smallest model within the scene's tolerances: " << s.label << " (" << s.modes << " of "
       << r.models.front().modes << " modes)\n";
+  // The re-sliced body, from the row's label ("..., boom 30 slices"): several beams may be re-sliced.
+  auto sliced = [](const ConvergeModel& m) {
+    const std::size_t at = m.label.rfind(", ");
+    const std::string tail = at == std::string::npos ? std::string() : m.label.substr(at + 2);
+    const std::size_t space = tail.find(' ');
+    return space == std::string::npos ? std::string() : tail.substr(0, space) + " ";
+  };
   for (const ConvergeModel& m : r.models)
     if (m.slices > 0 && m.worst_quantity.rfind("run: ", 0) == 0)
-      out << "slicing: with " << m.slices << " slices the run did not reach the end ("
+      out << "slicing: " << sliced(m) << "with " << m.slices << " slices: the run did not reach the end ("
           << m.worst_quantity.substr(5) << "), so nothing was compared\n";
     else if (m.slices > 0)
-      out << "slicing: with " << m.slices << " slices the answer "
+      out << "slicing: " << sliced(m) << "with " << m.slices << " slices: the answer "
           << (m.passed ? "stays within" : "changes beyond") << " the tolerances (largest change "
           << sci(m.worst_normalised) << " of the tolerance" +
                  (m.worst_quantity.empty() ? std::string() : ", in " + m.worst_quantity)
@@ -440,7 +447,8 @@ std::string format_converge(const ConvergeResult& r) {
     const ConvergeModel& b = r.models[i + 1];
     if (!(a.slices > 0 && b.slices > a.slices && b.slice_body == a.slice_body)) continue;
     if (b.slices != 4 * a.slices) {
-      out << "slicing order: not measured (" << a.slices << " and " << b.slices
+      out << "slicing order" << (sliced(a).empty() ? "" : " of " + sliced(a).substr(0, sliced(a).size() - 1))
+          << ": not measured (" << a.slices << " and " << b.slices
           << " slices are not half and twice the scene's: its slices are odd)\n";
       continue;
     }
@@ -449,10 +457,13 @@ std::string format_converge(const ConvergeResult& r) {
       if (k.quantity == a.worst_quantity) fine = k.normalised;
     if (std::isfinite(a.worst_normalised) && std::isfinite(fine) && a.worst_normalised > 0 && fine > 0) {
       const double ratio = a.worst_normalised / fine;
-      char line[300];
+      const std::string body = sliced(a);
+      char line[400];
       std::snprintf(line, sizeof line,
-                    "slicing order: the change in %s falls %.2f times per doubling of the "
-                    "slices (observed order %.2f)\n", a.worst_quantity.c_str(), ratio, std::log2(ratio));
+                    "slicing order%s%s: the change in %s falls %.2f times per doubling of the "
+                    "slices (observed order %.2f)\n", body.empty() ? "" : " of ",
+                    body.empty() ? "" : body.substr(0, body.size() - 1).c_str(), a.worst_quantity.c_str(),
+                    ratio, std::log2(ratio));
       out << line;
     }
   }

@@ -422,25 +422,25 @@ TEST_CASE("class 11, converge's sentences follow from its rows: the order on one
   converge_finish(r);
   std::string text = format_converge(r);
   INFO(text);
-  CHECK_THAT(text, Catch::Contains("slicing order: the change in a.wx falls 16.00 times per doubling "
-                                   "of the slices (observed order 4.00)"));
+  CHECK_THAT(text, Catch::Contains("slicing order of beam: the change in a.wx falls 16.00 times per "
+                                   "doubling of the slices (observed order 4.00)"));
   // A re-sliced run that failed: said so, and no order from it.
   r.models[2].checks.clear();
   r.models[2].worst_normalised = std::numeric_limits<double>::infinity();
   r.models[2].worst_quantity = "run: kane: non-finite state at t = 0.5 s";
   text = format_converge(r);
   INFO(text);
-  CHECK_THAT(text, Catch::Contains("slicing: with 100 slices the run did not reach the end (kane: "
-                                   "non-finite state at t = 0.5 s), so nothing was compared"));
-  CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices the answer"));
+  CHECK_THAT(text, Catch::Contains("slicing: beam with 100 slices: the run did not reach the end "
+                                   "(kane: non-finite state at t = 0.5 s), so nothing was compared"));
+  CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices: the answer"));
   // Odd slices (25: rows of 12 and 50): not half and twice, so no order is claimed.
   r.models[1].slices = 12;
   r.models[2] = coarse;
   r.models[2].slices = 50;
   text = format_converge(r);
   INFO(text);
-  CHECK_THAT(text, Catch::Contains("slicing order: not measured (12 and 50 slices are not half and "
-                                   "twice the scene's: its slices are odd)"));
+  CHECK_THAT(text, Catch::Contains("slicing order of beam: not measured (12 and 50 slices are not "
+                                   "half and twice the scene's: its slices are odd)"));
   CHECK_THAT(text, !Catch::Contains("observed order"));
 }
 
