@@ -31,6 +31,14 @@ std::string g3(double v) {
   return b;
 }
 
+// "the reference run kane + rkf78 at 1e-13 failed: ..." from the study's refusal
+// "<file>: no reference: the reference run ...".
+std::string no_reference_reason(const std::string& note) {
+  const std::string mark = "no reference: ";
+  const std::size_t at = note.find(mark);
+  return at == std::string::npos ? note : note.substr(at + mark.size());
+}
+
 bool contains(const std::string& text, const char* what) { return text.find(what) != std::string::npos; }
 
 // rk4's stability boundary along the imaginary axis is 2 sqrt(2) = 2.83, along the real axis 2.79
@@ -437,6 +445,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
           CellFacts f;
           f.reference = false;
           cell.result = classify(f, m.limits);
+          cell.result.why += " (" + no_reference_reason(r.what()) + ")";  // the reason, per cell
           out.cells.push_back(cell);
         }
       }
@@ -534,14 +543,6 @@ std::string remedy(StabilityClass c, const Evidence& ev) {
     case StabilityClass::Accurate: return "";
   }
   return "";
-}
-
-// "the reference run kane + rkf78 at 1e-13 failed: ..." from the study's refusal
-// "<file>: no reference: the reference run ...".
-std::string no_reference_reason(const std::string& note) {
-  const std::string mark = "no reference: ";
-  const std::size_t at = note.find(mark);
-  return at == std::string::npos ? note : note.substr(at + mark.size());
 }
 
 // "<knob> 1 ... 100 N m/rad (3 values)" or "<knob> 5 N m/rad" for columns a..b.

@@ -433,6 +433,17 @@ TEST_CASE("class 11, the reference runs have their own budget: a tiny --timeout 
   CHECK_THAT(r.output, Catch::Contains("kane + dopri5: no reference at any value tried, so nothing "
                                        "was measured."));
   CHECK_THAT(r.output, !Catch::Contains("Remedy") && !Catch::Contains("inaccurate."));
+  // Each '?' cell of the CSV carries the reason too.
+  const std::string csv = std::filesystem::temp_directory_path().string() + "/crossdyn_class11_" +
+                          std::to_string(::getpid()) + ".csv";
+  r = test::run_crossdyn(common + " --reference-timeout 1e-9 --csv '" + csv + "'");
+  REQUIRE(r.status == 0);
+  std::ifstream in(csv);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::filesystem::remove(csv);
+  CHECK_THAT(text.str(), Catch::Contains(",no reference,\"no reference at this parameter value (the "
+                                         "reference run kane + rkf78 at 1e-13 failed:"));
   r = test::run_crossdyn(common + " --reference-timeout -1");
   CHECK(r.status == 2);
   CHECK_THAT(r.output, Catch::Contains("--reference-timeout: must be a finite number of seconds"));
