@@ -164,10 +164,10 @@ std::string point_text(const Eigen::Vector3d& p) {
 // (the same closed-form modes, the same order). Normalised to a unit end displacement the shapes
 // do not depend on the slicing (r_k = 1); normalised to unit modal mass (a node sum) they differ
 // by the ratio of the two beams' displacements at an end node where the mode does not vanish.
-std::vector<double> shape_ratios(const FlexBody& from, const FlexBody& to) {
+std::vector<double> shape_ratios(const FlexBody& from, int from_top, const FlexBody& to, int to_top) {
   std::vector<double> r(static_cast<std::size_t>(from.modes()), 1.0);
-  const FlexNode* ends_from[] = {&from.nodes.front(), &from.nodes.back()};
-  const FlexNode* ends_to[] = {&to.nodes.front(), &to.nodes.back()};
+  const FlexNode* ends_from[] = {&from.nodes.front(), &from.nodes[static_cast<std::size_t>(from_top)]};
+  const FlexNode* ends_to[] = {&to.nodes.front(), &to.nodes[static_cast<std::size_t>(to_top)]};
   for (int k = 0; k < from.modes(); ++k) {
     const int e = ends_from[1]->Phi_B.col(k).norm() >= ends_from[0]->Phi_B.col(k).norm() ? 1 : 0;
     const Eigen::Vector3d a = ends_from[e]->Phi_B.col(k), b = ends_to[e]->Phi_B.col(k);
@@ -207,9 +207,10 @@ std::optional<System> reslice(const System& system, int body, int slices,
   // normalisation. The beam's mass, inertia and modes are those of the new slicing.
   FlexBody& to = *out.bodies[b].flex;
   const FlexBody& from = *flex;
-  const int from_top = static_cast<int>(from.nodes.size()) - 1;
-  const int to_top = static_cast<int>(to.nodes.size()) - 1;
-  const std::vector<double> r = shape_ratios(from, to);
+  // The generator's nodes: bottom (0), slice1 .. sliceN (1 .. N), top (N + 1).
+  const int from_top = old_slices + 1;
+  const int to_top = slices + 1;
+  const std::vector<double> r = shape_ratios(from, from_top, to, to_top);
   std::vector<std::pair<int, int>> placed;  // (node of `from`, node of `to`)
   for (const Attachment& a : at) {
     int node = a.node == 0 ? 0 : a.node == from_top ? to_top : -1;
@@ -364,9 +365,14 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
   try {
     s = reslice(system, job.slice_body, job.slices, &kept);
   } catch (const InputError& e) {
+    // The reader's location is in the re-written scene text, not in the user's file: say what the
+    // beam generator refuses without it ("slices: 4 slices cannot resolve mode 3 ...").
+    static const std::regex kWhere(R"(^.*?:[0-9]+:[0-9]+: (bodies\[[0-9]+\]\.flexible\.beam\.)?)");
     if (note)
-      *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: not run (" +
-              e.what() + ")";
+      *note = system.bodies[b].name + " with " + std::to_string(job.slices) +
+              " slices: not run (the beam generator refuses it: " +
+              std::regex_replace(std::string(e.what()), kWhere, "", std::regex_constants::format_first_only) +
+              ")";
     return std::nullopt;
   }
   if (!s) return std::nullopt;

@@ -3,6 +3,8 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <sstream>
+#include <fstream>
 #include <limits>
 
 #include "core/engine.hpp"
@@ -346,6 +348,44 @@ TEST_CASE("class 7, the added node carries the continuous beam's shape, slope an
     if (native.G.size() > 0)
       CHECK((native.G - added.G).cwiseAbs().maxCoeff() <= 1e-12 * (1 + native.G.cwiseAbs().maxCoeff()));
   }
+}
+
+TEST_CASE("class 7, a re-sliced row the beam generator refuses is a note with the reason, without "
+          "a location in text the user never wrote") {
+  std::ifstream in(test::scene_path("free_beam_payload"));
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string t = text.str();
+  t.replace(t.find("slices: 60"), 10, "slices: 8");
+  t.replace(t.find("parent_node: slice30"), 20, "parent_node: slice4");
+  System s = read_scene_text(t, "eight.yaml");
+  s.run.duration = 0.5;
+  CompareOptions o;
+  o.engines = {{"kane", "kane", {}}};
+  std::vector<ConvergeJob> jobs;
+  const ConvergeResult r = converge_frame(s, o, &jobs);
+  const ConvergeModel full = converge_full_model(s, r, o);
+  int refused = 0, made = 0;
+  for (const ConvergeJob& job : jobs) {
+    if (job.slices == 0) continue;
+    std::string note;
+    const std::optional<ConvergeModel> m = converge_job(s, r, job, full.run, o, &note);
+    CAPTURE(job.slices, note);
+    if (job.slices == 4) {
+      ++refused;
+      CHECK_FALSE(m);
+      CHECK(note == "boom with 4 slices: not run (the beam generator refuses it: slices: 4 slices "
+                    "cannot resolve mode 3 (about 4 half-waves): use at least 8)");
+    } else {
+      ++made;
+      REQUIRE(m);
+      CHECK_THAT(note, Catch::Contains("joint 'drive' (parent side) stays at node slice4 of the "
+                                       "8-slice beam, at (-0.25, 0, 0) m, a massless node of the "
+                                       "16-slice beam (slice4-of-8)"));
+    }
+  }
+  CHECK(refused == 1);
+  CHECK(made == 1);
 }
 
 TEST_CASE("class 7, converge on the issue's example: the slicing rows measure the discretisation "
