@@ -611,9 +611,11 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
         }
         double coarsest = kNaN;
         bool inaccurate = false;
+        int in_column = 0;
         std::set<std::string> fails;
         for (const StabilityCell* x : cells) {
           if (x->column != c) continue;
+          ++in_column;
           ++measured_cells;
           if (x->result.cls == StabilityClass::Accurate) {
             if (std::isnan(coarsest) || x->setting > coarsest) coarsest = x->setting;
@@ -632,6 +634,10 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
               ev.timed_out = true;
             if (contains(x->result.why, "step limit")) ev.step_limit = true;
           }
+        }
+        if (in_column == 0) {  // the engine was left out at this value (the notes say why)
+          outcome[c] = "not run";
+          continue;
         }
         if (inaccurate && std::isnan(coarsest)) {
           accurate_everywhere = false;
@@ -667,6 +673,9 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
       std::string sentence = e + " + " + i + ": ";
       if (measured_columns == 0) {
         sentence += "no reference at any value tried, so nothing was measured.";
+      } else if (measured_cells == 0) {
+        sentence += "not run at any value with a reference, so nothing was measured (" + where.str() +
+                    "; the notes say why).";
       } else if (failing_cells == 0) {
         sentence += measured_columns == m.columns.size()
                         ? "accurate at every setting and value tried."
