@@ -529,9 +529,10 @@ std::string remedy(StabilityClass c, const Evidence& ev) {
       return r;
     }
     case StabilityClass::Drift:
-      return ev.engine.rfind("newton-euler", 0) == 0
-                 ? "tighten the tolerance, and keep newton-euler's projection stabilisation on"
-                 : ev.fixed ? "a shorter step" : "tighten the tolerance";
+      return std::string(ev.fixed ? "a shorter step" : "tighten the tolerance") +
+             (ev.engine.rfind("newton-euler", 0) == 0
+                  ? ", and keep newton-euler's projection stabilisation on"
+                  : "");
     case StabilityClass::Inaccurate:
       if (std::isfinite(ev.accurate_everywhere))
         return std::string(ev.fixed ? "a shorter step" : "a tighter tolerance") + ": " + step +
