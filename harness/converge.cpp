@@ -194,7 +194,10 @@ std::optional<System> reslice(const System& system, int body, int slices,
   System s = system;
   auto& form = s.bodies[b].flex->scene_form;
   form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
-  for (const Attachment& a : at) (a.parent_side ? s.joints[a.joint].parent_node : s.joints[a.joint].child_node) = 0;
+  for (const Attachment& a : at) {
+    Joint& J = s.joints[a.joint];
+    (a.parent_side ? J.parent_node : J.child_node) = 0;
+  }
   System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
   out.name = system.name;
   out.file = system.file;
