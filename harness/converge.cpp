@@ -422,7 +422,9 @@ std::string format_converge(const ConvergeResult& r) {
     const ConvergeModel& m = r.models[i];
     rows.push_back({m.label, std::to_string(m.modes), m.full ? "reference" : sci(m.worst_normalised),
                     m.full ? "" : m.worst_quantity,
-                    m.full ? "" : (m.passed ? "within" : "CHANGES")});
+                    m.full ? "" : m.passed ? "within"
+                                  : m.worst_quantity.rfind("run: ", 0) == 0 ? "RUN FAILED"
+                                                                            : "CHANGES"});
   }
   std::ostringstream out;
   out << "converge " << r.scene << " (engine " << r.engine

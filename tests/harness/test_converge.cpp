@@ -445,6 +445,7 @@ TEST_CASE("class 11, converge's sentences follow from its rows: the order on one
   full.passed = true;
   ConvergeModel coarse = full, fine = full;
   coarse.full = fine.full = false;
+  coarse.passed = fine.passed = false;
   coarse.slices = 25;
   fine.slices = 100;
   coarse.slice_body = fine.slice_body = 0;
@@ -473,6 +474,7 @@ TEST_CASE("class 11, converge's sentences follow from its rows: the order on one
   CHECK_THAT(text, Catch::Contains("slicing: beam with 100 slices: the run did not reach the end "
                                    "(kane: non-finite state at t = 0.5 s), so nothing was compared"));
   CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices: the answer"));
+  CHECK_THAT(text, Catch::Contains("RUN FAILED"));
   // Odd slices (25: rows of 12 and 50): not half and twice, so no order is claimed.
   r.models[1].slices = 12;
   r.models[2] = coarse;
