@@ -84,6 +84,24 @@ System truncate_modes(const System& system, const std::vector<ModeGroup>& groups
         t.nodes[i].Phi_B.col(c) = flex->nodes[i].Phi_B.col(keep[static_cast<std::size_t>(c)]);
         t.nodes[i].Psi_B.col(c) = flex->nodes[i].Psi_B.col(keep[static_cast<std::size_t>(c)]);
       }
+      // Geometric stiffening: the foreshortening e (1/2 eta^T G eta) with the dropped modes held
+      // at zero keeps the rows and columns of G of the kept modes.
+      if (flex->nodes[i].G.size() > 0) {
+        t.nodes[i].G.resize(n, n);
+        for (int r = 0; r < n; ++r)
+          for (int c = 0; c < n; ++c)
+            t.nodes[i].G(r, c) = flex->nodes[i].G(keep[static_cast<std::size_t>(r)],
+                                                  keep[static_cast<std::size_t>(c)]);
+      }
+    }
+    if (n == 0 && t.geometric_stiffening) {
+      // No modes, no foreshortening (e (1/2 eta^T G eta) with eta empty is zero): the linear
+      // model, which the engines expect when G is empty.
+      t.geometric_stiffening = false;
+      for (FlexNode& x : t.nodes) {
+        x.G.resize(0, 0);
+        x.e_B.setZero();
+      }
     }
     t.K.resize(n, n);
     t.D.resize(n, n);
@@ -111,25 +129,126 @@ std::string model_label(const System& system, const std::vector<ModeGroup>& grou
   return out;
 }
 
-std::optional<System> reslice(const System& system, int body, int slices) {
-  const auto& flex = system.bodies[static_cast<std::size_t>(body)].flex;
-  static const std::regex kSlices(R"(\bslices: *[0-9]+)");
-  if (!flex || flex->scene_form.rfind("{beam:", 0) != 0 ||
-      !std::regex_search(flex->scene_form, kSlices))
-    return std::nullopt;
-  System s = system;
-  auto& form = s.bodies[static_cast<std::size_t>(body)].flex->scene_form;
-  form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
-  System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
-  out.name = system.name;
-  out.file = system.file;
-  return out;
-}
-
 int beam_slices(const FlexBody& f) {
   std::smatch m;
   static const std::regex kSlices(R"(\bslices: *([0-9]+))");
   return std::regex_search(f.scene_form, m, kSlices) ? std::stoi(m[1].str()) : 0;
+}
+
+namespace {
+
+// A joint attached at a node of body `body` (Joint::parent_node or child_node).
+struct Attachment {
+  std::size_t joint;
+  bool parent_side;
+  int node;
+};
+
+std::vector<Attachment> attachments_of(const System& s, int body) {
+  std::vector<Attachment> out;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const Joint& J = s.joints[j];
+    if (J.parent == body && J.parent_node >= 0) out.push_back({j, true, J.parent_node});
+    if (J.child == body && J.child_node >= 0) out.push_back({j, false, J.child_node});
+  }
+  return out;
+}
+
+std::string point_text(const Eigen::Vector3d& p) {
+  char b[96];
+  std::snprintf(b, sizeof b, "(%.4g, %.4g, %.4g) m", p.x(), p.y(), p.z());
+  return b;
+}
+
+// Per mode k, the factor r_k that turns the `from` beam's normalised shapes into the `to` beam's
+// (the same closed-form modes, the same order). Normalised to a unit end displacement the shapes
+// do not depend on the slicing (r_k = 1); normalised to unit modal mass (a node sum) they differ
+// by the ratio of the two beams' displacements at an end node where the mode does not vanish.
+std::vector<double> shape_ratios(const FlexBody& from, int from_top, const FlexBody& to, int to_top) {
+  std::vector<double> r(static_cast<std::size_t>(from.modes()), 1.0);
+  const FlexNode* ends_from[] = {&from.nodes.front(), &from.nodes[static_cast<std::size_t>(from_top)]};
+  const FlexNode* ends_to[] = {&to.nodes.front(), &to.nodes[static_cast<std::size_t>(to_top)]};
+  for (int k = 0; k < from.modes(); ++k) {
+    const int e = ends_from[1]->Phi_B.col(k).norm() >= ends_from[0]->Phi_B.col(k).norm() ? 1 : 0;
+    const Eigen::Vector3d a = ends_from[e]->Phi_B.col(k), b = ends_to[e]->Phi_B.col(k);
+    if (a.squaredNorm() > 0) r[static_cast<std::size_t>(k)] = b.dot(a) / a.squaredNorm();
+  }
+  return r;
+}
+
+}  // namespace
+
+std::optional<System> reslice(const System& system, int body, int slices,
+                              std::vector<std::string>* kept) {
+  const std::size_t b = static_cast<std::size_t>(body);
+  const auto& flex = system.bodies[b].flex;
+  static const std::regex kSlices(R"(\bslices: *[0-9]+)");
+  if (!flex || flex->scene_form.rfind("{beam:", 0) != 0 ||
+      !std::regex_search(flex->scene_form, kSlices))
+    return std::nullopt;
+  const int old_slices = beam_slices(*flex);
+  // The joints at the beam's nodes are written at `bottom` (a node of every slicing) and put back
+  // below, each at the same physical point: a node's name would name another point of the
+  // re-sliced beam (slice30 is mid-beam of 60 slices, the tip of 30) or none at all.
+  const std::vector<Attachment> at = attachments_of(system, body);
+  System s = system;
+  auto& form = s.bodies[b].flex->scene_form;
+  form = std::regex_replace(form, kSlices, "slices: " + std::to_string(slices));
+  for (const Attachment& a : at) {
+    Joint& J = s.joints[a.joint];
+    (a.parent_side ? J.parent_node : J.child_node) = 0;
+  }
+  System out = read_scene_text(write_scene_text(s), system.file.empty() ? system.name : system.file);
+  out.name = system.name;
+  out.file = system.file;
+  // Every joint point at a node keeps its physical place (the same point of the continuous beam):
+  // the end nodes `bottom` and `top` are ends at any slicing; a slice node is a slice centre, and
+  // halving or doubling the slices never puts a slice centre there again, so the re-sliced beam
+  // gets a massless node at that point, with the continuous beam's shape, slope and
+  // foreshortening there. These do not depend on the slicing (beam.hpp: closed-form modes sampled
+  // at the node), so they are the original node's, scaled by shape_ratios for unit-modal-mass
+  // normalisation. The beam's mass, inertia and modes are those of the new slicing.
+  FlexBody& to = *out.bodies[b].flex;
+  const FlexBody& from = *flex;
+  // The generator's nodes: bottom (0), slice1 .. sliceN (1 .. N), top (N + 1).
+  const int from_top = old_slices + 1;
+  const int to_top = slices + 1;
+  const std::vector<double> r = shape_ratios(from, from_top, to, to_top);
+  std::vector<std::pair<int, int>> placed;  // (node of `from`, node of `to`)
+  for (const Attachment& a : at) {
+    int node = a.node == 0 ? 0 : a.node == from_top ? to_top : -1;
+    for (const auto& [f, t] : placed)
+      if (f == a.node) node = t;
+    const FlexNode& original = from.nodes[static_cast<std::size_t>(a.node)];
+    if (node < 0) {
+      FlexNode x = original;
+      x.name = original.name + "-of-" + std::to_string(old_slices);
+      x.mass = 0;
+      x.J_Ni_B.setZero();
+      for (int k = 0; k < from.modes(); ++k) {
+        x.Phi_B.col(k) *= r[static_cast<std::size_t>(k)];
+        x.Psi_B.col(k) *= r[static_cast<std::size_t>(k)];
+        if (x.G.size() > 0) {
+          x.G.row(k) *= r[static_cast<std::size_t>(k)];
+          x.G.col(k) *= r[static_cast<std::size_t>(k)];
+        }
+      }
+      to.nodes.push_back(std::move(x));
+      node = static_cast<int>(to.nodes.size()) - 1;
+      placed.emplace_back(a.node, node);
+    }
+    if (node > to_top && kept)
+      kept->push_back("joint '" + system.joints[a.joint].name + "' (" +
+                        (a.parent_side ? "parent" : "child") + " side) stays at node " +
+                        original.name + " of the " + std::to_string(old_slices) +
+                        "-slice beam, at " + point_text(original.p_BoNi_B) +
+                        ", a massless node of the " + std::to_string(slices) + "-slice beam (" +
+                        original.name + "-of-" + std::to_string(old_slices) + ")");
+    Joint& J = out.joints[a.joint];
+    (a.parent_side ? J.parent_node : J.child_node) = node;
+    (a.parent_side ? J.p_PoJ_P : J.p_CoJ_C) = to.nodes[static_cast<std::size_t>(node)].p_BoNi_B;
+  }
+  return out;
 }
 
 namespace {
@@ -245,15 +364,25 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
   }
   const std::size_t b = static_cast<std::size_t>(job.slice_body);
   std::optional<System> s;
+  std::vector<std::string> kept;
   try {
-    s = reslice(system, job.slice_body, job.slices);
+    s = reslice(system, job.slice_body, job.slices, &kept);
   } catch (const InputError& e) {
+    // The reader's location is in the re-written scene text, not in the user's file: say what the
+    // beam generator refuses without it ("slices: 4 slices cannot resolve mode 3 ...").
+    static const std::regex kWhere(R"(^.*?:[0-9]+:[0-9]+: (bodies\[[0-9]+\]\.flexible\.beam\.)?)");
     if (note)
-      *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: not run (" +
-              e.what() + ")";
+      *note = system.bodies[b].name + " with " + std::to_string(job.slices) +
+              " slices: not run (the beam generator refuses it: " +
+              std::regex_replace(std::string(e.what()), kWhere, "", std::regex_constants::format_first_only) +
+              ")";
     return std::nullopt;
   }
   if (!s) return std::nullopt;
+  if (note && !kept.empty()) {
+    *note = system.bodies[b].name + " with " + std::to_string(job.slices) + " slices: ";
+    for (std::size_t k = 0; k < kept.size(); ++k) *note += (k ? "; " : "") + kept[k];
+  }
   m.slices = job.slices;
   m.slice_body = job.slice_body;
   m.label += ", " + system.bodies[b].name + " " + std::to_string(job.slices) + " slices";
@@ -293,7 +422,9 @@ std::string format_converge(const ConvergeResult& r) {
     const ConvergeModel& m = r.models[i];
     rows.push_back({m.label, std::to_string(m.modes), m.full ? "reference" : sci(m.worst_normalised),
                     m.full ? "" : m.worst_quantity,
-                    m.full ? "" : (m.passed ? "within" : "CHANGES")});
+                    m.full ? "" : m.passed ? "within"
+                                  : m.worst_quantity.rfind("run: ", 0) == 0 ? "RUN FAILED"
+                                                                            : "CHANGES"});
   }
   std::ostringstream out;
   out << "converge " << r.scene << " (engine " << r.engine
@@ -303,26 +434,47 @@ std::string format_converge(const ConvergeResult& r) {
   const ConvergeModel& s = r.models[static_cast<std::size_t>(r.smallest)];
   out << "smallest model within the scene's tolerances: " << s.label << " (" << s.modes << " of "
       << r.models.front().modes << " modes)\n";
+  // The re-sliced body, from the row's label ("..., boom 30 slices"): several beams may be re-sliced.
+  auto sliced = [](const ConvergeModel& m) {
+    const std::size_t at = m.label.rfind(", ");
+    const std::string tail = at == std::string::npos ? std::string() : m.label.substr(at + 2);
+    const std::size_t space = tail.find(' ');
+    return space == std::string::npos ? std::string() : tail.substr(0, space) + " ";
+  };
   for (const ConvergeModel& m : r.models)
-    if (m.slices > 0)
-      out << "slicing: with " << m.slices << " slices the answer "
+    if (m.slices > 0 && m.worst_quantity.rfind("run: ", 0) == 0)
+      out << "slicing: " << sliced(m) << "with " << m.slices << " slices: the run did not reach the end ("
+          << m.worst_quantity.substr(5) << "), so nothing was compared\n";
+    else if (m.slices > 0)
+      out << "slicing: " << sliced(m) << "with " << m.slices << " slices: the answer "
           << (m.passed ? "stays within" : "changes beyond") << " the tolerances (largest change "
           << sci(m.worst_normalised) << " of the tolerance" +
                  (m.worst_quantity.empty() ? std::string() : ", in " + m.worst_quantity)
           << ")\n";
   // Observed order of the slicing error: the change from N/2 to N slices over the change from N
-  // to 2N is 2^p for an error ~ N^-p.
+  // to 2N is 2^p for an error ~ N^-p, both measured on one quantity (the coarse row's largest).
   for (std::size_t i = 0; i + 1 < r.models.size(); ++i) {
     const ConvergeModel& a = r.models[i];
     const ConvergeModel& b = r.models[i + 1];
-    if (a.slices > 0 && b.slice_body == a.slice_body && b.slices == 4 * a.slices &&
-        std::isfinite(a.worst_normalised) && std::isfinite(b.worst_normalised) &&
-        a.worst_normalised > 0 && b.worst_normalised > 0) {
-      const double ratio = a.worst_normalised / b.worst_normalised;
-      char line[200];
+    if (!(a.slices > 0 && b.slices > a.slices && b.slice_body == a.slice_body)) continue;
+    if (b.slices != 4 * a.slices) {
+      out << "slicing order" << (sliced(a).empty() ? "" : " of " + sliced(a).substr(0, sliced(a).size() - 1))
+          << ": not measured (" << a.slices << " and " << b.slices
+          << " slices are not half and twice the scene's: its slices are odd)\n";
+      continue;
+    }
+    double fine = std::numeric_limits<double>::quiet_NaN();
+    for (const Check& k : b.checks)
+      if (k.quantity == a.worst_quantity) fine = k.normalised;
+    if (std::isfinite(a.worst_normalised) && std::isfinite(fine) && a.worst_normalised > 0 && fine > 0) {
+      const double ratio = a.worst_normalised / fine;
+      const std::string body = sliced(a);
+      char line[400];
       std::snprintf(line, sizeof line,
-                    "slicing order: the largest change falls %.2f times per doubling of the "
-                    "slices (observed order %.2f)\n", ratio, std::log2(ratio));
+                    "slicing order%s%s: the change in %s falls %.2f times per doubling of the "
+                    "slices (observed order %.2f)\n", body.empty() ? "" : " of ",
+                    body.empty() ? "" : body.substr(0, body.size() - 1).c_str(), a.worst_quantity.c_str(),
+                    ratio, std::log2(ratio));
       out << line;
     }
   }

@@ -9,7 +9,7 @@
 // one model; the full model (every c_g = n_g) is the reference.
 //
 // Truncation (core/system.hpp FlexBody): keeping the mode subset S of a body keeps the columns S
-// of every node's Phi_B and Psi_B and the rows and columns S of K and D; the nodes, their masses,
+// of every node's Phi_B and Psi_B, the rows and columns S of K, D and every node's G; the nodes, their masses,
 // positions and rigid inertias are unchanged, so the rigid body (and every rigid quantity) is the
 // same. This is a Galerkin (Ritz) truncation of the same modal basis: the model with fewer modes
 // is exactly the full model with the dropped modal coordinates held at zero.
@@ -27,6 +27,22 @@
 // write_scene_text and read back, so the reader's checks apply) and compared with the full model
 // the same way: these rows say whether the slicing has converged, and do not compete for the
 // smallest model.
+//
+// A re-sliced row is the same physical model with another discretisation: every joint point at a
+// node of the beam stays at the same point of the beam (issue 23, class 7). `bottom` and `top`
+// are the ends at any slicing. A slice node `slice<i>` is the centre of slice i, and halving or
+// doubling N never makes it a slice centre again (slice30 of 60 is 0.033 m short of the middle;
+// slice30 of 30 is at the tip, and of 120 at a quarter), so the re-sliced beam gets a massless
+// node at exactly that point, named `<node>-of-<N>`, carrying the closed-form shape, slope and
+// foreshortening of the continuous beam there (the generator's modes do not depend on the
+// slicing; under unit-modal-mass normalisation they are rescaled with the new normalisation), and
+// the joint is attached to it (parent side or child side, any joint type); a note says so. A
+// joint point given as a point (`parent_point`/`child_point`) on a flexible body is fixed in the
+// body frame, whose origin (the CM of a uniform beam) does not move with the slicing, so it is
+// the same point already. Only the beam's mass lumping changes, so the slicing rows measure the
+// discretisation error alone, and the "observed order" line (the change from N/2 to N over the
+// change from N to 2N, 2^p for an error ~ N^-p; printed only when N is even) is its order: 2 for
+// the midpoint sampling of the modal integrals.
 #pragma once
 
 #include "core/system.hpp"
@@ -79,7 +95,10 @@ struct ConvergeResult {
 
 // The system with the beam-generator body `body` re-generated with `slices` slices, or nullopt
 // when the body is not a beam-generator body. Throws InputError when the reader refuses it.
-std::optional<System> reslice(const System& system, int body, int slices);
+// Every joint at a node of the body keeps its physical point (see "Slicing" above); for each
+// joint that needed a massless node, *kept (when given) gets a sentence saying so.
+std::optional<System> reslice(const System& system, int body, int slices,
+                              std::vector<std::string>* kept = nullptr);
 
 // At most this many models (the product of (n_g + 1) over the groups); more is an InputError.
 inline constexpr int kMaxConvergeModels = 256;

@@ -31,6 +31,14 @@ std::string g3(double v) {
   return b;
 }
 
+// "the reference run kane + rkf78 at 1e-13 failed: ..." from the study's refusal
+// "<file>: no reference: the reference run ...".
+std::string no_reference_reason(const std::string& note) {
+  const std::string mark = "no reference: ";
+  const std::size_t at = note.find(mark);
+  return at == std::string::npos ? note : note.substr(at + mark.size());
+}
+
 bool contains(const std::string& text, const char* what) { return text.find(what) != std::string::npos; }
 
 // rk4's stability boundary along the imaginary axis is 2 sqrt(2) = 2.83, along the real axis 2.79
@@ -322,6 +330,15 @@ double jacobian_spectral_radius(const System& system, const std::string& engine_
 
 namespace {
 
+std::string seconds_text(double s) { return s > 0 ? g3(s) + " s" : std::string("no limit"); }
+
+// The reference runs' budget, said once in the map's notes (a study note: parts carry it).
+std::string reference_budget_note(const StabilityOptions& o) {
+  return "the reference runs had their own time budget, " + seconds_text(o.reference_timeout) +
+         " each (--reference-timeout), independent of the per-run --timeout (" +
+         seconds_text(o.timeout) + ")";
+}
+
 std::vector<EngineSpec> engine_specs_of(const StabilityOptions& o) {
   std::vector<EngineSpec> specs = o.engine_specs;
   if (specs.empty())
@@ -357,8 +374,9 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
   so.dts = o.dts;
   so.repeat = 1;
   so.max_steps = o.max_steps;
-  so.reference_max_steps = 20000000;  // the reference may be costly; the timeout still holds
+  so.reference_max_steps = 20000000;  // the reference may be costly; its own time budget holds
   so.timeout = o.timeout;
+  so.reference_timeout = o.reference_timeout;
   so.progress = o.progress;
   // The reference must be better than what `accurate` means (half the limit), not the study's
   // 1e-11: stiff and fast scenes accumulate rounding at 1e-13 (the reference runs of
@@ -385,6 +403,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
     const SceneStudy st = study_scene(s, sv);
     col.reference_note = st.reference.description;
     out.study_notes = st.notes;
+    if (st.reference.kind != "analytic") out.study_notes.push_back(reference_budget_note(o));
     for (const StudyRow& r : st.rows) {
       StabilityCell cell;
       cell.engine = r.engine;
@@ -411,6 +430,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
   } catch (const StudyRefused& r) {
     col.reference = false;
     col.reference_note = r.what();
+    out.study_notes.push_back(reference_budget_note(o));
     out.refused_note = "at " + knob.spec + " = " + g3(v) + ": " + r.what();
     for (const std::string& e : m.engines)
       for (const std::string& i : m.integrators) {
@@ -425,6 +445,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
           CellFacts f;
           f.reference = false;
           cell.result = classify(f, m.limits);
+          cell.result.why += " (" + no_reference_reason(r.what()) + ")";  // the reason, per cell
           out.cells.push_back(cell);
         }
       }
@@ -457,82 +478,177 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
 
 namespace {
 
-std::string remedy(StabilityClass c, bool fixed_step, const std::string& engine,
-                   const std::string& integrator) {
-  const bool implicit = integrator.rfind("cvode-", 0) == 0;
+// What the cells of one engine x integrator say, for its remedies.
+struct Evidence {
+  bool fixed = false;
+  std::string engine, integrator;
+  double first_diverging_h_lambda = kNaN;  // rk4: h |lambda|max of the first diverging cell
+  bool timed_out = false, step_limit = false;  // too costly: by the per-run time or step limit
+  // Over the values where some cell is inaccurate: the coarsest setting accurate at all of them
+  // (NaN: one has no accurate setting), and those with none ("<knob> 0.1, 0.01 rad/s").
+  double accurate_everywhere = kNaN;
+  std::string never_accurate;
+};
+
+// The remedy for one way of failing, only as far as the cells support it.
+std::string remedy(StabilityClass c, const Evidence& ev) {
+  const bool implicit = ev.integrator.rfind("cvode-", 0) == 0;
+  const std::string step = ev.fixed ? "dt " : "rtol ";
   switch (c) {
     case StabilityClass::Diverged:
-      return fixed_step
-                 ? "take h |lambda|max below 2.8 (rk4's stability limit), or an adaptive method, "
-                   "which shortens its steps by itself"
-                 : "tighten the tolerance; if every method diverges the model itself is unstable "
-                   "(look at the reference)";
+      if (ev.fixed)
+        return std::isfinite(ev.first_diverging_h_lambda) && ev.first_diverging_h_lambda > kRk4Limit
+                   ? "take h |lambda|max below 2.8 (rk4's stability limit), or an adaptive method, "
+                     "which shortens its steps by itself"
+                   : "a shorter step, or an adaptive method, which shortens its steps by itself";
+      return "tighten the tolerance; if every method diverges the model itself is unstable "
+             "(look at the reference)";
     case StabilityClass::Singular:
       return "turn Euler-angle re-charting on (lagrange's default) or use an engine with "
              "quaternions (kane, newton-euler)";
-    case StabilityClass::TooCostly:
-      if (implicit)
-        return engine.rfind("newton-euler", 0) == 0
-                   ? "newton-euler's constraint projection restarts the multistep history after "
-                     "every step: use an explicit adaptive method (dop853) or another engine"
-                   : "this multistep method cannot take long steps here: use an explicit adaptive "
-                     "method (dop853), or leave out the fast modes that do not change the answer";
-      return "the scene is stiff for an explicit method: use the implicit cvode-bdf, or leave out "
-             "the fast modes or stiff springs that do not change the answer";
+    case StabilityClass::TooCostly: {
+      // Stopped only by the per-run time limit: that is all the cells show (not stiffness).
+      if (ev.timed_out && !ev.step_limit)
+        return "allow each run more time (--timeout: every too costly run here was stopped by it), "
+               "or a method that needs fewer steps here";
+      std::string r;
+      if (ev.fixed)
+        r = "a longer step where it stays stable (h |lambda|max below 2.8) and accurate, or an "
+            "adaptive method";
+      else if (implicit)
+        r = ev.engine.rfind("newton-euler", 0) == 0
+                ? "newton-euler's constraint projection restarts the multistep history after "
+                  "every step: use an explicit adaptive method (dop853) or another engine"
+                : "this multistep method cannot take long steps here: use an explicit adaptive "
+                  "method (dop853), or leave out the fast modes that do not change the answer";
+      else
+        r = "the scene is stiff for an explicit method: use the implicit cvode-bdf, or leave out "
+            "the fast modes or stiff springs that do not change the answer";
+      r += "; or allow each run more steps (--max-steps)";
+      if (ev.timed_out) r += " or more time (--timeout)";
+      return r;
+    }
     case StabilityClass::Drift:
-      return engine == "newton-euler"
-                 ? "tighten the tolerance, and keep newton-euler's projection stabilisation on"
-                 : "tighten the tolerance (or a shorter step)";
+      return std::string(ev.fixed ? "a shorter step" : "tighten the tolerance") +
+             (ev.engine.rfind("newton-euler", 0) == 0
+                  ? ", and keep newton-euler's projection stabilisation on"
+                  : "");
     case StabilityClass::Inaccurate:
-      return fixed_step ? "a shorter step" : "a tighter tolerance";
+      if (std::isfinite(ev.accurate_everywhere))
+        return std::string(ev.fixed ? "a shorter step" : "a tighter tolerance") + ": " + step +
+               g3(ev.accurate_everywhere) + " or less was accurate wherever it was inaccurate";
+      return std::string(ev.fixed ? "a shorter step" : "a tighter tolerance") +
+             " than any tried, or another method: no setting tried was accurate at " +
+             ev.never_accurate;
     case StabilityClass::NoReference:
-      return "no remedy here: the engines disagree or fail at their tightest settings; see the notes";
     case StabilityClass::Accurate: return "";
   }
   return "";
 }
 
+// "<knob> 1 ... 100 N m/rad (3 values)" or "<knob> 5 N m/rad" for columns a..b.
+std::string value_range(const StabilityMap& m, std::size_t a, std::size_t b) {
+  const std::string unit = m.knob.unit.empty() ? "" : " " + m.knob.unit;
+  std::ostringstream o;
+  o << m.knob.spec << " " << g3(m.columns[a].value);
+  if (b > a) o << " ... " << g3(m.columns[b].value) << unit << " (" << b - a + 1 << " values)";
+  else o << unit;
+  return o.str();
+}
+
 }  // namespace
 
+// Every sentence follows from the cells it summarises (issue 23, class 11): a column without a
+// reference is a finding of its own with the study's reason, and its cells ('?') are counted in
+// no class and get no remedy; per engine x integrator the failing cells are counted by class over
+// the measured values only, and each class present gets the remedy the cells support.
 std::vector<std::string> stability_findings(const StabilityMap& m) {
   std::vector<std::string> out;
-  const std::string unit = m.knob.unit.empty() ? "" : " " + m.knob.unit;
+  // The values without a reference, neighbouring ones with the same reason said once.
+  std::size_t measured_columns = 0;
+  {
+    std::ostringstream o;
+    for (std::size_t a = 0; a < m.columns.size();) {
+      if (m.columns[a].reference) {
+        ++measured_columns;
+        ++a;
+        continue;
+      }
+      const std::string why = no_reference_reason(m.columns[a].reference_note);
+      std::size_t b = a;
+      while (b + 1 < m.columns.size() && !m.columns[b + 1].reference &&
+             no_reference_reason(m.columns[b + 1].reference_note) == why)
+        ++b;
+      o << (o.tellp() > 0 ? "; at " : "") << value_range(m, a, b) << ": "
+        << (why.empty() ? "the reference could not be made" : why);
+      a = b + 1;
+    }
+    if (o.tellp() > 0)
+      out.push_back("No reference at " + o.str() + ". The cells there ('?') measure nothing: they " +
+                    "count in no class below and have no remedy.");
+  }
   for (const std::string& e : m.engines)
     for (const std::string& i : m.integrators) {
       std::vector<const StabilityCell*> cells;
       for (const StabilityCell& c : m.cells)
         if (c.engine == e && c.integrator == i) cells.push_back(&c);
       if (cells.empty()) continue;
-      const bool fixed = cells.front()->fixed_step;
-      // Per column: the coarsest accurate setting, and the failure classes of coarser ones; then
+      Evidence ev;
+      ev.fixed = cells.front()->fixed_step;
+      ev.engine = e;
+      ev.integrator = i;
+      // Per column: the coarsest accurate setting, and the failure classes of the others; then
       // neighbouring columns with the same outcome said once ("x 1 ... 100 (3 values): ...").
       std::vector<std::string> outcome(m.columns.size());
       std::map<StabilityClass, int> how;
-      int failing_columns = 0;
-      std::string h_lambda_note;
+      int failing_cells = 0, measured_cells = 0;
+      bool accurate_everywhere = true;
+      double coarsest_everywhere = std::numeric_limits<double>::infinity();
+      std::vector<std::size_t> never;
       for (std::size_t c = 0; c < m.columns.size(); ++c) {
-        double coarsest = kNaN;
-        std::set<std::string> fails;
-        for (const StabilityCell* x : cells) {
-          if (x->column != c) continue;
-          if (x->result.cls == StabilityClass::Accurate) {
-            if (std::isnan(coarsest) || x->setting > coarsest) coarsest = x->setting;
-          } else {
-            fails.insert(class_name(x->result.cls));
-            ++how[x->result.cls];
-            if (x->result.cls == StabilityClass::Diverged && fixed && std::isfinite(x->h_lambda) &&
-                h_lambda_note.empty())
-              h_lambda_note = "first diverging step has h |lambda|max = " + g3(x->h_lambda);
-          }
-        }
-        if (!fails.empty()) ++failing_columns;
-        std::ostringstream o;
         if (!m.columns[c].reference) {
           outcome[c] = "no reference";
           continue;
         }
+        double coarsest = kNaN;
+        bool inaccurate = false;
+        int in_column = 0;
+        std::set<std::string> fails;
+        for (const StabilityCell* x : cells) {
+          if (x->column != c) continue;
+          ++in_column;
+          ++measured_cells;
+          if (x->result.cls == StabilityClass::Accurate) {
+            if (std::isnan(coarsest) || x->setting > coarsest) coarsest = x->setting;
+            continue;
+          }
+          if (x->result.cls == StabilityClass::NoReference) continue;  // not in a measured column
+          fails.insert(class_name(x->result.cls));
+          ++how[x->result.cls];
+          ++failing_cells;
+          if (x->result.cls == StabilityClass::Inaccurate) inaccurate = true;
+          if (x->result.cls == StabilityClass::Diverged && ev.fixed && std::isfinite(x->h_lambda) &&
+              std::isnan(ev.first_diverging_h_lambda))
+            ev.first_diverging_h_lambda = x->h_lambda;
+          if (x->result.cls == StabilityClass::TooCostly) {
+            if (contains(x->result.why, "timed out") || contains(x->result.why, "time limit"))
+              ev.timed_out = true;
+            if (contains(x->result.why, "step limit")) ev.step_limit = true;
+          }
+        }
+        if (in_column == 0) {  // the engine was left out at this value (the notes say why)
+          outcome[c] = "not run";
+          continue;
+        }
+        if (inaccurate && std::isnan(coarsest)) {
+          accurate_everywhere = false;
+          never.push_back(c);
+        } else if (inaccurate) {
+          coarsest_everywhere = std::min(coarsest_everywhere, coarsest);
+        }
+        std::ostringstream o;
         if (std::isnan(coarsest)) o << "never accurate";
-        else o << "accurate up to " << (fixed ? "dt " : "rtol ") << g3(coarsest);
+        else o << "accurate up to " << (ev.fixed ? "dt " : "rtol ") << g3(coarsest);
         if (!fails.empty()) {
           o << ", else ";
           bool first = true;
@@ -543,30 +659,51 @@ std::vector<std::string> stability_findings(const StabilityMap& m) {
         }
         outcome[c] = o.str();
       }
+      if (accurate_everywhere && std::isfinite(coarsest_everywhere))
+        ev.accurate_everywhere = coarsest_everywhere;
+      for (std::size_t k = 0; k < never.size(); ++k)
+        ev.never_accurate += (k ? ", " : m.knob.spec + " ") + g3(m.columns[never[k]].value);
+      if (!never.empty() && !m.knob.unit.empty()) ev.never_accurate += " " + m.knob.unit;
       std::ostringstream where;
       for (std::size_t a = 0; a < outcome.size();) {
         std::size_t b = a;
         while (b + 1 < outcome.size() && outcome[b + 1] == outcome[a]) ++b;
-        where << (a ? "; " : "") << m.knob.spec << " " << g3(m.columns[a].value);
-        if (b > a)
-          where << " ... " << g3(m.columns[b].value) << unit << " (" << b - a + 1 << " values)";
-        else
-          where << unit;
-        where << ": " << outcome[a];
+        where << (a ? "; " : "") << value_range(m, a, b) << ": " << outcome[a];
         a = b + 1;
       }
       std::string sentence = e + " + " + i + ": ";
-      if (failing_columns == 0) {
-        sentence += "accurate at every setting and value tried.";
+      if (measured_columns == 0) {
+        sentence += "no reference at any value tried, so nothing was measured.";
+      } else if (measured_cells == 0) {
+        sentence += "not run at any value with a reference, so nothing was measured (" + where.str() +
+                    "; the notes say why).";
+      } else if (failing_cells == 0) {
+        sentence += measured_columns == m.columns.size()
+                        ? "accurate at every setting and value tried."
+                        : "accurate at every setting tried at the " + std::to_string(measured_columns) +
+                              " value" + (measured_columns == 1 ? "" : "s") +
+                              " with a reference (" + where.str() + ").";
       } else {
-        // The most severe way it fails (diverged, singular, too costly, drift, inaccurate).
-        StabilityClass most = StabilityClass::Inaccurate;
-        for (StabilityClass c : {StabilityClass::Drift, StabilityClass::TooCostly,
-                                 StabilityClass::Singular, StabilityClass::Diverged})
-          if (how.count(c)) most = c;
-        sentence += where.str() + ". Fails mostly as " + class_name(most) +
-                    (h_lambda_note.empty() ? "" : " (" + h_lambda_note + ")") +
-                    ". Remedy: " + remedy(most, fixed, e, i) + ".";
+        // Each way it fails, counted over the measured cells, most severe first.
+        std::string counts;
+        std::vector<StabilityClass> present;
+        for (StabilityClass c : {StabilityClass::Diverged, StabilityClass::Singular,
+                                 StabilityClass::TooCostly, StabilityClass::Drift,
+                                 StabilityClass::Inaccurate})
+          if (how.count(c)) {
+            present.push_back(c);
+            counts += (counts.empty() ? "" : ", ") + std::to_string(how[c]) + " " + class_name(c);
+          }
+        sentence += where.str() + ". Fails in " + std::to_string(failing_cells) + " of " +
+                    std::to_string(measured_cells) + " measured cells: " + counts;
+        if (std::isfinite(ev.first_diverging_h_lambda))
+          sentence += " (first diverging step has h |lambda|max = " + g3(ev.first_diverging_h_lambda) + ")";
+        sentence += ". Remedy: ";
+        for (std::size_t k = 0; k < present.size(); ++k)
+          sentence += (k ? "; " : "") +
+                      (present.size() > 1 ? std::string(class_name(present[k])) + ": " : std::string()) +
+                      remedy(present[k], ev);
+        sentence += ".";
       }
       out.push_back(sentence);
     }

@@ -10,8 +10,14 @@
 // accuracy limit rather than the study's 1e-11), the same error metric
 // (history error: max over quantities and output times of |x - r| / the quantity's scale).
 //
+// The reference runs have their own time budget (StabilityOptions::reference_timeout, default
+// 600 s each, `--reference-timeout`), independent of the per-run `--timeout`: a tiny --timeout
+// makes cells too costly, never a whole column "no reference"; the map's notes say so.
+//
 // The classes (classify(); first match wins):
-//   no reference  the reference could not be made at this value (the study refused it)
+//   no reference  the reference could not be made at this value (the study refused it): such a
+//                 column is a finding of its own, with the study's reason; its cells ('?') count
+//                 in no class and get no remedy
 //   singular      the run stopped at an Euler-angle singularity or gimbal lock (lagrange without
 //                 re-charting)
 //   too costly    the run hit the step limit or the time limit
@@ -158,6 +164,8 @@ struct StabilityOptions {
   double drift_limit = 1e-6;
   std::optional<long> max_steps = 200000;
   double timeout = 20;                   // per run, s
+  // Each reference run's own budget, s (0: none), independent of `timeout` (StudyOptions).
+  double reference_timeout = 600;
   ProgressLine* progress = nullptr;
 };
 

@@ -33,6 +33,7 @@ struct StabilityCliOptions {
   double drift_limit = 1e-6;
   long max_steps = 200000;
   double timeout = 20;
+  double reference_timeout = 600;
   std::optional<double> duration;
   std::vector<std::string> settings;
   std::string report, csv;
@@ -91,6 +92,9 @@ int stability(const StabilityCliOptions& o) {
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: none)");
   options.timeout = o.timeout;
+  if (!(o.reference_timeout >= 0) || !std::isfinite(o.reference_timeout))
+    throw InputError("--reference-timeout: must be a finite number of seconds >= 0 (0: none)");
+  options.reference_timeout = o.reference_timeout;
   const bool sharded = !o.shard.empty() || !o.part.empty();
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
   if (sharded) {
@@ -178,6 +182,7 @@ int stability(const StabilityCliOptions& o) {
       {"--drift-limit", harness::shortest_text(o.drift_limit)},
       {"--max-steps", std::to_string(o.max_steps)},
       {"--timeout", harness::shortest_text(o.timeout)},
+      {"--reference-timeout", harness::shortest_text(o.reference_timeout)},
       {"--duration", o.duration ? harness::shortest_text(*o.duration) : "(scene's)"},
       {"--set", [&o] {
          std::string all;
@@ -238,6 +243,9 @@ void add_stability_command(CLI::App& app, int& exit_code) {
   sub->add_option("--drift-limit", o->drift_limit, "Relative H or E drift counted as drift (default 1e-6)");
   sub->add_option("--max-steps", o->max_steps, "Per run: too costly after N steps (default 200000)");
   sub->add_option("--timeout", o->timeout, "Per run: too costly after SECONDS (default 20; 0: none)");
+  sub->add_option("--reference-timeout", o->reference_timeout,
+                  "Each reference run's own budget, SECONDS (default 600; 0: none), independent of "
+                  "--timeout; a reference still not made is a finding with its reason");
   sub->add_option("--duration", o->duration, "Run every cell for T s instead of the scene's duration");
   sub->add_option("--set", o->settings,
                   "KNOB=VALUE: set another scene parameter before the sweep (repeatable), e.g. "

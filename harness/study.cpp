@@ -438,12 +438,18 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
         if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
         const std::string label = run_label(spec.label, integ, options.reference_tolerance);
         progress.show(system.name + ": reference run " + label, true);
-        TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs, options.timeout,
-                               pinned, times.size());
-        if (r.result.failure)
+        TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs,
+                               options.reference_timeout, pinned, times.size());
+        if (r.result.failure) {
+          const std::string why = r.result.failure->what();
           throw StudyRefused(system.file + ": no reference: the reference run " + label +
-                                 " failed: " + r.result.failure->what(),
+                                 " failed: " + why +
+                                 (why.find("timed out") != std::string::npos
+                                      ? " (the reference runs' own time budget, not the per-run "
+                                        "timeout)"
+                                      : ""),
                              kExitRunFailed);
+        }
         s.reference.runs.push_back(label);
         runs.push_back(std::move(r.history));
       }
@@ -635,6 +641,8 @@ std::string recommendation(const SceneStudy& s, double target, bool history) {
   if (closest)
     out += " (the smallest: " + sci(history ? closest->error.history : closest->error.end, 2) +
            " with " + config_text(*closest) + ")";
+  else
+    out += " (no configuration ran to the end)";
   return out;
 }
 

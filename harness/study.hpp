@@ -28,7 +28,9 @@
 // at the tightest tolerance (1e-13); every pair of these runs must agree to 1e-11 (history error,
 // same metric, scales from the first run) or the study refuses the scene (StudyRefused: which
 // pair, by how much, on which quantity). The reference is then the mean of these runs (attitudes:
-// the mean quaternion, normalised), so no configuration is measured against itself.
+// the mean quaternion, normalised), so no configuration is measured against itself. The
+// reference runs have their own time budget (StudyOptions::reference_timeout, 600 s each),
+// independent of the per-run timeout; a refusal because of it says so.
 //
 // A configuration that fails (step limit, step-size underflow, non-finite state, timeout) is a row
 // with its failure reason, not an abort; an interrupt ends the study (cancel::Cancelled).
@@ -113,6 +115,10 @@ struct StudyOptions {
   double reference_tolerance = 1e-13;
   double reference_agreement = 1e-11;
   std::optional<long> reference_max_steps;  // the reference runs' step limit (empty: max_steps)
+  // Each reference run's own time budget, s of wall-clock time (0: none): independent of the
+  // per-run `timeout`, which is for the configurations (issue 23, class 11: a tiny --timeout
+  // must not leave the study without a reference).
+  double reference_timeout = 600;
   bool use_analytic = true;
   ProgressLine* progress = nullptr;      // optional progress display
 };

@@ -3,6 +3,9 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <sstream>
+#include <fstream>
+#include <limits>
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
@@ -155,4 +158,364 @@ TEST_CASE("converge on the committed pointing_flex scene: two x-plane modes, and
   CHECK(order > 1.8);
   CHECK(order < 2.2);
   CHECK_THAT(table, Catch::Contains("observed order"));
+}
+
+// ---- issue 23, class 7: a re-sliced row is the same physical model ----------------------------
+
+namespace {
+
+const FlexNode& node_of(const System& s, int body, int node) {
+  return s.bodies[static_cast<std::size_t>(body)].flex->nodes[static_cast<std::size_t>(node)];
+}
+
+int body_named(const System& s, const std::string& name) {
+  for (std::size_t b = 0; b < s.bodies.size(); ++b)
+    if (s.bodies[b].name == name) return static_cast<int>(b);
+  return -1;
+}
+
+// The attachment of joint `j` on body `b` (its parent or child side).
+struct Side {
+  int node;
+  Eigen::Vector3d point;
+};
+Side side_of(const System& s, std::size_t j, int b) {
+  const Joint& J = s.joints[j];
+  return J.parent == b ? Side{J.parent_node, J.p_PoJ_P} : Side{J.child_node, J.p_CoJ_C};
+}
+
+// A hub with two beams, every kind of attachment: `boom` (free-free, unit modal mass) hangs from
+// the hub by its slice node slice3 (child side, spherical) and carries a payload at slice7
+// (parent side, revolute) and one by a point between its nodes (parent_point, fixed); `mast`
+// (clamped at its root, geometric stiffening) is welded to the hub at `bottom` (child side) and
+// carries a tip mass at `top` and a second one at slice4 (parent side, both revolute), and a
+// third joint at slice4 too (one node, two joints).
+constexpr const char* kAttachments = R"(
+name: attachments
+bodies:
+  - {name: hub, mass: 100, inertia: [10, 10, 10]}
+  - name: boom
+    flexible:
+      beam: {length: 4, axis: x, mass_per_length: 5, section: [0, 0.1, 0.1],
+             bending: {y: {modes: 2, EI: 300}, z: {modes: 1, EI: 200}}, slices: 12,
+             normalisation: mass, damping: {ratios: [0.01]}}
+  - {name: pay1, mass: 1, inertia: [0.01, 0.01, 0.01]}
+  - {name: pay2, mass: 1, inertia: [0.01, 0.01, 0.01]}
+  - name: mast
+    flexible:
+      beam: {length: 3, axis: z, mass_per_length: 4, section: [0.1, 0.1, 0],
+             bending: {x: {modes: 2, EI: 400}}, boundary: clamped-bottom, slices: 12,
+             geometric_stiffening: true}
+  - {name: tip, mass: 0.5, inertia: [0.01, 0.01, 0.01]}
+  - {name: mid, mass: 0.5, inertia: [0.01, 0.01, 0.01]}
+  - {name: mid2, mass: 0.5, inertia: [0.01, 0.01, 0.01]}
+joints:
+  - {name: base, type: free, child: hub, initial: {angular_velocity: [0.01, 0.02, 0.03]}}
+  - {name: hang, type: spherical, parent: hub, parent_point: [1, 0, 0], child: boom,
+     child_node: slice3}
+  - {name: p1, type: revolute, parent: boom, parent_node: slice7, child: pay1,
+     child_point: [0, -0.2, 0], axis: [0, 0, 1]}
+  - {name: p2, type: fixed, parent: boom, parent_point: [0.7, 0, 0.05], child: pay2,
+     child_point: [0, 0, -0.1]}
+  - {name: weld, type: fixed, parent: hub, parent_point: [0, 0, 1], child: mast, child_node: bottom}
+  - {name: t1, type: revolute, parent: mast, parent_node: top, child: tip, child_point: [0, 0, -0.1],
+     axis: [1, 0, 0]}
+  - {name: m1, type: revolute, parent: mast, parent_node: slice4, child: mid,
+     child_point: [-0.1, 0, 0], axis: [0, 1, 0]}
+  - {name: m2, type: revolute, parent: mast, parent_node: slice4, child: mid2,
+     child_point: [0.1, 0, 0], axis: [0, 1, 0]}
+run: {duration: 1, output_step: 0.1}
+)";
+
+}  // namespace
+
+TEST_CASE("class 7, converge's re-sliced rows compare the same physical model: every joint at a "
+          "node keeps its point, at half and twice the slices") {
+  struct Case {
+    std::string label;
+    System system;
+  };
+  std::vector<Case> cases;
+  cases.push_back({"free_beam_payload (the issue's example)", read_scene(test::scene_path("free_beam_payload"))});
+  cases.push_back({"pointing_flex (top and bottom)", read_scene(test::scene_path("pointing_flex"))});
+  cases.push_back({"hub_flex_array (root, child side)", read_scene(test::scene_path("hub_flex_array"))});
+  cases.push_back({"attachments (every side and kind)", read_scene_text(kAttachments, "attachments.yaml")});
+  int slice_attachments = 0, end_attachments = 0, point_attachments = 0;
+  for (const Case& c : cases) {
+    const System& s = c.system;
+    for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+      if (!s.bodies[b].flex) continue;
+      const FlexBody& from = *s.bodies[b].flex;
+      const int n = static_cast<int>(from.nodes.size()) - 2;  // slices
+      for (int slices : {n / 2, 2 * n}) {
+        CAPTURE(c.label, s.bodies[b].name, slices);
+        std::vector<std::string> kept;
+        const std::optional<System> r = reslice(s, static_cast<int>(b), slices, &kept);
+        REQUIRE(r);
+        const FlexBody& to = *r->bodies[b].flex;
+        CHECK(static_cast<int>(std::count_if(to.nodes.begin(), to.nodes.end(), [](const FlexNode& x) {
+                return x.mass > 0;
+              })) == slices);
+        // The rigid body is the same; only the lumping of its mass changed.
+        CHECK(std::abs(r->bodies[b].mass - s.bodies[b].mass) <= 1e-12 * s.bodies[b].mass);
+        CHECK((r->bodies[b].I_BBo_B - s.bodies[b].I_BBo_B).norm() <= 1e-12 * s.bodies[b].I_BBo_B.norm());
+        for (std::size_t j = 0; j < s.joints.size(); ++j) {
+          const Joint& J = s.joints[j];
+          for (bool parent : {true, false}) {
+            if ((parent ? J.parent : J.child) != static_cast<int>(b)) continue;
+            CAPTURE(J.name, parent);
+            const Side a = side_of(s, j, static_cast<int>(b));
+            const Side z = side_of(*r, j, static_cast<int>(b));
+            // The same point of the beam, to the bit.
+            CHECK(z.point == a.point);
+            if (a.node < 0) {  // a point between nodes: fixed in the body frame, as before
+              CHECK(z.node == -1);
+              ++point_attachments;
+              continue;
+            }
+            const FlexNode& na = from.nodes[static_cast<std::size_t>(a.node)];
+            const FlexNode& nz = to.nodes[static_cast<std::size_t>(z.node)];
+            CHECK(nz.p_BoNi_B == na.p_BoNi_B);
+            if (na.name == "bottom" || na.name == "top") {
+              CHECK(nz.name == na.name);  // the ends are nodes at any slicing
+              ++end_attachments;
+              continue;
+            }
+            ++slice_attachments;
+            CHECK(nz.name == na.name + "-of-" + std::to_string(n));
+            CHECK(nz.mass == 0);
+            CHECK_THAT(kept.empty() ? std::string() : kept.front(), Catch::Contains("massless node"));
+            bool named = false;
+            for (const std::string& k : kept)
+              named = named || (k.find("joint '" + J.name + "'") != std::string::npos &&
+                                k.find("node " + na.name + " of the " + std::to_string(n)) != std::string::npos);
+            CHECK(named);
+            // The re-sliced beam's own node of that name (if any) is elsewhere: the old defect.
+            const int same_name = to.node_index(na.name);
+            if (same_name >= 0) CHECK(to.nodes[static_cast<std::size_t>(same_name)].p_BoNi_B != na.p_BoNi_B);
+          }
+        }
+        // Two joints at one node share one added node.
+        for (std::size_t j = 0; j + 1 < s.joints.size(); ++j)
+          for (std::size_t k = j + 1; k < s.joints.size(); ++k)
+            if (s.joints[j].parent == static_cast<int>(b) && s.joints[k].parent == static_cast<int>(b) &&
+                s.joints[j].parent_node >= 0 && s.joints[j].parent_node == s.joints[k].parent_node)
+              CHECK(r->joints[j].parent_node == r->joints[k].parent_node);
+      }
+    }
+  }
+  // Each at half and twice the slices: drive; hang, p1, m1, m2.
+  CHECK(slice_attachments == 2 * 5);
+  CHECK(end_attachments > 0);
+  CHECK(point_attachments >= 2);  // p2 (and the free joints' unused child points)
+}
+
+TEST_CASE("class 7, the added node carries the continuous beam's shape, slope and foreshortening "
+          "at that point: equal to the native node of a beam sliced three times finer") {
+  // A slice centre of N slices is the centre of slice 3i - 1 of 3N slices: there the generator's
+  // own node and the added node must agree (unit top displacement, unit modal mass, clamped with
+  // geometric stiffening).
+  struct Case {
+    System system;
+    std::string body, joint;
+  };
+  const System attach = read_scene_text(kAttachments, "attachments.yaml");
+  const std::vector<Case> cases = {
+      {read_scene(test::scene_path("free_beam_payload")), "boom", "drive"},
+      {attach, "boom", "hang"},
+      {attach, "boom", "p1"},
+      {attach, "mast", "m1"},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.body, c.joint);
+    const int b = body_named(c.system, c.body);
+    REQUIRE(b >= 0);
+    const FlexBody& from = *c.system.bodies[static_cast<std::size_t>(b)].flex;
+    const int n = static_cast<int>(from.nodes.size()) - 2;
+    std::size_t j = 0;
+    while (c.system.joints[j].name != c.joint) ++j;
+    const int i = side_of(c.system, j, b).node;  // slice i is node i
+    const std::optional<System> r = reslice(c.system, b, 3 * n);
+    REQUIRE(r);
+    const FlexNode& added = node_of(*r, b, side_of(*r, j, b).node);
+    const FlexNode& native = node_of(*r, b, 3 * i - 1);
+    CHECK(native.name == "slice" + std::to_string(3 * i - 1));
+    CHECK((native.p_BoNi_B - added.p_BoNi_B).norm() <= 1e-15 * 4);
+    const double scale = native.Phi_B.cwiseAbs().maxCoeff() + native.Psi_B.cwiseAbs().maxCoeff();
+    CHECK((native.Phi_B - added.Phi_B).cwiseAbs().maxCoeff() <= 1e-12 * scale);
+    CHECK((native.Psi_B - added.Psi_B).cwiseAbs().maxCoeff() <= 1e-12 * scale);
+    CHECK(native.G.size() == added.G.size());
+    if (native.G.size() > 0)
+      CHECK((native.G - added.G).cwiseAbs().maxCoeff() <= 1e-12 * (1 + native.G.cwiseAbs().maxCoeff()));
+  }
+}
+
+TEST_CASE("class 7, a re-sliced row the beam generator refuses is a note with the reason, without "
+          "a location in text the user never wrote") {
+  std::ifstream in(test::scene_path("free_beam_payload"));
+  std::stringstream text;
+  text << in.rdbuf();
+  std::string t = text.str();
+  t.replace(t.find("slices: 60"), 10, "slices: 8");
+  t.replace(t.find("parent_node: slice30"), 20, "parent_node: slice4");
+  System s = read_scene_text(t, "eight.yaml");
+  s.run.duration = 0.5;
+  CompareOptions o;
+  o.engines = {{"kane", "kane", {}}};
+  std::vector<ConvergeJob> jobs;
+  const ConvergeResult r = converge_frame(s, o, &jobs);
+  const ConvergeModel full = converge_full_model(s, r, o);
+  int refused = 0, made = 0;
+  for (const ConvergeJob& job : jobs) {
+    if (job.slices == 0) continue;
+    std::string note;
+    const std::optional<ConvergeModel> m = converge_job(s, r, job, full.run, o, &note);
+    CAPTURE(job.slices, note);
+    if (job.slices == 4) {
+      ++refused;
+      CHECK_FALSE(m);
+      CHECK(note == "boom with 4 slices: not run (the beam generator refuses it: slices: 4 slices "
+                    "cannot resolve mode 3 (about 4 half-waves): use at least 8)");
+    } else {
+      ++made;
+      REQUIRE(m);
+      CHECK_THAT(note, Catch::Contains("joint 'drive' (parent side) stays at node slice4 of the "
+                                       "8-slice beam, at (-0.25, 0, 0) m, a massless node of the "
+                                       "16-slice beam (slice4-of-8)"));
+    }
+  }
+  CHECK(refused == 1);
+  CHECK(made == 1);
+}
+
+TEST_CASE("class 7, converge on the issue's example: the slicing rows measure the discretisation "
+          "alone, and its observed order is the midpoint rule's 2") {
+  System s = read_scene(test::scene_path("free_beam_payload"));
+  s.run.duration = 2.0;
+  CompareOptions o;
+  o.engines = {{"kane", "kane", {}}};
+  std::vector<ConvergeJob> jobs;
+  ConvergeResult r = converge_frame(s, o, &jobs);
+  r.models.push_back(converge_full_model(s, r, o));
+  for (const ConvergeJob& job : jobs) {
+    if (job.slices == 0) continue;
+    std::string note;
+    std::optional<ConvergeModel> m = converge_job(s, r, job, r.models.front().run, o, &note);
+    REQUIRE(m);
+    r.models.push_back(std::move(*m));
+    CHECK_THAT(note, Catch::Contains("joint 'drive'") && Catch::Contains("slice30 of the 60-slice beam"));
+    r.notes.push_back(note);
+  }
+  converge_finish(r);
+  const std::string table = format_converge(r);
+  INFO(table);
+  REQUIRE(r.models.size() == 3);
+  CHECK(r.models[1].slices == 30);
+  CHECK(r.models[2].slices == 120);
+  // The joint no longer moves: the changes are those of the mass lumping (the moved joint gave
+  // 1.5e9 times the tolerance).
+  CHECK(r.models[1].worst_normalised < 1e7);
+  const double order = std::log2(r.models[1].worst_normalised / r.models[2].worst_normalised);
+  CHECK(order > 1.8);
+  CHECK(order < 2.2);
+  CHECK_THAT(table, Catch::Contains("massless node"));
+  const std::size_t at = table.find("(observed order ");
+  REQUIRE(at != std::string::npos);
+  const double printed = std::stod(table.substr(at + 16));
+  CHECK(printed > 1.8);
+  CHECK(printed < 2.2);
+}
+
+TEST_CASE("class 11, converge's sentences follow from its rows: the order on one quantity, a "
+          "failed re-sliced run said as such") {
+  auto check = [](const std::string& q, double normalised) {
+    Check k;
+    k.quantity = q;
+    k.b = "x";
+    k.normalised = normalised;
+    return k;
+  };
+  ConvergeResult r;
+  r.scene = "s";
+  r.engine = "kane";
+  ConvergeModel full;
+  full.full = true;
+  full.label = "beam qx2 (full)";
+  full.modes = 2;
+  full.passed = true;
+  ConvergeModel coarse = full, fine = full;
+  coarse.full = fine.full = false;
+  coarse.passed = fine.passed = false;
+  coarse.slices = 25;
+  fine.slices = 100;
+  coarse.slice_body = fine.slice_body = 0;
+  coarse.label = "beam qx2, beam 25 slices";
+  fine.label = "beam qx2, beam 100 slices";
+  // The coarse row's largest change is in a.wx (400); the fine row's largest is elsewhere (b.wx
+  // 300), and a.wx changed 25 there: the order is measured on a.wx, 400 / 25 = 16 per doubling.
+  coarse.checks = {check("a.wx", 400), check("b.wx", 100)};
+  coarse.worst_normalised = 400;
+  coarse.worst_quantity = "a.wx";
+  fine.checks = {check("a.wx", 25), check("b.wx", 300)};
+  fine.worst_normalised = 300;
+  fine.worst_quantity = "b.wx";
+  r.models = {full, coarse, fine};
+  converge_finish(r);
+  std::string text = format_converge(r);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("slicing order of beam: the change in a.wx falls 16.00 times per "
+                                   "doubling of the slices (observed order 4.00)"));
+  // A re-sliced run that failed: said so, and no order from it.
+  r.models[2].checks.clear();
+  r.models[2].worst_normalised = std::numeric_limits<double>::infinity();
+  r.models[2].worst_quantity = "run: kane: non-finite state at t = 0.5 s";
+  text = format_converge(r);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("slicing: beam with 100 slices: the run did not reach the end "
+                                   "(kane: non-finite state at t = 0.5 s), so nothing was compared"));
+  CHECK_THAT(text, !Catch::Contains("observed order") && !Catch::Contains("100 slices: the answer"));
+  CHECK_THAT(text, Catch::Contains("RUN FAILED"));
+  // Odd slices (25: rows of 12 and 50): not half and twice, so no order is claimed.
+  r.models[1].slices = 12;
+  r.models[2] = coarse;
+  r.models[2].slices = 50;
+  text = format_converge(r);
+  INFO(text);
+  CHECK_THAT(text, Catch::Contains("slicing order of beam: not measured (12 and 50 slices are not "
+                                   "half and twice the scene's: its slices are odd)"));
+  CHECK_THAT(text, !Catch::Contains("observed order"));
+}
+
+TEST_CASE("converge: truncating a geometrically stiffened beam keeps the kept modes' rows and "
+          "columns of every node's G, and none with no modes (spinup_beam)") {
+  const System full = read_scene(test::scene_path("spinup_beam"));
+  const std::vector<ModeGroup> g = mode_groups(full);
+  REQUIRE(g.size() == 1);
+  const int b = g[0].body;
+  const FlexBody& ff = *full.bodies[static_cast<std::size_t>(b)].flex;
+  REQUIRE(ff.geometric_stiffening);
+  for (int keep = 0; keep <= static_cast<int>(g[0].modes.size()); ++keep) {
+    CAPTURE(keep);
+    const System cut = truncate_modes(full, g, {keep});
+    const FlexBody& fc = *cut.bodies[static_cast<std::size_t>(b)].flex;
+    CHECK(fc.geometric_stiffening == (keep > 0));
+    for (std::size_t i = 0; i < fc.nodes.size(); ++i) {
+      if (keep == 0) {
+        CHECK(fc.nodes[i].G.size() == 0);
+        continue;
+      }
+      REQUIRE(fc.nodes[i].G.rows() == keep);
+      REQUIRE(fc.nodes[i].G.cols() == keep);
+      CHECK(fc.nodes[i].G == ff.nodes[i].G.topLeftCorner(keep, keep));
+    }
+    // Every engine takes the truncated model (0 modes used to reach an engine with a full-size G).
+    for (const std::string& engine : engine_names()) {
+      CAPTURE(engine);
+      auto e = make_engine(engine, cut);
+      std::vector<double> x(static_cast<std::size_t>(e->state_size())), xdot(x.size());
+      e->pack(TreeState::initial(cut), x.data());
+      e->rhs(0.5, x.data(), xdot.data());
+      CHECK(std::all_of(xdot.begin(), xdot.end(), [](double v) { return std::isfinite(v); }));
+    }
+  }
 }

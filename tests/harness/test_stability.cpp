@@ -213,12 +213,259 @@ TEST_CASE("stability: the findings group neighbouring values with the same outco
   REQUIRE(f.size() == 2);
   CHECK(f[0] ==
         "kane + dop853: base.wx 0.1 ... 0 rad/s (5 values): accurate up to rtol 1e-09, else "
-        "inaccurate. Fails mostly as inaccurate. Remedy: a tighter tolerance.");
-  CHECK(f[1].rfind("lagrange + dop853: base.wx 0.1 ... 0.01 rad/s (2 values): accurate up to rtol "
-                   "1e-09, else inaccurate; base.wx 0.001 rad/s: never accurate, else singular; "
-                   "base.wx 0.0001 ... 0 rad/s (2 values): accurate up to rtol 1e-09, else "
-                   "inaccurate. Fails mostly as singular.",
-                   0) == 0);
+        "inaccurate. Fails in 5 of 10 measured cells: 5 inaccurate. Remedy: a tighter tolerance: "
+        "rtol 1e-09 or less was accurate wherever it was inaccurate.");
+  CHECK(f[1] ==
+        "lagrange + dop853: base.wx 0.1 ... 0.01 rad/s (2 values): accurate up to rtol 1e-09, else "
+        "inaccurate; base.wx 0.001 rad/s: never accurate, else singular; base.wx 0.0001 ... 0 "
+        "rad/s (2 values): accurate up to rtol 1e-09, else inaccurate. Fails in 6 of 10 measured "
+        "cells: 2 singular, 4 inaccurate. Remedy: singular: turn Euler-angle re-charting on "
+        "(lagrange's default) or use an engine with quaternions (kane, newton-euler); inaccurate: "
+        "a tighter tolerance: rtol 1e-09 or less was accurate wherever it was inaccurate.");
+}
+
+namespace {
+
+// A hand-made map: one engine (kane) and integrator per call, columns x settings of classes.
+struct HandCell {
+  std::size_t column;
+  double setting;
+  StabilityClass cls;
+  std::string why = "";
+  double h_lambda = std::numeric_limits<double>::quiet_NaN();
+};
+
+StabilityMap hand_map(const std::vector<bool>& reference, const std::string& integrator,
+                      const std::vector<HandCell>& cells) {
+  StabilityMap m;
+  m.knob.spec = "hinge.stiffness";
+  m.knob.unit = "N m/rad";
+  m.engines = {"kane"};
+  m.integrators = {integrator};
+  for (std::size_t c = 0; c < reference.size(); ++c) {
+    StabilityColumn col;
+    col.value = std::pow(10.0, static_cast<double>(c));
+    col.reference = reference[c];
+    col.reference_note = reference[c] ? "the mean of 6 runs"
+                                      : "s.yaml: no reference: the reference run kane + rkf78 at "
+                                        "1e-13 failed: timed out after 600 s (the reference runs' "
+                                        "own time budget, not the per-run timeout)";
+    m.columns.push_back(col);
+  }
+  for (const HandCell& h : cells) {
+    StabilityCell c;
+    c.engine = "kane";
+    c.integrator = integrator;
+    c.fixed_step = integrator == "rk4";
+    c.setting = h.setting;
+    c.column = h.column;
+    c.result.cls = m.columns[h.column].reference ? h.cls : StabilityClass::NoReference;
+    c.result.why = h.why;
+    c.h_lambda = h.h_lambda;
+    m.cells.push_back(c);
+  }
+  return m;
+}
+
+// Every cell of `classes` (per column) at settings 1e-3 (coarse) and 1e-9 (fine).
+std::vector<HandCell> two_settings(const std::vector<std::pair<StabilityClass, StabilityClass>>& classes,
+                                   const std::string& why = "") {
+  std::vector<HandCell> out;
+  for (std::size_t c = 0; c < classes.size(); ++c) {
+    out.push_back({c, 1e-3, classes[c].first, why});
+    out.push_back({c, 1e-9, classes[c].second, why});
+  }
+  return out;
+}
+
+std::string joined(const std::vector<std::string>& f) {
+  std::string all;
+  for (const std::string& x : f) all += x + "\n";
+  return all;
+}
+
+}  // namespace
+
+TEST_CASE("class 11, findings say what happened: no-reference columns are a finding with their "
+          "reason, never a failure class, and get no remedy") {
+  using C = StabilityClass;
+  const C A = C::Accurate, I = C::Inaccurate, Q = C::NoReference;
+  SECTION("no reference anywhere") {
+    const StabilityMap m = hand_map({false, false, false}, "dop853", two_settings({{Q, Q}, {Q, Q}, {Q, Q}}));
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    REQUIRE(f.size() == 2);
+    CHECK(f[0] == "No reference at hinge.stiffness 1 ... 100 N m/rad (3 values): the reference run "
+                  "kane + rkf78 at 1e-13 failed: timed out after 600 s (the reference runs' own time "
+                  "budget, not the per-run timeout). The cells there ('?') measure nothing: they "
+                  "count in no class below and have no remedy.");
+    CHECK(f[1] == "kane + dop853: no reference at any value tried, so nothing was measured.");
+    CHECK(joined(f).find("Remedy") == std::string::npos);
+    CHECK(joined(f).find("inaccurate") == std::string::npos);
+  }
+  SECTION("no reference at one value, accurate at the others") {
+    const StabilityMap m = hand_map({true, false, true}, "dop853", two_settings({{A, A}, {Q, Q}, {A, A}}));
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    REQUIRE(f.size() == 2);
+    CHECK(f[0].rfind("No reference at hinge.stiffness 10 N m/rad: the reference run", 0) == 0);
+    CHECK(f[1] == "kane + dop853: accurate at every setting tried at the 2 values with a reference "
+                  "(hinge.stiffness 1 N m/rad: accurate up to rtol 0.001; hinge.stiffness 10 N "
+                  "m/rad: no reference; hinge.stiffness 100 N m/rad: accurate up to rtol 0.001).");
+    CHECK(joined(f).find("Remedy") == std::string::npos);
+  }
+  SECTION("no reference at one value, inaccurate at a coarse setting elsewhere: counted over the "
+          "measured cells only") {
+    const StabilityMap m = hand_map({false, true, true}, "dop853", two_settings({{Q, Q}, {I, A}, {I, A}}));
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    REQUIRE(f.size() == 2);
+    CHECK(f[1] == "kane + dop853: hinge.stiffness 1 N m/rad: no reference; hinge.stiffness 10 ... "
+                  "100 N m/rad (2 values): accurate up to rtol 1e-09, else inaccurate. Fails in 2 "
+                  "of 4 measured cells: 2 inaccurate. Remedy: a tighter tolerance: rtol 1e-09 or "
+                  "less was accurate wherever it was inaccurate.");
+  }
+  SECTION("an engine left out at the values with a reference: not run, not accurate") {
+    StabilityMap m = hand_map({false, true}, "dop853", {{0, 1e-3, Q}, {0, 1e-9, Q}});
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    REQUIRE(f.size() == 2);
+    CHECK(f[1] == "kane + dop853: not run at any value with a reference, so nothing was measured "
+                  "(hinge.stiffness 1 N m/rad: no reference; hinge.stiffness 10 N m/rad: not run; "
+                  "the notes say why).");
+    // Run at one value with a reference, left out at another: that value is "not run".
+    m = hand_map({true, true}, "dop853", {{0, 1e-3, I}, {0, 1e-9, A}});
+    const std::vector<std::string> g = stability_findings(m);
+    INFO(joined(g));
+    REQUIRE(g.size() == 1);
+    CHECK_THAT(g[0], Catch::Contains("hinge.stiffness 10 N m/rad: not run.") &&
+                         Catch::Contains("Fails in 1 of 2 measured cells: 1 inaccurate"));
+  }
+  SECTION("two reasons, said per value range") {
+    StabilityMap m = hand_map({false, false, true}, "dop853", two_settings({{Q, Q}, {Q, Q}, {A, A}}));
+    m.columns[1].reference_note = "s.yaml: no reference: the engines do not agree at the tightest settings";
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    CHECK(f[0].rfind("No reference at hinge.stiffness 1 N m/rad: the reference run kane + rkf78 at "
+                     "1e-13 failed: timed out after 600 s",
+                     0) == 0);
+    CHECK_THAT(f[0], Catch::Contains("; at hinge.stiffness 10 N m/rad: the engines do not agree at the "
+                                     "tightest settings. The cells there"));
+  }
+}
+
+TEST_CASE("class 11, findings say what happened: every failure class and combination counted, "
+          "each with the remedy its cells support") {
+  using C = StabilityClass;
+  const C A = C::Accurate, I = C::Inaccurate, Q = C::NoReference, D = C::Drift, X = C::Diverged,
+          S = C::Singular, T = C::TooCostly;
+  struct Case {
+    const char* label;
+    std::vector<bool> reference;
+    const char* integrator;
+    std::vector<HandCell> cells;
+    const char* counts;                 // "Fails in ...: ..."
+    std::vector<const char*> remedies;  // each must appear
+    std::vector<const char*> absent;    // none may appear
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<Case> cases = {
+      {"inaccurate, never accurate at one value", {true, true}, "dop853",
+       two_settings({{I, A}, {I, I}}), "Fails in 3 of 4 measured cells: 3 inaccurate.",
+       {"a tighter tolerance than any tried, or another method: no setting tried was accurate at "
+        "hinge.stiffness 10 N m/rad"},
+       {"or less was accurate"}},
+      {"rk4 diverged beyond its stability limit", {true}, "rk4",
+       {{0, 0.1, X, "non-finite state", 3.5}, {0, 0.01, A, "", 0.35}},
+       "Fails in 1 of 2 measured cells: 1 diverged (first diverging step has h |lambda|max = 3.5).",
+       {"take h |lambda|max below 2.8"}, {"inaccurate", "; "}},
+      {"rk4 diverged inside its stability region", {true}, "rk4",
+       {{0, 0.1, X, "non-finite state", 1.5}, {0, 0.01, A, "", 0.15}},
+       "Fails in 1 of 2 measured cells: 1 diverged", {"a shorter step, or an adaptive method"},
+       {"below 2.8 (rk4's"}},
+      {"adaptive diverged", {true}, "dopri5", two_settings({{X, A}}),
+       "Fails in 1 of 2 measured cells: 1 diverged.", {"tighten the tolerance"}, {"h |lambda|"}},
+      {"singular", {true}, "dopri5", two_settings({{S, S}}), "Fails in 2 of 2 measured cells: 2 singular.",
+       {"re-charting"}, {"tolerance"}},
+      {"too costly by the time limit", {true}, "dop853",
+       two_settings({{A, T}}, "timed out after 0.001 s"),
+       "Fails in 1 of 2 measured cells: 1 too costly.",
+       {"allow each run more time (--timeout: every too costly run here was stopped by it)"},
+       {"--max-steps", "is stiff", "cvode-bdf"}},
+      {"too costly by the step limit, adaptive", {true}, "dop853",
+       two_settings({{A, T}}, "step limit 200000 reached"),
+       "Fails in 1 of 2 measured cells: 1 too costly.", {"implicit cvode-bdf", "(--max-steps)"},
+       {"--timeout"}},
+      {"too costly by the step limit, rk4", {true}, "rk4",
+       {{0, 0.1, A, "", nan}, {0, 1e-6, T, "step limit 200000 reached", nan}},
+       "Fails in 1 of 2 measured cells: 1 too costly.", {"a longer step", "(--max-steps)"},
+       {"--timeout", "cvode-bdf"}},
+      {"drift", {true}, "dopri5", two_settings({{D, A}}), "Fails in 1 of 2 measured cells: 1 drift.",
+       {"tighten the tolerance"}, {"inaccurate", "projection"}},
+      {"drift, rk4", {true}, "rk4", {{0, 0.1, D}, {0, 0.01, A}}, "Fails in 1 of 2 measured cells: 1 drift.",
+       {"a shorter step"}, {"tolerance"}},
+      {"every class at once, and a value without a reference", {true, true, true, false}, "dopri5",
+       {{0, 1e-3, X}, {0, 1e-9, A}, {1, 1e-3, S}, {1, 1e-9, S}, {2, 1e-3, T, "timed out after 1 s"},
+        {2, 1e-6, D}, {2, 1e-9, I}, {2, 1e-12, A}, {3, 1e-3, Q}, {3, 1e-9, Q}},
+       "Fails in 6 of 8 measured cells: 1 diverged, 2 singular, 1 too costly, 1 drift, 1 inaccurate.",
+       {"diverged: tighten the tolerance", "singular: turn Euler-angle", "too costly: allow each run more time (--timeout",
+        "drift: tighten the tolerance", "inaccurate: a tighter tolerance: rtol 1e-12 or less was accurate"},
+       {"no reference:", "Fails mostly"}},
+  };
+  for (const Case& c : cases) {
+    CAPTURE(c.label);
+    const StabilityMap m = hand_map(c.reference, c.integrator, c.cells);
+    const std::vector<std::string> f = stability_findings(m);
+    INFO(joined(f));
+    const std::string& mine = f.back();
+    CHECK_THAT(mine, Catch::Contains(c.counts));
+    for (const char* r : c.remedies) CHECK_THAT(mine, Catch::Contains(r));
+    for (const char* r : c.absent) CHECK_THAT(mine, !Catch::Contains(r));
+    const bool any_missing = std::find(c.reference.begin(), c.reference.end(), false) != c.reference.end();
+    CHECK((f.size() == 2) == any_missing);  // the no-reference finding exactly when a value has none
+  }
+}
+
+TEST_CASE("class 11, the reference runs have their own budget: a tiny --timeout makes cells too "
+          "costly, never the reference; a reference that still cannot be made is a finding with "
+          "its reason") {
+  const std::string common =
+      "stability chain_motor --vary duration --values 5 --engines kane --integrators dopri5 "
+      "--tolerances 1e-6 -q";
+  test::ProgramResult r = test::run_crossdyn(common + " --timeout 1e-9");
+  INFO(r.output);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.output, !Catch::Contains("No reference") && !Catch::Contains("no reference at any"));
+  CHECK_THAT(r.output, Catch::Contains("1 too costly") &&
+                           Catch::Contains("allow each run more time (--timeout: every too costly run"));
+  CHECK_THAT(r.output, !Catch::Contains("is stiff"));
+  CHECK_THAT(r.output, Catch::Contains("note: the reference runs had their own time budget, 600 s "
+                                       "each (--reference-timeout), independent of the per-run "
+                                       "--timeout (1e-09 s)"));
+  r = test::run_crossdyn(common + " --reference-timeout 1e-9");
+  INFO(r.output);
+  REQUIRE(r.status == 0);
+  CHECK_THAT(r.output, Catch::Contains("No reference at duration 5 s: the reference run") &&
+                           Catch::Contains("timed out") &&
+                           Catch::Contains("(the reference runs' own time budget, not the per-run timeout)"));
+  CHECK_THAT(r.output, Catch::Contains("kane + dopri5: no reference at any value tried, so nothing "
+                                       "was measured."));
+  CHECK_THAT(r.output, !Catch::Contains("Remedy") && !Catch::Contains("inaccurate."));
+  // Each '?' cell of the CSV carries the reason too.
+  const std::string csv = std::filesystem::temp_directory_path().string() + "/crossdyn_class11_" +
+                          std::to_string(::getpid()) + ".csv";
+  r = test::run_crossdyn(common + " --reference-timeout 1e-9 --csv '" + csv + "'");
+  REQUIRE(r.status == 0);
+  std::ifstream in(csv);
+  std::stringstream text;
+  text << in.rdbuf();
+  std::filesystem::remove(csv);
+  CHECK_THAT(text.str(), Catch::Contains(",no reference,\"no reference at this parameter value (the "
+                                         "reference run ") &&
+                             Catch::Contains("timed out"));
+  r = test::run_crossdyn(common + " --reference-timeout -1");
+  CHECK(r.status == 2);
+  CHECK_THAT(r.output, Catch::Contains("--reference-timeout: must be a finite number of seconds"));
 }
 
 TEST_CASE("stability: bad arguments exit 2, a tiny map writes its table, CSV and report") {

@@ -188,6 +188,15 @@ TEST_CASE("study: the Pareto front of hand-made points") {
         "for 1e-08 end-state error on hand use e3 + dopri5 at rtol 1e-06: 5 ms of integration CPU "
         "(end-state error 1.0e-09, 0 right-hand sides)");
   CHECK(recommendation(st, 1e-10).find("no configuration reached") == 0);
+  CHECK(recommendation(st, 1e-10).find("(the smallest: 1.0e-09 with e3 + dopri5") != std::string::npos);
+  // Class 11 (issue 23): a recommendation says what happened: when every run failed, not a
+  // "smallest error" that no run has.
+  for (StudyRow& r : st.rows) {
+    r.ok = false;
+    r.failure = "timed out after 1 s";
+  }
+  CHECK(recommendation(st, 1e-8) ==
+        "no configuration reached 1e-08 end-state error on hand (no configuration ran to the end)");
 }
 
 TEST_CASE("study: the fitted exponent uses the upper half of N") {
