@@ -95,16 +95,17 @@ TEST_CASE("class 1, an input is never overwritten, whatever names it: every comm
     CHECK(!fs::exists(s.path("ok.json")));
   }
 
-  // Standard output, appended or not, to a data file of the scene.
-  for (const std::string redirect : {">> nodes.csv", "> modes.csv", "1<> nodes.csv"}) {
+  // Standard output appended to, or opened read-write on, an input (a `>` redirection empties
+  // the file in the shell before crossdyn starts: nothing crossdyn can prevent).
+  for (const std::string redirect : {">> nodes.csv", "1<> modes.csv", ">> s.yaml"}) {
     INFO(redirect);
     const Run r = run_in(s.dir(), "run s.yaml -q", redirect);
+    INFO(r.err);
     CHECK(r.status == 2);
-    CHECK(contains(r.err, "the data file of scene"));
+    CHECK(contains(r.err, "standard output is the same file as the"));
     CHECK(read_file(s.path("nodes.csv")) == nodes);
-    // "> modes.csv" empties the file in the shell before crossdyn starts: nothing crossdyn
-    // can help; what matters is that crossdyn writes no rows into it.
-    if (redirect != std::string("> modes.csv")) CHECK(read_file(s.path("modes.csv")) == modes);
+    CHECK(read_file(s.path("modes.csv")) == modes);
+    CHECK(read_file(s.path("s.yaml")) == scene);
   }
 
   // A data file named like the outputs of draw (-o *.png, --geometry *.json).
