@@ -97,15 +97,28 @@ TEST_CASE("class 1, an input is never overwritten, whatever names it: every comm
 
   // Standard output appended to, or opened read-write on, an input (a `>` redirection empties
   // the file in the shell before crossdyn starts: nothing crossdyn can prevent).
-  for (const std::string redirect : {">> nodes.csv", "1<> modes.csv", ">> s.yaml"}) {
-    INFO(redirect);
-    const Run r = run_in(s.dir(), "run s.yaml -q", redirect);
+  const std::vector<std::pair<std::string, std::string>> redirected = {
+      {"run s.yaml -q", ">> nodes.csv"},
+      {"run s.yaml -q", "1<> modes.csv"},
+      {"run s.yaml -q", ">> s.yaml"},
+      {"compare s.yaml -q", ">> nodes.csv"},
+      {"verify s.yaml -q --json ok.json", "1<> modes.csv"},
+      {"converge s.yaml -q", ">> nodes.csv"},
+      {"study s.yaml -q --engines kane --integrators rk4 --dts 0.05", ">> modes.csv"},
+      {"stability s.yaml -q --vary hinge.stiffness --values 10,20", ">> nodes.csv"},
+      {"draw s.yaml --no-motion -o ok.png", ">> s.yaml"},
+  };
+  for (const auto& [args, redirect] : redirected) {
+    INFO(args << " " << redirect);
+    const Run r = run_in(s.dir(), args, redirect);
     INFO(r.err);
     CHECK(r.status == 2);
     CHECK(contains(r.err, "standard output is the same file as the"));
     CHECK(read_file(s.path("nodes.csv")) == nodes);
     CHECK(read_file(s.path("modes.csv")) == modes);
     CHECK(read_file(s.path("s.yaml")) == scene);
+    CHECK(!fs::exists(s.path("ok.json")));
+    CHECK(!fs::exists(s.path("ok.png")));
   }
 
   // A data file named like the outputs of draw (-o *.png, --geometry *.json).
