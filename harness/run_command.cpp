@@ -39,11 +39,11 @@ int run(const RunOptions& o) {
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
-  // The output against every input the scene was read from (nodal data files too); standard
-  // output too when it is a regular file (`>> nodes.csv`).
-  std::vector<NamedPath> outputs{{"standard output", "-"}};
-  if (!to_stdout) outputs.push_back({"--output", o.output});
-  check_outputs_are_not_inputs(outputs, harness::scene_inputs(system));
+  // The output (standard output when the rows go there, e.g. `>> nodes.csv`) against every
+  // input the scene was read from (nodal data files too).
+  check_outputs_are_not_inputs({to_stdout ? NamedPath{"standard output", "-"}
+                                          : NamedPath{"--output", o.output}},
+                               harness::scene_inputs(system));
   IntegratorSettings s = harness::settings_for(system, o.overrides);
   s.keep_rows = false;  // rows stream to the CSV as they are computed; memory stays flat
   EngineOptions eo = o.engine_options;
