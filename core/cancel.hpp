@@ -124,8 +124,8 @@ class HoldForcedExit {
 
 // Test hook (documented in README "Stopping and bounding runs"): when the environment variable
 // CROSSDYN_TEST_INTERRUPT_AT equals `phase`, acts as if Ctrl-C arrived now (request_interrupt).
-// Phases: "before-commit" (every output prepared, none renamed yet), "during-commit" (after the
-// first output was renamed into place).
+// Phases: "report" (a report or drawing script was just started), "before-commit" (every output
+// prepared, none renamed yet), "during-commit" (after the first output was renamed into place).
 void test_interrupt_point(const char* phase);
 
 // Child processes that a forced exit must stop (SIGTERM), for example the report script.

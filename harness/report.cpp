@@ -1,6 +1,7 @@
 // JSON summary, JUnit XML and the HTML report folder (see report.hpp).
 #include "harness/report.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
@@ -496,6 +497,7 @@ void run_python(const std::string& python, const std::vector<std::string>& args)
   if (rc != 0)
     throw InputError("cannot run '" + python + "' for '" + args.at(0) + "': " + std::strerror(rc));
   // Wait, polling the interrupt flag: Ctrl-C ends the script and the command (exit 130).
+  cancel::test_interrupt_point("report");  // test hook: Ctrl-C while the script runs
   int status = 0;
   for (;;) {
     const pid_t done = waitpid(pid, &status, WNOHANG);
