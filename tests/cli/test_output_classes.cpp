@@ -330,3 +330,34 @@ TEST_CASE("class 2, an interrupted command leaves the old outputs or the new, ne
     }
   }
 }
+
+TEST_CASE("class 2, a command that fails (exit 3) replaces none of its outputs") {
+  Scratch s("class2fail");
+  s.write("a.yaml", kSmallScene);
+  struct Case {
+    std::string args;
+    std::vector<std::string> files;
+    std::string report;  // "" or a study report folder
+  };
+  // --max-steps 1: the runs (and study's reference runs, a.yaml has no analytic solution) fail.
+  const std::vector<Case> cases = {
+      {"run a.yaml -q --max-steps 1 --output o.csv", {"o.csv"}, ""},
+      {"study a.yaml -q --engines kane --integrators rk4 --dts 0.05 --repeat 1 --max-steps 1 "
+       "--csv o.csv --report R", {"o.csv"}, "R"},
+  };
+  for (const Case& c : cases) {
+    INFO(c.args);
+    for (const std::string& f : c.files) s.write(f, "OLD " + f);
+    if (!c.report.empty())
+      s.write(c.report + "/study.json", "{\"tool\": \"crossdyn\", \"kind\": \"study\", \"old\": true}\n");
+    const Run r = run_in(s.dir(), c.args);
+    INFO(r.err);
+    CHECK(r.status == 3);
+    for (const std::string& f : c.files) CHECK(read_file(s.path(f)) == "OLD " + f);
+    if (!c.report.empty()) {
+      CHECK(contains(read_file(s.path(c.report + "/study.json")), "\"old\": true"));
+      CHECK(!fs::exists(s.path(c.report + "/index.html")));
+    }
+    CHECK(no_leftovers(s));
+  }
+}
