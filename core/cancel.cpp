@@ -6,6 +6,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fcntl.h>
 #include <mutex>
@@ -37,7 +38,9 @@ long long now_ns() {
 std::atomic<long long> g_signal_ns{0};      // monotonic time of the first signal
 std::atomic<bool> g_forced_exit_armed{false};  // install_signal_handlers() was called
 std::atomic<bool> g_acknowledged{false};
-std::atomic<int> g_wake_fd{-1};              // write end of the watchdog's pipe
+std::atomic<int> g_wake_fd{-1};
+std::atomic<int> g_hold{0};                  // HoldForcedExit objects alive
+std::atomic<bool> g_exit_pending{false};     // a forced exit waited for the hold to end              // write end of the watchdog's pipe
 char g_message[160] = "interrupted\n";
 std::atomic<std::size_t> g_message_size{12};
 
@@ -77,8 +80,13 @@ void watchdog_loop(int read_fd) {
     if (g_forced_exit_armed.load() && detail::g_interrupted.load()) {
       const long long signal_ns = g_signal_ns.load();
       const long long due = (signal_ns > 0 ? signal_ns : now) + kDelayNs;
-      if (now >= due) forced_exit();
-      wait_ns = due - now;
+      if (now >= due) {
+        if (g_hold.load() == 0) forced_exit();
+        g_exit_pending.store(true);  // ~HoldForcedExit exits; look again soon in any case
+        wait_ns = 10'000'000;
+      } else {
+        wait_ns = due - now;
+      }
     }
     {
       Registry& r = registry();
@@ -118,7 +126,10 @@ void start_watchdog() {
 
 extern "C" void on_signal(int) {
   const int saved = errno;
-  if (detail::g_interrupted.exchange(true)) forced_exit();  // the second signal: stop now
+  if (detail::g_interrupted.exchange(true)) {  // the second signal: stop now (or after the hold)
+    if (g_hold.load() == 0) forced_exit();
+    g_exit_pending.store(true);
+  }
   long long expected = 0;
   g_signal_ns.compare_exchange_strong(expected, now_ns());
   wake();
@@ -167,6 +178,17 @@ void install_signal_handlers(const char* program) {
   sa.sa_flags = SA_RESTART;
   ::sigaction(SIGINT, &sa, nullptr);
   ::sigaction(SIGTERM, &sa, nullptr);
+}
+
+HoldForcedExit::HoldForcedExit() { g_hold.fetch_add(1); }
+
+HoldForcedExit::~HoldForcedExit() {
+  if (g_hold.fetch_sub(1) == 1 && g_exit_pending.load()) forced_exit();
+}
+
+void test_interrupt_point(const char* phase) {
+  const char* at = std::getenv("CROSSDYN_TEST_INTERRUPT_AT");
+  if (at != nullptr && std::strcmp(at, phase) == 0) request_interrupt();
 }
 
 void acknowledge_interrupt() { g_acknowledged.store(true); }

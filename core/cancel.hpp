@@ -110,6 +110,24 @@ void acknowledge_interrupt();
 int register_temporary(const std::string& path);
 void unregister_temporary(int handle);
 
+// While a HoldForcedExit lives (outputs being renamed into place, core/output.hpp
+// commit_together), neither the watchdog nor a second signal exits: the forced exit waits until
+// the last HoldForcedExit is destroyed, so a command's outputs are all old or all new. The
+// interrupt itself is still recorded (interrupted() is true).
+class HoldForcedExit {
+ public:
+  HoldForcedExit();
+  ~HoldForcedExit();
+  HoldForcedExit(const HoldForcedExit&) = delete;
+  HoldForcedExit& operator=(const HoldForcedExit&) = delete;
+};
+
+// Test hook (documented in README "Stopping and bounding runs"): when the environment variable
+// CROSSDYN_TEST_INTERRUPT_AT equals `phase`, acts as if Ctrl-C arrived now (request_interrupt).
+// Phases: "report" (a report or drawing script was just started), "before-commit" (every output
+// prepared, none renamed yet), "during-commit" (after the first output was renamed into place).
+void test_interrupt_point(const char* phase);
+
 // Child processes that a forced exit must stop (SIGTERM), for example the report script.
 // Returns a handle, or -1 when the table (16 entries) is full.
 int register_child(pid_t pid);

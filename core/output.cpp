@@ -1,6 +1,7 @@
 // Checked writes and atomic files (see output.hpp for what each kind of path does).
 #include "core/output.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 
@@ -308,8 +309,8 @@ AtomicFile::AtomicFile(std::string path, std::string label)
                          "': " + errno_text(errno));
       tmp_ = name.data();
       owns_fd_ = true;
-      // TODO(cancel): register tmp_ with the Ctrl-C cleanup of core/cancel.hpp when it lands on
-      // main (and unregister it in commit() and the destructor), so that a forced exit removes it.
+      // A forced exit (a second Ctrl-C, or a command that does not stop in time) removes it too.
+      cancel_handle_ = cancel::register_temporary(tmp_);
       // The mode of the file being replaced, or what a new file would get; and its owner (root).
       if (exists) {
         ::fchmod(fd_, st.st_mode & 07777);
@@ -326,6 +327,7 @@ AtomicFile::AtomicFile(std::string path, std::string label)
 }
 
 AtomicFile::~AtomicFile() {
+  if (cancel_handle_ >= 0) cancel::unregister_temporary(cancel_handle_);
   if (done_) return;
   if (buf_) {
     out_.reset();
@@ -351,8 +353,8 @@ void AtomicFile::fail_commit(int error_number) {
   throw OutputError(display_name(path_), error_number);
 }
 
-void AtomicFile::commit() {
-  if (done_) return;
+void AtomicFile::prepare() {
+  if (done_ || prepared_) return;
   out_->flush();
   if (buf_->error()) fail_commit(buf_->error());
   if (!tmp_.empty() && ::fsync(fd_) != 0) fail_commit(errno);
@@ -363,8 +365,45 @@ void AtomicFile::commit() {
     fd_ = -1;
     if (rc != 0 && errno != EINTR) fail_commit(errno);
   }
+  prepared_ = true;
+}
+
+void AtomicFile::publish() {
+  if (done_) return;
+  prepare();
   if (!tmp_.empty() && ::rename(tmp_.c_str(), target_.c_str()) != 0) fail_commit(errno);
   done_ = true;
+}
+
+void AtomicFile::commit() {
+  prepare();
+  publish();
+}
+
+void commit_together(const std::vector<AtomicFile*>& files, const std::vector<StagedOutput*>& staged) {
+  if (cancel::interrupted()) throw RunFailure("output", 0.0, "", "interrupted");
+  for (AtomicFile* f : files)
+    if (f) f->prepare();
+  for (StagedOutput* s : staged)
+    if (s) s->prepare();
+  cancel::test_interrupt_point("before-commit");
+  if (cancel::interrupted()) throw RunFailure("output", 0.0, "", "interrupted");
+  const cancel::HoldForcedExit hold;
+  bool first = true;
+  auto after_first = [&first] {
+    if (first) cancel::test_interrupt_point("during-commit");
+    first = false;
+  };
+  for (StagedOutput* s : staged)
+    if (s) {
+      s->publish();
+      after_first();
+    }
+  for (AtomicFile* f : files)
+    if (f) {
+      f->publish();
+      after_first();
+    }
 }
 
 void write_file_atomic(const std::string& path, const std::string& content, const std::string& label) {

@@ -118,6 +118,10 @@ class AtomicFile {
   std::ostream& stream();
   void check();   // OutputError if a write has failed so far
   void commit();  // OutputError if a write, the flush, fsync, close or rename fails
+  // commit() in two steps, for commit_together: prepare() flushes, syncs and closes (every
+  // failure that can happen on the way); publish() renames the temporary into place.
+  void prepare();
+  void publish();
   const std::string& path() const { return path_; }
   const std::string& temporary() const { return tmp_; }  // "" when written directly
   bool direct() const { return tmp_.empty(); }
@@ -128,9 +132,32 @@ class AtomicFile {
   int fd_ = -1;
   bool owns_fd_ = false;
   bool done_ = false;
+  bool prepared_ = false;
+  int cancel_handle_ = -1;  // the temporary, registered for the forced exit (core/cancel.hpp)
   std::unique_ptr<FdStreamBuf> buf_;
   std::unique_ptr<std::ostream> out_;
 };
+
+// Something committed with the files of commit_together (a report folder swapped in).
+class StagedOutput {
+ public:
+  virtual ~StagedOutput() = default;
+  virtual void prepare() {}  // may throw: nothing is replaced yet
+  virtual void publish() = 0;
+};
+
+// All outputs of one command, committed together at its end, so that a failure or Ctrl-C leaves
+// every old output or every new one, never a mix:
+//   1. Ctrl-C already seen (cancel::interrupted()): RunFailure "interrupted" (exit 130), nothing
+//      is replaced; the temporaries are removed by the AtomicFiles' destructors.
+//   2. every file is prepared (flushed, synced, closed; OutputError on failure, nothing replaced)
+//      and every staged output (a report folder) prepared;
+//   3. with the forced exit of Ctrl-C/SIGTERM held off (cancel::HoldForcedExit), the staged
+//      outputs and then the files are published (renames within their folders).
+// Null pointers are skipped. Special files (stdout, FIFOs, devices) are written directly and
+// cannot be held back: they are flushed in step 2.
+void commit_together(const std::vector<AtomicFile*>& files,
+                     const std::vector<StagedOutput*>& staged = {});
 
 // Writes `content` to `path` atomically (AtomicFile in one call).
 void write_file_atomic(const std::string& path, const std::string& content,

@@ -141,6 +141,10 @@ struct FlexBody {
   // writer writes back (YAML, SI units, every key; core/scene/flex_block.hpp). Empty when built
   // in code. The engines ignore it.
   std::string scene_form;
+  // The files the data was read from (the nodal file, then the modes file when separate), as the
+  // reader opened them; empty for the beam generator. Outputs are checked against them
+  // (System::input_files). The engines ignore it.
+  std::vector<std::string> data_files;
 
   int modes() const { return static_cast<int>(mode_names.size()); }
   int node_index(const std::string& n) const {
@@ -251,6 +255,16 @@ struct System {
   std::string analytic;              // "" or "torque-free" (single free rigid body, no loads)
   RunSpec run;
   CompareSpec compare;
+
+  // Every file this System was read from: the scene file, then each flexible body's data files
+  // (FlexBody::data_files); empty when built in code. No output may replace one of them.
+  std::vector<std::string> input_files() const {
+    std::vector<std::string> files;
+    if (!file.empty()) files.push_back(file);
+    for (const Body& b : bodies)
+      if (b.flex) files.insert(files.end(), b.flex->data_files.begin(), b.flex->data_files.end());
+    return files;
+  }
 
   int base_body() const { return joints.empty() ? -1 : joints[0].child; }
   // The base moves freely (joints[0] is free), or its motion is prescribed (a prescribed

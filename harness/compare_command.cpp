@@ -133,12 +133,13 @@ int compare(const CompareCommandOptions& o) {
   // Everything that can be refused is refused before the engines run (exit 2).
   const harness::CompareOptions options = harness::to_compare_options(o.common);
   const std::string scene = harness::resolve_scene(o.scene);
-  std::vector<NamedPath> outputs{{"standard output", "-"}};
-  if (!o.json.empty()) outputs.push_back({"--json", o.json});
-  check_outputs_are_not_inputs(outputs, {{"the scene file", scene}});
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  // Every output against every input the scene was read from (nodal data files too).
+  std::vector<NamedPath> outputs{{"standard output", "-"}};
+  if (!o.json.empty()) outputs.push_back({"--json", o.json});
+  check_outputs_are_not_inputs(outputs, harness::scene_inputs(system));
   harness::settings_for(system, harness::run_overrides(options));
   std::optional<AtomicFile> json;
   if (!o.json.empty()) {
@@ -152,7 +153,7 @@ int compare(const CompareCommandOptions& o) {
   check_written(std::cout);
   if (json) {
     json->stream() << harness::json_summary({harness::SceneOutcome{scene, system, c, ""}});
-    json->commit();
+    commit_together({&*json});
   }
   return c.passed() ? kExitOk : kExitCheckFailed;
 }

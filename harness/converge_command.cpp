@@ -37,7 +37,7 @@ void write_converge_outputs(const harness::ConvergeResult& r, std::optional<Atom
   check_written(std::cout);
   if (json) {
     json->stream() << harness::converge_json(r);
-    json->commit();
+    commit_together({&*json});
   }
 }
 
@@ -45,9 +45,8 @@ void write_converge_outputs(const harness::ConvergeResult& r, std::optional<Atom
 // of slice K; the jobs are the unit of work (models and slicing rows), balanced by one run's
 // estimate of each.
 int converge_shard(const ConvergeOptions& o, const std::string& scene, const System& system,
-                   const harness::CompareOptions& options) {
+                   const harness::CompareOptions& options, AtomicFile& part_file) {
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
-  AtomicFile part_file(o.part, "--part");
   std::vector<harness::ConvergeJob> jobs;
   harness::ConvergeResult frame = harness::converge_frame(system, options, &jobs);
   std::vector<harness::ShardScene> plan;
@@ -81,7 +80,7 @@ int converge_shard(const ConvergeOptions& o, const std::string& scene, const Sys
       {"--timeout", opt(o.common.timeout)}};
   part_file.stream() << harness::sweep_part_json("converge", part_options, shard, plan,
                                                  harness::converge_frame_json(frame), items);
-  part_file.commit();
+  commit_together({&part_file});
   std::cout << "converge: shard " << shard.index << "/" << shard.count << ": " << items.size()
             << " of " << jobs.size() << " models besides the full one\n"
             << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
@@ -103,20 +102,22 @@ int converge(const ConvergeOptions& o) {
                        "parts, not by one shard");
   }
   const std::string scene = harness::resolve_scene(o.scene);
-  std::vector<NamedPath> outputs{{"standard output", "-"}};
-  if (!o.json.empty()) outputs.push_back({"--json", o.json});
-  if (sharded) outputs.push_back({"--part", o.part});
-  check_outputs_are_not_inputs(outputs, {{"the scene file", scene}});
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  // Every output against every input the scene was read from (nodal data files too).
+  std::vector<NamedPath> outputs{{"standard output", "-"}};
+  if (!o.json.empty()) outputs.push_back({"--json", o.json});
+  if (sharded) outputs.push_back({"--part", o.part});
+  check_outputs_are_not_inputs(outputs, harness::scene_inputs(system));
   harness::settings_for(system, harness::run_overrides(options));
   if (harness::mode_groups(system).empty())
     throw InputError(scene + ": converge needs a flexible body with at least one mode; this "
                              "scene has none");
   if (sharded) {
     if (o.part != "-") harness::make_directories(std::filesystem::path(o.part).parent_path().string());
-    return converge_shard(o, scene, system, options);
+    AtomicFile part_file(o.part, "--part");  // refused now (exit 2) when unusable, before the runs
+    return converge_shard(o, scene, system, options, part_file);
   }
   std::optional<AtomicFile> json;
   if (!o.json.empty()) {
@@ -131,13 +132,13 @@ int converge(const ConvergeOptions& o) {
 }  // namespace
 
 int merge_converge_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out) {
-  int checked = 0;
-  const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
-  std::optional<AtomicFile> json;
+  std::optional<AtomicFile> json;  // opened (refused when unusable) before the merge's work
   if (!out.json.empty()) {
     if (out.json != "-") harness::make_directories(std::filesystem::path(out.json).parent_path().string());
     json.emplace(out.json, "--json");
   }
+  int checked = 0;
+  const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
   if (!out.quiet)
     std::cerr << "merge: " << parts.size() << " converge parts, " << items.size() + 1 << " models ("
               << checked << " scene file on disk checked against its SHA-256)\n";

@@ -80,16 +80,20 @@ int draw(const DrawOptions& o) {
   if (!o.geometry.empty() && lower(fs::path(o.geometry).extension().string()) != ".json")
     throw InputError("--geometry '" + o.geometry + "': the geometry is a JSON file; give a name ending in .json");
   const fs::path script = fs::path(harness::installed_reports_dir()) / "draw_scene.py";
-  std::vector<NamedPath> outputs{{"-o", out}};
+  // Every output against every input: the scene, its data files, the drawing script.
+  std::vector<NamedPath> outputs{{"standard output", "-"}, {"-o", out}};
   if (!o.geometry.empty()) outputs.push_back({"--geometry", o.geometry});
-  check_outputs_are_not_inputs(outputs, {{"the scene file", scene}, {"the drawing script", script.string()}});
+  std::vector<NamedPath> inputs = harness::scene_inputs(system);
+  inputs.push_back({"the drawing script", script.string()});
+  check_outputs_are_not_inputs(outputs, inputs);
   if (o.panels < 1 || o.panels > 12) throw InputError("--panels " + std::to_string(o.panels) + ": give 1 to 12");
   if (!fs::is_regular_file(script))
     throw InputError("the drawing script '" + script.string() + "' is missing (it is part of the "
                      "crossdyn source tree this program was built from)");
-  AtomicFile file(out);  // fails now, before the run, when the folder cannot be written
+  // Both opened now, so that an unusable one is refused (exit 2) before the run.
+  AtomicFile file(out, "-o");
   std::optional<AtomicFile> geometry_file;
-  if (!o.geometry.empty()) geometry_file.emplace(o.geometry);
+  if (!o.geometry.empty()) geometry_file.emplace(o.geometry, "--geometry");
 
   namespace g = harness::geometry;
   const IntegratorSettings settings = IntegratorSettings::from(system.run);
@@ -123,13 +127,11 @@ int draw(const DrawOptions& o) {
   std::ifstream in(picture, std::ios::binary);
   if (!in) throw InputError("the drawing script wrote no picture");
   file.stream() << in.rdbuf();
-  file.commit();
+  if (geometry_file) geometry_file->stream() << document;
+  // The picture and the geometry replace the old ones together (or neither does).
+  commit_together({&file, geometry_file ? &*geometry_file : nullptr});
   std::cout << "picture: " << out << '\n';
-  if (geometry_file) {
-    geometry_file->stream() << document;
-    geometry_file->commit();
-    std::cout << "geometry: " << o.geometry << '\n';
-  }
+  if (geometry_file) std::cout << "geometry: " << o.geometry << '\n';
   if (source.state == "failed")
     std::cerr << "crossdyn draw: the kane run failed (" << source.note << "); the picture shows "
               << frames.size() << " of " << o.panels << " later times\n";

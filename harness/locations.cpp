@@ -2,6 +2,8 @@
 #include "harness/locations.hpp"
 
 #include "core/errors.hpp"
+#include "core/output.hpp"
+#include "core/scene/scene.hpp"
 
 #include <sys/stat.h>
 
@@ -89,6 +91,30 @@ std::vector<std::string> scene_files_in(const std::string& folder) {
   if (ec) throw InputError("cannot list the scenes folder '" + folder + "': " + ec.message());
   std::sort(files.begin(), files.end());
   return files;
+}
+
+}  // namespace crossdyn::harness
+
+namespace crossdyn::harness {
+
+std::vector<NamedPath> scene_inputs(const System& system) {
+  std::vector<NamedPath> out;
+  const std::vector<std::string> files = system.input_files();
+  for (std::size_t i = 0; i < files.size(); ++i)
+    out.push_back({i == 0 && files[i] == system.file ? "the scene file"
+                                                     : "the data file of scene '" + system.file + "'",
+                   files[i]});
+  return out;
+}
+
+std::vector<NamedPath> scene_file_inputs(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {{"the scene file", path}};
+  try {
+    return scene_inputs(read_scene(path));
+  } catch (const std::exception&) {
+    return {{"the scene file", path}};
+  }
 }
 
 }  // namespace crossdyn::harness

@@ -12,7 +12,21 @@
 #include <string>
 #include <vector>
 
+namespace crossdyn {
+struct System;
+struct NamedPath;
+}  // namespace crossdyn
+
 namespace crossdyn::harness {
+
+// The inputs of a command that read `system` (for check_outputs_are_not_inputs): its scene file
+// and every data file it read (nodal CSV files, System::input_files).
+std::vector<NamedPath> scene_inputs(const System& system);
+// The same for a scene file not read yet (verify reads its scenes later, one by one): the file,
+// and when it is a regular file that reads as a scene, the data files it names. A scene that
+// cannot be read gives the file alone (its error comes later, where the command reads it); a
+// FIFO is never opened here (it could be read only once).
+std::vector<NamedPath> scene_file_inputs(const std::string& path);
 
 std::string source_tree();            // absolute, compiled in (CROSSDYN_SOURCE_DIR)
 std::string version();                // "0.1.0 (git 1aca500-dirty)"

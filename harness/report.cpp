@@ -1,6 +1,7 @@
 // JSON summary, JUnit XML and the HTML report folder (see report.hpp).
 #include "harness/report.hpp"
 
+#include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
@@ -496,6 +497,7 @@ void run_python(const std::string& python, const std::vector<std::string>& args)
   if (rc != 0)
     throw InputError("cannot run '" + python + "' for '" + args.at(0) + "': " + std::strerror(rc));
   // Wait, polling the interrupt flag: Ctrl-C ends the script and the command (exit 130).
+  cancel::test_interrupt_point("report");  // test hook: Ctrl-C while the script runs
   int status = 0;
   for (;;) {
     const pid_t done = waitpid(pid, &status, WNOHANG);
@@ -610,6 +612,8 @@ void remove_stale_partials(const fs::path& dir) {
   }
 }
 
+}  // namespace
+
 // A new folder next to the report folder, removed again unless released.
 class PartialFolder {
  public:
@@ -639,67 +643,21 @@ class PartialFolder {
   fs::path path_;
 };
 
-// An exclusive flock(2) on a folder, released when destroyed (and by the kernel if killed).
-class FolderLock {
- public:
-  explicit FolderLock(const fs::path& dir) : fd_(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC)) {
-    if (fd_ < 0) throw InputError("cannot open folder '" + dir.string() + "': " + std::strerror(errno));
-    while (::flock(fd_, LOCK_EX) != 0)
-      if (errno != EINTR) {
-        const std::string why = std::strerror(errno);
-        ::close(fd_);
-        throw InputError("cannot lock folder '" + dir.string() + "': " + why);
-      }
-  }
-  ~FolderLock() { ::close(fd_); }
-  FolderLock(const FolderLock&) = delete;
-  FolderLock& operator=(const FolderLock&) = delete;
-
- private:
-  int fd_;
-};
+namespace {
 
 // Copies into `to` what the current report folder holds that the report does not own.
-void carry_over(const fs::path& from, const fs::path& to) {
+void carry_over(const fs::path& from, const fs::path& to, bool (*owned)(const fs::path&)) {
   std::error_code ec;
   if (!fs::is_directory(from, ec)) return;
   for (const fs::directory_entry& e : fs::directory_iterator(from)) {
     const fs::path name = e.path().filename();
-    if (report_owned(name) || fs::exists(fs::symlink_status(to / name))) continue;
+    if (owned(name) || fs::exists(fs::symlink_status(to / name))) continue;
     if (e.is_symlink()) fs::copy_symlink(e.path(), to / name);
     else if (e.is_regular_file()) {
       fs::create_hard_link(e.path(), to / name, ec);  // the old folder is removed next
       if (ec) fs::copy_file(e.path(), to / name);
     } else if (e.is_directory()) fs::copy(e.path(), to / name, fs::copy_options::recursive);
   }
-}
-
-// Swaps the finished folder in for the report folder (see write_report).
-void swap_in(PartialFolder& partial, const fs::path& dir) {
-  const FolderLock lock(dir.parent_path());
-  try {
-    carry_over(dir, partial.path());
-  } catch (const fs::filesystem_error& e) {
-    throw InputError("cannot keep the files of '" + dir.string() + "' that are not part of the report: " + e.what());
-  }
-  if (::rename(partial.path().c_str(), dir.c_str()) == 0) {  // no folder there, or an empty one
-    partial.release();
-    return;
-  }
-  if (errno != EEXIST && errno != ENOTEMPTY)
-    throw InputError("cannot write the report folder '" + dir.string() + "': " + std::strerror(errno));
-  // One rename exchanges the two folders: DIR is never missing or half-written.
-  if (::renameat2(AT_FDCWD, partial.path().c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) == 0)
-    return;  // partial.path() now holds the previous report, removed by ~PartialFolder
-  if (errno != EINVAL && errno != ENOSYS)
-    throw InputError("cannot replace the report folder '" + dir.string() + "': " + std::strerror(errno));
-  // A file system without RENAME_EXCHANGE: two renames (DIR is briefly missing, never mixed).
-  const fs::path old = partial.path().string() + ".old";
-  if (::rename(dir.c_str(), old.c_str()) != 0 || ::rename(partial.path().c_str(), dir.c_str()) != 0)
-    throw InputError("cannot replace the report folder '" + dir.string() + "': " + std::strerror(errno));
-  partial.release();
-  std::error_code ec;
-  fs::remove_all(old, ec);
 }
 
 // The drawing geometry of a scene: t = 0 from the scene, later pictures from the kane run (or the
@@ -735,13 +693,26 @@ std::string scene_geometry(const System& system, const SceneComparison& c) {
 
 }  // namespace
 
-void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options) {
+void check_report(const std::vector<std::string>& scene_files, const ReportOptions& options) {
+  const std::string script = find_script(options.script);
+  std::vector<SceneOutcome> scenes;
+  for (const std::string& f : scene_files) {
+    SceneOutcome o;
+    o.path = f;
+    scenes.push_back(std::move(o));
+  }
+  const fs::path dir = report_folder(options.dir, scenes, script);
+  make_directories(dir.parent_path().string());
+  StagedFolder probe(dir, report_owned);  // can a folder be made beside it? (removed at once)
+}
+
+std::unique_ptr<StagedFolder> build_report(const std::vector<SceneOutcome>& scenes,
+                                           const ReportOptions& options) {
   const std::string script = find_script(options.script);
   const fs::path dir = report_folder(options.dir, scenes, script);
   make_directories(dir.parent_path().string());
-  remove_stale_partials(dir);
-  PartialFolder partial(dir);
-  const fs::path& out = partial.path();
+  auto staged = std::make_unique<StagedFolder>(dir, report_owned);
+  const fs::path& out = staged->path();
   const std::vector<std::string> ids = scene_ids(scenes);
   std::vector<std::vector<std::string>> data_files(scenes.size());
   std::vector<std::string> geometry_files(scenes.size());
@@ -775,7 +746,101 @@ void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& 
   const std::string summary = (out / "summary.json").string();
   write_file_atomic(summary, summary_document(scenes, data_files, geometry_files).dump(1) + "\n");
   run_python(options.python, {script, summary, out.string()});
-  swap_in(partial, dir);
+  return staged;
+}
+
+void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options) {
+  const std::unique_ptr<StagedFolder> staged = build_report(scenes, options);
+  commit_together({}, {staged.get()});
+}
+
+std::unique_ptr<StagedFolder> stage_report_folder(const std::string& given, const std::string& marker,
+                                                  const std::string& kind,
+                                                  bool (*owned)(const fs::path& name)) {
+  if (given.empty()) throw InputError("--report: the folder name is empty");
+  fs::path dir = fs::absolute(given).lexically_normal();
+  if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
+  std::error_code ec;
+  dir = fs::weakly_canonical(dir, ec);  // a symbolic link to a folder: the folder it names
+  if (ec) throw InputError("--report: cannot resolve '" + given + "': " + ec.message());
+  if (dir == dir.root_path()) throw InputError("--report: '" + given + "' is the root folder");
+  const fs::file_status st = fs::status(dir, ec);
+  if (fs::exists(st)) {
+    if (!fs::is_directory(st)) throw InputError("--report: '" + given + "' is a file, not a folder");
+    bool ours = false;
+    if (std::ifstream in(dir / marker); in) {
+      try {
+        const json j = json::parse(in);
+        ours = j.is_object() && j.value("tool", "") == "crossdyn" && j.value("kind", "") == kind;
+      } catch (const std::exception&) {
+        ours = false;
+      }
+    }
+    if (!ours && !fs::is_empty(dir, ec))
+      throw InputError("--report: '" + given + "' is neither empty nor a crossdyn " + kind +
+                       " report (no " + marker + " written by crossdyn " + kind + "); give a new "
+                       "folder, an empty one or an earlier " + kind + " report");
+  }
+  if (inside(fs::current_path(), dir))
+    throw InputError("--report: '" + given + "' holds the current folder; the report replaces its "
+                     "folder as a whole");
+  make_directories(dir.parent_path().string());
+  return std::make_unique<StagedFolder>(dir, owned);
+}
+
+// ---------------------------------------------------------------- StagedFolder
+
+StagedFolder::StagedFolder(fs::path dir, bool (*owned)(const fs::path&))
+    : dir_(std::move(dir)), owned_(owned) {
+  remove_stale_partials(dir_);
+  partial_ = std::make_unique<PartialFolder>(dir_);
+}
+
+StagedFolder::~StagedFolder() {
+  partial_.reset();  // removes the new folder (or, after an exchange, the previous report)
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+const fs::path& StagedFolder::path() const { return partial_->path(); }
+
+void StagedFolder::prepare() {
+  if (lock_fd_ < 0) {
+    lock_fd_ = ::open(dir_.parent_path().c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (lock_fd_ < 0)
+      throw InputError("cannot open folder '" + dir_.parent_path().string() + "': " + std::strerror(errno));
+    while (::flock(lock_fd_, LOCK_EX) != 0)
+      if (errno != EINTR)
+        throw InputError("cannot lock folder '" + dir_.parent_path().string() + "': " + std::strerror(errno));
+  }
+  try {
+    carry_over(dir_, partial_->path(), owned_);
+  } catch (const fs::filesystem_error& e) {
+    throw InputError("cannot keep the files of '" + dir_.string() + "' that are not part of the report: " + e.what());
+  }
+}
+
+// Swaps the finished folder in for the report folder: DIR is never missing or half-written.
+void StagedFolder::publish() {
+  if (lock_fd_ < 0) prepare();
+  const fs::path& from = partial_->path();
+  if (::rename(from.c_str(), dir_.c_str()) == 0) {  // no folder there, or an empty one
+    partial_->release();
+    return;
+  }
+  if (errno != EEXIST && errno != ENOTEMPTY)
+    throw OutputError("the report folder '" + dir_.string() + "'", errno);
+  // One rename exchanges the two folders.
+  if (::renameat2(AT_FDCWD, from.c_str(), AT_FDCWD, dir_.c_str(), RENAME_EXCHANGE) == 0)
+    return;  // the partial folder now holds the previous report, removed by the destructor
+  if (errno != EINVAL && errno != ENOSYS)
+    throw OutputError("the report folder '" + dir_.string() + "'", errno);
+  // A file system without RENAME_EXCHANGE: two renames (DIR is briefly missing, never mixed).
+  const fs::path old = from.string() + ".old";
+  if (::rename(dir_.c_str(), old.c_str()) != 0 || ::rename(from.c_str(), dir_.c_str()) != 0)
+    throw OutputError("the report folder '" + dir_.string() + "'", errno);
+  partial_->release();
+  std::error_code ec;
+  fs::remove_all(old, ec);
 }
 
 }  // namespace crossdyn::harness

@@ -3,8 +3,11 @@
 // atomically (core/output.hpp AtomicFile): a reader sees the old file or the complete new one.
 #pragma once
 
+#include "core/output.hpp"
 #include "harness/compare.hpp"
 
+#include <filesystem>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
@@ -75,6 +78,48 @@ struct ReportOptions {
 // written or the script fails; the partial folder is removed (and so are partial folders left
 // by killed runs whose process is gone).
 void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& options);
+
+class PartialFolder;
+// A report folder replaced whole (the machinery of write_report, for every command's --report):
+// constructed, it creates DIR.partial-<pid>-<random> beside DIR (InputError when it cannot: a
+// folder where nothing can be created is refused before the work); the report is written into
+// path(); commit_together (core/output.hpp) then prepares it (locks DIR's parent folder and
+// copies in what DIR holds that `owned` says the report does not own: a user's notes) and
+// publishes it (one rename exchanges the folders). Destroyed before, it removes the new folder
+// and DIR is untouched.
+class StagedFolder : public StagedOutput {
+ public:
+  StagedFolder(std::filesystem::path dir, bool (*owned)(const std::filesystem::path& name));
+  ~StagedFolder() override;
+  StagedFolder(const StagedFolder&) = delete;
+  StagedFolder& operator=(const StagedFolder&) = delete;
+  const std::filesystem::path& path() const;
+  const std::filesystem::path& target() const { return dir_; }
+  void prepare() override;
+  void publish() override;
+
+ private:
+  std::filesystem::path dir_;
+  bool (*owned_)(const std::filesystem::path&);
+  std::unique_ptr<PartialFolder> partial_;
+  int lock_fd_ = -1;
+};
+
+// write_report in two steps: check_report refuses, before any work, what write_report would
+// refuse (a missing script, a DIR that is a file or not a report folder, one holding a scene, a
+// folder where nothing can be created); build_report writes the report into a StagedFolder for
+// commit_together, so that it is swapped in together with the command's other outputs.
+void check_report(const std::vector<std::string>& scene_files, const ReportOptions& options);
+std::unique_ptr<StagedFolder> build_report(const std::vector<SceneOutcome>& scenes,
+                                           const ReportOptions& options);
+
+// The --report DIR of study and stability (and of merge of their parts), checked before the work:
+// refuses (InputError) a DIR that is a file, the root, one holding the current folder, or a
+// non-empty folder without a `marker` JSON file whose "tool" is crossdyn and "kind" is `kind`;
+// creates DIR's parents and its staging folder (StagedFolder), or refuses when it cannot.
+std::unique_ptr<StagedFolder> stage_report_folder(const std::string& given, const std::string& marker,
+                                                  const std::string& kind,
+                                                  bool (*owned)(const std::filesystem::path& name));
 
 // Runs `python ARGS...` (with PYTHONDONTWRITEBYTECODE=1) and waits; Ctrl-C ends it (RunFailure
 // "interrupted"); InputError naming args[0] when it cannot start or fails.

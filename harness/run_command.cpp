@@ -36,12 +36,14 @@ int run(const RunOptions& o) {
   harness::check_overrides(o.overrides);
   const std::string scene = harness::resolve_scene(o.scene);
   const bool to_stdout = o.output.empty() || o.output == "-";
-  check_outputs_are_not_inputs({to_stdout ? NamedPath{"standard output", "-"}
-                                          : NamedPath{"--output", o.output}},
-                               {{"the scene file", scene}});
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  // The output (standard output when the rows go there, e.g. `>> nodes.csv`) against every
+  // input the scene was read from (nodal data files too).
+  check_outputs_are_not_inputs({to_stdout ? NamedPath{"standard output", "-"}
+                                          : NamedPath{"--output", o.output}},
+                               harness::scene_inputs(system));
   IntegratorSettings s = harness::settings_for(system, o.overrides);
   s.keep_rows = false;  // rows stream to the CSV as they are computed; memory stays flat
   EngineOptions eo = o.engine_options;
@@ -82,7 +84,7 @@ int run(const RunOptions& o) {
                 << " rows were complete before the failure)\n";
     throw *r.failure;
   }
-  if (file) file->commit();
+  if (file) commit_together({&*file});
   else check_written(out);
   return kExitOk;
 }

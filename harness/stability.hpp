@@ -43,6 +43,7 @@
 #include "harness/study.hpp"
 
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -52,6 +53,9 @@ class ProgressLine;
 }
 
 namespace crossdyn::harness {
+
+class StagedFolder;  // harness/report.hpp
+
 
 enum class StabilityClass { Accurate, Inaccurate, Drift, Diverged, Singular, TooCostly, NoReference };
 inline constexpr StabilityClass kStabilityClasses[] = {
@@ -205,7 +209,10 @@ std::string format_stability(const StabilityMap& map);
 std::string stability_csv(const StabilityMap& map);
 // JSON (kind "stability") and the report folder (index.html, <scene>-stability.html, maps as PNG).
 std::string stability_json(const std::vector<StabilityMap>& maps);
-void write_stability_report(const std::string& dir, const std::vector<StabilityMap>& maps,
+// In two steps, as study's (study.hpp stage_study_report): stage before the work, write into the
+// staged folder after it, commit_together swaps it in.
+std::unique_ptr<StagedFolder> stage_stability_report(const std::string& dir);
+void write_stability_report(StagedFolder& dir, const std::vector<StabilityMap>& maps,
                             const std::string& python = "/usr/bin/python3");
 
 }  // namespace crossdyn::harness

@@ -41,18 +41,27 @@ struct StabilityCliOptions {
   std::string shard, part;  // --shard K/N --part FILE
 };
 
-// What stability writes: the text, --csv and --report.
-void write_stability_outputs(const harness::StabilityMap& map, const std::string& csv,
-                             const std::string& report) {
-  std::cout << harness::format_stability(map);
-  check_written(std::cout);
+// What stability writes besides the text: --csv and --report, opened (refused when unusable,
+// exit 2) before the work and committed together at the end.
+struct StabilityOutputs {
+  std::optional<AtomicFile> csv;
+  std::unique_ptr<harness::StagedFolder> report;
+};
+
+void open_stability_outputs(StabilityOutputs& out, const std::string& csv, const std::string& report) {
   if (!csv.empty()) {
     if (csv != "-") harness::make_directories(std::filesystem::path(csv).parent_path().string());
-    AtomicFile f(csv, "--csv");
-    f.stream() << harness::stability_csv(map);
-    f.commit();
+    out.csv.emplace(csv, "--csv");
   }
-  if (!report.empty()) harness::write_stability_report(report, {map});
+  if (!report.empty()) out.report = harness::stage_stability_report(report);
+}
+
+void write_stability_outputs(const harness::StabilityMap& map, StabilityOutputs& out) {
+  std::cout << harness::format_stability(map);
+  check_written(std::cout);
+  if (out.csv) out.csv->stream() << harness::stability_csv(map);
+  if (out.report) harness::write_stability_report(*out.report, {map});
+  commit_together({out.csv ? &*out.csv : nullptr}, {out.report.get()});
 }
 
 // "1,10,100" or "1..1e4" (one per decade); negative and zero values allowed in lists (a rate).
@@ -104,12 +113,16 @@ int stability(const StabilityCliOptions& o) {
                        "from all the parts, not by one shard");
   }
   const std::string path = harness::resolve_scene(o.scene);
-  std::vector<NamedPath> outputs{{"standard output", "-"}};
-  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
-  if (sharded) outputs.push_back({"--part", o.part});
-  check_outputs_are_not_inputs(outputs, {{"the scene file", path}});
   std::vector<SceneWarning> warnings;
   System system = read_scene(path, &warnings);
+  // Every output against every input the scene was read from (nodal data files too).
+  std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
+  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  if (sharded) outputs.push_back({"--part", o.part});
+  if (!o.report.empty()) folders.push_back({"--report", o.report});
+  std::vector<NamedPath> inputs = harness::scene_inputs(system);
+  if (!o.report.empty()) inputs.push_back({"the report script", harness::installed_report_script()});
+  check_outputs_are_not_inputs(outputs, inputs, folders);
   if (o.duration) {
     if (!(*o.duration > 0) || *o.duration > 1e7)
       throw InputError("--duration: must be positive and at most 1e7 s");
@@ -127,19 +140,26 @@ int stability(const StabilityCliOptions& o) {
   const std::vector<double> values = parse_parameter_values(o.values);
   for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first
 
+  StabilityOutputs stability_outputs;
+  open_stability_outputs(stability_outputs, o.csv, o.report);
+  std::optional<AtomicFile> part;
+  if (sharded) {
+    if (o.part != "-") harness::make_directories(std::filesystem::path(o.part).parent_path().string());
+    part.emplace(o.part, "--part");
+  }
+
   ProgressLine progress(!o.quiet);
   options.progress = &progress;
   if (!sharded) {
     const harness::StabilityMap map = harness::stability_scene(system, knob, values, options);
     progress.clear();
-    write_stability_outputs(map, o.csv, o.report);
+    write_stability_outputs(map, stability_outputs);
     return kExitOk;
   }
 
   // --shard K/N: the values of slice K, each an independent study of the modified scene. A
   // value's cost: one run of the modified scene (duration and links change it) x the cells.
-  if (o.part != "-") harness::make_directories(std::filesystem::path(o.part).parent_path().string());
-  AtomicFile part_file(o.part, "--part");
+  AtomicFile& part_file = *part;
   const harness::StabilityMap frame = harness::stability_frame(system, knob, options);
   double cells = 0;
   for (const std::string& i : frame.integrators)
@@ -191,7 +211,7 @@ int stability(const StabilityCliOptions& o) {
        }()}};
   part_file.stream() << harness::sweep_part_json("stability", part_options, shard, plan,
                                                  harness::stability_frame_json(frame), items);
-  part_file.commit();
+  commit_together({&part_file});
   std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
   check_written(std::cout);
   return kExitOk;
@@ -200,6 +220,8 @@ int stability(const StabilityCliOptions& o) {
 }  // namespace
 
 int merge_stability_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out) {
+  StabilityOutputs outputs;
+  open_stability_outputs(outputs, out.csv, out.report ? *out.report : "");
   int checked = 0;
   const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
   if (!out.quiet)
@@ -208,7 +230,7 @@ int merge_stability_parts(const std::vector<harness::Part>& parts, const SweepMe
   harness::StabilityMap map = harness::stability_frame_from(parts.front().frame);
   for (const std::string& text : items) harness::add_stability_value(map, harness::stability_value_from(text));
   map.findings = harness::stability_findings(map);
-  write_stability_outputs(map, out.csv, out.report ? *out.report : "");
+  write_stability_outputs(map, outputs);
   return kExitOk;
 }
 

@@ -74,15 +74,11 @@ json map_json(const StabilityMap& m, const std::string& id) {
   return j;
 }
 
-bool is_stability_folder(const fs::path& dir) {
-  std::ifstream in(dir / "stability.json");
-  if (!in) return false;
-  try {
-    const json j = json::parse(in);
-    return j.is_object() && j.value("tool", "") == "crossdyn" && j.value("kind", "") == "stability";
-  } catch (const std::exception&) {
-    return false;
-  }
+// What a stability report owns at the top of its folder; anything else there is carried over.
+bool stability_owned(const fs::path& name) {
+  const std::string ext = name.extension().string();
+  return name == "stability.json" || ext == ".csv" || ext == ".html" || ext == ".png" ||
+         name.string().find(".crossdyn-") != std::string::npos;
 }
 
 }  // namespace
@@ -102,19 +98,13 @@ std::string stability_json(const std::vector<StabilityMap>& maps) {
   return j.dump(1) + "\n";
 }
 
-void write_stability_report(const std::string& given, const std::vector<StabilityMap>& maps,
+std::unique_ptr<StagedFolder> stage_stability_report(const std::string& dir) {
+  return stage_report_folder(dir, "stability.json", "stability", stability_owned);
+}
+
+void write_stability_report(StagedFolder& staged, const std::vector<StabilityMap>& maps,
                             const std::string& python) {
-  if (given.empty()) throw InputError("--report: the folder name is empty");
-  const fs::path dir = fs::absolute(given).lexically_normal();
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) throw InputError("--report: '" + given + "' is a file, not a folder");
-    if (!fs::is_empty(dir, ec) && !is_stability_folder(dir))
-      throw InputError("--report: '" + given + "' is neither empty nor a crossdyn stability report "
-                       "(no stability.json written by crossdyn stability); give a new folder, an "
-                       "empty one or an earlier stability report");
-  }
-  make_directories(dir.string());
+  const fs::path& dir = staged.path();
   const std::vector<std::string> ids = map_ids(maps);
   for (std::size_t i = 0; i < maps.size(); ++i)
     write_file_atomic((dir / (ids[i] + ".csv")).string(), stability_csv(maps[i]));

@@ -40,6 +40,7 @@
 #include "harness/compare.hpp"
 
 #include <limits>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -50,6 +51,8 @@ class ProgressLine;
 }
 
 namespace crossdyn::harness {
+
+class StagedFolder;  // harness/report.hpp
 
 // The study refuses a scene: the reference could not be made (engines disagree: exit status 1;
 // a reference run failed: 3).
@@ -252,10 +255,14 @@ const std::string& study_timing_text();
 // What the error is, one paragraph.
 const std::string& study_error_text();
 
-// Writes DIR/study.json, DIR/<scene>-study.csv, DIR/scaling.csv and runs the report script, which
-// writes DIR/index.html, DIR/<scene>-study.html and the PNG charts. Refuses (InputError) a DIR
-// that is a file, or a non-empty folder without a crossdyn study.json.
-void write_study_report(const std::string& dir, const std::vector<SceneStudy>& scenes,
+// The report folder, in two steps (harness/report.hpp StagedFolder): stage_study_report, before
+// the work, refuses (InputError) a DIR that is a file, or a non-empty folder without a crossdyn
+// study.json, and makes the staging folder; write_study_report writes study.json,
+// <scene>-study.csv, scaling.csv there and runs the report script, which writes index.html,
+// <scene>-study.html and the PNG charts; commit_together then swaps the folder in (the files
+// of DIR that a study report does not own are kept).
+std::unique_ptr<StagedFolder> stage_study_report(const std::string& dir);
+void write_study_report(StagedFolder& dir, const std::vector<SceneStudy>& scenes,
                         const std::optional<ScalingStudy>& scaling,
                         const std::string& python = "/usr/bin/python3");
 

@@ -40,18 +40,36 @@ struct StudyCliOptions {
   std::string shard, part;  // --shard K/N --part FILE
 };
 
-// What study writes after the studies: --csv and --report.
-void write_study_outputs(const std::vector<harness::SceneStudy>& results,
-                         const std::optional<harness::ScalingStudy>& scaling, const std::string& csv,
-                         const std::string& report) {
+// What study writes: --csv and --report, opened (and so refused when unusable, exit 2) before
+// the work and committed together at the end.
+struct StudyOutputs {
+  std::optional<AtomicFile> csv;
+  std::unique_ptr<harness::StagedFolder> report;
+};
+
+void open_study_outputs(StudyOutputs& out, const std::string& csv, const std::string& report) {
   if (!csv.empty()) {
     if (csv != "-") harness::make_directories(std::filesystem::path(csv).parent_path().string());
-    AtomicFile f(csv, "--csv");
-    f.stream() << harness::study_csv_header();
-    for (const harness::SceneStudy& s : results) f.stream() << harness::study_csv_rows(s);
-    f.commit();
+    out.csv.emplace(csv, "--csv");
   }
-  if (!report.empty()) harness::write_study_report(report, results, scaling);
+  if (!report.empty()) out.report = harness::stage_study_report(report);
+}
+
+// Writes and commits them; an exit status of 3 (a reference run failed) replaces nothing.
+void write_study_outputs(const std::vector<harness::SceneStudy>& results,
+                         const std::optional<harness::ScalingStudy>& scaling, StudyOutputs& out,
+                         int status) {
+  if (status == kExitRunFailed) {
+    if (out.csv || out.report)
+      std::cerr << "crossdyn: --csv and --report not replaced: the study failed (exit status 3)\n";
+    return;
+  }
+  if (out.csv) {
+    out.csv->stream() << harness::study_csv_header();
+    for (const harness::SceneStudy& s : results) out.csv->stream() << harness::study_csv_rows(s);
+  }
+  if (out.report) harness::write_study_report(*out.report, results, scaling);
+  commit_together({out.csv ? &*out.csv : nullptr}, {out.report.get()});
 }
 
 int study(const StudyCliOptions& o) {
@@ -87,18 +105,24 @@ int study(const StudyCliOptions& o) {
   }
   std::vector<std::string> paths;
   for (const std::string& s : o.scenes) paths.push_back(harness::resolve_scene(s));
-  std::vector<NamedPath> outputs{{"standard output", "-"}};
-  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
-  if (sharded) outputs.push_back({"--part", o.part});
-  std::vector<NamedPath> inputs;
-  for (const std::string& p : paths) inputs.push_back({"the scene file", p});
-  check_outputs_are_not_inputs(outputs, inputs);
   std::vector<System> systems;
   for (const std::string& p : paths) {
     std::vector<SceneWarning> warnings;
     systems.push_back(read_scene(p, &warnings));
     for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
   }
+  // Every output against every input the scenes were read from (nodal data files too).
+  std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
+  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  if (sharded) outputs.push_back({"--part", o.part});
+  if (!o.report.empty()) folders.push_back({"--report", o.report});
+  std::vector<NamedPath> inputs;
+  for (const System& s : systems)
+    for (NamedPath& p : harness::scene_inputs(s)) inputs.push_back(std::move(p));
+  if (!o.report.empty()) inputs.push_back({"the report script", harness::installed_report_script()});
+  check_outputs_are_not_inputs(outputs, inputs, folders);
+  StudyOutputs study_outputs;
+  open_study_outputs(study_outputs, o.csv, o.report);
 
   std::optional<AtomicFile> part_file;
   std::vector<harness::ShardScene> plan;
@@ -154,7 +178,7 @@ int study(const StudyCliOptions& o) {
         {"--max-steps", o.max_steps ? std::to_string(*o.max_steps) : "(none)"},
         {"--timeout", harness::shortest_list({options.timeout})}};
     part_file->stream() << harness::sweep_part_json("study", part_options, shard, plan, "null", items);
-    part_file->commit();
+    commit_together({&*part_file});
     std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
     check_written(std::cout);
     return status;
@@ -170,13 +194,15 @@ int study(const StudyCliOptions& o) {
     std::cout << harness::format_scaling(*scaling) << '\n';
     check_written(std::cout);
   }
-  write_study_outputs(results, scaling, o.csv, o.report);
+  write_study_outputs(results, scaling, study_outputs, status);
   return status;
 }
 
 }  // namespace
 
 int merge_study_parts(const std::vector<harness::Part>& parts, const SweepMergeOutputs& out) {
+  StudyOutputs outputs;
+  open_study_outputs(outputs, out.csv, out.report ? *out.report : "");
   int checked = 0;
   const std::vector<std::string> items = harness::merge_items(parts, harness::version(), &checked);
   if (!out.quiet)
@@ -195,7 +221,7 @@ int merge_study_parts(const std::vector<harness::Part>& parts, const SweepMergeO
     std::cout << harness::format_study(results.back()) << '\n';
     check_written(std::cout);
   }
-  write_study_outputs(results, std::nullopt, out.csv, out.report ? *out.report : "");
+  write_study_outputs(results, std::nullopt, outputs, status);
   return status;
 }
 

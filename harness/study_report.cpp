@@ -107,15 +107,14 @@ json scaling_json(const ScalingStudy& s) {
   return j;
 }
 
-bool is_study_folder(const fs::path& dir) {
-  std::ifstream in(dir / "study.json");
-  if (!in) return false;
-  try {
-    const json j = json::parse(in);
-    return j.is_object() && j.value("tool", "") == "crossdyn" && j.value("kind", "") == "study";
-  } catch (const std::exception&) {
-    return false;
-  }
+// What a study report owns at the top of its folder (replaced by the next report); anything
+// else there is carried over.
+bool study_owned(const fs::path& name) {
+  const std::string n = name.string();
+  const std::string ext = name.extension().string();
+  return n == "study.json" || n == "scaling.csv" || ext == ".html" || ext == ".png" ||
+         (n.size() > 10 && n.compare(n.size() - 10, 10, "-study.csv") == 0) ||
+         n.find(".crossdyn-") != std::string::npos;
 }
 
 }  // namespace
@@ -137,19 +136,13 @@ std::string study_json(const std::vector<SceneStudy>& scenes, const std::optiona
   return j.dump(1) + "\n";
 }
 
-void write_study_report(const std::string& given, const std::vector<SceneStudy>& scenes,
+std::unique_ptr<StagedFolder> stage_study_report(const std::string& dir) {
+  return stage_report_folder(dir, "study.json", "study", study_owned);
+}
+
+void write_study_report(StagedFolder& staged, const std::vector<SceneStudy>& scenes,
                         const std::optional<ScalingStudy>& scaling, const std::string& python) {
-  if (given.empty()) throw InputError("--report: the folder name is empty");
-  const fs::path dir = fs::absolute(given).lexically_normal();
-  std::error_code ec;
-  if (fs::exists(dir, ec)) {
-    if (!fs::is_directory(dir, ec)) throw InputError("--report: '" + given + "' is a file, not a folder");
-    if (!fs::is_empty(dir, ec) && !is_study_folder(dir))
-      throw InputError("--report: '" + given + "' is neither empty nor a crossdyn study report (no "
-                       "study.json written by crossdyn study); give a new folder, an empty one or "
-                       "an earlier study report");
-  }
-  make_directories(dir.string());
+  const fs::path& dir = staged.path();
   const std::vector<std::string> ids = study_ids(scenes);
   for (std::size_t i = 0; i < scenes.size(); ++i)
     write_file_atomic((dir / (ids[i] + "-study.csv")).string(),

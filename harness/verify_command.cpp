@@ -8,6 +8,7 @@
 #include "core/output.hpp"
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
+#include "harness/report.hpp"
 #include "harness/shard.hpp"
 #include "harness/verify.hpp"
 
@@ -68,46 +69,59 @@ void open_outputs(VerifyCommandOptions& o, std::vector<NamedPath> inputs, Output
   check_outputs_are_not_inputs(outputs, inputs, folders);
   open_output(out.json_file, out.json, "--json");
   open_output(out.junit_file, o.junit, "--junit");
+  if (o.report) {
+    // An unusable report folder (a file, not a report, no room for a folder beside it) or a
+    // missing script is refused now (exit 2), before the work.
+    harness::ReportOptions r;
+    r.dir = *o.report;
+    r.python = o.python;
+    r.script = out.script;
+    std::vector<std::string> scene_files;
+    for (const NamedPath& in : inputs)
+      if (in.role == "the scene file") scene_files.push_back(in.path);
+    harness::check_report(scene_files, r);
+  }
 }
 
-// What verify writes after the comparisons: the table, the JSON summary, the JUnit XML, then the
-// report (whose failure never changes the verdict). Returns the exit status.
+// What verify writes after the comparisons: the table; then the report is built in its staging
+// folder; then the JSON summary, the JUnit XML and the report replace the old ones together
+// (core/output.hpp commit_together). A report that cannot be made (its script fails) is
+// reported and never changes the verdict: the JSON and JUnit files are still written and the
+// old report folder is left as it was. Returns the exit status.
 int write_outputs(VerifyCommandOptions& o, Outputs& out, const harness::VerifyResult& result) {
   std::cout << harness::format_verify_table(result);
   check_written(std::cout);
-  if (out.json_file) {
-    out.json_file->stream() << harness::json_summary(result.scenes);
-    out.json_file->commit();
-    std::cout << "JSON summary: " << out.json << '\n';
-  }
-  if (out.junit_file) {
-    out.junit_file->stream() << harness::junit_xml(result.scenes);
-    out.junit_file->commit();
-    std::cout << "JUnit XML: " << o.junit << '\n';
-  }
-  check_written(std::cout);
+  if (out.json_file) out.json_file->stream() << harness::json_summary(result.scenes);
+  if (out.junit_file) out.junit_file->stream() << harness::junit_xml(result.scenes);
 
   // The report: its failure is reported, never the verdict; Ctrl-C during it is 130.
+  std::unique_ptr<harness::StagedFolder> report;
+  bool report_failed = false;
   if (o.report) {
     harness::ReportOptions r;
     r.dir = *o.report;
     r.python = o.python;
     r.script = out.script;
     try {
-      harness::write_report(result.scenes, r);
-      std::cout << "report: " << r.dir << "/index.html\n";
+      report = harness::build_report(result.scenes, r);
     } catch (const RunFailure& f) {
       if (f.reason() == "interrupted") throw;
-      std::cout << "report: NOT WRITTEN (see the message on stderr)\n";
+      report_failed = true;
       std::cerr << "crossdyn: report not written: " << f.what() << '\n';
     } catch (const std::exception& e) {
-      std::cout << "report: NOT WRITTEN (see the message on stderr)\n";
+      report_failed = true;
       std::cerr << "crossdyn: report not written: " << e.what()
                 << " (the verdict above stands; exit status " << result.exit_code() << ")\n";
     }
     if (interrupt_requested()) throw RunFailure("report", 0.0, "", "interrupted");
-    check_written(std::cout);
   }
+  commit_together({out.json_file ? &*out.json_file : nullptr, out.junit_file ? &*out.junit_file : nullptr},
+                  {report.get()});
+  if (out.json_file) std::cout << "JSON summary: " << out.json << '\n';
+  if (out.junit_file) std::cout << "JUnit XML: " << o.junit << '\n';
+  if (report) std::cout << "report: " << *o.report << "/index.html\n";
+  if (report_failed) std::cout << "report: NOT WRITTEN (see the message on stderr)\n";
+  check_written(std::cout);
   return result.exit_code();
 }
 
@@ -121,7 +135,8 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
     throw InputError("--shard/--part: --json, --junit and --report are written by `crossdyn merge "
                      "PARTS...` from all the parts, not by one shard");
   std::vector<NamedPath> inputs;
-  for (const std::string& f : files) inputs.push_back({"the scene file", f});
+  for (const std::string& f : files)
+    for (NamedPath& p : harness::scene_file_inputs(f)) inputs.push_back(std::move(p));
   check_outputs_are_not_inputs({{"standard output", "-"}, {"--part", o.part}}, inputs, {});
   std::optional<AtomicFile> part_file;
   open_output(part_file, o.part, "--part");
@@ -135,7 +150,7 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
   const harness::VerifyResult result = harness::run_verify(o.verify, own);
   std::cout << harness::format_verify_table(result);
   part_file->stream() << harness::part_json(shard, plan, result.scenes);
-  part_file->commit();
+  commit_together({&*part_file});
   std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
   check_written(std::cout);
   return result.exit_code();
@@ -148,8 +163,10 @@ int verify(VerifyCommandOptions& o) {
   if (!o.shard.empty()) harness::parse_shard(o.shard);  // a bad --shard before anything else
   const std::vector<std::string> files = harness::scene_files(o.verify);
   if (!o.shard.empty() || !o.part.empty()) return verify_shard(o, files);
+  // The scenes and every data file they read (nodal CSV files).
   std::vector<NamedPath> inputs;
-  for (const std::string& f : files) inputs.push_back({"the scene file", f});
+  for (const std::string& f : files)
+    for (NamedPath& p : harness::scene_file_inputs(f)) inputs.push_back(std::move(p));
   Outputs out;
   open_outputs(o, inputs, out);
 

@@ -215,6 +215,8 @@ flex::FlexModel read_nodes(const Reader& r, const MapView& m) {
     r.fail(nodes.val, std::to_string(model.flex.modes()) + " modes: a scene's flexible body has at "
                       "most " + std::to_string(kMaxSceneFlexModes));
   model.flex.scene_form = nodes_form(nodes_path, modes_path);
+  model.flex.data_files.push_back(resolve(nodes_path));
+  if (!modes_path.empty()) model.flex.data_files.push_back(resolve(modes_path));
   return model;
 }
 

@@ -4,9 +4,12 @@
 //   cancel_child ack          wait for the interrupt flag, acknowledge it, then hang
 //   cancel_child child        start `sleep 1000`, register it, print its pid, then hang
 //   cancel_child poll         poll() in a loop; on Cancelled print its message and exit 130
+//   cancel_child hold         hold the forced exit (outputs being renamed), raise SIGINT twice,
+//                             outlive the forced-exit delay, print "held" on stderr, release
 // Each mode prints "ready" on stdout once it is waiting.
 #include "core/cancel.hpp"
 
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -51,6 +54,17 @@ int main(int argc, char** argv) {
     std::printf("pid %d\n", static_cast<int>(pid));
     ready();
     hang();
+  } else if (mode == "hold") {
+    ready();
+    {
+      const cancel::HoldForcedExit hold;
+      ::raise(SIGINT);
+      ::raise(SIGINT);  // without the hold: _exit(130) here
+      ::usleep(static_cast<useconds_t>(cancel::kForcedExitDelay * 2e6));  // past the watchdog's delay
+      std::fprintf(stderr, "held\n");
+    }  // the forced exit happens here
+    std::fprintf(stderr, "not exited\n");
+    return 0;
   } else if (mode == "poll") {
     ready();
     try {

@@ -235,3 +235,19 @@ TEST_CASE("forced exit: registered child processes are stopped") {
   }
   CHECK(stopped);
 }
+
+TEST_CASE("class 2, outputs are renamed whole: the forced exit of a second Ctrl-C waits for HoldForcedExit") {
+  // cancel_child hold: two SIGINTs and more than the forced-exit delay inside the hold; the
+  // process must still reach the end of the hold (stderr "held") and only then exit with 130.
+  const std::string err = (fs::temp_directory_path() / ("crossdyn_hold_" + std::to_string(::getpid()))).string();
+  const int raw = std::system((child_program() + " hold > /dev/null 2> " + err).c_str());
+  std::stringstream text;
+  text << std::ifstream(err).rdbuf();
+  fs::remove(err);
+  INFO(text.str());
+  REQUIRE(WIFEXITED(raw));
+  CHECK(WEXITSTATUS(raw) == 130);
+  CHECK(text.str().find("held\n") == 0);
+  CHECK(text.str().find("not exited") == std::string::npos);
+  CHECK(text.str().find("interrupted") != std::string::npos);
+}

@@ -89,7 +89,7 @@ TEST_CASE("draw: never writes over an input, and refuses bad input before runnin
                         "' is a folder; give a file name ending in .png\n");
   r = crossdyn::test::run_crossdyn("draw '" + kPanels + "' -o '" + (dir / "missing" / "x.png").string() + "'");
   CHECK(r.status == 2);
-  CHECK(r.output.rfind("crossdyn: error: cannot write '" + (dir / "missing" / "x.png").string() + "'", 0) == 0);
+  CHECK(r.output.rfind("crossdyn: error: cannot write -o '" + (dir / "missing" / "x.png").string() + "'", 0) == 0);
   CHECK_FALSE(fs::exists(dir / "missing"));
 
   // A scene that cannot be read: its file and line, exit 2, no picture.
