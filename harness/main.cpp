@@ -4,7 +4,38 @@
 #include "core/cancel.hpp"
 #include "harness/cli.hpp"
 
+#include <unistd.h>
+
+#include <cstring>
+#include <exception>
+#include <new>
+
+namespace {
+
+// Whatever ends in std::terminate (an exception leaving a thread or a noexcept function; above
+// all std::bad_alloc where no handler can catch it) is exit status 3 with a one-line message,
+// never an abort (SIGABRT, 134): README "Exit status". Outputs are never half-written (they are
+// temporaries until renamed); a temporary left behind is removed by the next run that writes
+// there (core/output.hpp). Nothing here allocates.
+[[noreturn]] void on_terminate() noexcept {
+  const char* message = "crossdyn: internal error: the program cannot continue\n";
+  if (const std::exception_ptr e = std::current_exception()) {
+    try {
+      std::rethrow_exception(e);
+    } catch (const std::bad_alloc&) {
+      message = "crossdyn: error: out of memory (the work needs more memory than this process may use)\n";
+    } catch (...) {
+    }
+  }
+  const ssize_t ignored = ::write(2, message, std::strlen(message));
+  (void)ignored;
+  ::_exit(3);
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  std::set_terminate(on_terminate);
   crossdyn::cancel::install_signal_handlers("crossdyn");
   return crossdyn::crossdyn_main(argc, argv);
 }

@@ -405,6 +405,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
       f.drift_E = r.drift_E;
       f.H_conserved = H_conserved;
       f.E_conserved = E_conserved;
+      cell.facts = f;
       cell.result = classify(f, m.limits);
       out.cells.push_back(cell);
     }
@@ -424,7 +425,8 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
           cell.column = c;
           CellFacts f;
           f.reference = false;
-          cell.result = classify(f, m.limits);
+          cell.facts = f;
+      cell.result = classify(f, m.limits);
           out.cells.push_back(cell);
         }
       }

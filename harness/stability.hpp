@@ -118,6 +118,7 @@ struct StabilityCell {
   bool fixed_step = false;
   double setting = 0;           // dt (rk4) or rtol = atol
   std::size_t column = 0;       // into StabilityMap::columns
+  CellFacts facts;              // what `result` was classified from (parts carry it: merge re-classifies)
   Classified result;
   double history_error = std::numeric_limits<double>::quiet_NaN();
   double cpu = 0;               // s, one run

@@ -134,7 +134,26 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
               << " of " << files.size() << " scenes\n";
   const harness::VerifyResult result = harness::run_verify(o.verify, own);
   std::cout << harness::format_verify_table(result);
-  part_file->stream() << harness::part_json(shard, plan, result.scenes);
+  // What the outcomes depend on besides the scenes: merge refuses parts that differ in any.
+  const harness::CompareCliOptions& c = o.common;
+  const auto opt_num = [](const std::optional<double>& v) {
+    return v ? harness::shortest_text(*v) : std::string("(scene's)");
+  };
+  std::string inertia;
+  for (const std::string& x : c.test_inertia_scale) inertia += (inertia.empty() ? "" : " ") + x;
+  const harness::PartOptions part_options{
+      {"--engines", c.engines.empty() ? "(all)" : c.engines},
+      {"--integrator", c.integrator ? *c.integrator : "(scene's)"},
+      {"--rtol", opt_num(c.rtol)},
+      {"--atol", opt_num(c.atol)},
+      {"--dt", opt_num(c.dt)},
+      {"--no-analytic", c.no_analytic ? "yes" : "no"},
+      {"--max-steps", c.max_steps ? std::to_string(*c.max_steps) : "(scene's)"},
+      {"--timeout", opt_num(c.timeout)},
+      {"--allow-no-comparison", o.verify.allow_no_comparison ? "yes" : "no"},
+      {"--no-converge", o.verify.converge ? "no" : "yes"},
+      {"--test-inertia-scale", inertia.empty() ? "(none)" : inertia}};
+  part_file->stream() << harness::part_json(shard, plan, result.scenes, part_options);
   part_file->commit();
   std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
   check_written(std::cout);
@@ -164,7 +183,8 @@ int merge(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
-  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
+  std::size_t budget = harness::kPartMemoryBudget;  // all the parts together
+  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f, budget));
   const std::string command = parts.front().command;
   if (command != "verify") {
     // study and stability parts: their outputs (the commands' own --csv and --report).
