@@ -44,6 +44,11 @@ const char* type_phrase(const json& j) {
 
 }  // namespace
 
+// The numbers of the runs' "data" lists of the part being read: parse_bounded stores them here
+// (8 bytes a value) instead of in the DOM (16 bytes a value and a list's spare room), and the
+// DOM's "data" list holds one index into this store.
+thread_local std::vector<std::vector<double>>* t_data_store = nullptr;
+
 // A JSON value of a part with where it is ("/outcomes/0/comparison/checks/3"): every accessor
 // throws an InputError naming the field and what is wrong, never the library's text.
 class PartField {
@@ -348,7 +353,15 @@ EngineRun run_from(const PartField& j) {
   r.note = j.at("note").str();
   r.result.engine = j.at("result_engine").str();
   r.result.columns = j.at("columns").strings();
-  for (const PartField& v : each(j.at("data"))) r.result.data.push_back(v.number());
+  const PartField data = j.at("data");
+  if (t_data_store && data.value().is_array() && data.value().size() == 1 &&
+      data.value()[0].is_number_unsigned() && data.value()[0].get<std::size_t>() < t_data_store->size()) {
+    std::vector<double>& stored = (*t_data_store)[data.value()[0].get<std::size_t>()];
+    stored.shrink_to_fit();
+    r.result.data = std::move(stored);
+  } else {
+    for (const PartField& v : each(data)) r.result.data.push_back(v.number());
+  }
   if (!r.result.columns.empty() && r.result.data.size() % r.result.columns.size() != 0)
     j.at("data").fail("is not whole rows of the " + std::to_string(r.result.columns.size()) + " columns");
   const PartField st = j.at("stats");
@@ -615,27 +628,77 @@ struct BudgetedDom {
   std::string error_token;
   bool failed = false;
 
+  std::vector<std::vector<double>>* store = nullptr;  // runs' "data" lists go here when set
+  std::string last_key;
+  std::vector<bool> in_data;  // per open list: is it a "data" list stored aside
+  bool bad_data = false;
+
   BudgetedDom(json& root, std::size_t b) : dom(root, false), budget(b) {}
+  bool data_now() const { return !in_data.empty() && in_data.back(); }
+  bool put(double v) { return charge(sizeof(double)) && (store->back().push_back(v), true); }
   bool charge(std::size_t n) {
     used += n;
     if (used > budget) over = true;
     return !over;
   }
   static constexpr std::size_t kValue = sizeof(json);
-  bool null() { return charge(kValue) && dom.null(); }
-  bool boolean(bool v) { return charge(kValue) && dom.boolean(v); }
-  bool number_integer(json::number_integer_t v) { return charge(kValue) && dom.number_integer(v); }
-  bool number_unsigned(json::number_unsigned_t v) { return charge(kValue) && dom.number_unsigned(v); }
+  bool not_data() {
+    bad_data = true;  // a "data" list holds numbers only
+    return false;
+  }
+  bool null() { return data_now() ? not_data() : charge(kValue) && dom.null(); }
+  bool boolean(bool v) { return data_now() ? not_data() : charge(kValue) && dom.boolean(v); }
+  bool number_integer(json::number_integer_t v) {
+    if (data_now()) return put(static_cast<double>(v));
+    return charge(kValue) && dom.number_integer(v);
+  }
+  bool number_unsigned(json::number_unsigned_t v) {
+    if (data_now()) return put(static_cast<double>(v));
+    return charge(kValue) && dom.number_unsigned(v);
+  }
   bool number_float(json::number_float_t v, const json::string_t& s) {
+    if (data_now()) return put(v);
     return charge(kValue) && dom.number_float(v, s);
   }
-  bool string(json::string_t& v) { return charge(kValue + sizeof(json::string_t) + v.size()) && dom.string(v); }
-  bool binary(json::binary_t& v) { return charge(kValue + v.size()) && dom.binary(v); }
-  bool start_object(std::size_t n) { return charge(kValue + sizeof(json::object_t)) && dom.start_object(n); }
-  bool key(json::string_t& k) { return charge(sizeof(json::string_t) + k.size() + kValue) && dom.key(k); }
-  bool end_object() { return dom.end_object(); }
-  bool start_array(std::size_t n) { return charge(kValue + sizeof(json::array_t)) && dom.start_array(n); }
-  bool end_array() { return dom.end_array(); }
+  bool string(json::string_t& v) {
+    if (data_now()) {
+      if (v == "nan") return put(std::numeric_limits<double>::quiet_NaN());
+      if (v == "inf") return put(std::numeric_limits<double>::infinity());
+      if (v == "-inf") return put(-std::numeric_limits<double>::infinity());
+      return not_data();
+    }
+    return charge(kValue + sizeof(json::string_t) + v.size()) && dom.string(v);
+  }
+  bool binary(json::binary_t& v) { return data_now() ? not_data() : charge(kValue + v.size()) && dom.binary(v); }
+  bool start_object(std::size_t n) {
+    if (data_now()) return not_data();
+    in_data.push_back(false);
+    return charge(kValue + sizeof(json::object_t)) && dom.start_object(n);
+  }
+  bool key(json::string_t& k) {
+    last_key = k;
+    return charge(sizeof(json::string_t) + k.size() + kValue) && dom.key(k);
+  }
+  bool end_object() {
+    in_data.pop_back();
+    last_key.clear();
+    return dom.end_object();
+  }
+  bool start_array(std::size_t n) {
+    if (data_now()) return not_data();
+    const bool data = store && last_key == "data";
+    last_key.clear();
+    in_data.push_back(data);
+    if (!charge(kValue + sizeof(json::array_t)) || !dom.start_array(n)) return false;
+    if (!data) return true;
+    store->emplace_back();  // the DOM's list: [index into the store]
+    return dom.number_unsigned(store->size() - 1);
+  }
+  bool end_array() {
+    in_data.pop_back();
+    last_key.clear();
+    return dom.end_array();
+  }
   bool parse_error(std::size_t position, const std::string& token, const nlohmann::detail::exception&) {
     failed = true;
     error_at = position;
@@ -654,9 +717,14 @@ namespace {
 
 // Parses `in` (a part file's text, or an item's) into `out` within `budget` bytes of DOM
 // (decreased by what it used); InputError, as a sentence, when it is not JSON or too big.
-void parse_bounded(std::istream& in, json& out, std::size_t& budget) {
+void parse_bounded(std::istream& in, json& out, std::size_t& budget,
+                   std::vector<std::vector<double>>* data_store = nullptr) {
   BudgetedDom sax(out, budget);
+  sax.store = data_store;
   json::sax_parse(in, &sax, nlohmann::detail::input_format_t::json, false);
+  if (sax.bad_data)
+    throw InputError("holds a \"data\" list with something other than numbers (or \"nan\", "
+                     "\"inf\", \"-inf\")");
   if (sax.over)
     throw InputError("holds more values than merge reads (its parsed form would pass " +
                      mib(budget) + ", the memory left of merge's " + mib(kPartMemoryBudget) +
@@ -758,8 +826,13 @@ Part read_part(const std::string& file, std::size_t& budget) {
     std::ifstream in(file, std::ios::binary);
     if (!in) throw InputError("cannot be read");
     json root;
-    parse_bounded(in, root, budget);
+    std::vector<std::vector<double>> data;
+    parse_bounded(in, root, budget, &data);
     if (in.bad()) throw InputError("cannot be read (an I/O error)");
+    t_data_store = &data;
+    struct Reset {
+      ~Reset() { t_data_store = nullptr; }
+    } reset;
     read_part_json(root, p);
   } catch (const InputError& e) {
     throw InputError("part file '" + file + "': " + e.what());
@@ -900,9 +973,9 @@ bool same_number(double a, double b) {
 // Refuses a verify outcome whose derived fields are not what its numbers give: the comparison is
 // made again from the part's scene and runs with compare_runs and require_comparison, the code
 // the unsharded verify uses, and every check, note and run state must be the same.
-void recheck_outcome(const Part& part, const SceneOutcome& o, bool allow_no_comparison) {
+void recheck_outcome(const Part& part, SceneOutcome& o, bool allow_no_comparison) {
   if (!o.comparison) return;
-  const SceneComparison& c = *o.comparison;
+  SceneComparison& c = *o.comparison;
   const auto refuse = [&](const std::string& what) {
     throw InputError("part '" + part.file + "', scene '" + o.path + "': " + what +
                      ": the part does not hold what its numbers give (edited, or written by "
@@ -915,7 +988,8 @@ void recheck_outcome(const Part& part, const SceneOutcome& o, bool allow_no_comp
       refuse("run '" + r.label + "' has state '" + std::string(r.state == EngineRun::State::Failed ? "failed" : r.state == EngineRun::State::Ok ? "ok" : "not_built") +
              "' but " + (failed ? "a failure" : "no failure"));
   }
-  SceneComparison again = compare_runs(*o.system, c.runs);
+  SceneComparison again = compare_runs(*o.system, std::move(c.runs));  // the runs lent, not copied
+  c.runs = std::move(again.runs);
   again.settings = c.settings;
   require_comparison(again, allow_no_comparison);
   if (again.checks.size() != c.checks.size())
