@@ -988,6 +988,22 @@ void recheck_outcome(const Part& part, SceneOutcome& o, bool allow_no_comparison
       refuse("run '" + r.label + "' has state '" + std::string(r.state == EngineRun::State::Failed ? "failed" : r.state == EngineRun::State::Ok ? "ok" : "not_built") +
              "' but " + (failed ? "a failure" : "no failure"));
   }
+  // The analytic solution's rows are numbers the merge can make too: made again at the part's
+  // output times, they must be the part's to the last bit.
+  for (const EngineRun& r : c.runs) {
+    if (r.engine != "analytic" || r.result.columns.empty() || r.result.columns.front() != "t") continue;
+    std::vector<double> times;
+    const std::size_t width = r.result.columns.size();
+    for (std::size_t k = 0; k < r.result.data.size(); k += width) times.push_back(r.result.data[k]);
+    const RunResult made = analytic_run(*o.system, times);
+    if (made.columns != r.result.columns || made.data.size() != r.result.data.size())
+      refuse("run 'analytic': its columns or rows are not the analytic solution's");
+    for (std::size_t k = 0; k < made.data.size(); ++k)
+      if (!same_number(made.data[k], r.result.data[k]))
+        refuse("run 'analytic', row " + std::to_string(k / width + 1) + ", column '" +
+               made.columns[k % width] + "': " + shortest_text(r.result.data[k]) + " in the part, " +
+               shortest_text(made.data[k]) + " from the analytic solution");
+  }
   SceneComparison again = compare_runs(*o.system, std::move(c.runs));  // the runs lent, not copied
   c.runs = std::move(again.runs);
   again.settings = c.settings;
@@ -1091,6 +1107,16 @@ void recheck_item(const Part& part, const ShardScene& unit, const std::string& t
       if (!same_number(c.history_error, c.facts.history_error))
         refuse(name + ", field 'history_error': " + num_text(c.history_error) + " beside " +
                num_text(c.facts.history_error) + " in its facts");
+      if (c.fixed_step) {
+        const auto e = std::find(frame.engines.begin(), frame.engines.end(), c.engine);
+        const std::size_t ei = static_cast<std::size_t>(e - frame.engines.begin());
+        const double h = e != frame.engines.end() && ei < v.column.lambda_max.size()
+                             ? c.setting * v.column.lambda_max[ei]
+                             : std::numeric_limits<double>::quiet_NaN();
+        if (!same_number(h, c.h_lambda))
+          refuse(name + ", field 'h_lambda': " + num_text(c.h_lambda) + " in the part, " + num_text(h) +
+                 " from dt x the column's |lambda|max of " + c.engine);
+      }
       if (c.facts.reference != v.column.reference)
         refuse(name + ", field 'facts/reference' differs from the column's 'reference'");
     }
@@ -1149,6 +1175,12 @@ void recheck_item(const Part& part, const ShardScene& unit, const std::string& t
     if (!item.refused.empty() || item.exit_status != 0)
       refuse("field 'refused' or 'exit_status' is set beside a study (a study's is empty and 0)");
     const SceneStudy& st = *item.study;
+    const double required = StudyOptions{}.reference_agreement;
+    if (st.reference.kind != "analytic" && st.reference.kind != "engines")
+      refuse("field 'reference/kind' is '" + st.reference.kind + "', not analytic or engines");
+    if (st.reference.kind == "engines" && !(st.reference.agreement <= required))
+      refuse("field 'reference/agreement': " + num_text(st.reference.agreement) + " is above the " +
+             num_text(required) + " a study needs of its reference (the scene is refused, not studied)");
     SceneStudy again = st;
     mark_fronts(again);
     const auto yes = [](bool b) { return std::string(b ? "true" : "false"); };

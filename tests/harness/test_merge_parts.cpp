@@ -149,6 +149,11 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: verify parts
     save(edited(p0, e.pointer, e.value, e.erase), dir / "e0.json");
     require_refused("e0.json p1.json", dir.path.string(), "e0.json", e.field);
   }
+  // The analytic solution's rows are made again (torque_free_asymmetric, in the other part).
+  const json p1 = load(dir / "p1.json");
+  REQUIRE(p1.at(json::json_pointer(c + "/runs/0/engine")) == "analytic");
+  save(edited(p1, c + "/runs/0/data/30", 0.25), dir / "e1.json");
+  require_refused("p0.json e1.json", dir.path.string(), "e1.json", "from the analytic solution");
   // The issue's example: a failing part edited from FAIL to PASS.
   REQUIRE(run_crossdyn("verify -q --no-converge" + scenes +
                            " --test-inertia-scale kane=1.01 --shard 0/1 --part f.json",
@@ -231,7 +236,8 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: study, stabi
            {"/items/0/cells/1/class", 4, "field 'class'"},
            {"/items/0/cells/0/why", "fine", "field 'why'"},
            {"/items/0/cells/0/history_error", 1e-20, "field 'history_error'"},
-           {"/items/0/cells/0/facts/history_error", 1e-20, "field 'class'"}}) {
+           {"/items/0/cells/0/facts/history_error", 1e-20, "field 'class'"},
+           {"/items/0/cells/0/h_lambda", 7.0, "field 'h_lambda'"}}) {
     json e = edited(s, pointer, value);
     // A class edit that happens to be the real class is no edit: make it differ.
     if (e == s) continue;
@@ -251,6 +257,9 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: study, stabi
     save(edited(t, pointer, value), dir / "te.json");
     require_refused("'" + dir / "te.json" + "'", src, "te.json", field);
   }
+  save(edited(edited(t, "/items/0/study/reference/kind", "engines"), "/items/0/study/reference/agreement", 1e-3),
+       dir / "te.json");
+  require_refused("'" + dir / "te.json" + "'", src, "te.json", "field 'reference/agreement'");
   json refused = t;
   refused["items"][0]["study"] = nullptr;
   refused["items"][0]["exit_status"] = 0;
