@@ -84,7 +84,8 @@ class PartField {
     if (j_->is_number_float()) {
       const double v = j_->get<double>();
       if (!(v == std::floor(v))) fail("must be a whole number, not " + shortest_text(v));
-      if (!(v >= static_cast<double>(lo) && v <= static_cast<double>(hi)))
+      // (hi as a double may round up past hi: 2^63 for LLONG_MAX; no whole part has such values)
+      if (!(v >= static_cast<double>(lo) && v <= static_cast<double>(hi)) || std::fabs(v) >= 9.2e18)
         fail("is out of range (" + shortest_text(v) + ", from " + std::to_string(lo) + " to " +
              std::to_string(hi) + ")");
       return static_cast<long long>(v);
