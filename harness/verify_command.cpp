@@ -179,7 +179,22 @@ int verify(VerifyCommandOptions& o) {
 
 // crossdyn merge PARTS...: the parts checked (harness/shard.hpp merge_parts), then exactly what
 // verify writes for the whole run.
+int merge_parts_command(VerifyCommandOptions& o);
+
+// A part's text reaches the messages (paths, versions, names): a control character in it (a
+// newline) would break the one-line error, so it is shown as '?'.
 int merge(VerifyCommandOptions& o) {
+  try {
+    return merge_parts_command(o);
+  } catch (const InputError& e) {
+    std::string m = e.what();
+    for (char& c : m)
+      if (static_cast<unsigned char>(c) < 32 || c == 127) c = '?';
+    throw InputError(m);
+  }
+}
+
+int merge_parts_command(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});

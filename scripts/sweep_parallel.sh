@@ -140,5 +140,4 @@ for name in "${names[@]}"; do
   [ -e "$stage/$name" ] && { mv -f -- "$stage/$name" "$out/$name" || exit 3; }
 done
 rm -rf -- "$stage"
-echo "moved into '$out': ${names[*]} and the $n parts (the merge wrote them in the run folder)"
 exit "$rc"

@@ -328,6 +328,16 @@ TEST_CASE("class 10, every error about a part file names the file and the field,
     CHECK(r.output.find(k.expect) != std::string::npos);
     CHECK(r.output.find("json.exception") == std::string::npos);
   }
+  // A part's text with a newline (a version, a scene path) stays one line in the message.
+  for (const auto& [pointer, value] : std::vector<std::pair<std::string, json>>{
+           {"/version", "0.0\nfake"}, {"/scenes/0/path", "a\nb.yaml"}, {"/command", "verify\nx"}}) {
+    save(edited(load(dir / "v.json"), pointer, value), dir / "bad.json");
+    const auto r = run_crossdyn("merge -q '" + dir / "bad.json" + "'", src);
+    INFO(pointer << "\n" << r.output);
+    CHECK(r.status == 2);
+    CHECK(r.output.rfind("crossdyn: error: part", 0) == 0);
+    CHECK(r.output.find('\n') == r.output.size() - 1);
+  }
   // Not JSON, empty, not a part.
   for (const auto& [text, expect] : std::vector<std::pair<std::string, std::string>>{
            {"{\"tool\": \"crossdyn-part\", \"format\": 1,", "is not valid JSON at byte"},
