@@ -143,6 +143,10 @@ struct SceneComparison {
   int count(CheckStatus s) const;
 };
 
+// A pairwise or drift check's bound, normalised error and status from its error, scale and
+// tolerance, by the pass rule above (what compare_runs does; merge re-judges parts with it).
+void judge_check(Check& c);
+
 // The compare logic on runs already sampled at the same output times (testable with synthetic
 // RunResults): pairwise checks, drift checks, run-failure checks, exclusions, notes.
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs);

@@ -27,6 +27,131 @@ namespace crossdyn::harness {
 namespace fs = std::filesystem;
 using json = nlohmann::ordered_json;
 
+namespace {
+
+const char* type_phrase(const json& j) {
+  switch (j.type()) {
+    case json::value_t::null: return "null";
+    case json::value_t::object: return "an object";
+    case json::value_t::array: return "an array";
+    case json::value_t::string: return "a string";
+    case json::value_t::boolean: return "true or false";
+    case json::value_t::binary: return "binary data";
+    case json::value_t::discarded: return "nothing";
+    default: return "a number";
+  }
+}
+
+}  // namespace
+
+// The numbers of the runs' "data" lists of the part being read: parse_bounded stores them here
+// (8 bytes a value) instead of in the DOM (16 bytes a value and a list's spare room), and the
+// DOM's "data" list holds one index into this store.
+thread_local std::vector<std::vector<double>>* t_data_store = nullptr;
+
+// A JSON value of a part with where it is ("/outcomes/0/comparison/checks/3"): every accessor
+// throws an InputError naming the field and what is wrong, never the library's text.
+class PartField {
+ public:
+  PartField(const json& j, std::string where) : j_(&j), where_(std::move(where)) {}
+  const json& value() const { return *j_; }
+  const std::string& where() const { return where_; }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError("field '" + (where_.empty() ? std::string("/") : where_) + "' " + what);
+  }
+  PartField at(const std::string& key) const {
+    if (!j_->is_object()) fail("must be an object, not " + std::string(type_phrase(*j_)));
+    const auto it = j_->find(key);
+    if (it == j_->end()) throw InputError("field '" + where_ + "/" + key + "' is missing");
+    return PartField(*it, where_ + "/" + key);
+  }
+  bool has(const std::string& key) const { return j_->is_object() && j_->contains(key); }
+  std::size_t size() const {
+    if (!j_->is_array()) fail("must be a list, not " + std::string(type_phrase(*j_)));
+    return j_->size();
+  }
+  PartField operator[](std::size_t i) const { return PartField((*j_)[i], where_ + "/" + std::to_string(i)); }
+  bool is_null() const { return j_->is_null(); }
+  std::string str() const {
+    if (!j_->is_string()) fail("must be a string, not " + std::string(type_phrase(*j_)));
+    return j_->get<std::string>();
+  }
+  bool boolean() const {
+    if (!j_->is_boolean()) fail("must be true or false, not " + std::string(type_phrase(*j_)));
+    return j_->get<bool>();
+  }
+  long long integer(long long lo, long long hi) const {
+    if (j_->is_number_float()) {
+      const double v = j_->get<double>();
+      if (!(v == std::floor(v))) fail("must be a whole number, not " + shortest_text(v));
+      // (hi as a double may round up past hi: 2^63 for LLONG_MAX; no whole part has such values)
+      if (!(v >= static_cast<double>(lo) && v <= static_cast<double>(hi)) || std::fabs(v) >= 9.2e18)
+        fail("is out of range (" + shortest_text(v) + ", from " + std::to_string(lo) + " to " +
+             std::to_string(hi) + ")");
+      return static_cast<long long>(v);
+    }
+    if (j_->is_number_unsigned()) {
+      const auto v = j_->get<std::uint64_t>();
+      if (v > static_cast<std::uint64_t>(hi))
+        fail("is out of range (" + std::to_string(v) + ", from " + std::to_string(lo) + " to " +
+             std::to_string(hi) + ")");
+      if (static_cast<long long>(v) < lo)
+        fail("is out of range (" + std::to_string(v) + ", from " + std::to_string(lo) + " to " +
+             std::to_string(hi) + ")");
+      return static_cast<long long>(v);
+    }
+    if (!j_->is_number_integer()) fail("must be a whole number, not " + std::string(type_phrase(*j_)));
+    const auto v = j_->get<long long>();
+    if (v < lo || v > hi)
+      fail("is out of range (" + std::to_string(v) + ", from " + std::to_string(lo) + " to " +
+           std::to_string(hi) + ")");
+    return v;
+  }
+  int i32() const { return static_cast<int>(integer(std::numeric_limits<int>::min(), std::numeric_limits<int>::max())); }
+  long i64() const { return static_cast<long>(integer(std::numeric_limits<long>::min(), std::numeric_limits<long>::max())); }
+  double number() const {
+    if (j_->is_string()) {
+      const std::string s = j_->get<std::string>();
+      if (s == "nan") return std::numeric_limits<double>::quiet_NaN();
+      if (s == "inf") return std::numeric_limits<double>::infinity();
+      if (s == "-inf") return -std::numeric_limits<double>::infinity();
+      fail("must be a number (or \"nan\", \"inf\", \"-inf\"), not the string '" + s.substr(0, 40) + "'");
+    }
+    if (!j_->is_number()) fail("must be a number, not " + std::string(type_phrase(*j_)));
+    return j_->get<double>();
+  }
+  std::vector<std::string> strings() const {
+    std::vector<std::string> v;
+    for (std::size_t i = 0, n = size(); i < n; ++i) v.push_back((*this)[i].str());
+    return v;
+  }
+  std::vector<int> ints() const {
+    std::vector<int> v;
+    for (std::size_t i = 0, n = size(); i < n; ++i) v.push_back((*this)[i].i32());
+    return v;
+  }
+  std::vector<double> numbers() const {
+    std::vector<double> v;
+    for (std::size_t i = 0, n = size(); i < n; ++i) v.push_back((*this)[i].number());
+    return v;
+  }
+
+ private:
+  const json* j_;
+  std::string where_;
+};
+
+namespace {
+// The elements of a list field, each with its place.
+std::vector<PartField> each(const PartField& f) {
+  std::vector<PartField> out;
+  const std::size_t n = f.size();
+  out.reserve(n);
+  for (std::size_t i = 0; i < n; ++i) out.push_back(f[i]);
+  return out;
+}
+}  // namespace
+
 ShardSpec parse_shard(const std::string& text) {
   const auto bad = [&text](const std::string& why) {
     return InputError("--shard: '" + text + "' " + why +
@@ -147,23 +272,13 @@ json num(double v) {
   return v;
 }
 
-double get_num(const json& j) {
-  if (j.is_string()) {
-    const std::string s = j.get<std::string>();
-    if (s == "nan") return std::numeric_limits<double>::quiet_NaN();
-    if (s == "inf") return std::numeric_limits<double>::infinity();
-    if (s == "-inf") return -std::numeric_limits<double>::infinity();
-    throw InputError("'" + s + "' is not a number");
-  }
-  return j.get<double>();
-}
-
 const char* status_name(CheckStatus s) { return to_string(s); }
 
-CheckStatus status_from(const std::string& s) {
+CheckStatus status_from(const PartField& f) {
+  const std::string s = f.str();
   for (CheckStatus c : {CheckStatus::Pass, CheckStatus::Fail, CheckStatus::Excluded, CheckStatus::Skipped})
     if (s == to_string(c)) return c;
-  throw InputError("unknown check status '" + s + "'");
+  f.fail("is '" + s.substr(0, 40) + "', not a check status (PASS, FAIL, EXCLUDED, SKIPPED)");
 }
 
 const char* state_name(EngineRun::State s) {
@@ -175,11 +290,12 @@ const char* state_name(EngineRun::State s) {
   return "?";
 }
 
-EngineRun::State state_from(const std::string& s) {
+EngineRun::State state_from(const PartField& f) {
+  const std::string s = f.str();
   if (s == "ok") return EngineRun::State::Ok;
   if (s == "failed") return EngineRun::State::Failed;
   if (s == "not_built") return EngineRun::State::NotBuilt;
-  throw InputError("unknown run state '" + s + "'");
+  f.fail("is '" + s.substr(0, 40) + "', not a run state (ok, failed, not_built)");
 }
 
 json check_to(const Check& c) {
@@ -191,23 +307,23 @@ json check_to(const Check& c) {
           {"normalised", num(c.normalised)}, {"status", status_name(c.status)}, {"note", c.note}};
 }
 
-Check check_from(const json& j) {
+Check check_from(const PartField& j) {
   Check c;
-  c.quantity = j.at("quantity").get<std::string>();
-  c.group = j.at("group").get<std::string>();
-  c.a = j.at("a").get<std::string>();
-  c.b = j.at("b").get<std::string>();
-  c.tolerance_key = j.at("tolerance_key").get<std::string>();
-  c.tolerance.atol = get_num(j.at("atol"));
-  c.tolerance.rtol = get_num(j.at("rtol"));
-  c.scale = get_num(j.at("scale"));
-  c.bound = get_num(j.at("bound"));
-  c.error = get_num(j.at("error"));
-  c.time = get_num(j.at("time"));
-  if (!j.at("first_exceeded").is_null()) c.first_exceeded = get_num(j.at("first_exceeded"));
-  c.normalised = get_num(j.at("normalised"));
-  c.status = status_from(j.at("status").get<std::string>());
-  c.note = j.at("note").get<std::string>();
+  c.quantity = j.at("quantity").str();
+  c.group = j.at("group").str();
+  c.a = j.at("a").str();
+  c.b = j.at("b").str();
+  c.tolerance_key = j.at("tolerance_key").str();
+  c.tolerance.atol = j.at("atol").number();
+  c.tolerance.rtol = j.at("rtol").number();
+  c.scale = j.at("scale").number();
+  c.bound = j.at("bound").number();
+  c.error = j.at("error").number();
+  c.time = j.at("time").number();
+  if (!j.at("first_exceeded").is_null()) c.first_exceeded = j.at("first_exceeded").number();
+  c.normalised = j.at("normalised").number();
+  c.status = status_from(j.at("status"));
+  c.note = j.at("note").str();
   return c;
 }
 
@@ -230,27 +346,35 @@ json run_to(const EngineRun& r) {
   return j;
 }
 
-EngineRun run_from(const json& j) {
+EngineRun run_from(const PartField& j) {
   EngineRun r;
-  r.label = j.at("label").get<std::string>();
-  r.engine = j.at("engine").get<std::string>();
-  r.state = state_from(j.at("state").get<std::string>());
-  r.note = j.at("note").get<std::string>();
-  r.result.engine = j.at("result_engine").get<std::string>();
-  r.result.columns = j.at("columns").get<std::vector<std::string>>();
-  for (const json& v : j.at("data")) r.result.data.push_back(get_num(v));
+  r.label = j.at("label").str();
+  r.engine = j.at("engine").str();
+  r.state = state_from(j.at("state"));
+  r.note = j.at("note").str();
+  r.result.engine = j.at("result_engine").str();
+  r.result.columns = j.at("columns").strings();
+  const PartField data = j.at("data");
+  if (t_data_store && data.value().is_array() && data.value().size() == 1 &&
+      data.value()[0].is_number_unsigned() && data.value()[0].get<std::size_t>() < t_data_store->size()) {
+    std::vector<double>& stored = (*t_data_store)[data.value()[0].get<std::size_t>()];
+    stored.shrink_to_fit();
+    r.result.data = std::move(stored);
+  } else {
+    for (const PartField& v : each(data)) r.result.data.push_back(v.number());
+  }
   if (!r.result.columns.empty() && r.result.data.size() % r.result.columns.size() != 0)
-    throw InputError("run '" + r.label + "': the data is not whole rows");
-  const json& st = j.at("stats");
-  r.result.stats.rhs_calls = st.at("rhs_calls").get<long>();
-  r.result.stats.steps = st.at("steps").get<long>();
-  r.result.stats.rejected = st.at("rejected").get<long>();
-  r.result.stats.restarts = st.at("restarts").get<long>();
-  r.result.stats.wall_seconds = get_num(st.at("wall_seconds"));
-  if (j.contains("failure")) {
-    const json& f = j.at("failure");
-    r.result.failure.emplace(f.at("engine").get<std::string>(), get_num(f.at("time")),
-                             f.at("quantity").get<std::string>(), f.at("reason").get<std::string>());
+    j.at("data").fail("is not whole rows of the " + std::to_string(r.result.columns.size()) + " columns");
+  const PartField st = j.at("stats");
+  r.result.stats.rhs_calls = st.at("rhs_calls").i64();
+  r.result.stats.steps = st.at("steps").i64();
+  r.result.stats.rejected = st.at("rejected").i64();
+  r.result.stats.restarts = st.at("restarts").i64();
+  r.result.stats.wall_seconds = st.at("wall_seconds").number();
+  if (j.has("failure")) {
+    const PartField f = j.at("failure");
+    r.result.failure.emplace(f.at("engine").str(), f.at("time").number(),
+                             f.at("quantity").str(), f.at("reason").str());
   }
   return r;
 }
@@ -261,18 +385,22 @@ json settings_to(const IntegratorSettings& s) {
           {"max_steps", s.max_steps}, {"min_step", num(s.min_step)}, {"keep_rows", s.keep_rows}};
 }
 
-IntegratorSettings settings_from(const json& j) {
+IntegratorSettings settings_from(const PartField& j) {
   IntegratorSettings s;
-  s.method = Choice<Integrator>(j.at("method").get<std::string>());
-  s.rtol = get_num(j.at("rtol"));
-  s.atol = get_num(j.at("atol"));
-  s.dt = get_num(j.at("dt"));
-  s.first_step = get_num(j.at("first_step"));
-  s.duration = get_num(j.at("duration"));
-  s.output_step = get_num(j.at("output_step"));
-  s.max_steps = j.at("max_steps").get<long>();
-  s.min_step = get_num(j.at("min_step"));
-  s.keep_rows = j.at("keep_rows").get<bool>();
+  try {
+    s.method = Choice<Integrator>(j.at("method").str());
+  } catch (const InputError& e) {
+    j.at("method").fail(std::string("is not an integrator: ") + e.what());
+  }
+  s.rtol = j.at("rtol").number();
+  s.atol = j.at("atol").number();
+  s.dt = j.at("dt").number();
+  s.first_step = j.at("first_step").number();
+  s.duration = j.at("duration").number();
+  s.output_step = j.at("output_step").number();
+  s.max_steps = j.at("max_steps").i64();
+  s.min_step = j.at("min_step").number();
+  s.keep_rows = j.at("keep_rows").boolean();
   return s;
 }
 
@@ -283,13 +411,18 @@ json system_to(const System& s) {
           {"source", s.source}, {"text", write_scene_text(s)}};
 }
 
-System system_from(const json& j) {
+System system_from(const PartField& j) {
   std::vector<SceneWarning> warnings;  // the shard printed them already
-  System s = read_scene_text(j.at("text").get<std::string>(), j.at("file").get<std::string>(), &warnings);
-  s.name = j.at("name").get<std::string>();
-  s.file = j.at("file").get<std::string>();
-  s.description = j.at("description").get<std::string>();
-  s.source = j.at("source").get<std::string>();
+  System s;
+  try {
+    s = read_scene_text(j.at("text").str(), j.at("file").str(), &warnings);
+  } catch (const InputError& e) {
+    j.at("text").fail(std::string("is not a scene crossdyn reads: ") + e.what());
+  }
+  s.name = j.at("name").str();
+  s.file = j.at("file").str();
+  s.description = j.at("description").str();
+  s.source = j.at("source").str();
   return s;
 }
 
@@ -310,23 +443,23 @@ json outcome_to(const SceneOutcome& o) {
   return j;
 }
 
-SceneOutcome outcome_from(const json& j) {
+SceneOutcome outcome_from(const PartField& j) {
   SceneOutcome o;
-  o.path = j.at("path").get<std::string>();
-  o.input_error = j.at("input_error").get<std::string>();
-  o.internal_error = j.at("internal_error").get<bool>();
-  o.converge_json = j.at("converge_json").get<std::string>();
-  o.converge_note = j.at("converge_note").get<std::string>();
+  o.path = j.at("path").str();
+  o.input_error = j.at("input_error").str();
+  o.internal_error = j.at("internal_error").boolean();
+  o.converge_json = j.at("converge_json").str();
+  o.converge_note = j.at("converge_note").str();
   if (!j.at("system").is_null()) o.system = system_from(j.at("system"));
   if (!j.at("comparison").is_null()) {
-    const json& jc = j.at("comparison");
+    const PartField jc = j.at("comparison");
     SceneComparison c;
-    c.scene = jc.at("scene").get<std::string>();
-    c.file = jc.at("file").get<std::string>();
+    c.scene = jc.at("scene").str();
+    c.file = jc.at("file").str();
     c.settings = settings_from(jc.at("settings"));
-    for (const json& r : jc.at("runs")) c.runs.push_back(run_from(r));
-    for (const json& k : jc.at("checks")) c.checks.push_back(check_from(k));
-    c.notes = jc.at("notes").get<std::vector<std::string>>();
+    for (const PartField& r : each(jc.at("runs"))) c.runs.push_back(run_from(r));
+    for (const PartField& k : each(jc.at("checks"))) c.checks.push_back(check_from(k));
+    c.notes = jc.at("notes").strings();
     o.comparison = std::move(c);
   }
   return o;
@@ -338,8 +471,94 @@ std::string shard_text(const ShardSpec& s) {
 
 }  // namespace
 
+namespace {
+
+// The value of `key` in a nodal flexible block's canonical form, `{nodes: "a.csv", modes: "b.csv"}`
+// (core/scene/flex_block.cpp nodes_form: double-quoted YAML strings); "" when absent.
+std::string quoted_value(const std::string& form, const std::string& key) {
+  const std::string start = key + ": \"";
+  std::size_t i = form.find(start);
+  if (i == std::string::npos || (i > 0 && form[i - 1] != '{' && form[i - 1] != ' ')) return "";
+  i += start.size();
+  std::string out;
+  const auto hex = [&](std::size_t n) {
+    unsigned long v = std::strtoul(form.substr(i, n).c_str(), nullptr, 16);
+    i += n;
+    return v;
+  };
+  while (i < form.size() && form[i] != '"') {
+    char c = form[i++];
+    if (c != '\\' || i >= form.size()) {
+      out += c;
+      continue;
+    }
+    c = form[i++];
+    unsigned long cp = 0;
+    switch (c) {
+      case 'n': out += '\n'; continue;
+      case 't': out += '\t'; continue;
+      case 'r': out += '\r'; continue;
+      case '0': out += '\0'; continue;
+      case 'x': cp = hex(2); break;
+      case 'u': cp = hex(4); break;
+      case 'U': cp = hex(8); break;
+      default: out += c; continue;
+    }
+    if (cp < 0x80) out += static_cast<char>(cp);  // UTF-8
+    else if (cp < 0x800) out += {static_cast<char>(0xC0 | (cp >> 6)), static_cast<char>(0x80 | (cp & 0x3F))};
+    else if (cp < 0x10000)
+      out += {static_cast<char>(0xE0 | (cp >> 12)), static_cast<char>(0x80 | ((cp >> 6) & 0x3F)),
+              static_cast<char>(0x80 | (cp & 0x3F))};
+    else
+      out += {static_cast<char>(0xF0 | (cp >> 18)), static_cast<char>(0x80 | ((cp >> 12) & 0x3F)),
+              static_cast<char>(0x80 | ((cp >> 6) & 0x3F)), static_cast<char>(0x80 | (cp & 0x3F))};
+  }
+  return out;
+}
+
+}  // namespace
+
+std::vector<PartInput> unit_inputs(const std::vector<ShardScene>& units) {
+  std::vector<PartInput> out;
+  std::set<std::string> files, seen;
+  for (const ShardScene& u : units) {
+    if (!files.insert(u.path).second) continue;
+    std::vector<SceneWarning> warnings;
+    System s;
+    try {
+      s = read_scene(u.path, &warnings);
+    } catch (const std::exception&) {
+      continue;  // the unit records why it cannot be read
+    }
+    const fs::path dir = fs::path(u.path).parent_path();
+    for (const Body& b : s.bodies) {
+      if (!b.flex || b.flex->scene_form.empty()) continue;
+      for (const char* key : {"nodes", "modes"}) {
+        std::string p = quoted_value(b.flex->scene_form, key);
+        if (p.empty()) continue;
+        if (!fs::path(p).is_absolute() && !dir.empty()) p = (dir / p).string();
+        if (seen.insert(p).second) out.push_back({p, file_sha256(p)});
+      }
+    }
+  }
+  return out;
+}
+
+namespace {
+json inputs_json(const std::vector<ShardScene>& units) {
+  json a = json::array();
+  for (const PartInput& i : unit_inputs(units)) a.push_back({{"path", i.path}, {"sha256", i.sha256}});
+  return a;
+}
+json options_json(const PartOptions& options) {
+  json opts = json::array();
+  for (const auto& [k, v] : options) opts.push_back({k, v});
+  return opts;
+}
+}  // namespace
+
 std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& scenes,
-                      const std::vector<SceneOutcome>& own) {
+                      const std::vector<SceneOutcome>& own, const PartOptions& options) {
   json list = json::array(), outcomes = json::array();
   for (const ShardScene& s : scenes)
     list.push_back({{"path", s.path}, {"sha256", s.sha256}, {"cost", s.cost}, {"shard", s.shard}});
@@ -348,6 +567,8 @@ std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& sce
                   {"format", 1},
                   {"version", version()},
                   {"command", "verify"},
+                  {"options", options_json(options)},
+                  {"inputs", inputs_json(scenes)},
                   {"shard", {{"index", shard.index}, {"count", shard.count}}},
                   {"scenes", list},
                   {"outcomes", outcomes}};
@@ -384,6 +605,7 @@ std::string sweep_part_json(const std::string& command, const PartOptions& optio
                   {"version", version()},
                   {"command", command},
                   {"options", opts},
+                  {"inputs", inputs_json(units)},
                   {"shard", {{"index", shard.index}, {"count", shard.count}}},
                   {"scenes", list},
                   {"frame", json::parse(frame)},
@@ -391,46 +613,233 @@ std::string sweep_part_json(const std::string& command, const PartOptions& optio
   return j.dump() + "\n";
 }
 
+namespace {
+
+// ---- Reading a part: bounded memory, errors as sentences ------------------------------------------
+
+// A SAX handler that builds the DOM (nlohmann's own DOM builder) while charging every value its
+// memory: a part whose DOM would pass the budget is refused at the value that passes it, before
+// the memory is taken (README "Sharding a sweep": limits of a part).
+struct BudgetedDom {
+  nlohmann::detail::json_sax_dom_parser<json> dom;
+  std::size_t budget;
+  std::size_t used = 0;
+  bool over = false;
+  std::size_t error_at = 0;
+  std::string error_token;
+  bool failed = false;
+
+  std::vector<std::vector<double>>* store = nullptr;  // runs' "data" lists go here when set
+  std::string last_key;
+  std::vector<bool> in_data;  // per open list: is it a "data" list stored aside
+  bool bad_data = false;
+
+  BudgetedDom(json& root, std::size_t b) : dom(root, false), budget(b) {}
+  bool data_now() const { return !in_data.empty() && in_data.back(); }
+  bool put(double v) { return charge(sizeof(double)) && (store->back().push_back(v), true); }
+  bool charge(std::size_t n) {
+    used += n;
+    if (used > budget) over = true;
+    return !over;
+  }
+  static constexpr std::size_t kValue = sizeof(json);
+  bool not_data() {
+    bad_data = true;  // a "data" list holds numbers only
+    return false;
+  }
+  bool null() { return data_now() ? not_data() : charge(kValue) && dom.null(); }
+  bool boolean(bool v) { return data_now() ? not_data() : charge(kValue) && dom.boolean(v); }
+  bool number_integer(json::number_integer_t v) {
+    if (data_now()) return put(static_cast<double>(v));
+    return charge(kValue) && dom.number_integer(v);
+  }
+  bool number_unsigned(json::number_unsigned_t v) {
+    if (data_now()) return put(static_cast<double>(v));
+    return charge(kValue) && dom.number_unsigned(v);
+  }
+  bool number_float(json::number_float_t v, const json::string_t& s) {
+    if (data_now()) return put(v);
+    return charge(kValue) && dom.number_float(v, s);
+  }
+  bool string(json::string_t& v) {
+    if (data_now()) {
+      if (v == "nan") return put(std::numeric_limits<double>::quiet_NaN());
+      if (v == "inf") return put(std::numeric_limits<double>::infinity());
+      if (v == "-inf") return put(-std::numeric_limits<double>::infinity());
+      return not_data();
+    }
+    return charge(kValue + sizeof(json::string_t) + v.size()) && dom.string(v);
+  }
+  bool binary(json::binary_t& v) { return data_now() ? not_data() : charge(kValue + v.size()) && dom.binary(v); }
+  bool start_object(std::size_t n) {
+    if (data_now()) return not_data();
+    in_data.push_back(false);
+    return charge(kValue + sizeof(json::object_t)) && dom.start_object(n);
+  }
+  bool key(json::string_t& k) {
+    last_key = k;
+    return charge(sizeof(json::string_t) + k.size() + kValue) && dom.key(k);
+  }
+  bool end_object() {
+    in_data.pop_back();
+    last_key.clear();
+    return dom.end_object();
+  }
+  bool start_array(std::size_t n) {
+    if (data_now()) return not_data();
+    const bool data = store && last_key == "data";
+    last_key.clear();
+    in_data.push_back(data);
+    if (!charge(kValue + sizeof(json::array_t)) || !dom.start_array(n)) return false;
+    if (!data) return true;
+    store->emplace_back();  // the DOM's list: [index into the store]
+    return dom.number_unsigned(store->size() - 1);
+  }
+  bool end_array() {
+    in_data.pop_back();
+    last_key.clear();
+    return dom.end_array();
+  }
+  bool parse_error(std::size_t position, const std::string& token, const nlohmann::detail::exception&) {
+    failed = true;
+    error_at = position;
+    error_token = token;
+    return false;
+  }
+};
+
+std::string mib(std::uintmax_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
+
+
+}  // namespace
+
+
+namespace {
+
+// Parses `in` (a part file's text, or an item's) into `out` within `budget` bytes of DOM
+// (decreased by what it used); InputError, as a sentence, when it is not JSON or too big.
+void parse_bounded(std::istream& in, json& out, std::size_t& budget,
+                   std::vector<std::vector<double>>* data_store = nullptr) {
+  BudgetedDom sax(out, budget);
+  sax.store = data_store;
+  json::sax_parse(in, &sax, nlohmann::detail::input_format_t::json, false);
+  if (sax.bad_data)
+    throw InputError("holds a \"data\" list with something other than numbers (or \"nan\", "
+                     "\"inf\", \"-inf\")");
+  if (sax.over)
+    throw InputError("holds more values than merge reads (its parsed form would pass " +
+                     mib(budget) + ", the memory left of merge's " + mib(kPartMemoryBudget) +
+                     " for all the parts): merge fewer or smaller parts");
+  if (sax.failed) {
+    std::string tok = sax.error_token.substr(0, 40);
+    for (char& c : tok)
+      if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
+    throw InputError("is not valid JSON at byte " + std::to_string(sax.error_at) +
+                     (tok.empty() ? std::string(" (it ends early)") : " (near '" + tok + "')"));
+  }
+  budget -= std::min(budget, sax.used);
+}
+
+}  // namespace
+
+// The items' readers on a part's JSON (defined with the items below).
+StudyItem study_item_from_field(const PartField& j);
+StabilityMap stability_frame_from_field(const PartField& j);
+StabilityValue stability_value_from_field(const PartField& j);
+ConvergeResult converge_frame_from_field(const PartField& j);
+std::pair<std::optional<ConvergeModel>, std::string> converge_item_from_field(const PartField& j);
+
+namespace {
+
+// A part's JSON into `p`: every field checked (InputError naming it), the items of sweep parts
+// read once here so that a wrong item is named with its place.
+void read_part_json(const json& root, Part& p) {
+  const PartField j(root, "");
+  if (!root.is_object() || !root.contains("tool") || !root["tool"].is_string() ||
+      root["tool"].get<std::string>() != "crossdyn-part")
+    throw InputError("it is not a crossdyn part file (written by `crossdyn verify|study|stability|"
+                     "converge --shard K/N --part FILE`)");
+  const long long format = j.at("format").integer(0, 1000000);
+  if (format != 1)
+    j.at("format").fail("is " + std::to_string(format) + ", not the part format this crossdyn reads (1)");
+  p.version = j.at("version").str();
+  p.command = j.has("command") ? j.at("command").str() : "verify";
+  if (p.command != "verify" && p.command != "study" && p.command != "stability" && p.command != "converge")
+    j.at("command").fail("is '" + p.command.substr(0, 40) +
+                         "', not a command that writes parts (verify, study, stability, converge)");
+  if (j.has("options"))
+    for (const PartField& kv : each(j.at("options"))) {
+      if (kv.size() != 2) kv.fail("must be a pair [option, value]");
+      p.options.emplace_back(kv[0].str(), kv[1].str());
+    }
+  if (j.has("inputs"))
+    for (const PartField& f : each(j.at("inputs")))
+      p.inputs.push_back({f.at("path").str(), f.at("sha256").str()});
+  const PartField shard = j.at("shard");
+  p.shard.count = static_cast<int>(shard.at("count").integer(1, 10000));
+  p.shard.index = static_cast<int>(shard.at("index").integer(0, p.shard.count - 1));
+  for (const PartField& f : each(j.at("scenes"))) {
+    ShardScene x;
+    x.path = f.at("path").str();
+    x.sha256 = f.at("sha256").str();
+    x.cost = f.at("cost").number();
+    x.shard = static_cast<int>(f.at("shard").integer(0, p.shard.count - 1));
+    x.item = f.has("item") ? f.at("item").str() : "";
+    p.scenes.push_back(x);
+  }
+  if (p.command == "verify") {
+    for (const PartField& o : each(j.at("outcomes"))) p.outcomes.push_back(outcome_from(o));
+    return;
+  }
+  const PartField frame = j.at("frame");
+  if (p.command == "stability") stability_frame_from_field(frame);
+  if (p.command == "converge") converge_frame_from_field(frame);
+  p.frame = frame.value().dump();
+  for (const PartField& i : each(j.at("items"))) {
+    if (p.command == "study") study_item_from_field(i);
+    if (p.command == "stability") stability_value_from_field(i);
+    if (p.command == "converge") converge_item_from_field(i);
+    p.items.push_back(i.value().dump());
+  }
+}
+
+}  // namespace
+
 Part read_part(const std::string& file) {
-  std::string text;
-  if (!read_bytes(file, text)) throw InputError("cannot read the part file '" + file + "'");
+  std::size_t budget = kPartMemoryBudget;
+  return read_part(file, budget);
+}
+
+Part read_part(const std::string& file, std::size_t& budget) {
   Part p;
   p.file = file;
   try {
-    const json j = json::parse(text);
-    if (!j.is_object() || j.value("tool", "") != "crossdyn-part")
-      throw InputError("it is not a crossdyn part file (written by `crossdyn verify|study|"
-                       "stability --shard K/N --part FILE`)");
-    if (j.at("format").get<int>() != 1)
-      throw InputError("part format " + j.at("format").dump() + " is not the one this crossdyn reads (1)");
-    p.version = j.at("version").get<std::string>();
-    p.command = j.value("command", "verify");
-    if (j.contains("options"))
-      for (const json& kv : j.at("options"))
-        p.options.emplace_back(kv.at(0).get<std::string>(), kv.at(1).get<std::string>());
-    p.shard.index = j.at("shard").at("index").get<int>();
-    p.shard.count = j.at("shard").at("count").get<int>();
-    if (p.shard.count < 1 || p.shard.index < 0 || p.shard.index >= p.shard.count)
-      throw InputError("shard " + shard_text(p.shard) + " is not K/N with 0 <= K < N");
-    for (const json& s : j.at("scenes")) {
-      ShardScene x;
-      x.path = s.at("path").get<std::string>();
-      x.sha256 = s.at("sha256").get<std::string>();
-      x.cost = s.at("cost").get<double>();
-      x.shard = s.at("shard").get<int>();
-      x.item = s.value("item", "");
-      p.scenes.push_back(x);
+    std::error_code ec;
+    const auto st = fs::status(file, ec);
+    if (ec || !fs::exists(st)) throw InputError("cannot be read (no such file)");
+    if (fs::is_directory(st)) throw InputError("is a directory, not a part file");
+    if (fs::is_regular_file(st)) {
+      const std::uintmax_t size = fs::file_size(file, ec);
+      if (!ec && size > kMaxPartFileBytes)
+        throw InputError("is " + mib(size) + "; merge reads part files up to " + mib(kMaxPartFileBytes) +
+                         " (README \"Sharding a sweep\"): shard the run into more parts");
     }
-    if (p.command == "verify") {
-      for (const json& o : j.at("outcomes")) p.outcomes.push_back(outcome_from(o));
-    } else {
-      p.frame = j.at("frame").dump();
-      for (const json& i : j.at("items")) p.items.push_back(i.dump());
-    }
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError("cannot be read");
+    json root;
+    std::vector<std::vector<double>> data;
+    parse_bounded(in, root, budget, &data);
+    if (in.bad()) throw InputError("cannot be read (an I/O error)");
+    t_data_store = &data;
+    struct Reset {
+      ~Reset() { t_data_store = nullptr; }
+    } reset;
+    read_part_json(root, p);
   } catch (const InputError& e) {
     throw InputError("part file '" + file + "': " + e.what());
-  } catch (const json::exception& e) {
-    throw InputError("part file '" + file + "' is not a valid part: " + e.what());
+  } catch (const json::exception&) {
+    // Every field is read through PartField; this is a safety net that names the file.
+    throw InputError("part file '" + file + "' is not a valid part (a field has the wrong form)");
   }
   return p;
 }
@@ -524,17 +933,135 @@ void check_parts(const std::vector<Part>& parts, const std::string& ver, int* ch
                        " now): run the shards again");
     ++n_checked;
   }
+  // The frame (what every part's units are put together with) is the same in every part.
+  for (const Part& p : parts)
+    if (p.frame != first.frame)
+      throw InputError("parts of different runs: the field 'frame' differs between '" + first.file +
+                       "' and '" + p.file + "' (the scene, its limits or options)");
+  // 5. The other files the units read (nodal data): the same in every part, and unchanged on disk.
+  for (const Part& p : parts) {
+    const auto differ = [&](const std::string& what) {
+      throw InputError("parts of different inputs: " + what + " (in '" + first.file + "' and '" +
+                       p.file + "'): run the shards again from the same files");
+    };
+    if (p.inputs.size() != first.inputs.size())
+      differ(std::to_string(first.inputs.size()) + " and " + std::to_string(p.inputs.size()) +
+             " data files");
+    for (std::size_t i = 0; i < p.inputs.size(); ++i)
+      if (p.inputs[i].path != first.inputs[i].path || p.inputs[i].sha256 != first.inputs[i].sha256)
+        differ("data file '" + first.inputs[i].path + "' (SHA-256 " + first.inputs[i].sha256 +
+               ") and '" + p.inputs[i].path + "' (SHA-256 " + p.inputs[i].sha256 + ")");
+  }
+  for (const PartInput& in : first.inputs) {
+    std::error_code ec;
+    if (in.sha256.empty() || !fs::is_regular_file(in.path, ec)) continue;
+    const std::string now = file_sha256(in.path);
+    if (now != in.sha256)
+      throw InputError("data file '" + in.path + "' (read by a scene of the run) changed since the "
+                       "parts were written (SHA-256 " + in.sha256 + " then, " +
+                       (now.empty() ? std::string("unreadable") : now) + " now): run the shards again");
+    ++n_checked;
+  }
   if (checked) *checked = n_checked;
 }
 
-std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& ver,
+namespace {
+
+bool same_number(double a, double b) {
+  return (std::isnan(a) && std::isnan(b)) || (a == b && std::signbit(a) == std::signbit(b));
+}
+
+// Refuses a verify outcome whose derived fields are not what its numbers give: the comparison is
+// made again from the part's scene and runs with compare_runs and require_comparison, the code
+// the unsharded verify uses, and every check, note and run state must be the same.
+void recheck_outcome(const Part& part, SceneOutcome& o, bool allow_no_comparison) {
+  if (!o.comparison) return;
+  SceneComparison& c = *o.comparison;
+  const auto refuse = [&](const std::string& what) {
+    throw InputError("part '" + part.file + "', scene '" + o.path + "': " + what +
+                     ": the part does not hold what its numbers give (edited, or written by "
+                     "another program); run that shard again");
+  };
+  if (!o.system) refuse("field 'system' is missing beside a comparison");
+  for (const EngineRun& r : c.runs) {
+    const bool failed = r.result.failure.has_value();
+    if (failed != (r.state == EngineRun::State::Failed))
+      refuse("run '" + r.label + "' has state '" + std::string(r.state == EngineRun::State::Failed ? "failed" : r.state == EngineRun::State::Ok ? "ok" : "not_built") +
+             "' but " + (failed ? "a failure" : "no failure"));
+  }
+  // The analytic solution's rows are numbers the merge can make too: made again at the part's
+  // output times, they must be the part's to the last bit.
+  for (const EngineRun& r : c.runs) {
+    if (r.engine != "analytic" || r.result.columns.empty() || r.result.columns.front() != "t") continue;
+    std::vector<double> times;
+    const std::size_t width = r.result.columns.size();
+    for (std::size_t k = 0; k < r.result.data.size(); k += width) times.push_back(r.result.data[k]);
+    const RunResult made = analytic_run(*o.system, times);
+    if (made.columns != r.result.columns || made.data.size() != r.result.data.size())
+      refuse("run 'analytic': its columns or rows are not the analytic solution's");
+    for (std::size_t k = 0; k < made.data.size(); ++k)
+      if (!same_number(made.data[k], r.result.data[k]))
+        refuse("run 'analytic', row " + std::to_string(k / width + 1) + ", column '" +
+               made.columns[k % width] + "': " + shortest_text(r.result.data[k]) + " in the part, " +
+               shortest_text(made.data[k]) + " from the analytic solution");
+  }
+  SceneComparison again = compare_runs(*o.system, std::move(c.runs));  // the runs lent, not copied
+  c.runs = std::move(again.runs);
+  again.settings = c.settings;
+  require_comparison(again, allow_no_comparison);
+  if (again.checks.size() != c.checks.size())
+    refuse("it has " + std::to_string(c.checks.size()) + " checks where its runs give " +
+           std::to_string(again.checks.size()));
+  for (std::size_t i = 0; i < c.checks.size(); ++i) {
+    const Check& a = c.checks[i];  // the part's
+    const Check& b = again.checks[i];
+    const std::string name = "check " + std::to_string(i + 1) + " '" + b.quantity + "'" +
+                             (b.a.empty() ? "" : " (" + b.a + (b.b.empty() ? "" : " vs " + b.b) + ")");
+    const auto text_field = [&](const char* field, const std::string& x, const std::string& y) {
+      if (x != y) refuse(name + ", field '" + field + "': '" + x.substr(0, 60) + "' in the part, '" +
+                         y.substr(0, 60) + "' from its numbers");
+    };
+    const auto num_field = [&](const char* field, double x, double y) {
+      if (!same_number(x, y))
+        refuse(name + ", field '" + field + "': " + shortest_text(x) + " in the part, " +
+               shortest_text(y) + " from its numbers");
+    };
+    text_field("quantity", a.quantity, b.quantity);
+    text_field("group", a.group, b.group);
+    text_field("a", a.a, b.a);
+    text_field("b", a.b, b.b);
+    text_field("tolerance_key", a.tolerance_key, b.tolerance_key);
+    num_field("atol", a.tolerance.atol, b.tolerance.atol);
+    num_field("rtol", a.tolerance.rtol, b.tolerance.rtol);
+    num_field("scale", a.scale, b.scale);
+    num_field("bound", a.bound, b.bound);
+    num_field("error", a.error, b.error);
+    num_field("time", a.time, b.time);
+    if (a.first_exceeded.has_value() != b.first_exceeded.has_value())
+      refuse(name + ", field 'first_exceeded': " + (a.first_exceeded ? "given" : "null") +
+             " in the part, " + (b.first_exceeded ? "a time" : "null") + " from its numbers");
+    if (a.first_exceeded) num_field("first_exceeded", *a.first_exceeded, *b.first_exceeded);
+    num_field("normalised", a.normalised, b.normalised);
+    text_field("status", to_string(a.status), to_string(b.status));
+    text_field("note", a.note, b.note);
+  }
+  if (again.notes != c.notes) refuse("field 'notes' is not what its runs give");
+  if (again.scene != c.scene) refuse("field 'scene' is '" + c.scene + "', its scene is '" + again.scene + "'");
+}
+
+}  // namespace
+
+std::vector<SceneOutcome> merge_parts(std::vector<Part>& parts, const std::string& ver,
                                       int* checked) {
   check_parts(parts, ver, checked);
   const Part& first = parts.front();
   if (first.command != "verify")
     throw InputError("part '" + first.file + "' was written by `crossdyn " + first.command +
                      "`, not `crossdyn verify`");
-  // 5. Each scene's outcome from its shard's part, in the run's order.
+  // 6. Each scene's outcome from its shard's part, in the run's order, its checks made again.
+  bool allow_no_comparison = false;
+  for (const auto& [k, v] : first.options)
+    if (k == "--allow-no-comparison") allow_no_comparison = v == "yes";
   std::vector<SceneOutcome> out;
   std::vector<std::size_t> next(parts.size(), 0);
   std::map<int, std::size_t> part_of;
@@ -543,13 +1070,137 @@ std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std:
     const std::size_t p = part_of.at(s.shard);
     if (next[p] >= parts[p].outcomes.size() || parts[p].outcomes[next[p]].path != s.path)
       throw InputError("part '" + parts[p].file + "' lacks the outcome of its scene '" + s.path + "'");
-    out.push_back(parts[p].outcomes[next[p]++]);
+    recheck_outcome(parts[p], parts[p].outcomes[next[p]], allow_no_comparison);
+    out.push_back(std::move(parts[p].outcomes[next[p]++]));  // the parts' run data is not copied
   }
   for (std::size_t p = 0; p < parts.size(); ++p)
     if (next[p] != parts[p].outcomes.size())
       throw InputError("part '" + parts[p].file + "' holds outcomes of scenes that are not its shard's");
   return out;
 }
+
+namespace {
+
+// The derived fields of one sweep item against what its numbers give (the code the command
+// uses: judge_check, classify, mark_fronts, the converge pass rule); InputError naming the part,
+// the unit and the field otherwise.
+void recheck_item(const Part& part, const ShardScene& unit, const std::string& text) {
+  const auto refuse = [&](const std::string& what) {
+    throw InputError("part '" + part.file + "', unit '" + unit.path +
+                     (unit.item.empty() ? "" : " " + unit.item) + "': " + what +
+                     ": the part does not hold what its numbers give (edited, or written by "
+                     "another program); run that shard again");
+  };
+  const auto num_text = [](double v) { return shortest_text(v); };
+  if (part.command == "stability") {
+    const StabilityMap frame = stability_frame_from(part.frame);
+    const StabilityValue v = stability_value_from(text);
+    for (std::size_t i = 0; i < v.cells.size(); ++i) {
+      const StabilityCell& c = v.cells[i];
+      const std::string name = "cell " + std::to_string(i + 1) + " (" + c.engine + " " + c.integrator +
+                               " " + c.setting_text() + ")";
+      const Classified again = classify(c.facts, frame.limits);
+      if (again.cls != c.result.cls)
+        refuse(name + ", field 'class': " + class_name(c.result.cls) + " in the part, " +
+               class_name(again.cls) + " from its facts (" + again.why + ")");
+      if (again.why != c.result.why)
+        refuse(name + ", field 'why': '" + c.result.why + "' in the part, '" + again.why + "' from its facts");
+      if (!same_number(c.history_error, c.facts.history_error))
+        refuse(name + ", field 'history_error': " + num_text(c.history_error) + " beside " +
+               num_text(c.facts.history_error) + " in its facts");
+      if (c.fixed_step) {
+        const auto e = std::find(frame.engines.begin(), frame.engines.end(), c.engine);
+        const std::size_t ei = static_cast<std::size_t>(e - frame.engines.begin());
+        const double h = e != frame.engines.end() && ei < v.column.lambda_max.size()
+                             ? c.setting * v.column.lambda_max[ei]
+                             : std::numeric_limits<double>::quiet_NaN();
+        if (!same_number(h, c.h_lambda))
+          refuse(name + ", field 'h_lambda': " + num_text(c.h_lambda) + " in the part, " + num_text(h) +
+                 " from dt x the column's |lambda|max of " + c.engine);
+      }
+      if (c.facts.reference != v.column.reference)
+        refuse(name + ", field 'facts/reference' differs from the column's 'reference'");
+    }
+  } else if (part.command == "converge") {
+    const auto [model, note] = converge_item_from(text);
+    if (!model) return;
+    const ConvergeModel& m = *model;
+    for (std::size_t i = 0; i < m.checks.size(); ++i) {
+      const Check& k = m.checks[i];
+      if (k.status == CheckStatus::Excluded || k.status == CheckStatus::Skipped) continue;
+      Check again = k;
+      judge_check(again);
+      const std::string name = "check " + std::to_string(i + 1) + " '" + k.quantity + "'";
+      if (!same_number(again.bound, k.bound))
+        refuse(name + ", field 'bound': " + num_text(k.bound) + " in the part, " +
+               num_text(again.bound) + " from atol + rtol * scale");
+      if (!same_number(again.normalised, k.normalised))
+        refuse(name + ", field 'normalised': " + num_text(k.normalised) + " in the part, " +
+               num_text(again.normalised) + " from error / bound");
+      if (again.status != k.status)
+        refuse(name + ", field 'status': " + to_string(k.status) + " in the part, " +
+               to_string(again.status) + " from error " + num_text(k.error) + " and bound " +
+               num_text(k.bound));
+    }
+    bool passed = true;
+    double worst = 0;
+    std::string worst_q;
+    for (const Check& k : m.checks) {
+      if (k.status == CheckStatus::Fail) passed = false;
+      if (k.status != CheckStatus::Excluded && !(k.normalised <= worst)) {
+        worst = k.normalised;
+        worst_q = k.quantity;
+      }
+    }
+    if (m.worst_quantity.rfind("run: ", 0) == 0) {  // the model's run failed
+      if (m.passed) refuse("field 'passed': true for a model whose run failed (" + m.worst_quantity + ")");
+      if (!m.checks.empty()) refuse("field 'checks': checks for a model whose run failed");
+      return;
+    }
+    if (m.passed && !passed) refuse("field 'passed': true, but a check of the model failed");
+    if (!same_number(worst, m.worst_normalised))
+      refuse("field 'worst_normalised': " + num_text(m.worst_normalised) + " in the part, " +
+             num_text(worst) + " from its checks");
+    if (worst_q != m.worst_quantity)
+      refuse("field 'worst_quantity': '" + m.worst_quantity + "' in the part, '" + worst_q +
+             "' from its checks");
+  } else if (part.command == "study") {
+    const StudyItem item = study_item_from(text);
+    if (!item.study) {
+      if (item.refused.empty()) refuse("field 'refused' is empty for a scene without a study");
+      if (item.exit_status < 1 || item.exit_status > 3)
+        refuse("field 'exit_status' is " + std::to_string(item.exit_status) +
+               " for a refused scene (1, 2 or 3)");
+      return;
+    }
+    if (!item.refused.empty() || item.exit_status != 0)
+      refuse("field 'refused' or 'exit_status' is set beside a study (a study's is empty and 0)");
+    const SceneStudy& st = *item.study;
+    const double required = StudyOptions{}.reference_agreement;
+    if (st.reference.kind != "analytic" && st.reference.kind != "engines")
+      refuse("field 'reference/kind' is '" + st.reference.kind + "', not analytic or engines");
+    if (st.reference.kind == "engines" && !(st.reference.agreement <= required))
+      refuse("field 'reference/agreement': " + num_text(st.reference.agreement) + " is above the " +
+             num_text(required) + " a study needs of its reference (the scene is refused, not studied)");
+    SceneStudy again = st;
+    mark_fronts(again);
+    const auto yes = [](bool b) { return std::string(b ? "true" : "false"); };
+    for (std::size_t i = 0; i < st.rows.size(); ++i) {
+      const StudyRow& r = st.rows[i];
+      const std::string name = "row " + std::to_string(i + 1) + " (" + r.engine + " " + r.integrator + ")";
+      if (r.ok != r.failure.empty())
+        refuse(name + ", field 'ok': " + yes(r.ok) + " beside " + (r.failure.empty() ? "no failure" : "a failure"));
+      if (again.rows[i].front_end != r.front_end)
+        refuse(name + ", field 'front_end': " + yes(r.front_end) + " in the part, " +
+               yes(again.rows[i].front_end) + " from the rows' CPU times and errors");
+      if (again.rows[i].front_history != r.front_history)
+        refuse(name + ", field 'front_history': " + yes(r.front_history) + " in the part, " +
+               yes(again.rows[i].front_history) + " from the rows' CPU times and errors");
+    }
+  }
+}
+
+}  // namespace
 
 std::vector<std::string> merge_items(const std::vector<Part>& parts, const std::string& ver,
                                      int* checked) {
@@ -563,6 +1214,7 @@ std::vector<std::string> merge_items(const std::vector<Part>& parts, const std::
     if (next[p] >= parts[p].items.size())
       throw InputError("part '" + parts[p].file + "' lacks the result of its unit '" + s.path +
                        (s.item.empty() ? "" : " " + s.item) + "'");
+    recheck_item(parts[p], s, parts[p].items[next[p]]);
     out.push_back(parts[p].items[next[p]++]);
   }
   for (std::size_t p = 0; p < parts.size(); ++p)
@@ -581,12 +1233,6 @@ json nums(const std::vector<double>& v) {
   return a;
 }
 
-std::vector<double> get_nums(const json& j) {
-  std::vector<double> v;
-  for (const json& x : j) v.push_back(get_num(x));
-  return v;
-}
-
 json row_to(const StudyRow& r) {
   return {{"engine", r.engine}, {"integrator", r.integrator}, {"fixed_step", r.fixed_step},
           {"tolerance", num(r.tolerance)}, {"dt", num(r.dt)}, {"ok", r.ok}, {"failure", r.failure},
@@ -598,30 +1244,30 @@ json row_to(const StudyRow& r) {
           {"front_history", r.front_history}};
 }
 
-StudyRow row_from(const json& j) {
+StudyRow row_from(const PartField& j) {
   StudyRow r;
-  r.engine = j.at("engine").get<std::string>();
-  r.integrator = j.at("integrator").get<std::string>();
-  r.fixed_step = j.at("fixed_step").get<bool>();
-  r.tolerance = get_num(j.at("tolerance"));
-  r.dt = get_num(j.at("dt"));
-  r.ok = j.at("ok").get<bool>();
-  r.failure = j.at("failure").get<std::string>();
-  r.cpu_median = get_num(j.at("cpu_median"));
-  r.cpu_min = get_num(j.at("cpu_min"));
-  r.cpu_max = get_num(j.at("cpu_max"));
-  r.repeats = j.at("repeats").get<int>();
-  r.rhs_calls = j.at("rhs_calls").get<long>();
-  r.steps = j.at("steps").get<long>();
-  r.rejected = j.at("rejected").get<long>();
-  r.error.end = get_num(j.at("end"));
-  r.error.history = get_num(j.at("history"));
-  r.error.end_quantity = j.at("end_quantity").get<std::string>();
-  r.error.history_quantity = j.at("history_quantity").get<std::string>();
-  r.drift_H = get_num(j.at("drift_H"));
-  r.drift_E = get_num(j.at("drift_E"));
-  r.front_end = j.at("front_end").get<bool>();
-  r.front_history = j.at("front_history").get<bool>();
+  r.engine = j.at("engine").str();
+  r.integrator = j.at("integrator").str();
+  r.fixed_step = j.at("fixed_step").boolean();
+  r.tolerance = j.at("tolerance").number();
+  r.dt = j.at("dt").number();
+  r.ok = j.at("ok").boolean();
+  r.failure = j.at("failure").str();
+  r.cpu_median = j.at("cpu_median").number();
+  r.cpu_min = j.at("cpu_min").number();
+  r.cpu_max = j.at("cpu_max").number();
+  r.repeats = j.at("repeats").i32();
+  r.rhs_calls = j.at("rhs_calls").i64();
+  r.steps = j.at("steps").i64();
+  r.rejected = j.at("rejected").i64();
+  r.error.end = j.at("end").number();
+  r.error.history = j.at("history").number();
+  r.error.end_quantity = j.at("end_quantity").str();
+  r.error.history_quantity = j.at("history_quantity").str();
+  r.drift_H = j.at("drift_H").number();
+  r.drift_E = j.at("drift_E").number();
+  r.front_end = j.at("front_end").boolean();
+  r.front_history = j.at("front_history").boolean();
   return r;
 }
 
@@ -644,34 +1290,37 @@ std::string study_item_json(const StudyItem& item) {
   return j.dump();
 }
 
-StudyItem study_item_from(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    StudyItem item;
-    item.refused = j.at("refused").get<std::string>();
-    item.exit_status = j.at("exit_status").get<int>();
-    if (!j.at("study").is_null()) {
-      const json& js = j.at("study");
-      SceneStudy s;
-      s.scene = js.at("scene").get<std::string>();
-      s.file = js.at("file").get<std::string>();
-      s.duration = get_num(js.at("duration"));
-      s.output_step = get_num(js.at("output_step"));
-      const json& jr = js.at("reference");
-      s.reference.kind = jr.at("kind").get<std::string>();
-      s.reference.description = jr.at("description").get<std::string>();
-      s.reference.runs = jr.at("runs").get<std::vector<std::string>>();
-      s.reference.agreement = get_num(jr.at("agreement"));
-      s.reference.worst_pair = jr.at("worst_pair").get<std::string>();
-      s.reference.cpu_seconds = get_num(jr.at("cpu_seconds"));
-      for (const json& r : js.at("rows")) s.rows.push_back(row_from(r));
-      s.notes = js.at("notes").get<std::vector<std::string>>();
-      item.study = std::move(s);
-    }
-    return item;
-  } catch (const json::exception& e) {
-    throw InputError(std::string("a study result in the part is not valid: ") + e.what());
+StudyItem study_item_from_field(const PartField& j) {
+  StudyItem item;
+  item.refused = j.at("refused").str();
+  item.exit_status = j.at("exit_status").i32();
+  if (!j.at("study").is_null()) {
+    const PartField js = j.at("study");
+    SceneStudy s;
+    s.scene = js.at("scene").str();
+    s.file = js.at("file").str();
+    s.duration = js.at("duration").number();
+    s.output_step = js.at("output_step").number();
+    const PartField jr = js.at("reference");
+    s.reference.kind = jr.at("kind").str();
+    s.reference.description = jr.at("description").str();
+    s.reference.runs = jr.at("runs").strings();
+    s.reference.agreement = jr.at("agreement").number();
+    s.reference.worst_pair = jr.at("worst_pair").str();
+    s.reference.cpu_seconds = jr.at("cpu_seconds").number();
+    for (const PartField& r : each(js.at("rows"))) s.rows.push_back(row_from(r));
+    s.notes = js.at("notes").strings();
+    item.study = std::move(s);
   }
+  return item;
+}
+
+StudyItem study_item_from(const std::string& text) {
+  json root;
+  std::istringstream in(text);
+  std::size_t budget = kPartMemoryBudget;
+  parse_bounded(in, root, budget);
+  return study_item_from_field(PartField(root, ""));
 }
 
 std::string stability_frame_json(const StabilityMap& m) {
@@ -686,29 +1335,32 @@ std::string stability_frame_json(const StabilityMap& m) {
   return j.dump();
 }
 
+StabilityMap stability_frame_from_field(const PartField& j) {
+  StabilityMap m;
+  m.scene = j.at("scene").str();
+  m.file = j.at("file").str();
+  const PartField k = j.at("knob");
+  const int kind = k.at("kind").i32();
+  if (kind < 0 || kind > static_cast<int>(Knob::Kind::Links)) k.at("kind").fail("is not a knob kind");
+  m.knob.kind = static_cast<Knob::Kind>(kind);
+  m.knob.spec = k.at("spec").str();
+  m.knob.index = k.at("index").i32();
+  m.knob.unit = k.at("unit").str();
+  m.knob.description = k.at("description").str();
+  m.limits.tolerance = j.at("limits").at("tolerance").number();
+  m.limits.drift_limit = j.at("limits").at("drift_limit").number();
+  m.limits.diverged_error = j.at("limits").at("diverged_error").number();
+  m.engines = j.at("engines").strings();
+  m.integrators = j.at("integrators").strings();
+  return m;
+}
+
 StabilityMap stability_frame_from(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    StabilityMap m;
-    m.scene = j.at("scene").get<std::string>();
-    m.file = j.at("file").get<std::string>();
-    const json& k = j.at("knob");
-    const int kind = k.at("kind").get<int>();
-    if (kind < 0 || kind > static_cast<int>(Knob::Kind::Links)) throw InputError("unknown knob kind");
-    m.knob.kind = static_cast<Knob::Kind>(kind);
-    m.knob.spec = k.at("spec").get<std::string>();
-    m.knob.index = k.at("index").get<int>();
-    m.knob.unit = k.at("unit").get<std::string>();
-    m.knob.description = k.at("description").get<std::string>();
-    m.limits.tolerance = get_num(j.at("limits").at("tolerance"));
-    m.limits.drift_limit = get_num(j.at("limits").at("drift_limit"));
-    m.limits.diverged_error = get_num(j.at("limits").at("diverged_error"));
-    m.engines = j.at("engines").get<std::vector<std::string>>();
-    m.integrators = j.at("integrators").get<std::vector<std::string>>();
-    return m;
-  } catch (const json::exception& e) {
-    throw InputError(std::string("the stability map in the part is not valid: ") + e.what());
-  }
+  json root;
+  std::istringstream in(text);
+  std::size_t budget = kPartMemoryBudget;
+  parse_bounded(in, root, budget);
+  return stability_frame_from_field(PartField(root, ""));
 }
 
 std::string stability_value_json(const StabilityValue& v) {
@@ -718,7 +1370,13 @@ std::string stability_value_json(const StabilityValue& v) {
                      {"setting", num(c.setting)}, {"class", static_cast<int>(c.result.cls)},
                      {"why", c.result.why}, {"history_error", num(c.history_error)},
                      {"cpu", num(c.cpu)}, {"rhs_calls", c.rhs_calls}, {"steps", c.steps},
-                     {"h_lambda", num(c.h_lambda)}});
+                     {"h_lambda", num(c.h_lambda)},
+                     {"facts", {{"reference", c.facts.reference}, {"ok", c.facts.ok},
+                                {"failure", c.facts.failure},
+                                {"history_error", num(c.facts.history_error)},
+                                {"drift_H", num(c.facts.drift_H)}, {"drift_E", num(c.facts.drift_E)},
+                                {"H_conserved", c.facts.H_conserved},
+                                {"E_conserved", c.facts.E_conserved}}}});
   const StabilityColumn& col = v.column;
   const json j = {{"value", num(col.value)}, {"reference", col.reference},
                   {"reference_note", col.reference_note}, {"lambda_max", nums(col.lambda_max)},
@@ -726,38 +1384,50 @@ std::string stability_value_json(const StabilityValue& v) {
   return j.dump();
 }
 
-StabilityValue stability_value_from(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    StabilityValue v;
-    v.column.value = get_num(j.at("value"));
-    v.column.reference = j.at("reference").get<bool>();
-    v.column.reference_note = j.at("reference_note").get<std::string>();
-    v.column.lambda_max = get_nums(j.at("lambda_max"));
-    for (const json& jc : j.at("cells")) {
-      StabilityCell c;
-      c.engine = jc.at("engine").get<std::string>();
-      c.integrator = jc.at("integrator").get<std::string>();
-      c.fixed_step = jc.at("fixed_step").get<bool>();
-      c.setting = get_num(jc.at("setting"));
-      const int cls = jc.at("class").get<int>();
-      if (cls < 0 || cls > static_cast<int>(StabilityClass::NoReference))
-        throw InputError("unknown stability class");
-      c.result.cls = static_cast<StabilityClass>(cls);
-      c.result.why = jc.at("why").get<std::string>();
-      c.history_error = get_num(jc.at("history_error"));
-      c.cpu = get_num(jc.at("cpu"));
-      c.rhs_calls = jc.at("rhs_calls").get<long>();
-      c.steps = jc.at("steps").get<long>();
-      c.h_lambda = get_num(jc.at("h_lambda"));
-      v.cells.push_back(c);
-    }
-    v.study_notes = j.at("study_notes").get<std::vector<std::string>>();
-    v.refused_note = j.at("refused_note").get<std::string>();
-    return v;
-  } catch (const json::exception& e) {
-    throw InputError(std::string("a stability value in the part is not valid: ") + e.what());
+StabilityValue stability_value_from_field(const PartField& j) {
+  StabilityValue v;
+  v.column.value = j.at("value").number();
+  v.column.reference = j.at("reference").boolean();
+  v.column.reference_note = j.at("reference_note").str();
+  v.column.lambda_max = j.at("lambda_max").numbers();
+  for (const PartField& jc : each(j.at("cells"))) {
+    StabilityCell c;
+    c.engine = jc.at("engine").str();
+    c.integrator = jc.at("integrator").str();
+    c.fixed_step = jc.at("fixed_step").boolean();
+    c.setting = jc.at("setting").number();
+    const int cls = jc.at("class").i32();
+    if (cls < 0 || cls > static_cast<int>(StabilityClass::NoReference))
+      jc.at("class").fail("is not a stability class");
+    c.result.cls = static_cast<StabilityClass>(cls);
+    c.result.why = jc.at("why").str();
+    c.history_error = jc.at("history_error").number();
+    c.cpu = jc.at("cpu").number();
+    c.rhs_calls = jc.at("rhs_calls").i64();
+    c.steps = jc.at("steps").i64();
+    c.h_lambda = jc.at("h_lambda").number();
+    const PartField f = jc.at("facts");
+    c.facts.reference = f.at("reference").boolean();
+    c.facts.ok = f.at("ok").boolean();
+    c.facts.failure = f.at("failure").str();
+    c.facts.history_error = f.at("history_error").number();
+    c.facts.drift_H = f.at("drift_H").number();
+    c.facts.drift_E = f.at("drift_E").number();
+    c.facts.H_conserved = f.at("H_conserved").boolean();
+    c.facts.E_conserved = f.at("E_conserved").boolean();
+    v.cells.push_back(c);
   }
+  v.study_notes = j.at("study_notes").strings();
+  v.refused_note = j.at("refused_note").str();
+  return v;
+}
+
+StabilityValue stability_value_from(const std::string& text) {
+  json root;
+  std::istringstream in(text);
+  std::size_t budget = kPartMemoryBudget;
+  parse_bounded(in, root, budget);
+  return stability_value_from_field(PartField(root, ""));
 }
 
 // ---- converge items --------------------------------------------------------------------------------
@@ -773,18 +1443,18 @@ json model_to(const ConvergeModel& m) {
           {"passed", m.passed}};
 }
 
-ConvergeModel model_from(const json& j) {
+ConvergeModel model_from(const PartField& j) {
   ConvergeModel m;
-  m.counts = j.at("counts").get<std::vector<int>>();
-  m.modes = j.at("modes").get<int>();
-  m.label = j.at("label").get<std::string>();
-  m.full = j.at("full").get<bool>();
-  m.slices = j.at("slices").get<int>();
-  m.slice_body = j.at("slice_body").get<int>();
-  for (const json& k : j.at("checks")) m.checks.push_back(check_from(k));
-  m.worst_normalised = get_num(j.at("worst_normalised"));
-  m.worst_quantity = j.at("worst_quantity").get<std::string>();
-  m.passed = j.at("passed").get<bool>();
+  m.counts = j.at("counts").ints();
+  m.modes = j.at("modes").i32();
+  m.label = j.at("label").str();
+  m.full = j.at("full").boolean();
+  m.slices = j.at("slices").i32();
+  m.slice_body = j.at("slice_body").i32();
+  for (const PartField& k : each(j.at("checks"))) m.checks.push_back(check_from(k));
+  m.worst_normalised = j.at("worst_normalised").number();
+  m.worst_quantity = j.at("worst_quantity").str();
+  m.passed = j.at("passed").boolean();
   return m;
 }
 
@@ -798,21 +1468,24 @@ std::string converge_frame_json(const ConvergeResult& r) {
   return j.dump();
 }
 
+ConvergeResult converge_frame_from_field(const PartField& j) {
+  ConvergeResult r;
+  r.scene = j.at("scene").str();
+  r.engine = j.at("engine").str();
+  for (const PartField& g : each(j.at("groups")))
+    r.groups.push_back({g.at("body").i32(), g.at("name").str(),
+                        g.at("modes").ints()});
+  if (j.at("full").is_null()) j.at("full").fail("is null: the part has no full model");
+  r.models.push_back(model_from(j.at("full")));
+  return r;
+}
+
 ConvergeResult converge_frame_from(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    ConvergeResult r;
-    r.scene = j.at("scene").get<std::string>();
-    r.engine = j.at("engine").get<std::string>();
-    for (const json& g : j.at("groups"))
-      r.groups.push_back({g.at("body").get<int>(), g.at("name").get<std::string>(),
-                          g.at("modes").get<std::vector<int>>()});
-    if (j.at("full").is_null()) throw InputError("the part has no full model");
-    r.models.push_back(model_from(j.at("full")));
-    return r;
-  } catch (const json::exception& e) {
-    throw InputError(std::string("the converge result in the part is not valid: ") + e.what());
-  }
+  json root;
+  std::istringstream in(text);
+  std::size_t budget = kPartMemoryBudget;
+  parse_bounded(in, root, budget);
+  return converge_frame_from_field(PartField(root, ""));
 }
 
 std::string converge_item_json(const std::optional<ConvergeModel>& model, const std::string& note) {
@@ -820,15 +1493,18 @@ std::string converge_item_json(const std::optional<ConvergeModel>& model, const 
   return j.dump();
 }
 
+std::pair<std::optional<ConvergeModel>, std::string> converge_item_from_field(const PartField& j) {
+  std::optional<ConvergeModel> m;
+  if (!j.at("model").is_null()) m = model_from(j.at("model"));
+  return {std::move(m), j.at("note").str()};
+}
+
 std::pair<std::optional<ConvergeModel>, std::string> converge_item_from(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    std::optional<ConvergeModel> m;
-    if (!j.at("model").is_null()) m = model_from(j.at("model"));
-    return {std::move(m), j.at("note").get<std::string>()};
-  } catch (const json::exception& e) {
-    throw InputError(std::string("a converge model in the part is not valid: ") + e.what());
-  }
+  json root;
+  std::istringstream in(text);
+  std::size_t budget = kPartMemoryBudget;
+  parse_bounded(in, root, budget);
+  return converge_item_from_field(PartField(root, ""));
 }
 
 }  // namespace crossdyn::harness

@@ -32,6 +32,8 @@
 #include "harness/stability.hpp"
 #include "harness/study.hpp"
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -77,14 +79,26 @@ std::vector<ShardScene> plan_shards(const std::vector<std::string>& files, int c
 // slices do not depend on the order of the units.
 std::vector<ShardScene> plan_units(std::vector<ShardScene> units, int count);
 
-// A part file's text: the shard, every scene of the run and the outcomes of slice `shard`
-// (`own`, in the run's order).
-std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& scenes,
-                      const std::vector<SceneOutcome>& own);
-
 // The options a sweep's result depends on, as (option, value) pairs in a fixed order: every part
 // of a run must carry the same (merge names the first that differs).
 using PartOptions = std::vector<std::pair<std::string, std::string>>;
+
+// A file the result depends on (a scene's nodal CSV data, ...) and its SHA-256 when the part
+// was written.
+struct PartInput {
+  std::string path;
+  std::string sha256;
+};
+// The files the units read besides their own files (a scene's nodal CSV data, resolved as the
+// scene reader resolves them), each once, with its SHA-256 now ("" when it cannot be read).
+// Every part carries them ("inputs"); merge refuses parts whose inputs differ or changed since.
+std::vector<PartInput> unit_inputs(const std::vector<ShardScene>& units);
+
+// A part file's text: the shard, every scene of the run and the outcomes of slice `shard`
+// (`own`, in the run's order), the options the outcomes depend on and the inputs (unit_inputs).
+std::string part_json(const ShardSpec& shard, const std::vector<ShardScene>& scenes,
+                      const std::vector<SceneOutcome>& own, const PartOptions& options = {});
+
 // A number in the shortest text that reads back the same ("1e-06", not 9.9999999999999995e-07);
 // a list of them comma-separated, "(default)" when empty. For PartOptions.
 std::string shortest_text(double value);
@@ -97,8 +111,10 @@ std::string sweep_part_json(const std::string& command, const PartOptions& optio
                             const ShardSpec& shard, const std::vector<ShardScene>& units,
                             const std::string& frame, const std::vector<std::string>& items);
 
+
 struct Part {
   std::string file;  // where it was read from (messages)
+  std::vector<PartInput> inputs;   // every file the units read besides the unit files themselves
   std::string version;
   std::string command = "verify";  // the crossdyn command that wrote it
   PartOptions options;             // sweep parts: the options of the run
@@ -108,15 +124,28 @@ struct Part {
   std::string frame = "null";          // sweep parts (JSON text)
   std::vector<std::string> items;      // sweep parts: one JSON text per unit of the slice
 };
-// Reads a part file; InputError naming the file when it cannot be read or is not a part.
-Part read_part(const std::string& file);
+// The limits of merge's memory (README "Sharding a sweep"): a part file larger than
+// kMaxPartFileBytes is refused before it is read, and the parsed form of all the parts of one
+// merge together may take at most kPartMemoryBudget (each value charged its DOM size while it is
+// parsed, so a part that would pass it is refused before the memory is taken). Exit status 2.
+inline constexpr std::uintmax_t kMaxPartFileBytes = std::uintmax_t{256} << 20;
+inline constexpr std::size_t kPartMemoryBudget = std::size_t{256} << 20;
 
-// The whole run's outcomes, in the run's order, from parts that belong together. InputError
+// Reads a part file; InputError naming the file and, for a part that is not well formed, the
+// field ("/outcomes/0/comparison/runs/1/data") and what is wrong. `budget` (bytes): what the
+// parts may still take (kPartMemoryBudget for all the parts of a merge), decreased by this one.
+Part read_part(const std::string& file);
+Part read_part(const std::string& file, std::size_t& budget);
+
+// The whole run's outcomes, in the run's order, from parts that belong together (moved out of
+// `parts`, whose outcomes are left empty: the run data is held once). Every outcome's checks
+// and notes are made again from its scene and runs (compare_runs, require_comparison) and must
+// equal the part's, field by field (InputError naming the part, scene, check and field). InputError
 // (exit 2) naming what is wrong when they do not: another crossdyn version than `version`, a
 // different N, a shard given twice (which K, which files) or missing (which K), different scene
 // lists or scene hashes, or a scene file on disk that no longer matches its hash (checked for the
 // files that can be found; `checked` is set to how many were).
-std::vector<SceneOutcome> merge_parts(const std::vector<Part>& parts, const std::string& version,
+std::vector<SceneOutcome> merge_parts(std::vector<Part>& parts, const std::string& version,
                                       int* checked = nullptr);
 // The checks of merge_parts for parts of any command (also: parts of different commands, parts
 // made with different options, naming the option and both values), then the items of every unit

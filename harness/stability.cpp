@@ -61,7 +61,10 @@ const char* class_name(StabilityClass c) {
 }
 
 Classified classify(const CellFacts& f, const ClassLimits& lim) {
-  if (!f.reference) return {StabilityClass::NoReference, "no reference at this parameter value"};
+  if (!f.reference)
+    return {StabilityClass::NoReference,
+            f.failure.empty() ? std::string("no reference at this parameter value")
+                              : "no reference at this parameter value (" + no_reference_reason(f.failure) + ")"};
   if (!f.ok) {
     const std::string& w = f.failure;
     if (contains(w, "singularity") || contains(w, "gimbal lock")) return {StabilityClass::Singular, w};
@@ -424,6 +427,7 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
       f.drift_E = r.drift_E;
       f.H_conserved = H_conserved;
       f.E_conserved = E_conserved;
+      cell.facts = f;
       cell.result = classify(f, m.limits);
       out.cells.push_back(cell);
     }
@@ -444,8 +448,9 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
           cell.column = c;
           CellFacts f;
           f.reference = false;
+          f.failure = r.what();  // why the reference could not be made: the cell says it
+          cell.facts = f;
           cell.result = classify(f, m.limits);
-          cell.result.why += " (" + no_reference_reason(r.what()) + ")";  // the reason, per cell
           out.cells.push_back(cell);
         }
       }

@@ -69,7 +69,8 @@ const char* class_name(StabilityClass c);
 struct CellFacts {
   bool reference = true;      // false: no reference at this parameter value
   bool ok = false;            // the run finished
-  std::string failure;        // why it did not (RunFailure text)
+  std::string failure;        // why it did not (RunFailure text); without a reference, why none
+                              // could be made (the study's refusal)
   double history_error = std::numeric_limits<double>::quiet_NaN();
   double drift_H = std::numeric_limits<double>::quiet_NaN();
   double drift_E = std::numeric_limits<double>::quiet_NaN();
@@ -128,6 +129,7 @@ struct StabilityCell {
   bool fixed_step = false;
   double setting = 0;           // dt (rk4) or rtol = atol
   std::size_t column = 0;       // into StabilityMap::columns
+  CellFacts facts;              // what `result` was classified from (parts carry it: merge re-classifies)
   Classified result;
   double history_error = std::numeric_limits<double>::quiet_NaN();
   double cpu = 0;               // s, one run

@@ -149,7 +149,26 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
               << " of " << files.size() << " scenes\n";
   const harness::VerifyResult result = harness::run_verify(o.verify, own);
   std::cout << harness::format_verify_table(result);
-  part_file->stream() << harness::part_json(shard, plan, result.scenes);
+  // What the outcomes depend on besides the scenes: merge refuses parts that differ in any.
+  const harness::CompareCliOptions& c = o.common;
+  const auto opt_num = [](const std::optional<double>& v) {
+    return v ? harness::shortest_text(*v) : std::string("(scene's)");
+  };
+  std::string inertia;
+  for (const std::string& x : c.test_inertia_scale) inertia += (inertia.empty() ? "" : " ") + x;
+  const harness::PartOptions part_options{
+      {"--engines", c.engines.empty() ? "(all)" : c.engines},
+      {"--integrator", c.integrator ? *c.integrator : "(scene's)"},
+      {"--rtol", opt_num(c.rtol)},
+      {"--atol", opt_num(c.atol)},
+      {"--dt", opt_num(c.dt)},
+      {"--no-analytic", c.no_analytic ? "yes" : "no"},
+      {"--max-steps", c.max_steps ? std::to_string(*c.max_steps) : "(scene's)"},
+      {"--timeout", opt_num(c.timeout)},
+      {"--allow-no-comparison", o.verify.allow_no_comparison ? "yes" : "no"},
+      {"--no-converge", o.verify.converge ? "no" : "yes"},
+      {"--test-inertia-scale", inertia.empty() ? "(none)" : inertia}};
+  part_file->stream() << harness::part_json(shard, plan, result.scenes, part_options);
   commit_together({&*part_file});
   std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
   check_written(std::cout);
@@ -177,11 +196,27 @@ int verify(VerifyCommandOptions& o) {
 
 // crossdyn merge PARTS...: the parts checked (harness/shard.hpp merge_parts), then exactly what
 // verify writes for the whole run.
+int merge_parts_command(VerifyCommandOptions& o);
+
+// A part's text reaches the messages (paths, versions, names): a control character in it (a
+// newline) would break the one-line error, so it is shown as '?'.
 int merge(VerifyCommandOptions& o) {
+  try {
+    return merge_parts_command(o);
+  } catch (const InputError& e) {
+    std::string m = e.what();
+    for (char& c : m)
+      if (static_cast<unsigned char>(c) < 32 || c == 127) c = '?';
+    throw InputError(m);
+  }
+}
+
+int merge_parts_command(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
-  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
+  std::size_t budget = harness::kPartMemoryBudget;  // all the parts together
+  for (const std::string& f : o.parts) parts.push_back(harness::read_part(f, budget));
   const std::string command = parts.front().command;
   if (command != "verify") {
     // study and stability parts: their outputs (the commands' own --csv and --report).
