@@ -9,6 +9,7 @@
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -227,6 +228,29 @@ int crossdyn_main(int argc, char** argv) {
     exit_code = exit_status_for(std::current_exception(), std::cerr);
   }
   return exit_code;
+}
+
+CLI::Option* list_option(CLI::Option* option) {
+  option->check(CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text.empty())
+          return "the list is empty (leave the option out for its default)";
+        std::vector<std::string> items;
+        std::size_t start = 0;
+        while (true) {
+          const std::size_t comma = text.find(',', start);
+          const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+          if (item.empty()) return "an empty item in '" + text + "' (a comma too many)";
+          if (std::find(items.begin(), items.end(), item) != items.end())
+            return "'" + item + "' is listed twice in '" + text + "'";
+          items.push_back(item);
+          if (comma == std::string::npos) break;
+          start = comma + 1;
+        }
+        return "";
+      },
+      ""));
+  return option;
 }
 
 }  // namespace crossdyn

@@ -2,6 +2,7 @@
 #include "harness/report.hpp"
 
 #include "core/errors.hpp"
+#include "core/input_file.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
 #include "harness/locations.hpp"
@@ -522,7 +523,10 @@ namespace {
 // The report script: as given, else the installed one (never one found next to the scenes).
 std::string find_script(const std::string& given) {
   if (!given.empty()) {
-    if (!fs::is_regular_file(given)) throw InputError("--report-script: '" + given + "' is not a file");
+    // Opened without blocking and checked on the descriptor: a FIFO, device or directory would
+    // hang or feed python forever (core/input_file.hpp).
+    if (const std::string why = input_file_problem(given, Pipes::Refuse); !why.empty())
+      throw InputError("--report-script: '" + given + "' cannot be used: " + why);
     return given;
   }
   const fs::path p = fs::path(installed_reports_dir()) / "make_report.py";
@@ -680,7 +684,8 @@ void swap_in(PartialFolder& partial, const fs::path& dir) {
   try {
     carry_over(dir, partial.path());
   } catch (const fs::filesystem_error& e) {
-    throw InputError("cannot keep the files of '" + dir.string() + "' that are not part of the report: " + e.what());
+    throw InputError("cannot keep the files of '" + dir.string() + "' that are not part of the report: " +
+                     e.code().message() + (e.path1().empty() ? "" : " ('" + e.path1().string() + "')"));
   }
   if (::rename(partial.path().c_str(), dir.c_str()) == 0) {  // no folder there, or an empty one
     partial.release();

@@ -360,6 +360,10 @@ std::vector<double> parse_values(const std::string& text, const std::string& opt
     if (out.empty()) throw InputError(option + ": no values given");
   }
   if (out.size() > 40) throw InputError(option + ": at most 40 values, got " + std::to_string(out.size()));
+  for (std::size_t i = 0; i < out.size(); ++i)  // 1e-6,1e-06: one value twice (as for every list)
+    for (std::size_t j = 0; j < i; ++j)
+      if (out[i] == out[j])
+        throw InputError(option + ": the value " + setting_text(out[i]) + " is listed twice in '" + text + "'");
   return out;
 }
 

@@ -125,6 +125,7 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
   check_outputs_are_not_inputs({{"standard output", "-"}, {"--part", o.part}}, inputs, {});
   std::optional<AtomicFile> part_file;
   open_output(part_file, o.part, "--part");
+  for (const std::string& f : files) harness::require_shardable_scene(f);
   const std::vector<harness::ShardScene> plan = harness::plan_shards(files, shard.count);
   std::vector<std::string> own;
   for (const harness::ShardScene& s : plan)

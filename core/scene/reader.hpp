@@ -26,6 +26,7 @@ namespace crossdyn::scene {
 // spacecraft scene.
 inline constexpr std::size_t kMaxSceneBytes = 1u << 20;  // 1 MiB of YAML
 inline constexpr double kAbsurd = 1e12;                  // any SI value beyond this is a typo
+inline constexpr double kTiny = 1e-100;                 // a nonzero SI value below this is refused
 inline constexpr double kMaxMass = 1e9;                  // kg
 inline constexpr double kMinAxisLength = 1e-9;           // a shorter axis counts as zero
 inline constexpr double kUnitQuaternionTolerance =

@@ -282,6 +282,13 @@ double Reader::sane(const Val& v, double si) const {
   if (!std::isfinite(si)) fail(v, "value is not finite after unit conversion");
   if (std::abs(si) > kAbsurd)
     fail(v, "absurd value " + shortest(si) + " (magnitude above 1e12 in SI units)");
+  // A tiny nonzero value (1e-320, subnormal; 1e-200) would be read and then make the run
+  // non-finite (ramp_time: 1e-320 gave NaN at t = 0): refused here, at its key. Between
+  // kTiny and kAbsurd, a product or quotient of three values stays a normal double.
+  if (si != 0 && std::abs(si) < kTiny)
+    fail(v, "value " + shortest(si) + " is too small to compute with (a magnitude above 0 and "
+            "below 1e-100 in SI units; the allowed magnitudes are 0 where the key allows it, "
+            "and 1e-100 to 1e12)");
   return si;
 }
 
