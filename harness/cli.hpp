@@ -41,4 +41,9 @@ std::string closest_match(const std::string& word, const std::vector<std::string
 // spelling (1e-6,1e-06) where they are parsed (harness/study.cpp parse_values).
 CLI::Option* list_option(CLI::Option* option);
 
+// An integer option (--max-steps, --repeat, --panels, --max-links): its text must be a decimal
+// whole number an int holds ("1e30", "0x10", "99999999999999999999" are refused with a sentence,
+// never converted, saturated or read as octal). Applied to every INT option by crossdyn_main.
+void whole_number_option(CLI::Option* option);
+
 }  // namespace crossdyn
