@@ -362,10 +362,12 @@ TEST_CASE("class 8, a value is refused where it is given: tiny and huge scene va
   CHECK(dt_option.status == 2);
   CHECK(contains(dt_option.err, "--dt 1e-20: dt = 1e-20 s is the adaptive integrators' first trial step"));
   // Every numeric option of the run block, tiny and huge, on every command that takes it.
-  for (const std::string command : {"run ok.yaml", "compare ok.yaml", "verify ok.yaml"})
+  for (const std::string command : {"run ok.yaml --output out.json", "compare ok.yaml --json out.json",
+                                     "verify ok.yaml --json out.json"})
     for (const std::string option : {"--dt", "--rtol", "--atol"})
       for (const std::string value : {"1e-320", "1e-200", "1e300"}) {
-        const Run r = timed(s.dir().string(), command + " " + option + " " + value + " --output out.csv");
+        const Run r = timed(s.dir().string(), command + " " + option + " " + value);
+        CHECK_FALSE(fs::exists(s.path("out.json")));
         INFO(command << " " << option << " " << value << ": " << r.err);
         CHECK(r.status == 2);
         CHECK(contains(r.err, "crossdyn: error: " + option + " "));
