@@ -72,6 +72,11 @@ CompareOptions to_compare_options(const CompareCliOptions& o) {
     std::snprintf(b, sizeof b, "%g", *o.timeout);
     throw InputError(std::string("--timeout: must be a positive, finite number of seconds, got ") + b);
   }
+  if (o.timeout && (*o.timeout < 1e-3 || *o.timeout > 1e9)) {  // 1e-320 s: no run could start
+    char b[64];
+    std::snprintf(b, sizeof b, "%g", *o.timeout);
+    throw InputError(std::string("--timeout: ") + b + " s is outside the allowed range, 0.001 to 1e9 s");
+  }
   c.max_steps = o.max_steps;
   c.timeout = o.timeout;
   c.progress = !o.quiet;

@@ -95,6 +95,9 @@ int stability(const StabilityCliOptions& o) {
   options.max_steps = o.max_steps;
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: none)");
+  if (o.timeout != 0 && (o.timeout < 1e-3 || o.timeout > 1e9))  // 1e-320 s: no run could start
+    throw InputError("--timeout: " + harness::shortest_text(o.timeout) +
+                     " s is outside the allowed range, 0 (none) or 0.001 to 1e9 s");
   options.timeout = o.timeout;
   const bool sharded = !o.shard.empty() || !o.part.empty();
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);

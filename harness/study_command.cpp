@@ -72,6 +72,9 @@ int study(const StudyCliOptions& o) {
   options.max_steps = o.max_steps;
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: no limit)");
+  if (o.timeout != 0 && (o.timeout < 1e-3 || o.timeout > 1e9))  // 1e-320 s: no run could start
+    throw InputError("--timeout: " + harness::shortest_text(o.timeout) +
+                     " s is outside the allowed range, 0 (none) or 0.001 to 1e9 s");
   options.timeout = o.timeout;
   if (!(o.budget > 0) || !(o.budget <= 60))
     throw InputError("--budget: must be more than 0 and at most 60 s");

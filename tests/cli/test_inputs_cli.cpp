@@ -373,6 +373,16 @@ TEST_CASE("class 8, a value is refused where it is given: tiny and huge scene va
         CHECK(contains(r.err, "crossdyn: error: " + option + " "));
         check_one_sentence(r);
       }
+  // A per-run timeout no run could start within (1e-320 s), or beyond the watchdog's range.
+  for (const std::string command : {"compare ok.yaml", "verify ok.yaml", "study ok.yaml",
+                                     "stability ok.yaml --vary hinge.stiffness --values 1,2"})
+    for (const std::string value : {"1e-320", "1e-6", "1e300"}) {
+      const Run r = timed(s.dir().string(), command + " --timeout " + value);
+      INFO(command << " --timeout " << value << ": " << r.err);
+      CHECK(r.status == 2);
+      CHECK(contains(r.err, "crossdyn: error: --timeout: "));
+      CHECK(contains(r.err, "0.001 to 1e9 s"));
+    }
   for (const std::string option : {"--duration", "--output-step"})
     for (const std::string value : {"1e-320", "1e-200", "1e300"}) {
       const Run r = timed(s.dir().string(), "run ok.yaml " + option + " " + value);
