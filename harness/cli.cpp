@@ -189,7 +189,10 @@ int crossdyn_main(int argc, char** argv) {
       if (!named || named == &c) c.add(app, exit_code);
     for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; }))
       for (CLI::Option* option : sub->get_options())
-        if (option->get_type_name() == "INT" || option->get_type_name() == "UINT") whole_number_option(option);
+        if (option->nonpositional() && option->get_type_size() != 0) {  // not a flag
+          if (option->get_type_name() == "INT" || option->get_type_name() == "UINT") whole_number_option(option);
+          non_empty_option(option);
+        }
     try {
       app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -260,6 +263,14 @@ void whole_number_option(CLI::Option* option) {
           return "'" + text + "' is too large (at most " + std::to_string(std::numeric_limits<int>::max()) + ")";
         text = std::to_string(v);  // "010" is ten, not CLI11's octal eight
         return "";
+      },
+      ""));
+}
+
+void non_empty_option(CLI::Option* option) {
+  option->check(CLI::Validator(
+      [](std::string& text) -> std::string {
+        return text.empty() ? "an empty value (leave the option out for its default)" : "";
       },
       ""));
 }

@@ -46,4 +46,8 @@ CLI::Option* list_option(CLI::Option* option);
 // never converted, saturated or read as octal). Applied to every INT option by crossdyn_main.
 void whole_number_option(CLI::Option* option);
 
+// Every option that takes a value refuses an empty one (`--scenarios ''` is an error, not the
+// default folder; `--output ''`, `--report-script ''` likewise). Applied by crossdyn_main.
+void non_empty_option(CLI::Option* option);
+
 }  // namespace crossdyn

@@ -76,8 +76,8 @@ int study(const StudyCliOptions& o) {
     throw InputError("--timeout: " + harness::shortest_text(o.timeout) +
                      " s is outside the allowed range, 0 (none) or 0.001 to 1e9 s");
   options.timeout = o.timeout;
-  if (!(o.budget > 0) || !(o.budget <= 60))
-    throw InputError("--budget: must be more than 0 and at most 60 s");
+  if (!(o.budget >= 1e-3) || !(o.budget <= 60))  // 1e-320 s: no measurement fits in it
+    throw InputError("--budget: must be from 0.001 to 60 s, got " + harness::shortest_text(o.budget));
   const bool sharded = !o.shard.empty() || !o.part.empty();
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
   if (sharded) {

@@ -259,9 +259,15 @@ TEST_CASE("class 8, a value is refused where it is given: empty and repeated lis
   cases.push_back({"stability scene.yaml --vary hub.mass --values ''", "--values: the list is empty"});
   cases.push_back({"stability scene.yaml --vary hub.mass --values 1,1", "--values: '1' is listed twice"});
   cases.push_back({"stability scene.yaml --vary hinge.stiffness --values 10,1e1", "--values: the value 1e+01 is listed twice"});
-  cases.push_back({"stability scene.yaml --vary hub.mass --values 1,2 --set ''", "--set '': expected KNOB=VALUE"});
+  cases.push_back({"stability scene.yaml --vary hub.mass --values 1,2 --set ''", "--set: an empty value"});
   cases.push_back({"stability scene.yaml --vary hub.mass --values 1,2 --set panel.mass=2 --set panel.mass=3",
                    "--set: 'panel.mass' is set twice"});
+  // Any option given an empty value: an error, not its default (`--scenarios ''` is not scenarios/).
+  for (const std::string args : {"list --scenarios ''", "verify --scenarios ''", "run scene.yaml --output ''",
+                                 "verify scene.yaml --json ''", "verify scene.yaml --report-script ''",
+                                 "run scene.yaml --integrator ''", "compare scene.yaml --dt ''",
+                                 "study scene.yaml --csv ''", "draw scene.yaml --geometry ''"})
+    cases.push_back({args, "an empty value (leave the option out for its default)"});
   for (const Case& c : cases) {
     const Run r = timed(s.dir().string(), c.args);
     INFO(c.args << "\n" << r.err);
