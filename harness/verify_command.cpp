@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
+#include "core/input_file.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
 #include "harness/commands.hpp"
@@ -165,6 +166,11 @@ int merge(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
+  // A part must be a regular file: a FIFO with no writer would block the read forever, /dev/zero
+  // never end (opened without blocking and checked on the descriptor: core/input_file.hpp).
+  for (const std::string& f : o.parts)
+    if (const std::string why = input_file_problem(f, Pipes::Refuse); !why.empty())
+      throw InputError("cannot read the part file '" + f + "': " + why);
   for (const std::string& f : o.parts) parts.push_back(harness::read_part(f));
   const std::string command = parts.front().command;
   if (command != "verify") {

@@ -426,3 +426,25 @@ TEST_CASE("class 10, every error is a sentence about the user's input: numbers o
   CHECK(octal.status == 3);
   CHECK(contains(octal.err, "10 steps"));
 }
+
+TEST_CASE("class 3, nothing blocks on a special file: part files given to merge") {
+  Scratch s("special_parts");
+  s.write("scene.yaml", kSmallScene);
+  REQUIRE(timed(s.dir().string(), "verify scene.yaml --shard 0/1 --part good.json").status == 0);
+  REQUIRE(::mkfifo(s.path("fifo.json").c_str(), 0644) == 0);
+  fs::create_directories(s.dir() / "dir.json");
+  fs::create_symlink("/dev/zero", s.dir() / "zero.json");
+  for (const auto& [part, why] : std::vector<std::pair<std::string, std::string>>{
+           {"fifo.json", "it is a named pipe (FIFO), not a regular file"},
+           {"/dev/zero", "it is a character device"},
+           {"/dev/urandom", "it is a character device"},
+           {"zero.json", "it is a character device"},
+           {"dir.json", "it is a directory"}}) {
+    const Run r = timed(s.dir().string(), "merge good.json " + part + " --json m.json");
+    INFO(part << ": " << r.err);
+    CHECK(r.status != kTimedOut);
+    CHECK(r.status == 2);
+    CHECK(contains(r.err, "cannot read the part file '" + part + "': " + why));
+    CHECK_FALSE(fs::exists(s.path("m.json")));
+  }
+}
