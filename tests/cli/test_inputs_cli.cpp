@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include <regex>
+#include <tuple>
 
 using namespace crossdyn::test;
 
@@ -352,6 +353,17 @@ TEST_CASE("class 8, a value is refused where it is given: tiny and huge scene va
       check_one_sentence(r);
       CHECK_FALSE(fs::exists(s.path("out.csv")));
     }
+  // Angles and angular rates no engine's run survives (measured: 1e8 rad, 1e5 rad/s).
+  for (const auto& [key, value, path] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"w", "1e5", "joints[0].initial.angular_velocity[0]"}, {"rate", "-1e5", "joints[1].initial.rate"},
+           {"prate", "2e4", "joints[2].prescribed.rate"}, {"angle", "1e8", "joints[1].initial.angle"}}) {
+    s.write("bad.yaml", every_kind(key, value));
+    const Run r = timed(s.dir().string(), "run bad.yaml");
+    INFO(key << " = " << value << ": " << r.err);
+    CHECK(r.status == 2);
+    CHECK(contains(r.err, path + ": "));
+    CHECK(contains(r.err, "is too large (the allowed range is"));
+  }
   // The issue's example, word for word.
   s.write("ramp.yaml", every_kind("ramp", "1e-320"));
   const Run ramp = timed(s.dir().string(), "run ramp.yaml");
