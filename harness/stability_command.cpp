@@ -1,4 +1,6 @@
 // crossdyn stability SCENE --vary KNOB --values LIST: where each method fails (harness/stability.hpp).
+#include <cctype>
+#include <cstdlib>
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
@@ -62,15 +64,12 @@ std::vector<double> parse_parameter_values(const std::string& text) {
   std::stringstream in(text);
   std::string item;
   while (std::getline(in, item, ',')) {
-    std::size_t used = 0;
-    double v = 0;
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v))
+    char* end = nullptr;  // strtod: 1e-320 is a number, refused by apply_knob's bounds
+    const double v = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || end != item.c_str() + item.size() || std::isspace(static_cast<unsigned char>(item[0])))
       throw InputError("--values: '" + item + "' is not a number (give a list 1,10,100 or a range 1..1e4)");
+    if (!std::isfinite(v))
+      throw InputError("--values: '" + item + "' is not a finite number");
     out.push_back(v);
   }
   if (out.empty() || out.size() > 40) throw InputError("--values: give 1 to 40 values");

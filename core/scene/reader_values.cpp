@@ -292,10 +292,11 @@ double Reader::sane(const Val& v, double si, Dimension d) const {
   // Angles and angular rates whose size no run survives (measured: a hinge angle of 1e8 rad or a
   // rate of 1e5 rad/s ends every engine's run at its first steps, exit 3): refused here.
   if (d == Dimension::AngularRate && std::abs(si) > kMaxAngularRate)
-    fail(v, "angular rate " + shortest(si) + " rad/s is too large (the allowed range is -1e4 to 1e4 "
-            "rad/s, as for a prescribed rate)");
+    fail(v, "angular rate " + shortest(si) + " rad/s is too large: at most 1e4 rad/s in size (the "
+            "allowed range is -1e4 to 1e4 rad/s)");
   if (d == Dimension::Angle && std::abs(si) > kMaxAngle)
-    fail(v, "angle " + shortest(si) + " rad is too large (the allowed range is -1e6 to 1e6 rad)");
+    fail(v, "angle " + shortest(si) + " rad is too large: at most 1e6 rad in size (the allowed range "
+            "is -1e6 to 1e6 rad)");
   return si;
 }
 
