@@ -29,6 +29,8 @@ std::string positive_time(const char* what, double x) {
   if (std::isnan(x) || std::isinf(x))
     return std::string(what) + " must be a finite number of seconds, found " + shortest(x);
   if (!(x > 0)) return std::string(what) + " must be positive, found " + shortest(x) + " s";
+  if (x < kMinSeconds)  // 1e-320 s: read, then a non-finite run at t = 0
+    return std::string(what) + " of " + shortest(x) + " s is too small to compute with (limit 1e-100 s)";
   if (x > kMaxSeconds)
     return std::string(what) + " of " + shortest(x) + " s is absurd (limit 1e12 s)";
   return "";
@@ -82,11 +84,22 @@ std::string output_step_problem(double output_step, double duration) {
 
 std::string dt_problem(double dt) { return positive_time("dt", dt); }
 
+std::string first_step_problem(double dt, double min_step) {
+  if (!(dt < min_step)) return "";
+  return "dt = " + shortest(dt) + " s is the adaptive integrators' first trial step, and it is below "
+         "their minimum step of " + shortest(min_step) + " s (a step-size underflow at t = 0); "
+         "give a larger dt, or leave it out";
+}
+
 std::string tolerance_problem(const std::string& key, double value) {
   if (std::isnan(value) || std::isinf(value))
     return key + " must be a finite number, found " + shortest(value);
   if (value < 0) return "negative tolerance " + shortest(value);
   if (value == 0) return key + " must be positive (the step-size control needs it)";
+  if (value < kMinSeconds)
+    return key + " " + shortest(value) + " is too small to compute with (the allowed range is 1e-100 to 1e12)";
+  if (value > kMaxSeconds)
+    return key + " " + shortest(value) + " is absurd (the allowed range is 1e-100 to 1e12)";
   return "";
 }
 
@@ -117,6 +130,8 @@ std::optional<Problem> check(const IntegratorSettings& s) {
   if (auto p = first("output_step", output_step_problem(s.output_step, s.duration))) return p;
   if (auto p = first("dt", dt_problem(s.dt))) return p;
   if (s.method != Integrator::Rk4) {
+    if (s.first_step > 0)
+      if (auto p = first("dt", first_step_problem(s.first_step, s.min_step))) return p;
     if (auto p = first("rtol", tolerance_problem("rtol", s.rtol))) return p;
     if (auto p = first("atol", tolerance_problem("atol", s.atol))) return p;
   }

@@ -24,6 +24,7 @@ namespace crossdyn::run_limits {
 
 inline constexpr double kMaxOutputRows = 1e7;
 inline constexpr double kMaxSeconds = 1e12;  // the reader's bound on any SI value
+inline constexpr double kMinSeconds = 1e-100;  // the reader's floor on any nonzero SI value
 
 // The output-row limit in force: kMaxOutputRows, lowered only by the fuzz target (bounded work).
 double max_output_rows();
@@ -35,6 +36,9 @@ std::string dt_problem(double dt);
 std::string tolerance_problem(const std::string& key, double value);  // key: "rtol" or "atol"
 std::string integrator_problem(const std::string& name);  // unknown_name_message<Integrator>
 std::string max_steps_problem(long max_steps);
+// An adaptive method's first trial step (run.dt, --dt) below its minimum step (IntegratorSettings::
+// min_step, 1e-13 s): the run would end at t = 0 with a step-size underflow.
+std::string first_step_problem(double dt, double min_step);
 std::string fixed_step_count_problem(double duration, double dt, long max_steps);
 
 // The first problem of a complete set of settings: which setting ("duration", "output_step",

@@ -9,6 +9,9 @@
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
 
+#include <algorithm>
+#include <charconv>
+#include <limits>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -184,6 +187,12 @@ int crossdyn_main(int argc, char** argv) {
       if (argc > 1 && std::string_view(argv[1]) == c.name) named = &c;
     for (const Command& c : kCommands)
       if (!named || named == &c) c.add(app, exit_code);
+    for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; }))
+      for (CLI::Option* option : sub->get_options())
+        if (option->nonpositional() && option->get_type_size() != 0) {  // not a flag
+          if (option->get_type_name() == "INT" || option->get_type_name() == "UINT") whole_number_option(option);
+          non_empty_option(option);
+        }
     try {
       app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
@@ -201,6 +210,13 @@ int crossdyn_main(int argc, char** argv) {
       exit_code = kExitBadInput;
     } catch (const CLI::ParseError& e) {
       std::string message = e.what();
+      // CLI11's "Could not convert: --duration = abc": a sentence about the value instead.
+      const std::string kConvert = "Could not convert: ";
+      if (message.rfind(kConvert, 0) == 0 && message.find(" = ") != std::string::npos) {
+        const std::size_t eq = message.find(" = ");
+        message = message.substr(kConvert.size(), eq - kConvert.size()) + ": '" +
+                  message.substr(eq + 3) + "' is not a number this option takes";
+      }
       if (app.get_subcommands().empty()) {  // no command recognised
         const std::vector<std::string> rest = app.remaining(true);
         if (rest.empty()) message = "no command given (commands: " + command_list(app) + ")";
@@ -227,6 +243,59 @@ int crossdyn_main(int argc, char** argv) {
     exit_code = exit_status_for(std::current_exception(), std::cerr);
   }
   return exit_code;
+}
+
+void whole_number_option(CLI::Option* option) {
+  option->transform(CLI::Validator(
+      [](std::string& text) -> std::string {
+        // CLI11 reads integers with strtoll base 0 ("010" is 8, "0x10" 16) and saturates on
+        // overflow (99999999999999999999 became 9223372036854775807): decimal digits only, and a
+        // value an int holds, checked on the text.
+        const char* b = text.data();
+        const char* e = text.data() + text.size();
+        if (b != e && *b == '+') ++b;
+        long long v = 0;
+        const auto r = std::from_chars(b, e, v, 10);
+        if (b == e || r.ptr != e || (r.ec != std::errc() && r.ec != std::errc::result_out_of_range))
+          return "'" + text + "' is not a whole number";
+        if (r.ec == std::errc::result_out_of_range || v > std::numeric_limits<int>::max() ||
+            v < std::numeric_limits<int>::min())
+          return "'" + text + "' is too large (at most " + std::to_string(std::numeric_limits<int>::max()) + ")";
+        text = std::to_string(v);  // "010" is ten, not CLI11's octal eight
+        return "";
+      },
+      ""));
+}
+
+void non_empty_option(CLI::Option* option) {
+  option->check(CLI::Validator(
+      [](std::string& text) -> std::string {
+        return text.empty() ? "an empty value (leave the option out for its default)" : "";
+      },
+      ""));
+}
+
+CLI::Option* list_option(CLI::Option* option) {
+  option->check(CLI::Validator(
+      [](std::string& text) -> std::string {
+        if (text.empty())
+          return "the list is empty (leave the option out for its default)";
+        std::vector<std::string> items;
+        std::size_t start = 0;
+        while (true) {
+          const std::size_t comma = text.find(',', start);
+          const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+          if (item.empty()) return "an empty item in '" + text + "' (a comma too many)";
+          if (std::find(items.begin(), items.end(), item) != items.end())
+            return "'" + item + "' is listed twice in '" + text + "'";
+          items.push_back(item);
+          if (comma == std::string::npos) break;
+          start = comma + 1;
+        }
+        return "";
+      },
+      ""));
+  return option;
 }
 
 }  // namespace crossdyn

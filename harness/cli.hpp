@@ -16,6 +16,10 @@
 #include <string>
 #include <vector>
 
+namespace CLI {
+class Option;
+}
+
 namespace crossdyn {
 
 inline constexpr int kExitInterrupted = 130;
@@ -29,5 +33,21 @@ int exit_status_for(const std::exception_ptr& e, std::ostream& err);
 // "did you mean" for an unknown word among `known` (closest by edit distance, or `word` is a
 // prefix of one); "" when none is close.
 std::string closest_match(const std::string& word, const std::vector<std::string>& known);
+
+// Makes `option` a comma-separated list option (--engines, --integrators, --tolerances, --dts,
+// --values): an empty list (`--engines ''`) is refused, not read as "the default", and so are an
+// empty item (`a,,b`, a trailing comma) and an item given twice (`kane,kane`): one rule for every
+// list option (README "Command line"). Numeric lists also refuse a value given twice in another
+// spelling (1e-6,1e-06) where they are parsed (harness/study.cpp parse_values).
+CLI::Option* list_option(CLI::Option* option);
+
+// An integer option (--max-steps, --repeat, --panels, --max-links): its text must be a decimal
+// whole number an int holds ("1e30", "0x10", "99999999999999999999" are refused with a sentence,
+// never converted, saturated or read as octal). Applied to every INT option by crossdyn_main.
+void whole_number_option(CLI::Option* option);
+
+// Every option that takes a value refuses an empty one (`--scenarios ''` is an error, not the
+// default folder; `--output ''`, `--report-script ''` likewise). Applied by crossdyn_main.
+void non_empty_option(CLI::Option* option);
 
 }  // namespace crossdyn

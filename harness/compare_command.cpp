@@ -5,6 +5,7 @@
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/cli.hpp"
 #include "harness/commands.hpp"
 #include "harness/compare.hpp"
 #include "harness/engines.hpp"
@@ -26,9 +27,9 @@ namespace crossdyn {
 namespace harness {
 
 void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
-  sub.add_option("--engines", o.engines,
+  list_option(sub.add_option("--engines", o.engines,
                  "Comma-separated engines to run, in reference order (default: "
-                 "kane,lagrange,newton-euler; engines not built yet are skipped)");
+                 "kane,lagrange,newton-euler; engines not built yet are skipped)"));
   sub.add_option("--integrator", o.integrator,
                  known_names<Integrator>() + " (default: the scene's)");
   sub.add_option("--rtol", o.rtol, "Relative tolerance of adaptive integrators (default: the scene's)");
@@ -70,6 +71,11 @@ CompareOptions to_compare_options(const CompareCliOptions& o) {
     char b[64];
     std::snprintf(b, sizeof b, "%g", *o.timeout);
     throw InputError(std::string("--timeout: must be a positive, finite number of seconds, got ") + b);
+  }
+  if (o.timeout && (*o.timeout < 1e-3 || *o.timeout > 1e9)) {  // 1e-320 s: no run could start
+    char b[64];
+    std::snprintf(b, sizeof b, "%g", *o.timeout);
+    throw InputError(std::string("--timeout: ") + b + " s is outside the allowed range, 0.001 to 1e9 s");
   }
   c.max_steps = o.max_steps;
   c.timeout = o.timeout;

@@ -58,6 +58,7 @@ int converge_shard(const ConvergeOptions& o, const std::string& scene, const Sys
     u.cost = harness::system_run_cost(harness::truncate_modes(system, frame.groups, jobs[k].counts));
     plan.push_back(u);
   }
+  for (const harness::ShardScene& u : plan) harness::require_shardable_scene(u.path);
   plan = harness::plan_units(std::move(plan), shard.count);
   frame.models.push_back(harness::converge_full_model(system, frame, options));
   const harness::EngineRun full_run = frame.models.front().run;

@@ -58,14 +58,15 @@ int list(const ListOptions& o) {
                      "/scenarios exists (give one with --scenarios DIR)");
   int status = kExitOk;
   for (std::size_t f = 0; f < folders.size(); ++f) {
-    const std::vector<std::string> files = harness::scene_files_in(folders[f]);
+    const harness::SceneFolder folder = harness::scan_scene_folder(folders[f]);
+    const std::vector<std::string>& files = folder.scenes;
     std::cout << (f ? "\n" : "") << "scenes in " << folders[f] << "/ (" << files.size() << "):\n";
     std::vector<std::pair<std::string, std::string>> rows;
     std::size_t name_width = 4;
     for (const std::string& file : files) {
       std::string name = std::filesystem::path(file).stem().string(), text;
       try {
-        const System s = read_scene(file);
+        const System s = read_scene(file, nullptr, Pipes::Refuse);
         text = one_line(s.description, kWidth);
       } catch (const InputError& e) {
         text = "cannot be read: " + std::string(e.what());
@@ -81,6 +82,8 @@ int list(const ListOptions& o) {
       line += one_line(text, line.size() + 20 < kWidth ? kWidth - line.size() : 20);
       std::cout << line << '\n';
     }
+    for (const auto& [path, why] : folder.skipped)
+      std::cout << "  skipped " << std::filesystem::path(path).filename().string() << ": " << why << '\n';
   }
   std::cout << "\nRun one with `crossdyn run NAME`, compare the engines with `crossdyn compare NAME`.\n";
   check_written(std::cout);

@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -70,27 +71,72 @@ std::string resolve_scene(const std::string& scene) {
                    "\n(`crossdyn list` shows the scenes)");
 }
 
-std::vector<std::string> scene_files_in(const std::string& folder) {
+namespace {
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool ends_with(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+}  // namespace
+
+SceneFolder scan_scene_folder(const std::string& folder) {
   std::error_code ec;
   const fs::file_status st = fs::status(folder, ec);
   if (ec || !fs::is_directory(st)) {
     if (ec == std::errc::no_such_file_or_directory || (!ec && !fs::exists(st)))
       throw InputError("the scenes folder '" + folder + "' does not exist");
+    if (ec == std::errc::permission_denied)
+      throw InputError("cannot open the scenes folder '" + folder + "': permission denied");
     if (ec) throw InputError("cannot open the scenes folder '" + folder + "': " + ec.message());
     throw InputError("'" + folder + "' is not a folder");
   }
-  std::vector<std::string> files;
+  SceneFolder out;
   fs::directory_iterator it(folder, ec);
-  if (ec) throw InputError("cannot list the scenes folder '" + folder + "': " + ec.message());
+  const auto cannot_list = [&folder](const std::error_code& e) {
+    return InputError("cannot list the scenes folder '" + folder + "': " +
+                      (e == std::errc::permission_denied ? std::string("permission denied")
+                                                         : e.message()));
+  };
+  if (ec) throw cannot_list(ec);
   for (; it != fs::directory_iterator(); it.increment(ec)) {
     const fs::path p = it->path();
-    const std::string ext = p.extension().string(), name = p.filename().string();
-    // Hidden names are skipped (editor lock files such as emacs's dangling `.#x.yaml` links).
-    if ((ext == ".yaml" || ext == ".yml") && name[0] != '.') files.push_back(p.string());
+    const std::string name = p.filename().string(), low = lower(name);
+    const bool scene_ext = ends_with(low, ".yaml") || ends_with(low, ".yml");
+    if (scene_ext && name.size() > 4 && name[0] != '.') {
+      out.scenes.push_back(p.string());  // whatever its type: reading it says why it cannot be
+    } else if (scene_ext) {
+      out.skipped.push_back({p.string(), "a hidden file (a name starting with '.' is not a scene)"});
+    } else if (low.find(".yaml") != std::string::npos || low.find(".yml") != std::string::npos) {
+      out.skipped.push_back({p.string(), "the name does not end in .yaml or .yml (an editor backup?)"});
+    }
   }
-  if (ec) throw InputError("cannot list the scenes folder '" + folder + "': " + ec.message());
-  std::sort(files.begin(), files.end());
-  return files;
+  if (ec) throw cannot_list(ec);
+  std::sort(out.scenes.begin(), out.scenes.end());
+  std::sort(out.skipped.begin(), out.skipped.end());
+  return out;
+}
+
+std::vector<std::string> scene_files_in(const std::string& folder) {
+  return scan_scene_folder(folder).scenes;
+}
+
+}  // namespace crossdyn::harness
+
+namespace crossdyn::harness {
+
+void require_shardable_scene(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 || S_ISREG(st.st_mode) || S_ISDIR(st.st_mode)) return;
+  const char* what = S_ISFIFO(st.st_mode) ? "a pipe or FIFO" : S_ISCHR(st.st_mode) ? "a character device"
+                     : S_ISSOCK(st.st_mode) ? "a socket" : "not a regular file";
+  throw InputError("--shard: the scene '" + path + "' is " + what +
+                   "; every shard reads its scenes again, so a sharded run needs regular files "
+                   "(save it to a file first)");
 }
 
 }  // namespace crossdyn::harness

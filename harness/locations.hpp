@@ -10,6 +10,7 @@
 #pragma once
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace crossdyn {
@@ -44,9 +45,24 @@ std::vector<std::string> scene_folders();
 // every path tried when a bare name is found nowhere.
 std::string resolve_scene(const std::string& scene);
 
-// Every *.yaml and *.yml entry of `folder` (not hidden ones), sorted (entries that are not regular files too, so that
-// a broken link or a directory named x.yaml is reported rather than skipped). InputError when the
-// folder cannot be listed, naming it and the reason.
-std::vector<std::string> scene_files_in(const std::string& folder);
+// A scenes folder (--scenarios DIR, list and verify; verify --shard plans its shards from the same
+// list). A scene is every entry whose name ends in .yaml or .yml in any letter case (Scene.YAML)
+// and does not start with '.', whatever it is: a link to a scene is read, and a dangling link, a
+// directory, a FIFO, a device or an unreadable file named x.yaml is a scene that cannot be read
+// (verify fails it, list names it). Hidden x.yaml files (emacs's `.#x.yaml` lock links) and names
+// that hold .yaml/.yml but end otherwise (x.yaml~, x.yaml.bak, #x.yaml#) are skipped, named with
+// the reason. Subfolders (scenarios/data) are not searched. Sorted. InputError when the folder
+// cannot be listed, naming it and the reason.
+struct SceneFolder {
+  std::vector<std::string> scenes;
+  std::vector<std::pair<std::string, std::string>> skipped;  // path, why it is not a scene
+};
+SceneFolder scan_scene_folder(const std::string& folder);
+std::vector<std::string> scene_files_in(const std::string& folder);  // scan_scene_folder().scenes
+
+// A sharded run (--shard) reads each scene again to plan and hash it and in every shard: a pipe,
+// FIFO, socket or device cannot be read twice and could block, so it is refused (InputError).
+// Missing files and directories pass: the run reports them like an unsharded one.
+void require_shardable_scene(const std::string& path);
 
 }  // namespace crossdyn::harness

@@ -3,6 +3,7 @@
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
+#include "core/input_file.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
 #include "harness/locations.hpp"
@@ -524,7 +525,10 @@ namespace {
 // The report script: as given, else the installed one (never one found next to the scenes).
 std::string find_script(const std::string& given) {
   if (!given.empty()) {
-    if (!fs::is_regular_file(given)) throw InputError("--report-script: '" + given + "' is not a file");
+    // Opened without blocking and checked on the descriptor: a FIFO, device or directory would
+    // hang or feed python forever (core/input_file.hpp).
+    if (const std::string why = input_file_problem(given, Pipes::Refuse); !why.empty())
+      throw InputError("--report-script: '" + given + "' cannot be used: " + why);
     return given;
   }
   const fs::path p = fs::path(installed_reports_dir()) / "make_report.py";
@@ -815,7 +819,8 @@ void StagedFolder::prepare() {
   try {
     carry_over(dir_, partial_->path(), owned_);
   } catch (const fs::filesystem_error& e) {
-    throw InputError("cannot keep the files of '" + dir_.string() + "' that are not part of the report: " + e.what());
+    throw InputError("cannot keep the files of '" + dir_.string() + "' that are not part of the report: " +
+                     e.code().message() + (e.path1().empty() ? "" : " ('" + e.path1().string() + "')"));
   }
 }
 

@@ -9,6 +9,8 @@
 #include "harness/compare.hpp"
 #include "harness/engines.hpp"
 
+#include <cctype>
+#include <cstdlib>
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -194,6 +196,9 @@ System apply_knob(const System& s, const Knob& k, double v) {
     throw InputError("--values: " + g3(v) + " for " + k.spec + ": " + what);
   };
   if (!std::isfinite(v)) bad("not a finite number");
+  // The scene reader's bounds on any value (core/scene/reader.hpp): a knob is a scene value.
+  if (v != 0 && std::abs(v) < 1e-100) bad("too small to compute with (the allowed magnitudes are 0 and 1e-100 to 1e12)");
+  if (std::abs(v) > 1e12) bad("absurd (the allowed magnitudes are 0 and 1e-100 to 1e12)");
   if (k.kind == Knob::Kind::Links) {
     if (v < 1 || v > 512 || v != std::floor(v)) bad("the number of links must be a whole number from 1 to 512");
     System c = read_scene_text(chain_scene_text(static_cast<int>(v)),
@@ -209,6 +214,7 @@ System apply_knob(const System& s, const Knob& k, double v) {
       c.joints[static_cast<std::size_t>(k.index)].stiffness = v;
       break;
     case Knob::Kind::JointRate:
+      if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
       c.joints[static_cast<std::size_t>(k.index)].rate0 = v;
       break;
     case Knob::Kind::PrescribedRate:
@@ -254,14 +260,11 @@ System apply_setting(const System& system, const std::string& setting) {
   if (eq == std::string::npos || eq == 0 || eq + 1 == setting.size())
     throw InputError("--set '" + setting + "': expected KNOB=VALUE, e.g. array.modal_stiffness=1000");
   const std::string value = setting.substr(eq + 1);
-  std::size_t used = 0;
-  double v = 0;
-  try {
-    v = std::stod(value, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != value.size())
+  // strtod, not std::stod: 1e-320 and 1e400 are numbers, refused by apply_knob with the bounds
+  // (std::stod's out_of_range made them "not a number").
+  char* end = nullptr;
+  const double v = std::strtod(value.c_str(), &end);
+  if (end == value.c_str() || end != value.c_str() + value.size() || std::isspace(static_cast<unsigned char>(value[0])))
     throw InputError("--set '" + setting + "': '" + value + "' is not a number");
   return apply_knob(system, parse_knob(system, setting.substr(0, eq)), v);
 }

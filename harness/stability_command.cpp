@@ -1,10 +1,13 @@
 // crossdyn stability SCENE --vary KNOB --values LIST: where each method fails (harness/stability.hpp).
+#include <cctype>
+#include <cstdlib>
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/progress.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/cli.hpp"
 #include "harness/commands.hpp"
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
@@ -71,18 +74,19 @@ std::vector<double> parse_parameter_values(const std::string& text) {
   std::stringstream in(text);
   std::string item;
   while (std::getline(in, item, ',')) {
-    std::size_t used = 0;
-    double v = 0;
-    try {
-      v = std::stod(item, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != item.size() || !std::isfinite(v))
+    char* end = nullptr;  // strtod: 1e-320 is a number, refused by apply_knob's bounds
+    const double v = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || end != item.c_str() + item.size() || std::isspace(static_cast<unsigned char>(item[0])))
       throw InputError("--values: '" + item + "' is not a number (give a list 1,10,100 or a range 1..1e4)");
+    if (!std::isfinite(v))
+      throw InputError("--values: '" + item + "' is not a finite number");
     out.push_back(v);
   }
   if (out.empty() || out.size() > 40) throw InputError("--values: give 1 to 40 values");
+  for (std::size_t i = 0; i < out.size(); ++i)  // 10,1e1: one value twice (as for every list)
+    for (std::size_t j = 0; j < i; ++j)
+      if (out[i] == out[j])
+        throw InputError("--values: the value " + harness::shortest_text(out[i]) + " is listed twice in '" + text + "'");
   return out;
 }
 
@@ -100,6 +104,9 @@ int stability(const StabilityCliOptions& o) {
   options.max_steps = o.max_steps;
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: none)");
+  if (o.timeout != 0 && (o.timeout < 1e-3 || o.timeout > 1e9))  // 1e-320 s: no run could start
+    throw InputError("--timeout: " + harness::shortest_text(o.timeout) +
+                     " s is outside the allowed range, 0 (none) or 0.001 to 1e9 s");
   options.timeout = o.timeout;
   if (!(o.reference_timeout >= 0) || !std::isfinite(o.reference_timeout))
     throw InputError("--reference-timeout: must be a finite number of seconds >= 0 (0: none)");
@@ -130,6 +137,12 @@ int stability(const StabilityCliOptions& o) {
     system.run.output_step = std::min(system.run.output_step, *o.duration);
   }
   for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  for (std::size_t i = 0; i < o.settings.size(); ++i) {  // a knob set twice is refused
+    const std::string knob = o.settings[i].substr(0, o.settings[i].find('='));
+    for (std::size_t j = 0; j < i; ++j)
+      if (o.settings[j].substr(0, o.settings[j].find('=')) == knob)
+        throw InputError("--set: '" + knob + "' is set twice ('" + o.settings[j] + "', '" + o.settings[i] + "')");
+  }
   for (const std::string& setting : o.settings) system = harness::apply_setting(system, setting);
   if (o.vary.empty()) {
     std::string list;
@@ -175,6 +188,7 @@ int stability(const StabilityCliOptions& o) {
     u.cost = harness::system_run_cost(harness::apply_knob(system, knob, values[k])) * std::max(cells, 1.0);
     plan.push_back(u);
   }
+  for (const harness::ShardScene& u : plan) harness::require_shardable_scene(u.path);
   plan = harness::plan_units(std::move(plan), shard.count);
   harness::StabilityMap own = frame;  // this shard's values, for its own text
   std::vector<std::string> items;
@@ -251,15 +265,15 @@ void add_stability_command(CLI::App& app, int& exit_code) {
       "Exit status 0 done (whatever the map shows), 2 bad input, 3 a write failed, 130 interrupted.");
   sub->add_option("scene", o->scene, "Scene file (YAML) or scene name")->required();
   sub->add_option("--vary", o->vary, "The scene parameter to sweep");
-  sub->add_option("--values", o->values, "Its values: a list (1,10,100) or a range one per decade (1..1e4)")
-      ->required();
-  sub->add_option("--engines", o->engines,
+  list_option(sub->add_option("--values", o->values, "Its values: a list (1,10,100) or a range one per decade (1..1e4)")
+      ->required());
+  list_option(sub->add_option("--engines", o->engines,
                   "Comma-separated engines (default: all), each optionally with a variant: "
-                  "newton-euler:none|baumgarte|projection (constraint stabilisation), lagrange:no-rechart");
-  sub->add_option("--integrators", o->integrators,
-                  "Comma-separated integrators (default: rk4, dopri5, dop853, cvode-bdf)");
-  sub->add_option("--tolerances", o->tolerances, "Adaptive methods' rtol = atol (default 1e-3,1e-6,1e-9,1e-12)");
-  sub->add_option("--dts", o->dts, "rk4 steps, s (default: the output step / 1, 2, 4, ... 64)");
+                  "newton-euler:none|baumgarte|projection (constraint stabilisation), lagrange:no-rechart"));
+  list_option(sub->add_option("--integrators", o->integrators,
+                  "Comma-separated integrators (default: rk4, dopri5, dop853, cvode-bdf)"));
+  list_option(sub->add_option("--tolerances", o->tolerances, "Adaptive methods' rtol = atol (default 1e-3,1e-6,1e-9,1e-12)"));
+  list_option(sub->add_option("--dts", o->dts, "rk4 steps, s (default: the output step / 1, 2, 4, ... 64)"));
   sub->add_option("--tolerance", o->tolerance,
                   "History error counted accurate (default: the scene's default compare tolerance, atol + rtol)");
   sub->add_option("--drift-limit", o->drift_limit, "Relative H or E drift counted as drift (default 1e-6)");

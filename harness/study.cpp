@@ -318,17 +318,14 @@ std::vector<std::string> parse_names(const std::string& text, const std::string&
 
 std::vector<double> parse_values(const std::string& text, const std::string& option, bool allow_range) {
   auto number = [&](const std::string& s) {
-    std::size_t used = 0;
-    double v = kNaN;
-    try {
-      v = std::stod(s, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used != s.size() || s.empty())
+    char* end = nullptr;  // strtod, not std::stod: 1e-320 and 1e400 get the sentences below
+    const double v = s.empty() ? kNaN : std::strtod(s.c_str(), &end);
+    if (s.empty() || end != s.c_str() + s.size() || std::isspace(static_cast<unsigned char>(s[0])))
       throw InputError(option + ": '" + s + "' is not a number (in '" + text + "')");
     if (!(v > 0) || !std::isfinite(v))
       throw InputError(option + ": " + s + " must be a positive, finite number");
+    if (v < 1e-100 || v > 1e12)
+      throw InputError(option + ": " + s + " is outside the allowed range, 1e-100 to 1e12");
     return v;
   };
   std::vector<double> out;
@@ -360,6 +357,10 @@ std::vector<double> parse_values(const std::string& text, const std::string& opt
     if (out.empty()) throw InputError(option + ": no values given");
   }
   if (out.size() > 40) throw InputError(option + ": at most 40 values, got " + std::to_string(out.size()));
+  for (std::size_t i = 0; i < out.size(); ++i)  // 1e-6,1e-06: one value twice (as for every list)
+    for (std::size_t j = 0; j < i; ++j)
+      if (out[i] == out[j])
+        throw InputError(option + ": the value " + setting_text(out[i]) + " is listed twice in '" + text + "'");
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include "core/output.hpp"
 #include "core/progress.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/cli.hpp"
 #include "harness/commands.hpp"
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
@@ -89,9 +90,12 @@ int study(const StudyCliOptions& o) {
   options.max_steps = o.max_steps;
   if (!(o.timeout >= 0) || !std::isfinite(o.timeout))
     throw InputError("--timeout: must be a finite number of seconds >= 0 (0: no limit)");
+  if (o.timeout != 0 && (o.timeout < 1e-3 || o.timeout > 1e9))  // 1e-320 s: no run could start
+    throw InputError("--timeout: " + harness::shortest_text(o.timeout) +
+                     " s is outside the allowed range, 0 (none) or 0.001 to 1e9 s");
   options.timeout = o.timeout;
-  if (!(o.budget > 0) || !(o.budget <= 60))
-    throw InputError("--budget: must be more than 0 and at most 60 s");
+  if (!(o.budget >= 1e-3) || !(o.budget <= 60))  // 1e-320 s: no measurement fits in it
+    throw InputError("--budget: must be from 0.001 to 60 s, got " + harness::shortest_text(o.budget));
   const bool sharded = !o.shard.empty() || !o.part.empty();
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
   if (sharded) {
@@ -144,6 +148,7 @@ int study(const StudyCliOptions& o) {
                options.repeat;
       plan.push_back(u);
     }
+    for (const harness::ShardScene& u : plan) harness::require_shardable_scene(u.path);
     plan = harness::plan_units(std::move(plan), shard.count);
   }
 
@@ -243,19 +248,19 @@ void add_study_command(CLI::App& app, int& exit_code) {
       "Exit status 0 done, 1 a scene was refused (its reference engines disagree), 2 bad input,\n"
       "3 a reference run or a write failed, 130 interrupted.");
   sub->add_option("scene", o->scenes, "Scene files (YAML) or scene names (see `crossdyn list`)");
-  sub->add_option("--engines", o->engines, "Comma-separated engines (default: all: " +
+  list_option(sub->add_option("--engines", o->engines, "Comma-separated engines (default: all: " +
                                                [] {
                                                  std::string l;
                                                  for (const std::string& e : engine_names())
                                                    l += (l.empty() ? "" : ", ") + e;
                                                  return l;
-                                               }() + ")");
-  sub->add_option("--integrators", o->integrators,
-                  "Comma-separated integrators (default: all: " + known_names<Integrator>() + ")");
-  sub->add_option("--tolerances", o->tolerances,
+                                               }() + ")"));
+  list_option(sub->add_option("--integrators", o->integrators,
+                  "Comma-separated integrators (default: all: " + known_names<Integrator>() + ")"));
+  list_option(sub->add_option("--tolerances", o->tolerances,
                   "Adaptive methods' rtol = atol: a range one per decade (1e-4..1e-13, the default) "
-                  "or a list (1e-4,1e-8)");
-  sub->add_option("--dts", o->dts, "rk4 steps, s, a list (default: the output step / 1, 2, 4, ... 128)");
+                  "or a list (1e-4,1e-8)"));
+  list_option(sub->add_option("--dts", o->dts, "rk4 steps, s, a list (default: the output step / 1, 2, 4, ... 128)"));
   sub->add_option("--repeat", o->repeat, "Timed runs per configuration; the median is reported (default 3)");
   sub->add_option("--max-steps", o->max_steps, "Per run: fail the run after N steps");
   sub->add_option("--timeout", o->timeout, "Per run: fail the run after SECONDS (default 60; 0: none)");

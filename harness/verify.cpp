@@ -43,9 +43,12 @@ std::vector<std::string> scene_files(const VerifyOptions& o) {
                        source_tree() + "/scenarios exists (name scenes or give --scenarios DIR)");
     dir = folders.front();
   }
-  std::vector<std::string> files = scene_files_in(dir);
-  if (files.empty()) throw InputError("no *.yaml or *.yml scenes in '" + dir + "'");
-  return files;
+  const SceneFolder folder = scan_scene_folder(dir);
+  if (folder.scenes.empty()) throw InputError("no *.yaml or *.yml scenes in '" + dir + "'");
+  if (!o.quiet)
+    for (const auto& [path, why] : folder.skipped)
+      std::cerr << "verify: skipped '" << path << "': " << why << '\n';
+  return folder.scenes;
 }
 
 RunOverrides run_overrides(const CompareOptions& c) {
@@ -135,7 +138,8 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
     const auto start = std::chrono::steady_clock::now();
     try {
       std::vector<SceneWarning> warnings;
-      s.system = read_scene(path, &warnings);
+      // A folder's scenes must be regular files (a FIFO there is refused, never waited on).
+      s.system = read_scene(path, &warnings, o.scenes.empty() ? Pipes::Refuse : Pipes::Allow);
       for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
       settings_for(*s.system, overrides);  // the run limits on the scene with the overrides
       s.comparison = o.compare_fn ? o.compare_fn(*s.system, o.compare)

@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
+#include "core/input_file.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
 #include "harness/commands.hpp"
@@ -140,6 +141,7 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
   check_outputs_are_not_inputs({{"standard output", "-"}, {"--part", o.part}}, inputs, {});
   std::optional<AtomicFile> part_file;
   open_output(part_file, o.part, "--part");
+  for (const std::string& f : files) harness::require_shardable_scene(f);
   const std::vector<harness::ShardScene> plan = harness::plan_shards(files, shard.count);
   std::vector<std::string> own;
   for (const harness::ShardScene& s : plan)
@@ -215,6 +217,11 @@ int merge_parts_command(VerifyCommandOptions& o) {
   std::vector<harness::Part> parts;
   std::vector<NamedPath> inputs;
   for (const std::string& f : o.parts) inputs.push_back({"the part file", f});
+  // A part must be a regular file: a FIFO with no writer would block the read forever, /dev/zero
+  // never end (opened without blocking and checked on the descriptor: core/input_file.hpp).
+  for (const std::string& f : o.parts)
+    if (const std::string why = input_file_problem(f, Pipes::Refuse); !why.empty())
+      throw InputError("cannot read the part file '" + f + "': " + why);
   std::size_t budget = harness::kPartMemoryBudget;  // all the parts together
   for (const std::string& f : o.parts) parts.push_back(harness::read_part(f, budget));
   const std::string command = parts.front().command;

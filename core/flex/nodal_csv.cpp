@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/errors.hpp"
+#include "core/input_file.hpp"
 
 namespace crossdyn::flex {
 
@@ -166,23 +167,22 @@ double number(const Table& t, const Row& r, std::size_t col, double limit = 1e12
   if (std::abs(x) > limit)
     fail_at(t.label, r.line, f.column,
             column + "absurd value " + shortest(x) + " (magnitude above " + shortest(limit) + ")");
+  if (x != 0 && std::abs(x) < 1e-100)  // as the scene reader (kTiny): subnormal values make NaN runs
+    fail_at(t.label, r.line, f.column,
+            column + "value " + shortest(x) + " is too small to compute with (a magnitude above 0 "
+            "and below 1e-100)");
   return x;
 }
 
+// The file's text; never blocks on a special file and never reads more than the limit
+// (core/input_file.hpp): a FIFO, device, socket or directory is refused.
 std::string read_limited(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec))
-    throw InputError(path + ": " + (std::filesystem::exists(path, ec) ? "not a regular file" : "no such file"));
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ": cannot open the file: " + std::strerror(errno));
-  std::string text(kMaxNodalFileBytes + 1, '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  if (in.bad()) throw InputError(path + ": cannot read the file");
-  text.resize(static_cast<std::size_t>(in.gcount()));
-  if (text.size() > kMaxNodalFileBytes)
+  InputFile in = read_input_file(path, kMaxNodalFileBytes, Pipes::Refuse);
+  if (!in.problem.empty()) throw InputError(path + ": " + in.problem);
+  if (in.text.size() > kMaxNodalFileBytes)
     throw InputError(path + ": the file is larger than " +
                      std::to_string(kMaxNodalFileBytes >> 20) + " MiB");
-  return text;
+  return std::move(in.text);
 }
 
 // ---- The nodes file ------------------------------------------------------------------------

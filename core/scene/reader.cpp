@@ -555,6 +555,8 @@ void read_run(const Reader& r, const MapView& top, System& s) {
     s.run.dt = r.number(*f);
     s.run.dt_given = true;
     limit(f->val, run_limits::dt_problem(s.run.dt));
+    if (s.run.integrator.value() != Integrator::Rk4)
+      limit(f->val, run_limits::first_step_problem(s.run.dt, IntegratorSettings{}.min_step));
   }
 }
 
@@ -647,42 +649,19 @@ System read_scene_text(const std::string& text, const std::string& file_label,
 }
 
 // Why `path` cannot be read as a scene, or "" when it can be opened: missing, a directory, no
-// permission, a symbolic link loop, not a regular file (FIFOs are read: `<(...)`).
-std::string scene_open_problem(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) {
-    const int e = errno;
-    if (e == ENOENT) {
-      struct stat lst {};
-      return ::lstat(path.c_str(), &lst) == 0 ? "it is a symbolic link to a file that does not exist"
-                                             : "no such file";
-    }
-    if (e == ELOOP) return "too many levels of symbolic links (a symbolic link loop)";
-    if (e == EACCES) return "permission denied (a folder on the path cannot be searched)";
-    if (e == ENOTDIR) return "a part of the path is not a folder";
-    return std::strerror(e);
-  }
-  if (S_ISDIR(st.st_mode)) return "it is a directory, not a scene file";
-  if (S_ISSOCK(st.st_mode)) return "it is a socket, not a regular file";
-  if (S_ISBLK(st.st_mode)) return "it is a block device, not a regular file";
-  if (::access(path.c_str(), R_OK) != 0)
-    return errno == EACCES ? "permission denied (the file is not readable)" : std::strerror(errno);
-  return "";
+// permission, a symbolic link loop, a socket or device (see input_file.hpp); FIFOs and pipes are
+// read (`<(...)`) unless `pipes` refuses them.
+std::string scene_open_problem(const std::string& path, Pipes pipes) {
+  return input_file_problem(path, pipes, "scene file");
 }
 
-System read_scene(const std::string& path, std::vector<SceneWarning>* warnings) {
-  if (const std::string why = scene_open_problem(path); !why.empty())
-    throw InputError(path + ":1:1: cannot open the scene file: " + why);
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path + ":1:1: cannot open the scene file: " + std::strerror(errno));
-  std::string text;
-  char buf[65536];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    text.append(buf, static_cast<std::size_t>(in.gcount()));
-    if (text.size() > scene::kMaxSceneBytes) break;  // precheck_text reports it
-  }
-  if (in.bad()) throw InputError(path + ":1:1: cannot read the scene file");
-  return read_scene_text(text, path, warnings);
+System read_scene(const std::string& path, std::vector<SceneWarning>* warnings, Pipes pipes) {
+  const InputFile in = read_input_file(path, scene::kMaxSceneBytes, pipes, "scene file");
+  if (!in.problem.empty())
+    throw InputError(path + ":1:1: cannot open the scene file: " + in.problem);
+  if (in.pipe && in.text.empty())
+    throw InputError(path + ":1:1: the scene is empty: nothing was written to the pipe");
+  return read_scene_text(in.text, path, warnings);  // more than kMaxSceneBytes: precheck_text says so
 }
 
 }  // namespace crossdyn

@@ -26,6 +26,9 @@ namespace crossdyn::scene {
 // spacecraft scene.
 inline constexpr std::size_t kMaxSceneBytes = 1u << 20;  // 1 MiB of YAML
 inline constexpr double kAbsurd = 1e12;                  // any SI value beyond this is a typo
+inline constexpr double kTiny = 1e-100;                 // a nonzero SI value below this is refused
+inline constexpr double kMaxAngularRate = 1e4;          // rad/s, any angular rate (as prescribed rates)
+inline constexpr double kMaxAngle = 1e6;                // rad, any angle
 inline constexpr double kMaxMass = 1e9;                  // kg
 inline constexpr double kMinAxisLength = 1e-9;           // a shorter axis counts as zero
 inline constexpr double kUnitQuaternionTolerance =
@@ -135,7 +138,7 @@ class Reader {
 
  private:
   std::pair<double, std::string> number_and_unit(const Val& v, units::Dimension d) const;
-  double sane(const Val& v, double si) const;
+  double sane(const Val& v, double si, units::Dimension d) const;
   std::vector<double> numbers(const Val& v, units::Dimension d, std::size_t n,
                               const std::string& what) const;
   Eigen::Quaterniond rotation_matrix(const Val& v) const;

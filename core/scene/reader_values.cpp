@@ -278,10 +278,25 @@ double Reader::unit_factor(const Val& v, const std::string& unit, Dimension d) c
   return u->to_si;
 }
 
-double Reader::sane(const Val& v, double si) const {
+double Reader::sane(const Val& v, double si, Dimension d) const {
   if (!std::isfinite(si)) fail(v, "value is not finite after unit conversion");
   if (std::abs(si) > kAbsurd)
     fail(v, "absurd value " + shortest(si) + " (magnitude above 1e12 in SI units)");
+  // A tiny nonzero value (1e-320, subnormal; 1e-200) would be read and then make the run
+  // non-finite (ramp_time: 1e-320 gave NaN at t = 0): refused here, at its key. Between
+  // kTiny and kAbsurd, a product or quotient of three values stays a normal double.
+  if (si != 0 && std::abs(si) < kTiny)
+    fail(v, "value " + shortest(si) + " is too small to compute with (a magnitude above 0 and "
+            "below 1e-100 in SI units; the allowed magnitudes are 0 where the key allows it, "
+            "and 1e-100 to 1e12)");
+  // Angles and angular rates whose size no run survives (measured: a hinge angle of 1e8 rad or a
+  // rate of 1e5 rad/s ends every engine's run at its first steps, exit 3): refused here.
+  if (d == Dimension::AngularRate && std::abs(si) > kMaxAngularRate)
+    fail(v, "angular rate " + shortest(si) + " rad/s is too large: at most 1e4 rad/s in size (the "
+            "allowed range is -1e4 to 1e4 rad/s)");
+  if (d == Dimension::Angle && std::abs(si) > kMaxAngle)
+    fail(v, "angle " + shortest(si) + " rad is too large: at most 1e6 rad in size (the allowed range "
+            "is -1e6 to 1e6 rad)");
   return si;
 }
 
@@ -290,7 +305,7 @@ double Reader::quantity(const Val& v, Dimension d, std::optional<double> factor)
   if (factor) {
     if (!unit.empty())
       fail(v, "the unit is given once for this list; its elements must be bare numbers");
-    return sane(v, x * *factor);
+    return sane(v, x * *factor, d);
   }
   if (unit.empty() && d == Dimension::Angle && std::abs(x) > 2 * std::numbers::pi) {
     // Bare angles are radians; one above a full turn was probably meant in degrees.
@@ -300,7 +315,7 @@ double Reader::quantity(const Val& v, Dimension d, std::optional<double> factor)
     warn(v, written + " has no unit and is read as " + shortest(x) + " rad = " + degrees +
                 " deg; write '" + written + " deg' or '" + written + " rad'");
   }
-  return sane(v, unit.empty() ? x : x * unit_factor(v, unit, d));
+  return sane(v, unit.empty() ? x : x * unit_factor(v, unit, d), d);
 }
 
 double Reader::number(const Field& f) const { return quantity(f.val, f.key->dimension); }

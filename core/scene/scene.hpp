@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/input_file.hpp"
 #include "core/scene/topology.hpp"
 #include "core/system.hpp"
 
@@ -31,12 +32,15 @@ struct SceneWarning {
 // names the key and what is wrong. Never returns an invalid System: every check of
 // docs/scene-format.md "What the reader checks" has passed, check_topology() included. Warnings
 // are appended to *warnings when given.
-System read_scene(const std::string& path, std::vector<SceneWarning>* warnings = nullptr);
+// Never blocks on a special file (core/input_file.hpp): a FIFO or pipe is read unless `pipes` is
+// Pipes::Refuse (the scenes of a --scenarios folder must be regular files).
+System read_scene(const std::string& path, std::vector<SceneWarning>* warnings = nullptr,
+                  Pipes pipes = Pipes::Allow);
 
 // Why `path` cannot be opened as a scene file ("no such file", "it is a directory, not a scene
 // file", "permission denied ...", "too many levels of symbolic links ...", "it is a socket ..."),
 // or "" when it can. read_scene's message is "<path>:1:1: cannot open the scene file: <why>".
-std::string scene_open_problem(const std::string& path);
+std::string scene_open_problem(const std::string& path, Pipes pipes = Pipes::Allow);
 
 // The same, from text already in memory; `file_label` is used in messages (fuzzing, tests).
 System read_scene_text(const std::string& text, const std::string& file_label,

@@ -25,7 +25,9 @@ const std::vector<Bad> kRunOverrides{
     {"--output-step", "0", "output_step must be positive"},
     {"--output-step", "-0.1", "output_step must be positive"},
     {"--output-step", "NaN", "output_step must be a finite number"},
-    {"--output-step", "1e-300", "output rows; the limit is 1e+07"},
+    {"--output-step", "1e-90", "output rows; the limit is 1e+07"},
+    {"--output-step", "1e-300", "too small to compute with (limit 1e-100 s)"},
+    {"--dt", "1e-300", "too small to compute with (limit 1e-100 s)"},
     {"--output-step", "10", "is longer than the duration"},
     {"--dt", "0", "dt must be positive"},
     {"--dt", "-1e-3", "dt must be positive"},
@@ -106,7 +108,7 @@ TEST_CASE("limits: the scene file and the command line say the same thing about 
     std::string file_run, option, file_key;
   };
   const std::vector<Pair> pairs{
-      {"run: {duration: 0.5, output_step: 1e-300}", "--output-step=1e-300", "run.output_step"},
+      {"run: {duration: 0.5, output_step: 1e-90}", "--output-step=1e-90", "run.output_step"},
       {"run: {duration: 0.5, output_step: 0.05, rtol: 0}", "--rtol=0", "run.rtol"},
       {"run: {duration: 0.5, output_step: 0.05, dt: -1}", "--dt=-1", "run.dt"},
       {"run: {duration: 1e9, output_step: 0.05}", "--duration=1e9", "run.output_step"}};
