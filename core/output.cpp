@@ -286,6 +286,14 @@ AtomicFile::AtomicFile(std::string path, std::string label)
         throw InputError("cannot write " + me + ": folder '" + folder + "': " + errno_text(errno));
       if (!S_ISDIR(fst.st_mode))
         throw InputError("cannot write " + me + ": '" + folder + "' is not a folder");
+      // As for files, the mode bits decide for every user (root may create files anywhere): a
+      // folder nobody may write into is one the user protected, and crossdyn creates nothing in it.
+      if ((fst.st_mode & 0222) == 0) {
+        char mode[16];
+        std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(fst.st_mode & 07777));
+        throw InputError("cannot write " + me + ": folder '" + folder + "' is read-only (mode " +
+                         mode + "); crossdyn creates nothing in read-only folders");
+      }
       if (exists) {
         // The mode bits are checked explicitly (root may write anything): a file nobody may write
         // is one the user protected, and crossdyn does not replace it.
