@@ -445,8 +445,16 @@ std::string describe(const NamedPath& p) {
 // Absolute, with symbolic links resolved as far as the path exists.
 std::string resolved(const std::string& path) {
   std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
-  return ec ? fs::absolute(path).lexically_normal().string() : p.string();
+  fs::path a = fs::absolute(path, ec).lexically_normal();
+  // A dangling symbolic link names the file it would create: follow it (a loop: give up).
+  for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(a, ec)); ++hops) {
+    const fs::path target = fs::read_symlink(a, ec);
+    if (ec) break;
+    a = (target.is_absolute() ? target : a.parent_path() / target).lexically_normal();
+  }
+  ec.clear();
+  fs::path p = fs::weakly_canonical(a, ec);
+  return ec ? a.string() : p.string();
 }
 
 }  // namespace
@@ -474,6 +482,21 @@ void check_outputs_are_not_inputs(const std::vector<NamedPath>& outputs,
       if (same)
         throw InputError(describe(out) + " and " + describe(other) +
                          " are the same file: give each output its own file");
+    }
+  }
+  // An output file in a folder the command fills (--csv DIR/x.csv with --report DIR): the
+  // report replaces its folder as a whole.
+  for (const NamedPath& folder : folders) {
+    const fs::path dir = resolved(folder.path);
+    for (const NamedPath& out : outputs) {
+      if (out.path == "-") continue;
+      const fs::path o = resolved(out.path);
+      for (fs::path p = o; !p.empty(); p = p.parent_path()) {
+        if (p == dir)
+          throw InputError(describe(out) + (p == o ? " is " : " is inside ") + describe(folder) +
+                           ": the report replaces its folder as a whole; write it elsewhere");
+        if (p == p.root_path()) break;
+      }
     }
   }
   for (const NamedPath& folder : folders) {

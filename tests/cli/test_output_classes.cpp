@@ -208,6 +208,7 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
   ::chmod(s.path("ro.csv").c_str(), 0444);
   ::chmod(s.path("ro.json").c_str(), 0444);
   s.write("file", "a file, not a folder\n");
+  fs::create_symlink("ok.png", s.path("glink.json"));
   REQUIRE(run_in(s.dir(), "verify a.yaml -q --shard 0/1 --part p.json").status == 0);
   REQUIRE(run_in(s.dir(), "study a.yaml -q --engines kane --integrators rk4 --dts 0.05 --repeat 1 "
                           "--shard 0/1 --part q.json").status == 0);
@@ -249,6 +250,14 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
       "draw a.yaml -o dir.png",
       "draw a.yaml -o ok.png --geometry dir.json",
       "draw a.yaml -o ok.png --geometry ro.json",
+      "draw a.yaml -o ok.png --geometry glink.json",  // a dangling link to ok.png: one file
+      // An output file that is, or is inside, the report folder the command replaces.
+      "verify long.yaml -q --json ok/summary.json --report=ok",
+      "verify long.yaml -q --json ok.json --junit ok/x.xml --report=ok",
+      study + "--csv ok.csv --report ok.csv", study + "--csv ok/x.csv --report ok",
+      stab + "--csv ok.csv --report ok.csv", stab + "--csv ok/a/x.csv --report ok",
+      "merge q.json --csv ok/x.csv --report=ok", "merge r.json --csv ok.csv --report=ok.csv",
+      "merge p.json --json ok/summary.json --report=ok",
   };
   for (const std::string& args : cases) {
     INFO(args);
