@@ -286,6 +286,14 @@ AtomicFile::AtomicFile(std::string path, std::string label)
         throw InputError("cannot write " + me + ": folder '" + folder + "': " + errno_text(errno));
       if (!S_ISDIR(fst.st_mode))
         throw InputError("cannot write " + me + ": '" + folder + "' is not a folder");
+      // As for files, the mode bits decide for every user (root may create files anywhere): a
+      // folder nobody may write into is one the user protected, and crossdyn creates nothing in it.
+      if ((fst.st_mode & 0222) == 0) {
+        char mode[16];
+        std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(fst.st_mode & 07777));
+        throw InputError("cannot write " + me + ": folder '" + folder + "' is read-only (mode " +
+                         mode + "); crossdyn creates nothing in read-only folders");
+      }
       if (exists) {
         // The mode bits are checked explicitly (root may write anything): a file nobody may write
         // is one the user protected, and crossdyn does not replace it.
@@ -437,8 +445,16 @@ std::string describe(const NamedPath& p) {
 // Absolute, with symbolic links resolved as far as the path exists.
 std::string resolved(const std::string& path) {
   std::error_code ec;
-  fs::path p = fs::weakly_canonical(fs::absolute(path, ec), ec);
-  return ec ? fs::absolute(path).lexically_normal().string() : p.string();
+  fs::path a = fs::absolute(path, ec).lexically_normal();
+  // A dangling symbolic link names the file it would create: follow it (a loop: give up).
+  for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(a, ec)); ++hops) {
+    const fs::path target = fs::read_symlink(a, ec);
+    if (ec) break;
+    a = (target.is_absolute() ? target : a.parent_path() / target).lexically_normal();
+  }
+  ec.clear();
+  fs::path p = fs::weakly_canonical(a, ec);
+  return ec ? a.string() : p.string();
 }
 
 }  // namespace
@@ -466,6 +482,21 @@ void check_outputs_are_not_inputs(const std::vector<NamedPath>& outputs,
       if (same)
         throw InputError(describe(out) + " and " + describe(other) +
                          " are the same file: give each output its own file");
+    }
+  }
+  // An output file in a folder the command fills (--csv DIR/x.csv with --report DIR): the
+  // report replaces its folder as a whole.
+  for (const NamedPath& folder : folders) {
+    const fs::path dir = resolved(folder.path);
+    for (const NamedPath& out : outputs) {
+      if (out.path == "-") continue;
+      const fs::path o = resolved(out.path);
+      for (fs::path p = o; !p.empty(); p = p.parent_path()) {
+        if (p == dir)
+          throw InputError(describe(out) + (p == o ? " is " : " is inside ") + describe(folder) +
+                           ": the report replaces its folder as a whole; write it elsewhere");
+        if (p == p.root_path()) break;
+      }
     }
   }
   for (const NamedPath& folder : folders) {

@@ -90,6 +90,7 @@ int draw(const DrawOptions& o) {
   if (!fs::is_regular_file(script))
     throw InputError("the drawing script '" + script.string() + "' is missing (it is part of the "
                      "crossdyn source tree this program was built from)");
+  harness::check_python(o.python);
   // Both opened now, so that an unusable one is refused (exit 2) before the run.
   AtomicFile file(out, "-o");
   std::optional<AtomicFile> geometry_file;

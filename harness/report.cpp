@@ -352,9 +352,25 @@ std::string json_summary(const std::vector<SceneOutcome>& scenes,
   return summary_document(scenes, data_files).dump(1) + "\n";
 }
 
+// A folder with no write bit in its mode is refused for every user, root included (as read-only
+// files and folders are by AtomicFile, core/output.cpp): crossdyn creates nothing in it.
+static void refuse_read_only_folder(const fs::path& folder) {
+  struct stat st {};
+  if (::stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode) || (st.st_mode & 0222) != 0) return;
+  char mode[16];
+  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+  throw InputError("cannot create a folder in '" + folder.string() + "': it is read-only (mode " +
+                   mode + "); crossdyn creates nothing in read-only folders");
+}
+
 void make_directories(const std::string& dir) {
   if (dir.empty()) return;
   std::error_code ec;
+  // The nearest folder that exists is where the first new one would be made.
+  fs::path existing = fs::absolute(dir, ec).lexically_normal();
+  while (!ec && !fs::exists(existing, ec) && existing.has_relative_path()) existing = existing.parent_path();
+  if (!ec && existing != fs::absolute(dir, ec).lexically_normal()) refuse_read_only_folder(existing);
+  ec.clear();
   fs::create_directories(dir, ec);
   if (ec) throw InputError("cannot create folder '" + dir + "': " + ec.message());
 }
@@ -478,6 +494,18 @@ std::vector<std::string> unique_ids(const std::vector<std::string>& bases, std::
     ids.push_back(id);
   }
   return ids;
+}
+
+void check_python(const std::string& python) {
+  if (python.empty()) throw InputError("--python: the program name is empty");
+  const std::string me = "--python '" + python + "'";
+  const std::string hint = " (give the path of a Python 3 with matplotlib, e.g. /usr/bin/python3)";
+  struct stat st {};
+  if (::stat(python.c_str(), &st) != 0) throw InputError(me + ": " + std::strerror(errno) + hint);
+  if (S_ISDIR(st.st_mode)) throw InputError(me + " is a folder, not a program" + hint);
+  if (!S_ISREG(st.st_mode)) throw InputError(me + " is not a regular file" + hint);
+  if ((st.st_mode & 0111) == 0 || ::faccessat(AT_FDCWD, python.c_str(), X_OK, AT_EACCESS) != 0)
+    throw InputError(me + " is not executable" + hint);
 }
 
 void run_python(const std::string& python, const std::vector<std::string>& args) {
@@ -622,6 +650,7 @@ void remove_stale_partials(const fs::path& dir) {
 class PartialFolder {
  public:
   explicit PartialFolder(const fs::path& dir) {
+    refuse_read_only_folder(dir.parent_path());
     std::random_device random;
     for (int attempt = 0; attempt < 100; ++attempt) {
       char suffix[16];
@@ -699,6 +728,7 @@ std::string scene_geometry(const System& system, const SceneComparison& c) {
 
 void check_report(const std::vector<std::string>& scene_files, const ReportOptions& options) {
   const std::string script = find_script(options.script);
+  check_python(options.python);
   std::vector<SceneOutcome> scenes;
   for (const std::string& f : scene_files) {
     SceneOutcome o;

@@ -121,6 +121,11 @@ std::unique_ptr<StagedFolder> stage_report_folder(const std::string& given, cons
                                                   const std::string& kind,
                                                   bool (*owned)(const std::filesystem::path& name));
 
+// Refuses (InputError, exit 2), before the work, a `--python` that cannot be run: missing, a
+// folder or another non-regular file, or one without an execute bit (for root too) or that the
+// user may not execute. The path is used as given (no PATH search), as run_python does.
+void check_python(const std::string& python);
+
 // Runs `python ARGS...` (with PYTHONDONTWRITEBYTECODE=1) and waits; Ctrl-C ends it (RunFailure
 // "interrupted"); InputError naming args[0] when it cannot start or fails.
 void run_python(const std::string& python, const std::vector<std::string>& args);

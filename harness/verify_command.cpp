@@ -18,6 +18,7 @@
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <set>
 
 namespace crossdyn {
 
@@ -34,6 +35,7 @@ struct VerifyCommandOptions {
   std::string python = "/usr/bin/python3";
   std::string report_script;
   CLI::Option* json_option = nullptr;
+  CLI::Option* python_option = nullptr;  // merge: --python is for verify's parts only
   std::string shard;  // --shard K/N
   std::string part;   // --part FILE
   std::vector<std::string> parts;  // merge: the part files
@@ -224,11 +226,22 @@ int merge_parts_command(VerifyCommandOptions& o) {
       throw InputError("cannot read the part file '" + f + "': " + why);
   std::size_t budget = harness::kPartMemoryBudget;  // all the parts together
   for (const std::string& f : o.parts) parts.push_back(harness::read_part(f, budget));
+  // The scenes the parts name (and the data files they read) are inputs too: every output is
+  // checked against them now, before the merge's work, not when the report is written.
+  std::set<std::string> named;
+  for (const harness::Part& p : parts)
+    for (const harness::ShardScene& sc : p.scenes)
+      if (named.insert(sc.path).second)
+        for (NamedPath& in : harness::scene_file_inputs(sc.path)) inputs.push_back(std::move(in));
   const std::string command = parts.front().command;
   if (command != "verify") {
     // study and stability parts: their outputs (the commands' own --csv and --report).
     // study and stability: the table, --csv, --report; converge: the table, --json.
     const bool converge = command == "converge";
+    if (o.python_option->count() > 0)
+      throw InputError("merge: --python is for the report of verify's parts; parts of `crossdyn " +
+                       command + "` are merged as the command writes them (its reports run "
+                       "/usr/bin/python3)");
     if ((!converge && o.json_option->count() > 0) || !o.junit.empty() || !o.report_script.empty() ||
         (converge && (!o.csv.empty() || o.report)))
       throw InputError("merge: parts of `crossdyn " + command + "` give " +
@@ -338,8 +351,9 @@ void add_merge_command(CLI::App& app, int& exit_code) {
                   "write --report=DIR after the parts)")
       ->expected(0, 1)
       ->default_str("reports/latest");
-  sub->add_option("--python", o->python,
-                  "Python with matplotlib for the report (default: /usr/bin/python3, Debian's)");
+  o->python_option = sub->add_option("--python", o->python,
+                                     "Python with matplotlib for the report of verify's parts "
+                                     "(default: /usr/bin/python3, Debian's)");
   sub->add_option("--report-script", o->report_script,
                   "The report script to run (default: reports/make_report.py of the source tree "
                   "crossdyn was built from)");

@@ -10,7 +10,9 @@
 
 #include "tests/cli/cli_helpers.hpp"
 
+#include <atomic>
 #include <chrono>
+#include <optional>
 #include <vector>
 
 namespace {
@@ -51,6 +53,37 @@ bool no_leftovers(const Scratch& s) {
     if (contains(n, ".crossdyn-") || contains(n, ".partial-")) return false;
   }
   return true;
+}
+
+// `cd DIR && PREFIX crossdyn ARGS`, as run_in (the redirections are the calling shell's).
+Run run_with(const std::string& prefix, const std::string& dir, const std::string& args) {
+  static std::atomic<int> counter{0};
+  const fs::path tmp = fs::temp_directory_path() /
+                       ("crossdyn_runas_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+  fs::create_directories(tmp);
+  const std::string out = (tmp / "out").string(), err = (tmp / "err").string();
+  const std::string cmd = "cd " + quote(dir) + " && " + prefix + " " + quote(crossdyn_binary()) + " " +
+                          args + " > " + quote(out) + " 2> " + quote(err);
+  const int raw = std::system(cmd.c_str());
+  Run r;
+  r.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
+  r.out = read_file(out);
+  r.err = read_file(err);
+  fs::remove_all(tmp);
+  return r;
+}
+
+// How to run crossdyn as an unprivileged user (uid and gid 65534, "nobody"): "" when the tests
+// already run as one; setpriv (util-linux) when root; nullopt (with the reason) when impossible.
+std::optional<std::string> unprivileged_prefix(std::string& why) {
+  if (!is_root()) return std::string();
+  const std::string prefix = "setpriv --reuid=65534 --regid=65534 --clear-groups";
+  if (std::system((prefix + " " + quote(crossdyn_binary()) + " --version > /dev/null 2>&1").c_str()) != 0) {
+    why = "cannot run '" + crossdyn_binary() + "' as uid 65534 through setpriv (not installed, or "
+          "the build folder is not readable by other users)";
+    return std::nullopt;
+  }
+  return prefix;
 }
 
 }  // namespace
@@ -162,6 +195,10 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
           "nothing written, nothing run") {
   Scratch s("class2bad");
   s.write("a.yaml", kSmallScene);
+  // verify has no --duration: a scene that runs long (2e6 output rows) instead.
+  std::string long_scene = kSmallScene;
+  long_scene.replace(long_scene.find("duration: 0.5"), 13, "duration: 1e5");
+  s.write("long.yaml", long_scene);
   flex_files(s);
   fs::create_directories(s.path("dir"));
   fs::create_directories(s.path("dir.png"));
@@ -171,6 +208,7 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
   ::chmod(s.path("ro.csv").c_str(), 0444);
   ::chmod(s.path("ro.json").c_str(), 0444);
   s.write("file", "a file, not a folder\n");
+  fs::create_symlink("ok.png", s.path("glink.json"));
   REQUIRE(run_in(s.dir(), "verify a.yaml -q --shard 0/1 --part p.json").status == 0);
   REQUIRE(run_in(s.dir(), "study a.yaml -q --engines kane --integrators rk4 --dts 0.05 --repeat 1 "
                           "--shard 0/1 --part q.json").status == 0);
@@ -185,10 +223,10 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
       "run a.yaml -q --duration 1e5 --output ro.csv",
       "compare a.yaml -q --duration 1e5 --json dir",
       "compare a.yaml -q --duration 1e5 --json ro.json",
-      "verify a.yaml -q --duration 1e5 --json ok.json --junit dir",
-      "verify a.yaml -q --duration 1e5 --json ok.json --junit ro.json",
-      "verify a.yaml -q --duration 1e5 --json ok.json --report=file",
-      "verify a.yaml -q --duration 1e5 --shard 0/1 --part dir",
+      "verify long.yaml -q --json ok.json --junit dir",
+      "verify long.yaml -q --json ok.json --junit ro.json",
+      "verify long.yaml -q --json ok.json --report=file",
+      "verify long.yaml -q --shard 0/1 --part dir",
       "converge s.yaml -q --json dir",
       "converge s.yaml -q --json ro.json",
       "converge s.yaml -q --shard 0/2 --part dir",
@@ -212,6 +250,14 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
       "draw a.yaml -o dir.png",
       "draw a.yaml -o ok.png --geometry dir.json",
       "draw a.yaml -o ok.png --geometry ro.json",
+      "draw a.yaml -o ok.png --geometry glink.json",  // a dangling link to ok.png: one file
+      // An output file that is, or is inside, the report folder the command replaces.
+      "verify long.yaml -q --json ok/summary.json --report=ok",
+      "verify long.yaml -q --json ok.json --junit ok/x.xml --report=ok",
+      study + "--csv ok.csv --report ok.csv", study + "--csv ok/x.csv --report ok",
+      stab + "--csv ok.csv --report ok.csv", stab + "--csv ok/a/x.csv --report ok",
+      "merge q.json --csv ok/x.csv --report=ok", "merge r.json --csv ok.csv --report=ok.csv",
+      "merge p.json --json ok/summary.json --report=ok",
   };
   for (const std::string& args : cases) {
     INFO(args);
@@ -226,25 +272,143 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
     CHECK(read_file(s.path("ro.json")) == "old\n");
     CHECK(fs::is_empty(s.path("dir")));
   }
-  if (!is_root()) {
-    // A folder where no file can be created.
-    fs::create_directories(s.path("locked"));
-    ::chmod(s.path("locked").c_str(), 0555);
-    for (const std::string& args :
-         {std::string("run a.yaml -q --duration 1e5 --output locked/x.csv"),
-          std::string("verify a.yaml -q --duration 1e5 --json ok.json --junit locked/x.xml"),
-          study + "--csv ok.csv --report locked/r", study + "--csv locked/x.csv --report ok",
-          stab + "--report locked/r", std::string("merge q.json --csv locked/x.csv --report=ok"),
-          std::string("draw a.yaml -o ok.png --geometry locked/g.json")}) {
+  // A --python that cannot run (missing, a folder, not executable) is refused before the work,
+  // by every command that runs Python: verify and merge (their reports) and draw; merge of
+  // study/stability parts (whose reports use Debian's python3) refuses --python.
+  {
+    const std::vector<std::string> python_cases = {
+        "verify long.yaml -q --json ok.json --report=ok --python /nonexistent/python3",
+        "verify long.yaml -q --json ok.json --report=ok --python dir",
+        "verify long.yaml -q --json ok.json --report=ok --python ro.csv",
+        "verify long.yaml -q --json ok.json --report=ok --python ''",
+        "merge p.json --json ok.json --report=ok --python /nonexistent/python3",
+        "merge p.json --json ok.json --report=ok --python dir",
+        "merge p.json --json ok.json --report=ok --python ro.csv",
+        "merge q.json --csv ok.csv --report=ok --python /usr/bin/python3",
+        "merge r.json --csv ok.csv --python /nonexistent/python3",
+        "draw long.yaml -o ok.png --python /nonexistent/python3",
+        "draw long.yaml -o ok.png --python dir",
+        "draw long.yaml -o ok.png --python ro.csv"};
+    for (const std::string& args : python_cases) {
       INFO(args);
       const auto t0 = std::chrono::steady_clock::now();
       const Run r = run_in(s.dir(), args);
       INFO(r.err);
       CHECK(r.status == 2);
+      CHECK(contains(r.err, "crossdyn: error: "));
+      CHECK(contains(r.err, "--python"));
       CHECK(seconds_since(t0) < 10);
       for (const char* ok : {"ok.csv", "ok.json", "ok.png", "ok"}) CHECK(!fs::exists(s.path(ok)));
-      CHECK(fs::is_empty(s.path("locked")));
     }
+  }
+  // merge: every output against the scenes the parts name (and their nodal files), before the
+  // merge's work: a --report DIR holding such a scene, --json naming its nodal data file.
+  {
+    s.write("rep/b.yaml", kSmallScene);
+    s.write("repq/b.yaml", kSmallScene);
+    s.write("repq/study.json", "{\"tool\": \"crossdyn\", \"kind\": \"study\"}\n");
+    REQUIRE(run_in(s.dir(), "verify rep/b.yaml -q --shard 0/1 --part pr.json").status == 0);
+    REQUIRE(run_in(s.dir(), "study repq/b.yaml -q --engines kane --integrators rk4 --dts 0.05 "
+                            "--repeat 1 --shard 0/1 --part qr.json").status == 0);
+    REQUIRE(run_in(s.dir(), "verify s.yaml -q --shard 0/1 --part ps.json").status == 0);
+    const std::string nodes = read_file(s.path("nodes.csv"));
+    const std::string rep = read_file(s.path("rep/b.yaml")), repq = read_file(s.path("repq/b.yaml"));
+    for (const char* args :
+         {"merge pr.json --json ok.json --report=rep", "merge pr.json --json ok.json --report=rep/",
+          "merge qr.json --csv ok.csv --report=repq", "merge ps.json --json nodes.csv",
+          "merge ps.json --json ok.json --junit nodes.csv", "merge c.json --json nodes.csv"}) {
+      INFO(args);
+      const Run r = run_in(s.dir(), args);
+      INFO(r.err);
+      CHECK(r.status == 2);
+      CHECK(contains(r.err, "crossdyn: error: "));
+      CHECK((contains(r.err, "holds") || contains(r.err, "same file")));
+      for (const char* ok : {"ok.csv", "ok.json"}) CHECK(!fs::exists(s.path(ok)));
+      CHECK(read_file(s.path("nodes.csv")) == nodes);
+      CHECK(read_file(s.path("rep/b.yaml")) == rep);
+      CHECK(read_file(s.path("repq/b.yaml")) == repq);
+      CHECK(fs::directory_iterator(s.path("rep"))->path().filename() == "b.yaml");
+    }
+  }
+  // Standard output is the --part file, or appended to a part being merged: refused.
+  {
+    const std::string q = read_file(s.path("q.json"));
+    const std::vector<std::pair<std::string, std::string>> stdout_cases = {
+        {"verify a.yaml -q --shard 0/1 --part out.json", "> out.json"},
+        {"study a.yaml -q --engines kane --integrators rk4 --dts 0.05 --repeat 1 --shard 0/1 "
+         "--part out.json", ">> out.json"},
+        {"merge q.json --csv ok.csv", ">> q.json"},
+        {"merge q.json --csv ok.csv", ">> ./link.json"}};  // a symbolic link to the part
+    fs::create_symlink("q.json", s.path("link.json"));
+    for (const auto& [args, redirect] : stdout_cases) {
+      INFO(args << " " << redirect);
+      const Run r = run_in(s.dir(), args, redirect);
+      INFO(r.err);
+      CHECK(r.status == 2);
+      CHECK(contains(r.err, "same file"));
+      CHECK(read_file(s.path("q.json")) == q);
+      CHECK(!fs::exists(s.path("ok.csv")));
+    }
+    fs::remove(s.path("out.json"));
+    fs::remove(s.path("link.json"));
+  }
+  // A folder where nothing can be created: one without write bits is refused by its mode bits
+  // for every user, root included (as read-only files are); a folder the user may not write
+  // (owned by root, mode 0755) is refused for an unprivileged user. Both before the work.
+  const std::vector<std::string> locked_cases = {
+      "run a.yaml -q --duration 1e5 --output L/x.csv",
+      "compare a.yaml -q --duration 1e5 --json L/x.json",
+      "verify long.yaml -q --json ok.json --junit L/x.xml",
+      "verify long.yaml -q --json L/x.json",
+      "verify long.yaml -q --json ok.json --report=L/r",     // the report's parent
+      "verify long.yaml -q --json ok.json --report=L/a/b/r", // folders made in L
+      "verify long.yaml -q --shard 0/1 --part L/p.json",
+      "converge s.yaml -q --json L/c.json",
+      "converge s.yaml -q --shard 0/2 --part L/c.json",
+      study + "--csv ok.csv --report L/r", study + "--csv L/x.csv --report ok",
+      study + "--shard 0/1 --part L/q.json",
+      stab + "--report L/r", stab + "--csv L/x.csv",
+      "merge q.json --csv L/x.csv --report=ok", "merge q.json --csv ok.csv --report=L/r",
+      "merge p.json --json ok.json --report=L/r", "merge p.json --json L/x.json",
+      "merge c.json --json L/c.json",
+      "draw a.yaml -o ok.png --geometry L/g.json", "draw a.yaml -o L/x.png"};
+  auto check_locked = [&](const std::string& prefix, const std::string& locked) {
+    for (std::string args : locked_cases) {
+      for (std::size_t at; (at = args.find("L/")) != std::string::npos;) args.replace(at, 1, locked);
+      INFO(prefix << " crossdyn " << args);
+      const auto t0 = std::chrono::steady_clock::now();
+      const Run r = run_with(prefix, s.dir(), args);
+      INFO(r.err);
+      CHECK(r.status == 2);
+      CHECK(contains(r.err, "crossdyn: error: "));
+      CHECK(seconds_since(t0) < 10);
+      for (const char* ok : {"ok.csv", "ok.json", "ok.xml", "ok.png", "ok"}) CHECK(!fs::exists(s.path(ok)));
+      CHECK(fs::is_empty(s.path(locked)));
+    }
+  };
+  fs::create_directories(s.path("locked"));
+  ::chmod(s.path("locked").c_str(), 0555);
+  check_locked("", "locked");  // whoever runs the tests, root included
+  CHECK(no_leftovers(s));
+  std::string why;
+  if (const std::optional<std::string> prefix = unprivileged_prefix(why)) {
+    // The scratch folder becomes the unprivileged user's (its inputs readable, ok.* creatable);
+    // "rootonly" stays root's, mode 0755: writable by its mode bits, but not by that user.
+    fs::create_directories(s.path("rootonly"));
+    if (is_root()) {
+      for (const auto& e : fs::recursive_directory_iterator(s.dir()))
+        if (e.path().filename() != "rootonly") REQUIRE(::lchown(e.path().c_str(), 65534, 65534) == 0);
+      REQUIRE(::chown(s.dir().c_str(), 65534, 65534) == 0);
+      REQUIRE(::chmod(s.dir().c_str(), 0755) == 0);
+      REQUIRE(::chmod(s.path("rootonly").c_str(), 0755) == 0);
+      REQUIRE(run_with(*prefix, s.dir(), "run a.yaml -q --output /dev/null").status == 0);  // it can read
+    } else {
+      ::chmod(s.path("rootonly").c_str(), 0555);  // the best an unprivileged test can do
+    }
+    check_locked(*prefix, "locked");
+    check_locked(*prefix, "rootonly");
+  } else {
+    WARN("class 2, a folder where nothing can be created, as an unprivileged user: not run: " << why);
   }
   CHECK(no_leftovers(s));
 }

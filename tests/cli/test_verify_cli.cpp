@@ -38,9 +38,9 @@ TEST_CASE("verify: the verdict, table, JSON and JUnit come first and never depen
   struct Case {
     std::string options, why;
   };
-  // (--report naming a file is refused before the work, exit 2: tests/cli/test_output_classes.cpp.)
+  // (--report naming a file, or a --python that is missing, a folder or not executable, is
+  // refused before the work, exit 2: tests/cli/test_output_classes.cpp.)
   const std::vector<Case> cases{
-      {"--report=out --python /nonexistent/python3", "/nonexistent/python3"},  // no Python
       {"--report=out --python ./nomatplotlib.sh", "failed (exit status 1)"},   // no matplotlib
       {"--report=out --python /bin/sh --report-script failing.py", "failed (exit status 7)"}};
   for (const bool fail : {false, true})
