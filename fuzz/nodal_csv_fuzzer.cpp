@@ -68,7 +68,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
 
   // The round trip (the writer always writes a modes file, with only its header for 0 modes).
-  const crossdyn::flex::FlexBody& f = model.flex;
+  const crossdyn::FlexBody& f = model.flex;
   const crossdyn::flex::NodalCsv csv = crossdyn::flex::write_nodal_csv(f);
   crossdyn::flex::FlexModel back;
   try {
@@ -76,7 +76,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const crossdyn::InputError& e) {
     finding(std::string("the written files were rejected: ") + e.what(), csv);
   }
-  const crossdyn::flex::FlexBody& g = back.flex;
+  const crossdyn::FlexBody& g = back.flex;
   if (g.mode_names != f.mode_names) finding("mode names differ", csv);
   if (!same(g.K, f.K)) finding("K differs", csv);
   if (!same(g.D, f.D)) finding("D differs", csv);

@@ -232,6 +232,7 @@ std::string stiffened_beam_scene(const std::string& boundary, const std::string&
          "    parent_point: [0, 0, 0]\n"
          "    child_point: [0, 0, 0]\n"
          "    axis: [0, 0, 1]\n"
+         "    prescribed: {profile: spin-up, rate: 10 rad/s, ramp_time: 15 s}\n"
          "  - name: root\n"
          "    type: fixed\n"
          "    parent: hub\n"
@@ -258,7 +259,7 @@ std::string scene_message(const std::string& text) {
 // Kane engine (a segfault) because validate_flex accepted it. Every way to build one is refused:
 // the FlexBody check itself (whatever G and e hold), the beam generator and the scene reader at
 // the key, for both clamped ends and every way of giving no modes.
-TEST_CASE("class: a flexible body with geometric stiffening and no modes is refused, whatever built it") {
+TEST_CASE("class: geometric stiffening without modes is refused by validate_flex and the beam generator and the scene reader") {
   const std::string refused =
       "body 'beam': geometric stiffening needs modes: the body has none, so there is no "
       "deformation to foreshorten (switch geometric stiffening off: a body without modes is rigid)";
