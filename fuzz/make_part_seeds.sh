@@ -54,7 +54,7 @@ seed verify_json_is_a_part small "part0.json part1.json --json part1.json" v0.js
 seed study_one_part small "part0.json --csv m.csv -q" s0.json
 seed study_junit_refused small "part0.json --junit m.xml" s0.json
 seed stability_two_parts small "part0.json part1.json --csv m.csv -q" t0.json t1.json
-seed stability_csv_is_the_scene small "part1.json part0.json --csv scene.yaml" t0.json t1.json
+# (stability parts merged with --csv scene.yaml, a scene the parts name: fuzz/part_regressions/)
 seed converge_two_parts beam "part0.json part1.json --json m.json -q" c0.json c1.json
 seed converge_csv_refused beam "part0.json part1.json --csv m.csv" c0.json c1.json
 # Parts of different commands together.
