@@ -5,7 +5,12 @@
 // Properties checked on every input:
 //   1. crossdyn_main returns one of the documented exit statuses (0, 1, 2, 3, 130); an exception
 //      escaping it, a crash, a sanitizer report, a leak or a hang is a finding;
-//   2. the inputs are intact: scene.yaml and scenarios/scene.yaml hold the text written.
+//   2. the inputs are intact: scene.yaml and scenarios/scene.yaml hold the text written, and the
+//      nodal data files beside them (panel_nodes.csv, panel_modes.csv: scenarios/data/'s example,
+//      copied into both folders so that a scene can name them and an output can try to) hold
+//      theirs.
+// `draw` runs `--python=/bin/true` (appended): the geometry and the kane run are fuzzed, the
+// drawing script is not run (no picture, so exit 2 with nothing written).
 // Bounded work: at most 64 output rows per run (run_limits::set_max_output_rows), and a watchdog
 // that interrupts (as Ctrl-C does) a command still running after 2 s; stdout goes to /dev/null.
 #include "core/integrate.hpp"
@@ -26,6 +31,8 @@
 #include <mutex>
 #include <sstream>
 #include <thread>
+#include <utility>
+#include <vector>
 
 namespace {
 
@@ -33,6 +40,8 @@ namespace fs = std::filesystem;
 
 fs::path g_dir;   // the scratch folder, the command's current folder
 fs::path g_home;  // libFuzzer's current folder (corpus and artifacts), restored after each input
+// The nodal data files written beside each scene (name, text).
+std::vector<std::pair<std::string, std::string>> g_nodal;
 
 std::string read_all(const fs::path& p) {
   std::stringstream s;
@@ -75,6 +84,11 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
   if (null < 0 || ::dup2(null, STDOUT_FILENO) < 0) std::abort();
   ::close(null);
   crossdyn::run_limits::set_max_output_rows(64);
+  for (const char* name : {"panel_nodes.csv", "panel_modes.csv"}) {
+    const fs::path from = fs::path(CROSSDYN_FUZZ_SOURCE_DIR) / "scenarios" / "data" / name;
+    g_nodal.emplace_back(name, read_all(from));
+    if (g_nodal.back().second.empty()) std::abort();
+  }
   std::atexit([] {
     std::error_code ec;
     fs::remove_all(g_dir, ec);
@@ -92,9 +106,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fs::create_directories(g_dir / "scenarios", ec);
   for (const char* name : {"scene.yaml", "scenarios/scene.yaml"})
     std::ofstream(g_dir / name, std::ios::binary) << input->scene;
+  for (const auto& [name, text] : g_nodal)
+    for (const fs::path& dir : {g_dir, g_dir / "scenarios"})
+      std::ofstream(dir / name, std::ios::binary) << text;
 
   std::vector<std::string> args{"crossdyn"};
   args.insert(args.end(), input->args.begin(), input->args.end());
+  if (!input->args.empty() && input->args.front() == "draw") args.push_back("--python=/bin/true");
   std::vector<char*> argv;
   for (std::string& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
@@ -116,5 +134,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       std::fprintf(stderr, "the input %s was modified (exit status %d)\n", name, status);
       std::abort();
     }
+  for (const auto& [name, text] : g_nodal)
+    for (const fs::path& dir : {g_dir, g_dir / "scenarios"})
+      if (read_all(dir / name) != text) {
+        std::fprintf(stderr, "the input %s was modified (exit status %d)\n",
+                     (dir / name).string().c_str(), status);
+        std::abort();
+      }
   return 0;
 }

@@ -146,6 +146,14 @@ void validate_flex(const FlexBody& f, const std::string& context) {
     if (auto p = mode_name_problem(m)) fail(*p);
     if (!seen.insert(m).second) fail("duplicate mode name '" + m + "'");
   }
+  // Geometric stiffening foreshortens the modes' deformation (e 1/2 eta^T G eta): with no modes
+  // there is nothing to foreshorten, and the engines' stiffening terms are sized by the modes
+  // (an empty G is not a model they accept: a segfault in the Kane engine). A body without modes
+  // is the rigid body (docs/flexible-bodies.md), stated without stiffening; the beam generator
+  // refuses it at its key (beam_spec_problems), converge's truncation switches it off.
+  if (f.geometric_stiffening && n == 0)
+    fail("geometric stiffening needs modes: the body has none, so there is no deformation to "
+         "foreshorten (switch geometric stiffening off: a body without modes is rigid)");
   if (f.nodes.empty()) fail("the body has no nodes: at least one node must carry its mass");
   if (f.nodes.size() > kMaxNodes)
     fail(std::to_string(f.nodes.size()) + " nodes: at most " + std::to_string(kMaxNodes) +

@@ -82,8 +82,9 @@ std::optional<std::string> modal_matrix_problem(const Eigen::MatrixXd& A, const 
 // the nodes' CM at the body origin (|sum m_i p_i| <= 1e-9 m max|p_i|); the rigid inertia positive
 // definite; every mode moving some mass and no mode a rigid motion or a combination of the others
 // (the rest mass matrix, scaled to unit diagonal, has its smallest eigenvalue above 1e-10);
-// K and D symmetric positive semi-definite. Throws InputError "<context>: <what is wrong>",
-// naming the node or mode.
+// K and D symmetric positive semi-definite; geometric stiffening only with at least one mode, and
+// then every G_i n x n, finite and symmetric and every e_i a unit vector. Throws InputError
+// "<context>: <what is wrong>", naming the node or mode.
 void validate_flex(const FlexBody& f, const std::string& context);
 
 }  // namespace crossdyn::flex

@@ -9,6 +9,7 @@
 #include "core/errors.hpp"
 #include "core/flex/beam.hpp"
 #include "core/flex/flex_model.hpp"
+#include "core/scene/scene.hpp"
 #include "tests/support/close.hpp"
 
 using namespace crossdyn;
@@ -186,4 +187,120 @@ TEST_CASE("inertia_problem accepts realisable inertias at the triangle limit and
   CHECK(!inertia_problem(Eigen::Vector3d(1, 1, 2).asDiagonal()));  // a thin disc: I1 + I2 = I3
   CHECK(!inertia_problem(Eigen::Matrix3d::Zero()));                // a point mass
   CHECK(inertia_problem(Eigen::Vector3d(1, 1, 2.001).asDiagonal()));
+}
+
+namespace {
+
+// The small body with every mode dropped (a rigid body made of nodes) and geometric stiffening
+// switched on, then `change` applied.
+std::string stiffened_without_modes(const std::function<void(FlexBody&)>& change) {
+  return message_of([&change](FlexBody& f) {
+    f.mode_names.clear();
+    for (FlexNode& n : f.nodes) {
+      n.Phi_B.resize(3, 0);
+      n.Psi_B.resize(3, 0);
+    }
+    f.K.resize(0, 0);
+    f.D.resize(0, 0);
+    f.geometric_stiffening = true;
+    change(f);
+  });
+}
+
+// A spinning clamped beam (scenarios/spinup_beam.yaml, shorter) whose `bending` block is given.
+std::string stiffened_beam_scene(const std::string& boundary, const std::string& bending) {
+  return "name: s\n"
+         "bodies:\n"
+         "  - name: hub\n"
+         "    mass: 100 kg\n"
+         "    inertia: [10, 10, 10]\n"
+         "  - name: beam\n"
+         "    flexible:\n"
+         "      beam:\n"
+         "        length: 10 m\n"
+         "        axis: x\n"
+         "        mass_per_length: 1.2\n"
+         "        section: [0, 0.02 m, 0.02 m]\n" +
+         bending +
+         "        boundary: " + boundary + "\n"
+         "        slices: 10\n"
+         "        geometric_stiffening: true\n"
+         "joints:\n"
+         "  - name: spin\n"
+         "    type: revolute\n"
+         "    child: hub\n"
+         "    parent_point: [0, 0, 0]\n"
+         "    child_point: [0, 0, 0]\n"
+         "    axis: [0, 0, 1]\n"
+         "    prescribed: {profile: spin-up, rate: 10 rad/s, ramp_time: 15 s}\n"
+         "  - name: root\n"
+         "    type: fixed\n"
+         "    parent: hub\n"
+         "    parent_point: [0, 0, 0]\n"
+         "    child: beam\n"
+         "    child_node: bottom\n"
+         "run:\n"
+         "  duration: 0.1 s\n"
+         "  output_step: 0.05 s\n";
+}
+
+std::string scene_message(const std::string& text) {
+  try {
+    read_scene_text(text, "s.yaml");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace
+
+// The engines size their stiffening terms by the modes; a 0-mode stiffened body reached the
+// Kane engine (a segfault) because validate_flex accepted it. Every way to build one is refused:
+// the FlexBody check itself (whatever G and e hold), the beam generator and the scene reader at
+// the key, for both clamped ends and every way of giving no modes.
+TEST_CASE("class: geometric stiffening without modes is refused by validate_flex and the beam generator and the scene reader") {
+  const std::string refused =
+      "body 'beam': geometric stiffening needs modes: the body has none, so there is no "
+      "deformation to foreshorten (switch geometric stiffening off: a body without modes is rigid)";
+  CHECK(stiffened_without_modes([](FlexBody&) {}) == refused);  // no G at all
+  CHECK(stiffened_without_modes([](FlexBody& f) {
+          for (FlexNode& n : f.nodes) {
+            n.G.resize(0, 0);
+            n.e_B = Eigen::Vector3d::UnitZ();
+          }
+        }) == refused);  // G 0 x 0 with a unit e: every per-node check passes, the body does not
+  CHECK(stiffened_without_modes([](FlexBody& f) { f.geometric_stiffening = false; }) ==
+        "(no error)");  // the same body without stiffening is the rigid body it is
+  // The beam generator: no bending block, both planes at 0 modes, for both clamped ends.
+  for (BeamBoundary b : {BeamBoundary::ClampedBottom, BeamBoundary::ClampedTop}) {
+    BeamSpec s;
+    s.length = 4;
+    s.axis = 2;
+    s.mass_per_length = 10;
+    s.section = {1, 1, 0};
+    s.boundary = b;
+    s.slices = 4;
+    s.geometric_stiffening = true;
+    CHECK_THROWS_WITH(make_beam(s, "beam"), Catch::Contains("geometric_stiffening") &&
+                                                Catch::Contains("needs bending modes"));
+    s.bending = {BeamPlane{0, 50}, BeamPlane{0, 50}, BeamPlane{}};
+    CHECK_THROWS_WITH(make_beam(s, "beam"), Catch::Contains("needs bending modes"));
+  }
+  // The scene reader names the file, the line of the key and the key.
+  for (const std::string boundary : {"clamped-bottom", "clamped-top"})
+    for (const std::string bending :
+         {std::string(), std::string("        bending: {}\n"),
+          std::string("        bending:\n          y: {modes: 0}\n          z: {modes: 0, EI: 1}\n")}) {
+      INFO(boundary << "\n" << bending);
+      const std::string m = scene_message(stiffened_beam_scene(boundary, bending));
+      INFO(m);
+      CHECK(m.rfind("s.yaml:", 0) == 0);
+      CHECK(m.find("geometric_stiffening") != std::string::npos);
+      CHECK(m.find("needs bending modes") != std::string::npos);
+    }
+  // With a mode the same scene is read (the test above is not refusing every stiffened beam).
+  CHECK(scene_message(stiffened_beam_scene("clamped-bottom",
+                                           "        bending:\n          y: {modes: 1, EI: 14000}\n")) ==
+        "(no error)");
 }
