@@ -289,7 +289,7 @@ TEST_CASE("class: geometric stiffening without modes is refused by validate_flex
   }
   // The scene reader names the file, the line of the key and the key.
   for (const std::string boundary : {"clamped-bottom", "clamped-top"})
-    for (const std::string bending :
+    for (const std::string& bending :
          {std::string(), std::string("        bending: {}\n"),
           std::string("        bending:\n          y: {modes: 0}\n          z: {modes: 0, EI: 1}\n")}) {
       INFO(boundary << "\n" << bending);
