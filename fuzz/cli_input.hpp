@@ -10,8 +10,8 @@
 // The scene text is written to scene.yaml and scenarios/scene.yaml in a scratch folder, which is
 // the current folder of the command. Inputs outside the fuzzed space are refused (nullopt), so that
 // nothing is written outside the scratch folder and no other program runs: more than 24
-// arguments or one longer than 200 bytes, a '/' or a NUL in an argument (paths stay inside the
-// folder), an argument starting with "..", and the options that run programs (--report,
+// arguments or one longer than 200 bytes, a '/' (but in --shard's K/N) or a NUL in an argument
+// (paths stay inside the folder), an argument starting with "..", and the options that run programs (--report,
 // --report-script, --python).
 #pragma once
 
@@ -44,9 +44,21 @@ inline std::optional<CliInput> parse_cli_input(std::string_view data) {
   }
   if (scene && pos < data.size()) in.scene = std::string(data.substr(pos));
   if (in.args.size() > 24) return std::nullopt;
-  for (const std::string& a : in.args) {
-    if (a.size() > 200 || a.find('/') != std::string::npos || a.find('\0') != std::string::npos ||
-        a.rfind("..", 0) == 0 || a.rfind("--report", 0) == 0 || a.rfind("--python", 0) == 0)
+  // "K/N" after --shard (or in --shard=K/N) is a slice, not a path: its '/' is allowed.
+  const auto slice = [](std::string_view v) {
+    const std::size_t at = v.find('/');
+    if (at == std::string_view::npos || at == 0 || at + 1 == v.size()) return false;
+    for (std::size_t k = 0; k < v.size(); ++k)
+      if (k != at && (v[k] < '0' || v[k] > '9')) return false;
+    return true;
+  };
+  for (std::size_t i = 0; i < in.args.size(); ++i) {
+    const std::string& a = in.args[i];
+    const bool shard_value = (i > 0 && in.args[i - 1] == "--shard" && slice(a)) ||
+                             (a.rfind("--shard=", 0) == 0 && slice(std::string_view(a).substr(8)));
+    if (a.size() > 200 || (a.find('/') != std::string::npos && !shard_value) ||
+        a.find('\0') != std::string::npos || a.rfind("..", 0) == 0 || a.rfind("--report", 0) == 0 ||
+        a.rfind("--python", 0) == 0)
       return std::nullopt;
   }
   return in;

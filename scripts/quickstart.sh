@@ -6,6 +6,12 @@
 #   CROSSDYN_NO_VERIFY=1  build only
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Each phase's wall time, printed at the end (issue 29: a result in minutes on a fresh machine).
+phase_start=$SECONDS
+phases=()
+phase_done() { phases+=("$1 $((SECONDS - phase_start)) s"); phase_start=$SECONDS; }
+print_phases() { local IFS=','; [ ${#phases[@]} -eq 0 ] || echo "quickstart: ${phases[*]}, total ${SECONDS} s" >&2; }
+trap print_phases EXIT
 
 # The report and `crossdyn draw` run reports/*.py with /usr/bin/python3: matplotlib and Jinja2.
 # catch2 is Catch2 v2 on Debian 12 (bookworm); libsundials-dev is SUNDIALS 6.4 (the CVODE
@@ -31,10 +37,14 @@ fi
 # Ninja for a new build folder; an existing one keeps the generator it was made with.
 generator=()
 [ -f build/CMakeCache.txt ] || generator=(-G Ninja)
+phase_done packages
 cmake -S . -B build "${generator[@]}" -DCMAKE_BUILD_TYPE=Release -DCROSSDYN_WERROR="${CROSSDYN_WERROR:-OFF}"
+phase_done configure
 cmake --build build -j2 --target crossdyn
+phase_done build
 
 if [ -z "${CROSSDYN_NO_VERIFY:-}" ]; then
   build/crossdyn verify --report reports/latest
+  phase_done "verify and report"
   echo "Report: reports/latest/index.html"
 fi

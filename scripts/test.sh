@@ -8,5 +8,11 @@ if [ ! -f build/CMakeCache.txt ]; then
   echo "scripts/test.sh: build/ is not configured: run scripts/quickstart.sh first" >&2
   exit 2
 fi
+start=$SECONDS
 cmake --build build -j2
-ctest --test-dir build -j2 --output-on-failure "$@"
+echo "test.sh: build $((SECONDS - start)) s" >&2
+start=$SECONDS
+status=0
+ctest --test-dir build -j2 --output-on-failure "$@" || status=$?
+echo "test.sh: ctest $((SECONDS - start)) s" >&2
+exit $status

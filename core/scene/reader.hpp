@@ -27,7 +27,7 @@ namespace crossdyn::scene {
 inline constexpr std::size_t kMaxSceneBytes = 1u << 20;  // 1 MiB of YAML
 inline constexpr double kAbsurd = 1e12;                  // any SI value beyond this is a typo
 inline constexpr double kTiny = 1e-100;                 // a nonzero SI value below this is refused
-inline constexpr double kMaxAngularRate = 1e4;          // rad/s, any angular rate (as prescribed rates)
+inline constexpr double kMaxAngularRate = 1e4;          // rad/s, a prescribed rate
 inline constexpr double kMaxAngle = 1e6;                // rad, any angle
 inline constexpr double kMaxMass = 1e9;                  // kg
 inline constexpr double kMinAxisLength = 1e-9;           // a shorter axis counts as zero

@@ -113,10 +113,13 @@ TEST_CASE("Ctrl-C while reading a FIFO as the scene: exit 130 within the bound, 
   Folder d("fifo");
   const std::string fifo = d / "scene.yaml";
   REQUIRE(::mkfifo(fifo.c_str(), 0600) == 0);
-  SECTION("blocked in open(): no writer yet") {
+  SECTION("no writer yet: never waited on (issue 23 class 3), an empty scene at once") {
     ChildProcess p({program(), "run", fifo, "--output", d / "out.csv"});
-    REQUIRE(wait_wchan(p.pid(), "wait_for_partner", 60));
-    require_interrupted(p, SIGINT);
+    const std::optional<int> status = p.wait_exit(60);
+    REQUIRE(status);
+    CHECK(*status == 2);
+    CHECK(p.err().find("nothing was written to the pipe") != std::string::npos);
+    CHECK_FALSE(fs::exists(d / "out.csv"));
   }
   SECTION("blocked in read(): a writer that sent half a scene and stays") {
     const int w = ::open(fifo.c_str(), O_RDWR | O_NONBLOCK);  // never blocks, keeps the FIFO open

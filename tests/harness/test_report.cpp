@@ -144,14 +144,18 @@ std::vector<std::string> partial_folders(const fs::path& dir) {
 TEST_CASE("report: the regenerated example folder is complete and matches the committed one") {
   const fs::path out = fs::path(crossdyn::test::binary_dir()) / "test-report-example";
   fs::remove_all(out);
+  // The JUnit file beside the folder: an output inside --report is refused (the report replaces
+  // its folder as a whole).
+  const fs::path junit = out.string() + "-junit.xml";
+  fs::remove(junit);
   const auto r = crossdyn::test::run_crossdyn(std::string("verify --quiet ") + kExampleScenes +
                                               " --report '" + out.string() + "' --junit '" +
-                                              (out / "junit.xml").string() + "'");
+                                              junit.string() + "'");
   INFO(r.output);
   REQUIRE((r.status == 0 || r.status == 1));  // 1: some check failed; the report is still made
   CHECK(r.output.find("report: " + out.string() + "/index.html") != std::string::npos);
   const std::set<std::string> fresh = check_complete(out, 4);
-  CHECK(fs::exists(out / "junit.xml"));
+  CHECK(fs::exists(junit));
 
   const fs::path example = fs::path(crossdyn::test::source_dir()) / "reports" / "example";
   REQUIRE(fs::exists(example));
@@ -269,14 +273,20 @@ TEST_CASE("report: a folder that is not a report is never replaced: other files 
   CHECK(r.output.find("' holds the scene file '") != std::string::npos);
   CHECK(fs::exists(base / "scenes" / "s.yaml"));
 
-  // A report folder with files the report did not write (JUnit written there, notes): kept, while
-  // the report's own pages are replaced.
+  // An output of the same command inside the folder is refused before the work (the report
+  // replaces its folder as a whole; issue 23 class 2), and nothing is written.
   const fs::path rep = base / "report";
   r = crossdyn::test::run_crossdyn("verify --quiet scenarios/torque_free_asymmetric.yaml --report '" + rep.string() +
                                    "' --junit '" + (rep / "junit.xml").string() + "'");
+  CHECK(r.status == 2);
+  CHECK(r.output.find("is inside --report") != std::string::npos);
+  CHECK_FALSE(fs::exists(rep));
+  // A report folder with files the report did not write (a JUnit file and notes put there
+  // later): kept, while the report's own pages are replaced.
+  r = crossdyn::test::run_crossdyn("verify --quiet scenarios/torque_free_asymmetric.yaml --report '" + rep.string() + "'");
   INFO(r.output);
   REQUIRE(r.status == 0);
-  CHECK(fs::exists(rep / "junit.xml"));
+  { std::ofstream(rep / "junit.xml") << "<testsuites/>\n"; }
   { std::ofstream(rep / "notes.txt") << "keep me\n"; }
   r = crossdyn::test::run_crossdyn("verify --quiet scenarios/spear1_case1.yaml --report '" + rep.string() + "'");
   REQUIRE(r.status == 0);
