@@ -384,5 +384,74 @@ class StabilityMap(unittest.TestCase):
                 self.assertGreater(close.sum(), 500, cls)
 
 
+MAKE_REPORT = os.path.join(SOURCE, "reports", "make_report.py")
+
+
+def run_make_report(summary, out, jobs):
+    env = dict(os.environ, CROSSDYN_REPORT_JOBS=str(jobs), PYTHONDONTWRITEBYTECODE="1")
+    return subprocess.run([sys.executable, MAKE_REPORT, summary, out], env=env, capture_output=True, text=True,
+                          timeout=600)
+
+
+def folder_bytes(folder):
+    files = {}
+    for root, _, names in os.walk(folder):
+        for n in names:
+            path = os.path.join(root, n)
+            with open(path, "rb") as f:
+                files[os.path.relpath(path, folder)] = f.read()
+    return files
+
+
+class WorkerProcesses(unittest.TestCase):
+    """The scenes' pages are drawn in worker processes (CROSSDYN_REPORT_JOBS, default one per CPU):
+    the same files as one process, the same messages and exit status when something fails."""
+
+    def test_same_files_in_one_process_and_in_workers(self):
+        scenes = [os.path.join(SOURCE, "scenarios", s + ".yaml") for s in ("torque_free_axisymmetric", "dual_spin")]
+        with tempfile.TemporaryDirectory() as tmp:
+            base = os.path.join(tmp, "base")
+            subprocess.run([CROSSDYN, "verify", "--quiet", "--no-converge", *scenes, "--report=" + base,
+                            "--report-script", MAKE_REPORT], check=True, stdout=subprocess.DEVNULL, timeout=600)
+            made = {}
+            for jobs in (1, 2, 3):
+                out = os.path.join(tmp, "jobs%d" % jobs)
+                subprocess.run(["cp", "-r", base, out], check=True)
+                for n in os.listdir(out):
+                    if n.endswith((".html", ".png")):
+                        os.unlink(os.path.join(out, n))
+                r = run_make_report(os.path.join(out, "summary.json"), out, jobs)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                made[jobs] = folder_bytes(out)
+            self.assertEqual(sorted(made[1]), sorted(folder_bytes(base)))  # every page and picture
+            self.assertGreater(sum(n.endswith(".png") for n in made[1]), 10)
+            self.assertFalse([n for n in made[1] if ".tmp." in n])
+            for jobs in (2, 3):
+                self.assertEqual(sorted(made[jobs]), sorted(made[1]))
+                for n in made[1]:
+                    self.assertEqual(made[jobs][n], made[1][n], "%s differs with %d workers" % (n, jobs))
+
+    def test_a_failing_scene_fails_the_same_way_in_workers(self):
+        summary = summary_three_scenes()
+        del summary["scenes"][1]["page"]  # the second scene's page cannot be written: KeyError
+        summary["scenes"][0]["runs"][0]["data"] = "data/good/missing.csv"  # a warning, the page goes on
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "summary.json")
+            with open(path, "w", encoding="utf-8") as f:
+                json.dump(summary, f)
+            results = {}
+            for jobs in (1, 2, "x"):
+                out = os.path.join(tmp, "out%s" % jobs)
+                results[jobs] = run_make_report(path, out, jobs)
+                self.assertFalse(os.path.exists(os.path.join(out, "index.html")), jobs)
+                self.assertFalse([n for n in os.listdir(out) if ".tmp." in n], jobs)
+            for jobs, r in results.items():
+                self.assertEqual(r.returncode, 1, (jobs, r.stderr))
+                self.assertIn("KeyError: 'page'", r.stderr, jobs)
+                self.assertIn("make_report.py: cannot read", r.stderr, jobs)
+                self.assertIn("missing.csv", r.stderr, jobs)
+            self.assertIn("CROSSDYN_REPORT_JOBS='x' is not a number", results["x"].stderr)
+
+
 if __name__ == "__main__":
     unittest.main()
