@@ -101,6 +101,21 @@ def write_scene_page(env, scene, out_dir):
 _worker_env = None
 
 
+def _worker_start(parent):
+    """In each worker: the default SIGTERM (the parent's handler is for the parent), and SIGTERM
+    when the parent dies however it dies (Linux prctl PR_SET_PDEATHSIG), so that no worker outlives
+    the script and writes on into a folder crossdyn has abandoned."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except Exception:  # not Linux: the parent's SIGTERM handler still ends the workers
+        pass
+    if os.getppid() != parent:  # the parent died before prctl
+        os._exit(1)
+
+
 def _scene_job(job):
     """One scene in a worker process (matplotlib and the templates loaded once per worker)."""
     global _worker_env
@@ -129,22 +144,21 @@ def scene_pages(env, scenes, out_dir):
     (with the worker's traceback) propagates and the script exits non-zero. On SIGTERM (crossdyn
     interrupted) the workers are ended too, so none writes on into the abandoned folder."""
     n = workers(len(scenes))
-    pool = None
-    if n > 1:
-        try:
-            import multiprocessing
-
-            pool = multiprocessing.get_context("fork").Pool(n)
-        except (ImportError, OSError, ValueError) as e:  # no fork, no semaphores: one process
-            warn("no worker processes (%s); drawing the scenes one by one" % e)
-            pool = None
-    if pool is None:
+    if n == 1:
         return [write_scene_page(env, scene, out_dir) for scene in scenes]
 
     def terminated(signum, frame):
         raise SystemExit(128 + signum)
 
-    previous = signal.signal(signal.SIGTERM, terminated)
+    previous = signal.signal(signal.SIGTERM, terminated)  # before any worker exists
+    try:
+        import multiprocessing
+
+        pool = multiprocessing.get_context("fork").Pool(n, initializer=_worker_start, initargs=(os.getpid(),))
+    except (ImportError, OSError, ValueError) as e:  # no fork, no semaphores: one process
+        signal.signal(signal.SIGTERM, previous)
+        warn("no worker processes (%s); drawing the scenes one by one" % e)
+        return [write_scene_page(env, scene, out_dir) for scene in scenes]
     try:
         results = pool.map(_scene_job, [(scene, out_dir) for scene in scenes], chunksize=1)
         pool.close()

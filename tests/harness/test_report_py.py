@@ -16,9 +16,11 @@ import json
 import math
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import numpy as np
@@ -451,6 +453,37 @@ class WorkerProcesses(unittest.TestCase):
                 self.assertIn("make_report.py: cannot read", r.stderr, jobs)
                 self.assertIn("missing.csv", r.stderr, jobs)
             self.assertIn("CROSSDYN_REPORT_JOBS='x' is not a number", results["x"].stderr)
+
+    def test_sigterm_ends_the_script_and_its_workers(self):
+        # crossdyn ends the script with SIGTERM when it is interrupted: no worker may go on writing.
+        scenes = [os.path.join(SOURCE, "scenarios", s + ".yaml") for s in ("dual_spin", "chain5", "spear1_case1")]
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "report")
+            subprocess.run([CROSSDYN, "verify", "--quiet", "--no-converge", *scenes, "--report=" + out,
+                            "--report-script", MAKE_REPORT], check=True, stdout=subprocess.DEVNULL, timeout=600)
+            for n in os.listdir(out):
+                if n.endswith((".html", ".png")):
+                    os.unlink(os.path.join(out, n))
+            env = dict(os.environ, CROSSDYN_REPORT_JOBS="2", PYTHONDONTWRITEBYTECODE="1")
+            p = subprocess.Popen([sys.executable, MAKE_REPORT, os.path.join(out, "summary.json"), out], env=env,
+                                 stderr=subprocess.DEVNULL)
+            children = "/proc/%d/task/%d/children" % (p.pid, p.pid)
+            workers = []
+            for _ in range(400):  # up to 20 s for the workers to start
+                with open(children) as f:
+                    workers = f.read().split()
+                if len(workers) >= 2:
+                    break
+                time.sleep(0.05)
+            self.assertGreaterEqual(len(workers), 2)
+            p.send_signal(signal.SIGTERM)
+            self.assertEqual(p.wait(timeout=20), 128 + signal.SIGTERM)
+            time.sleep(0.5)
+            for w in workers:
+                self.assertFalse(os.path.exists("/proc/%s" % w) and open("/proc/%s/stat" % w).read().split()[2] != "Z",
+                                 "worker %s outlived the script" % w)
+            self.assertFalse(os.path.exists(os.path.join(out, "index.html")))
+            self.assertFalse([n for n in os.listdir(out) if ".tmp." in n])
 
 
 if __name__ == "__main__":
