@@ -21,6 +21,7 @@ into place. Charts use matplotlib's Agg backend (Debian python3-matplotlib; run 
 
 import json
 import os
+import signal
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -90,6 +91,86 @@ def scene_page(env, scene, out_dir):
     return pages.render(env, "scene.html", pages.scene_context(scene, pictures, made, motion_note, converge))
 
 
+def write_scene_page(env, scene, out_dir):
+    """Writes one scene's page and pictures; returns what the index needs back from it (the
+    picture's notes, set by scene_pictures), or None."""
+    write_atomic(os.path.join(out_dir, scene["page"]), scene_page(env, scene, out_dir))
+    return scene.get("picture_notes")
+
+
+_worker_env = None
+
+
+def _worker_start(parent):
+    """In each worker: the default SIGTERM (the parent's handler is for the parent), and SIGTERM
+    when the parent dies however it dies (Linux prctl PR_SET_PDEATHSIG), so that no worker outlives
+    the script and writes on into a folder crossdyn has abandoned."""
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM, 0, 0, 0)  # PR_SET_PDEATHSIG
+    except Exception:  # not Linux: the parent's SIGTERM handler still ends the workers
+        pass
+    if os.getppid() != parent:  # the parent died before prctl
+        os._exit(1)
+
+
+def _scene_job(job):
+    """One scene in a worker process (matplotlib and the templates loaded once per worker)."""
+    global _worker_env
+    if _worker_env is None:
+        _worker_env = pages.environment()
+    scene, out_dir = job
+    return write_scene_page(_worker_env, scene, out_dir)
+
+
+def workers(count):
+    """Worker processes for `count` scenes: CROSSDYN_REPORT_JOBS if set (1 = one process, no
+    workers), else one per CPU."""
+    given = os.environ.get("CROSSDYN_REPORT_JOBS", "").strip()
+    try:
+        n = int(given) if given else (os.cpu_count() or 1)
+    except ValueError:
+        warn("CROSSDYN_REPORT_JOBS=%r is not a number; using one process" % given)
+        n = 1
+    return max(1, min(n, count))
+
+
+def scene_pages(env, scenes, out_dir):
+    """Writes every scene's page, in worker processes when there are several CPUs (the pictures and
+    charts are most of the report's time and each scene's are independent), else one by one. The
+    same files either way. A scene that raises ends the report as it would serially: the exception
+    (with the worker's traceback) propagates and the script exits non-zero. On SIGTERM (crossdyn
+    interrupted) the workers are ended too, so none writes on into the abandoned folder."""
+    n = workers(len(scenes))
+    if n == 1:
+        return [write_scene_page(env, scene, out_dir) for scene in scenes]
+
+    def terminated(signum, frame):
+        raise SystemExit(128 + signum)
+
+    previous = signal.signal(signal.SIGTERM, terminated)  # before any worker exists
+    try:
+        import multiprocessing
+
+        pool = multiprocessing.get_context("fork").Pool(n, initializer=_worker_start, initargs=(os.getpid(),))
+    except (ImportError, OSError, ValueError) as e:  # no fork, no semaphores: one process
+        signal.signal(signal.SIGTERM, previous)
+        warn("no worker processes (%s); drawing the scenes one by one" % e)
+        return [write_scene_page(env, scene, out_dir) for scene in scenes]
+    try:
+        results = pool.map(_scene_job, [(scene, out_dir) for scene in scenes], chunksize=1)
+        pool.close()
+        return results
+    except BaseException:
+        pool.terminate()
+        raise
+    finally:
+        pool.join()
+        signal.signal(signal.SIGTERM, previous)
+
+
 def study_report(summary, out_dir):
     """The pages of `crossdyn study --report DIR` (study.json, "kind": "study"): index.html, one
     <scene>-study.html per scene with its work-precision chart, and scaling.html."""
@@ -140,9 +221,12 @@ def main(argv):
         from crossdyn_report import stability
         return stability.report(summary, out_dir, pages.environment(), pages.render, warn)
     env = pages.environment()
-    for scene in summary.get("scenes", []):
+    scenes = summary.get("scenes", [])
+    for scene in scenes:
         scene.setdefault("group_order", summary.get("group_order", []))
-        write_atomic(os.path.join(out_dir, scene["page"]), scene_page(env, scene, out_dir))
+    for scene, notes in zip(scenes, scene_pages(env, scenes, out_dir)):
+        if notes is not None:
+            scene["picture_notes"] = notes
     write_atomic(os.path.join(out_dir, "index.html"),
                  pages.render(env, "index.html", pages.index_context(summary)))
     return 0

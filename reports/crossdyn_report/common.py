@@ -36,19 +36,44 @@ def write_atomic(path, data):
 def png_bytes(fig, colours=256):
     """A figure as a palette PNG (a third of the size of a full-colour one, which matters for the
     committed example); matplotlib's own PNG when Pillow is missing."""
+    try:
+        from PIL import Image  # Pillow comes with Debian's matplotlib
+    except ImportError:
+        Image = None
     buf = io.BytesIO()
+    if Image is not None:
+        # The raw RGBA pixels that savefig would encode as PNG: the same drawing (same dpi, colours
+        # and layout) without a zlib pass whose output would be decoded again at once. The size is
+        # Agg's canvas size at DPI (int of the figure's size in pixels, as FigureCanvasAgg).
+        fig.savefig(buf, format="rgba", dpi=DPI)
+        width, height = (int(v * DPI) for v in fig.get_size_inches())
+        raw = buf.getvalue()
+        if len(raw) == 4 * width * height:
+            plt.close(fig)
+            try:
+                image = Image.frombuffer("RGBA", (width, height), raw, "raw", "RGBA", 0, 1)
+                return _palette_png(image, colours)
+            except Exception:  # an old Pillow: matplotlib's own PNG
+                out = io.BytesIO()
+                plt.imsave(out, np.frombuffer(raw, np.uint8).reshape(height, width, 4), format="png")
+                return out.getvalue()
+        buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=DPI)
     plt.close(fig)
     try:
-        from PIL import Image  # Pillow comes with Debian's matplotlib
-
         buf.seek(0)
-        image = Image.open(buf).convert("RGB").quantize(colors=colours, method=Image.Quantize.MEDIANCUT)
-        out = io.BytesIO()
-        image.save(out, format="PNG", optimize=True)
-        return out.getvalue()
+        return _palette_png(Image.open(buf), colours)
     except Exception:  # no Pillow or an old one
         return buf.getvalue()
+
+
+def _palette_png(image, colours):
+    from PIL import Image
+
+    image = image.convert("RGB").quantize(colors=colours, method=Image.Quantize.MEDIANCUT)
+    out = io.BytesIO()
+    image.save(out, format="PNG", optimize=True)
+    return out.getvalue()
 
 
 def save_figure(fig, path, colours=256):

@@ -280,7 +280,9 @@ class Labels:
 
     def place(self, painter, fig, min_priority=-1):
         ax = painter.ax
-        fig.canvas.draw()  # settles the axes' aspect and position
+        # Settles the axes' aspect and position (all that a full draw of the figure did here,
+        # at a fraction of its cost: the limits are fixed by setup_2d/setup_3d).
+        ax.apply_aspect()
         renderer = fig.canvas.get_renderer()
         items = [it for it in self.items if it[5] >= min_priority]
         anchors = [painter.project(p) for p, *_ in items]

@@ -16,9 +16,11 @@ import json
 import math
 import os
 import re
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 import numpy as np
@@ -382,6 +384,106 @@ class StabilityMap(unittest.TestCase):
                 rgb = np.array(to_rgb(stability.CLASS_COLOURS[cls]))
                 close = np.all(np.abs(img - rgb) < 0.02, axis=2)
                 self.assertGreater(close.sum(), 500, cls)
+
+
+MAKE_REPORT = os.path.join(SOURCE, "reports", "make_report.py")
+
+
+def run_make_report(summary, out, jobs):
+    env = dict(os.environ, CROSSDYN_REPORT_JOBS=str(jobs), PYTHONDONTWRITEBYTECODE="1")
+    return subprocess.run([sys.executable, MAKE_REPORT, summary, out], env=env, capture_output=True, text=True,
+                          timeout=600)
+
+
+def folder_bytes(folder):
+    files = {}
+    for root, _, names in os.walk(folder):
+        for n in names:
+            path = os.path.join(root, n)
+            with open(path, "rb") as f:
+                files[os.path.relpath(path, folder)] = f.read()
+    return files
+
+
+class WorkerProcesses(unittest.TestCase):
+    """The scenes' pages are drawn in worker processes (CROSSDYN_REPORT_JOBS, default one per CPU):
+    the same files as one process, the same messages and exit status when something fails."""
+
+    def test_same_files_in_one_process_and_in_workers(self):
+        scenes = [os.path.join(SOURCE, "scenarios", s + ".yaml") for s in ("torque_free_axisymmetric", "dual_spin")]
+        with tempfile.TemporaryDirectory() as tmp:
+            base = os.path.join(tmp, "base")
+            subprocess.run([CROSSDYN, "verify", "--quiet", "--no-converge", *scenes, "--report=" + base,
+                            "--report-script", MAKE_REPORT], check=True, stdout=subprocess.DEVNULL, timeout=600)
+            made = {}
+            for jobs in (1, 2, 3):
+                out = os.path.join(tmp, "jobs%d" % jobs)
+                subprocess.run(["cp", "-r", base, out], check=True)
+                for n in os.listdir(out):
+                    if n.endswith((".html", ".png")):
+                        os.unlink(os.path.join(out, n))
+                r = run_make_report(os.path.join(out, "summary.json"), out, jobs)
+                self.assertEqual(r.returncode, 0, r.stderr)
+                made[jobs] = folder_bytes(out)
+            self.assertEqual(sorted(made[1]), sorted(folder_bytes(base)))  # every page and picture
+            self.assertGreater(sum(n.endswith(".png") for n in made[1]), 10)
+            self.assertFalse([n for n in made[1] if ".tmp." in n])
+            for jobs in (2, 3):
+                self.assertEqual(sorted(made[jobs]), sorted(made[1]))
+                for n in made[1]:
+                    self.assertEqual(made[jobs][n], made[1][n], "%s differs with %d workers" % (n, jobs))
+
+    def test_a_failing_scene_fails_the_same_way_in_workers(self):
+        summary = summary_three_scenes()
+        del summary["scenes"][1]["page"]  # the second scene's page cannot be written: KeyError
+        summary["scenes"][0]["runs"][0]["data"] = "data/good/missing.csv"  # a warning, the page goes on
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "summary.json")
+            with open(path, "w", encoding="utf-8") as f:
+                json.dump(summary, f)
+            results = {}
+            for jobs in (1, 2, "x"):
+                out = os.path.join(tmp, "out%s" % jobs)
+                results[jobs] = run_make_report(path, out, jobs)
+                self.assertFalse(os.path.exists(os.path.join(out, "index.html")), jobs)
+                self.assertFalse([n for n in os.listdir(out) if ".tmp." in n], jobs)
+            for jobs, r in results.items():
+                self.assertEqual(r.returncode, 1, (jobs, r.stderr))
+                self.assertIn("KeyError: 'page'", r.stderr, jobs)
+                self.assertIn("make_report.py: cannot read", r.stderr, jobs)
+                self.assertIn("missing.csv", r.stderr, jobs)
+            self.assertIn("CROSSDYN_REPORT_JOBS='x' is not a number", results["x"].stderr)
+
+    def test_sigterm_ends_the_script_and_its_workers(self):
+        # crossdyn ends the script with SIGTERM when it is interrupted: no worker may go on writing.
+        scenes = [os.path.join(SOURCE, "scenarios", s + ".yaml") for s in ("dual_spin", "chain5", "spear1_case1")]
+        with tempfile.TemporaryDirectory() as tmp:
+            out = os.path.join(tmp, "report")
+            subprocess.run([CROSSDYN, "verify", "--quiet", "--no-converge", *scenes, "--report=" + out,
+                            "--report-script", MAKE_REPORT], check=True, stdout=subprocess.DEVNULL, timeout=600)
+            for n in os.listdir(out):
+                if n.endswith((".html", ".png")):
+                    os.unlink(os.path.join(out, n))
+            env = dict(os.environ, CROSSDYN_REPORT_JOBS="2", PYTHONDONTWRITEBYTECODE="1")
+            p = subprocess.Popen([sys.executable, MAKE_REPORT, os.path.join(out, "summary.json"), out], env=env,
+                                 stderr=subprocess.DEVNULL)
+            children = "/proc/%d/task/%d/children" % (p.pid, p.pid)
+            workers = []
+            for _ in range(400):  # up to 20 s for the workers to start
+                with open(children) as f:
+                    workers = f.read().split()
+                if len(workers) >= 2:
+                    break
+                time.sleep(0.05)
+            self.assertGreaterEqual(len(workers), 2)
+            p.send_signal(signal.SIGTERM)
+            self.assertEqual(p.wait(timeout=20), 128 + signal.SIGTERM)
+            time.sleep(0.5)
+            for w in workers:
+                self.assertFalse(os.path.exists("/proc/%s" % w) and open("/proc/%s/stat" % w).read().split()[2] != "Z",
+                                 "worker %s outlived the script" % w)
+            self.assertFalse(os.path.exists(os.path.join(out, "index.html")))
+            self.assertFalse([n for n in os.listdir(out) if ".tmp." in n])
 
 
 if __name__ == "__main__":
