@@ -10,7 +10,12 @@ cd "$(dirname "$0")/.."
 phase_start=$SECONDS
 phases=()
 phase_done() { phases+=("$1 $((SECONDS - phase_start)) s"); phase_start=$SECONDS; }
-print_phases() { local IFS=','; [ ${#phases[@]} -eq 0 ] || echo "quickstart: ${phases[*]}, total ${SECONDS} s" >&2; }
+print_phases() {
+  [ ${#phases[@]} -eq 0 ] && return
+  local text="" p
+  for p in "${phases[@]}"; do text+="$p, "; done
+  echo "quickstart: ${text}total ${SECONDS} s" >&2
+}
 trap print_phases EXIT
 
 # The report and `crossdyn draw` run reports/*.py with /usr/bin/python3: matplotlib and Jinja2.
