@@ -400,12 +400,24 @@ void read_modes(const Table& t, FlexBody& f) {
                 "column 'frequency_hz': negative frequency " + shortest(fr) + " Hz");
       const double omega = 2 * std::numbers::pi * fr;
       f.K(ki, ki) = omega * omega * M_k;
+      // The stiffness made from the frequency holds the bound a K.<mode> column holds (1e18), so
+      // the body reads back from the files crossdyn writes (found by nodal_csv_fuzzer: a mode
+      // shape of 1e11 made K = 3.6e27 from 8.7 Hz).
+      if (!(f.K(ki, ki) <= 1e18))
+        fail_at(t.label, r.line, r.fields[freq].column,
+                "column 'frequency_hz': " + shortest(fr) + " Hz with the mode's modal mass " +
+                    shortest(M_k) + " kg gives the stiffness (2 pi f)^2 M = " + shortest(f.K(ki, ki)) +
+                    ", above 1e18: check the mode shape's scale in the nodes file");
       if (ratio != kNone) {
         const double z = number(t, r, ratio);
         if (z < 0)
           fail_at(t.label, r.line, r.fields[ratio].column,
                   "column 'damping_ratio': negative damping ratio " + shortest(z));
         f.D(ki, ki) = 2 * z * omega * M_k;
+        if (!(f.D(ki, ki) <= 1e18))
+          fail_at(t.label, r.line, r.fields[ratio].column,
+                  "column 'damping_ratio': " + shortest(z) + " gives the damping 2 zeta (2 pi f) M = " +
+                      shortest(f.D(ki, ki)) + ", above 1e18: check the mode shape's scale in the nodes file");
       }
     }
     for (Eigen::Index j = 0; j < n; ++j) {

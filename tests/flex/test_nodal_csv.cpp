@@ -4,6 +4,9 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <numbers>
 #include <string>
 
@@ -232,4 +235,42 @@ TEST_CASE("nodal CSV bad input: size limits against hostile files") {
 
 TEST_CASE("nodal CSV files: missing files are named") {
   CHECK_THROWS_WITH(read_nodal_csv("/nonexistent/n.csv", ""), "/nonexistent/n.csv: no such file");
+}
+
+// Every nodal_csv_fuzzer regression input (fuzz/nodal_regressions/: the nodes text, a line "%%",
+// the modes text) is read or refused with InputError; one it reads survives the writer and the
+// reader again, so the body a user's files give is one crossdyn can write back.
+TEST_CASE("class: a nodal file the reader accepts reads back from what the writer writes (fuzz regressions)") {
+  const std::filesystem::path dir = std::filesystem::path(test::source_dir()) / "fuzz" / "nodal_regressions";
+  REQUIRE(std::filesystem::exists(dir));
+  int files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    std::ifstream in(e.path(), std::ios::binary);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::size_t sep = text.find("\n%%\n");
+    const std::string nodes = sep == std::string::npos ? text : text.substr(0, sep + 1);
+    const std::string modes = sep == std::string::npos ? std::string() : text.substr(sep + 4);
+    INFO(e.path().string());
+    ++files;
+    try {
+      const FlexModel m = read_nodal_csv_text(nodes, "n.csv", modes, modes.empty() ? "" : "m.csv");
+      const NodalCsv w = write_nodal_csv(m.flex);
+      CHECK_NOTHROW(read_nodal_csv_text(w.nodes, "n.csv", w.modes, w.modes.empty() ? "" : "m.csv"));
+    } catch (const InputError& err) {
+      const std::string what = err.what();
+      CHECK((what.rfind("n.csv", 0) == 0 || what.rfind("m.csv", 0) == 0));
+    }
+  }
+  CHECK(files >= 1);
+  // The finding itself: 8.7 Hz on a mode shape of 1e11 gave K = 3.6e27, refused at its frequency.
+  std::ifstream in(dir / "stiffness-from-frequency-above-1e18.txt", std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t sep = text.find("\n%%\n");
+  REQUIRE(sep != std::string::npos);
+  try {
+    (void)read_nodal_csv_text(text.substr(0, sep + 1), "n.csv", text.substr(sep + 4), "m.csv");
+    FAIL("accepted");
+  } catch (const InputError& err) {
+    CHECK_THAT(err.what(), Catch::Contains("column 'frequency_hz'") && Catch::Contains("above 1e18"));
+  }
 }
