@@ -88,6 +88,10 @@ void modal_first_moments(const ModalInvariants& inv, const Eigen::Ref<const Eige
                          const Eigen::Ref<const Eigen::VectorXd>& eta_dot, Vector3d& S,
                          Vector3d& p_rel) {
   S = inv.S0;
+  if (inv.n == 0) {  // no modes: Eigen's 3 x 0 product offsets a null pointer (UBSan)
+    p_rel.setZero();
+    return;
+  }
   S.noalias() += inv.Phi_bar * eta;
   p_rel.noalias() = inv.Phi_bar * eta_dot;
   if (!inv.stiffening) return;
@@ -182,10 +186,16 @@ void modal_terms(const ModalInvariants& inv, const Matrix3d& R, const Vector3d& 
     out.Lambda.col(k) = Vector3d(Bk(2, 1) - Bk(1, 2), Bk(0, 2) - Bk(2, 0), Bk(1, 0) - Bk(0, 1));
   }
   out.S = inv.S0;
-  out.S.noalias() += inv.Phi_bar * eta;
   out.I = inv.J_sum + Q.trace() * Matrix3d::Identity() - Q;
-  out.p_rel.noalias() = inv.Phi_bar * eta_dot;
-  out.h_rel.noalias() = out.Lambda * eta_dot;
+  if (n > 0) {
+    out.S.noalias() += inv.Phi_bar * eta;
+    out.p_rel.noalias() = inv.Phi_bar * eta_dot;
+    out.h_rel.noalias() = out.Lambda * eta_dot;
+  } else {  // no modes (a converge model with all dropped): Eigen's product of 3 x 0 blocks
+            // offsets a null pointer (UBSan, cli_fuzzer seed converge_nodal)
+    out.p_rel.setZero();
+    out.h_rel.setZero();
+  }
 
   // Mass matrix (modal_body.hpp): rows/columns [a_N; alpha_B; eta''].
   Eigen::MatrixXd& M = out.M;
