@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #ifndef CROSSDYN_SOURCE_DIR
 #error "CROSSDYN_SOURCE_DIR must be defined (harness/CMakeLists.txt)"
@@ -159,7 +160,25 @@ std::vector<NamedPath> scene_file_inputs(const std::string& path) {
   try {
     return scene_inputs(read_scene(path));
   } catch (const std::exception&) {
-    return {{"the scene file", path}};
+    // A scene that cannot be read does not say which data files it reads: every regular file of
+    // its folder whose name the text holds counts as one (cli_fuzzer: `verify bad.yaml --shard 0/2
+    // --part panel_modes.csv` wrote the part over the data file of a scene with a bad byte).
+    std::vector<NamedPath> inputs{{"the scene file", path}};
+    std::ifstream in(path, std::ios::binary);
+    std::string text(1u << 20, '\0');
+    in.read(text.data(), static_cast<std::streamsize>(text.size()));
+    text.resize(static_cast<std::size_t>(in.gcount()));
+    std::error_code ec;
+    const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+    for (std::filesystem::directory_iterator it(folder.empty() ? "." : folder, ec), end; !ec && it != end;
+         it.increment(ec)) {
+      const std::string name = it->path().filename().string();
+      std::error_code ec2;
+      if (name.empty() || text.find(name) == std::string::npos || !it->is_regular_file(ec2)) continue;
+      if (it->path() == std::filesystem::path(path)) continue;
+      inputs.push_back({"a data file the scene names", it->path().string()});
+    }
+    return inputs;
   }
 }
 
