@@ -595,10 +595,8 @@ bool inside(const fs::path& p, const fs::path& dir) {
   return !rel.empty() && *rel.begin() != "..";
 }
 
-// The report folder, absolute, with a symbolic link to a folder followed. Refuses what a report
-// must not replace (see write_report in report.hpp).
-fs::path report_folder(const std::string& given, const std::vector<SceneOutcome>& scenes,
-                       const std::string& script) {
+// The --report folder, absolute, with a symbolic link to a folder followed; the root refused.
+fs::path resolve_report_dir(const std::string& given) {
   if (given.empty()) throw InputError("--report: the folder name is empty");
   fs::path dir = fs::absolute(given).lexically_normal();
   if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
@@ -606,6 +604,15 @@ fs::path report_folder(const std::string& given, const std::vector<SceneOutcome>
   dir = fs::weakly_canonical(dir, ec);  // a symbolic link to a folder: the folder it names
   if (ec) throw InputError("--report: cannot resolve '" + given + "': " + ec.message());
   if (dir == dir.root_path()) throw InputError("--report: '" + given + "' is the root folder");
+  return dir;
+}
+
+// The report folder, absolute, with a symbolic link to a folder followed. Refuses what a report
+// must not replace (see write_report in report.hpp).
+fs::path report_folder(const std::string& given, const std::vector<SceneOutcome>& scenes,
+                       const std::string& script) {
+  const fs::path dir = resolve_report_dir(given);
+  std::error_code ec;
   const fs::file_status st = fs::status(dir, ec);
   if (fs::exists(st)) {
     if (!fs::is_directory(st))
@@ -791,13 +798,8 @@ void write_report(const std::vector<SceneOutcome>& scenes, const ReportOptions& 
 std::unique_ptr<StagedFolder> stage_report_folder(const std::string& given, const std::string& marker,
                                                   const std::string& kind,
                                                   bool (*owned)(const fs::path& name)) {
-  if (given.empty()) throw InputError("--report: the folder name is empty");
-  fs::path dir = fs::absolute(given).lexically_normal();
-  if (!dir.has_filename()) dir = dir.parent_path();  // "out/"
+  const fs::path dir = resolve_report_dir(given);
   std::error_code ec;
-  dir = fs::weakly_canonical(dir, ec);  // a symbolic link to a folder: the folder it names
-  if (ec) throw InputError("--report: cannot resolve '" + given + "': " + ec.message());
-  if (dir == dir.root_path()) throw InputError("--report: '" + given + "' is the root folder");
   const fs::file_status st = fs::status(dir, ec);
   if (fs::exists(st)) {
     if (!fs::is_directory(st)) throw InputError("--report: '" + given + "' is a file, not a folder");
