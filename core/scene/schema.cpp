@@ -284,7 +284,7 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "Time between output rows, > 0 and at most the duration; at most 1e7 rows."},
 {.path = "run.integrator", .type = Word, .default_value = name_of(RunSpec{}.integrator.value()),
  .words = kNameWords<Integrator>, .noun = "integrator",
- .doc = "The integrator (README \"Integrators\"): rk4 takes fixed steps `dt`; the others adapt "
+ .doc = "The integrator (docs/integrators.md): rk4 takes fixed steps `dt`; the others adapt "
         "their step to `rtol` and `atol`."},
 {.path = "run.rtol", .type = Number, .default_value = "1e-10",
  .doc = "Relative tolerance of the adaptive integrators, > 0."},
