@@ -331,19 +331,21 @@ void add_merge_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<VerifyCommandOptions>();
   CLI::App* sub = app.add_subcommand(
       "merge",
-      "Combine the part files of `crossdyn verify|study|stability --shard K/N --part FILE`\n"
-      "(K = 0..N-1) into exactly what the unsharded command writes: verify's table, JSON summary,\n"
-      "JUnit XML and report (run times are each part's own); study's tables, --csv and --report;\n"
-      "stability's map, --csv and --report (CPU times are each part's own). Refused, exit status\n"
-      "2, naming what is wrong: parts of another crossdyn version or of different commands, made\n"
-      "with different options, of different N, a missing or repeated shard, different scene lists\n"
-      "or scene hashes, or a scene file on disk that changed since (run merge where the shards\n"
-      "ran). Otherwise the exit status is the whole run's, as the command's.");
+      "Combine the part files of `crossdyn verify|study|stability|converge --shard K/N --part\n"
+      "FILE` (K = 0..N-1) into exactly what the unsharded command writes: verify's table, JSON\n"
+      "summary, JUnit XML and report (run times are each part's own); study's tables, --csv and\n"
+      "--report; stability's map, --csv and --report (CPU times are each part's own); converge's\n"
+      "table and --json. Refused, exit status 2, naming what is wrong: parts of another crossdyn\n"
+      "version or of different commands, made with different options, of different N, a missing\n"
+      "or repeated shard, different scene lists or scene hashes, or a scene file on disk that\n"
+      "changed since (run merge where the shards ran). Otherwise the exit status is the whole\n"
+      "run's, as the command's.");
   sub->add_option("parts", o->parts, "The part files, one per shard, in any order")->required();
   o->json_option = sub->add_option("--json", o->json,
                                    "Write the JSON summary to FILE (default: "
                                    "reports/latest/summary.json, or only DIR/summary.json with "
-                                   "--report DIR)");
+                                   "--report DIR; converge parts: the converge JSON, "
+                                   "only when given)");
   sub->add_option("--junit", o->junit, "Write JUnit XML to FILE (for CI; verify parts)");
   sub->add_option("--csv", o->csv, "Write the CSV to FILE (study and stability parts, as their --csv)");
   sub->add_option("--report", o->report,
