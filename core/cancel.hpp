@@ -122,8 +122,9 @@ class HoldForcedExit {
   HoldForcedExit& operator=(const HoldForcedExit&) = delete;
 };
 
-// Test hook (documented in README "Stopping and bounding runs"): when the environment variable
-// CROSSDYN_TEST_INTERRUPT_AT equals `phase`, acts as if Ctrl-C arrived now (request_interrupt).
+// Test hook (documented in docs/outputs.md, "All outputs of one command are committed
+// together"): when the environment variable CROSSDYN_TEST_INTERRUPT_AT equals `phase`, acts as if
+// Ctrl-C arrived now (request_interrupt).
 // Phases: "report" (a report or drawing script was just started), "before-commit" (every output
 // prepared, none renamed yet), "during-commit" (after the first output was renamed into place).
 void test_interrupt_point(const char* phase);

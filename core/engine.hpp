@@ -1,6 +1,6 @@
 // The one interface every dynamics engine implements, and the engine-neutral state used to start
 // engines from the same point and compare them there. Engines never call each other: they meet
-// only through this interface (see README "Independence").
+// only through this interface (see docs/development.md "Independence").
 //
 // Life of an engine object (const model, mutable workspace; docs/style.md item 1):
 //   Engine e(system, options);   // preallocates its workspace; may throw InputError

@@ -1,4 +1,4 @@
-// Error types and the exit codes they map to (README "Exit status").
+// Error types and the exit codes they map to (docs/outputs.md "Exit status").
 //   InputError  bad input (scene file, command line): exit 2. The message names the file, the
 //               line and column where known, the key, and what is wrong.
 //   RunFailure  a run that cannot go on (non-finite state, step-size underflow, step limit,

@@ -296,7 +296,7 @@ void Runner::fixed_rk4(State& x) {
 
 // rkf78 has no continuous extension in Odeint (nor an accepted one of its order in the
 // literature that Odeint implements): its steps land on every output time, so it takes at least
-// one step per output interval (README "Integrators").
+// one step per output interval (docs/integrators.md).
 template <class Stepper>
 void Runner::controlled(Stepper& stepper, State& x) {
   State f0;

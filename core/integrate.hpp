@@ -1,7 +1,7 @@
 // Integrator plumbing (Boost.Odeint, SUNDIALS CVODE): runs one engine on one scene from t = 0 to
 // the scene's duration and samples the engine's output row at every output time.
 //
-// Methods, chosen explicitly (README "Integrators"):
+// Methods, chosen explicitly (docs/integrators.md):
 //   rk4              classical Runge-Kutta, fixed step dt (clipped to land on output times)
 //   dopri5           Dormand-Prince 5(4), adaptive, dense output at the output times
 //   dop853           Dormand-Prince 8(5,3), adaptive, dense output of order 7 (core/dop853.hpp)

@@ -1,6 +1,7 @@
 // Output helpers: number formatting, checked writes, and files that appear only when complete.
 //
-// What an output path may be (README "Outputs: special files, symbolic links, read-only files"):
+// What an output path may be (docs/outputs.md "Outputs: special files, symbolic links,
+// read-only files"):
 //   does not exist     created (mode 0666 & ~umask) when complete; its folder must exist
 //   regular file       replaced atomically when complete (mode and, for root, owner kept); a
 //                      read-only file (no write bit in its mode, whoever runs crossdyn) is refused

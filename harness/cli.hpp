@@ -1,6 +1,7 @@
 // The crossdyn program as a function: parses the command line, runs the command and maps every
-// outcome to an exit status and a message (README "Exit status"). main() (harness/main.cpp) adds
-// only the signal handlers; the fuzz target (fuzz/cli_fuzzer.cpp) calls it in-process.
+// outcome to an exit status and a message (docs/outputs.md "Exit status"). main()
+// (harness/main.cpp) adds only the signal handlers; the fuzz target (fuzz/cli_fuzzer.cpp) calls it
+// in-process.
 //
 //   0   success                          1   a comparison failed (or compared nothing)
 //   2   bad input: scene file, command line, an output that would overwrite an input or cannot
@@ -37,8 +38,9 @@ std::string closest_match(const std::string& word, const std::vector<std::string
 // Makes `option` a comma-separated list option (--engines, --integrators, --tolerances, --dts,
 // --values): an empty list (`--engines ''`) is refused, not read as "the default", and so are an
 // empty item (`a,,b`, a trailing comma) and an item given twice (`kane,kane`): one rule for every
-// list option (README "Command line"). Numeric lists also refuse a value given twice in another
-// spelling (1e-6,1e-06) where they are parsed (harness/study.cpp parse_values).
+// list option (docs/command-line.md "Overrides and list options"). Numeric lists also refuse a
+// value given twice in another spelling (1e-6,1e-06) where they are parsed (harness/study.cpp
+// parse_values).
 CLI::Option* list_option(CLI::Option* option);
 
 // An integer option (--max-steps, --repeat, --panels, --max-links): its text must be a decimal

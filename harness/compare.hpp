@@ -1,4 +1,4 @@
-// Comparing engines on one scene (README "Comparing engines"; `crossdyn compare`).
+// Comparing engines on one scene (`crossdyn compare`: docs/commands/compare.md).
 //
 // What is compared, for every pair of engines that ran to the end (and the analytic solution
 // where the scene has one, as the pseudo-engine "analytic"):
@@ -35,7 +35,7 @@
 // failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
 // that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
 //
-// Bounding runs (README "Stopping and bounding runs"): CompareOptions::max_steps and ::timeout
+// Bounding runs (docs/stopping.md): CompareOptions::max_steps and ::timeout
 // limit each engine run (its set-up included, for the timeout). A run that hits either is a
 // failed "run" check ("engine kane failed at t = 1.23 s: timed out after 30 s", or "step limit
 // reached"), and the other engines still run. An interrupt (Ctrl-C, SIGTERM) ends the whole

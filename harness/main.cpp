@@ -15,9 +15,9 @@ namespace {
 
 // Whatever ends in std::terminate (an exception leaving a thread or a noexcept function; above
 // all std::bad_alloc where no handler can catch it) is exit status 3 with a one-line message,
-// never an abort (SIGABRT, 134): README "Exit status". Outputs are never half-written (they are
-// temporaries until renamed); a temporary left behind is removed by the next run that writes
-// there (core/output.hpp). Nothing here allocates.
+// never an abort (SIGABRT, 134): docs/outputs.md "Exit status". Outputs are never half-written
+// (they are temporaries until renamed); a temporary left behind is removed by the next run that
+// writes there (core/output.hpp). Nothing here allocates.
 [[noreturn]] void on_terminate() noexcept {
   const char* message = "crossdyn: internal error: the program cannot continue\n";
   const char* detail = nullptr;

@@ -101,7 +101,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
       ->required();
   sub->add_option("--engine", o->engine, "Engine: kane, lagrange or newton-euler (default kane)");
   sub->add_option("--integrator", o->overrides.integrator,
-                  integrator_help() + "; default: the scene's (README \"Integrators\")");
+                  integrator_help() + "; default: the scene's (docs/integrators.md)");
   sub->add_option("--rtol", o->overrides.rtol, "Relative tolerance of adaptive integrators (> 0)");
   sub->add_option("--atol", o->overrides.atol, "Absolute tolerance of adaptive integrators (> 0)");
   sub->add_option("--dt", o->overrides.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
@@ -112,7 +112,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
                   "Fail the run after this many steps (at least 1; default 20000000)");
   sub->add_option("--output,-o", o->output,
                   "Write the CSV to FILE (atomically: complete file or none; '-' is stdout; see "
-                  "README for devices, FIFOs, symbolic links and read-only files)");
+                  "docs/outputs.md for devices, FIFOs, symbolic links and read-only files)");
   sub->add_flag("--stats", o->stats, "Print step and right-hand-side counts to stderr");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
   sub->add_option("--stabilization", o->stabilization,

@@ -619,7 +619,7 @@ namespace {
 
 // A SAX handler that builds the DOM (nlohmann's own DOM builder) while charging every value its
 // memory: a part whose DOM would pass the budget is refused at the value that passes it, before
-// the memory is taken (README "Sharding a sweep": limits of a part).
+// the memory is taken (docs/commands/merge.md, "Limits").
 struct BudgetedDom {
   nlohmann::detail::json_sax_dom_parser<json> dom;
   std::size_t budget;
@@ -822,7 +822,7 @@ Part read_part(const std::string& file, std::size_t& budget) {
       const std::uintmax_t size = fs::file_size(file, ec);
       if (!ec && size > kMaxPartFileBytes)
         throw InputError("is " + mib(size) + "; merge reads part files up to " + mib(kMaxPartFileBytes) +
-                         " (README \"Sharding a sweep\"): shard the run into more parts");
+                         " (docs/commands/merge.md, \"Limits\"): shard the run into more parts");
     }
     std::ifstream in(file, std::ios::binary);
     if (!in) throw InputError("cannot be read");

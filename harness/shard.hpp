@@ -1,5 +1,5 @@
 // Sharding `crossdyn verify`, `study`, `stability` and `converge` across processes or machines,
-// and merging the parts (README "Sharding a sweep"). The unit of work: a scene (verify, study),
+// and merging the parts (docs/sharding.md). The unit of work: a scene (verify, study),
 // a parameter value (stability), a model (converge); all are sliced by plan_units and their
 // parts checked by check_parts. Study, stability and converge parts ("sweep parts") carry the
 // command, its options and one JSON item per unit (sweep_part_json); the commands turn their
@@ -124,7 +124,7 @@ struct Part {
   std::string frame = "null";          // sweep parts (JSON text)
   std::vector<std::string> items;      // sweep parts: one JSON text per unit of the slice
 };
-// The limits of merge's memory (README "Sharding a sweep"): a part file larger than
+// The limits of merge's memory (docs/commands/merge.md, "Limits"): a part file larger than
 // kMaxPartFileBytes is refused before it is read, and the parsed form of all the parts of one
 // merge together may take at most kPartMemoryBudget (each value charged its DOM size while it is
 // parsed, so a part that would pass it is refused before the memory is taken). Exit status 2.

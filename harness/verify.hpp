@@ -1,5 +1,5 @@
 // crossdyn verify: compare on every scene, one summary table, a JSON summary, JUnit XML and the
-// HTML report (README "Verifying").
+// HTML report (docs/commands/verify.md).
 //
 // Order, so that the verdict never depends on the report: every scene is compared (a scene that
 // cannot be read, or whose comparison throws anything, is recorded for that scene and the others

@@ -3,7 +3,7 @@
 
     scripts/make_chain.py N [--duration T] [--output-step H] > chainN.yaml
 
-Used to measure how crossdyn scales and how fast it stops (README "Stopping and bounding runs").
+Used to measure how crossdyn scales and how fast it stops (docs/stopping.md).
 """
 import argparse
 

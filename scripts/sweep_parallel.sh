@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Any sharded crossdyn sweep (verify, study, stability, converge) on one machine: N shards as
-# background jobs, then `crossdyn merge` (README "Sharding a sweep").
+# background jobs, then `crossdyn merge` (docs/sharding.md).
 #
 #   scripts/sweep_parallel.sh COMMAND N OUTDIR [COMMAND's options and scenes ...] [--merge MERGE OPTIONS ...]
 #

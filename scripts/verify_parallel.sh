@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Sharded `crossdyn verify` on one machine: N shards at once, then `crossdyn merge` (README
-# "Sharding a sweep").
+# Sharded `crossdyn verify` on one machine: N shards at once, then `crossdyn merge`
+# (docs/sharding.md).
 #
 #   scripts/verify_parallel.sh N OUTDIR [verify options and scenes ...]
 #

@@ -5,7 +5,7 @@
 #SBATCH --time=01:00:00
 #SBATCH --output=crossdyn-verify-%A_%a.out
 # Sharded `crossdyn verify` on a Slurm cluster: a job array with one shard per task, and a merge
-# job that starts when every task has succeeded (README "Sharding a sweep").
+# job that starts when every task has succeeded (docs/sharding.md).
 #
 #   scripts/verify_slurm.sh [study|stability|converge] N OUTDIR [options and scenes ...]     (on a login node)
 #

@@ -1,4 +1,4 @@
-// Stopping and bounding runs, as a user meets them (README "Stopping and bounding runs"):
+// Stopping and bounding runs, as a user meets them (docs/stopping.md):
 // Ctrl-C (SIGINT) and SIGTERM at every phase of `run`, `compare` and `verify`, per-run
 // --timeout and --max-steps, the progress line on a terminal (and nothing on a pipe), and a stiff
 // but solvable scene whose first trial step blows up.
@@ -6,7 +6,7 @@
 // Bound on time: after the signal, crossdyn must exit with status 130 within kExitBound = 3 s.
 // crossdyn itself exits within about cancel::kForcedExitDelay (0.5 s) even where nothing polls;
 // the bound is six times that, generous for a loaded CI machine, so these tests fail only when
-// cancellation does not work, not when the machine is slow. (Measured figures: README.)
+// cancellation does not work, not when the machine is slow.
 #include <catch2/catch.hpp>
 
 #include "tests/support/child_process.hpp"

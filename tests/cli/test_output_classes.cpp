@@ -1,5 +1,5 @@
-// Issue 23, classes 1 and 2, across every command and output kind (README "Outputs: special
-// files, symbolic links, read-only files"):
+// Issue 23, classes 1 and 2, across every command and output kind (docs/outputs.md "Outputs:
+// special files, symbolic links, read-only files"):
 //   class 1: no output of any command replaces an input: the scene, the nodal data files it
 //            reads, the part files of a merge (exit 2, the input's bytes unchanged);
 //   class 2: an unusable output is refused (exit 2) before the work, with no other output

@@ -365,6 +365,7 @@ TEST_CASE("class 6, memory stays bounded, and running out is exit 3, never an ab
     INFO(r.output);
     CHECK(r.status == 2);
     CHECK(r.output.find("merge reads part files up to 256 MiB") != std::string::npos);
+    CHECK(r.output.find("docs/commands/merge.md") != std::string::npos);  // the limits explained
   }
   // Under the size limit but with more values than the budget: refused while parsing (a "data"
   // list of 40 MB of "1," is 20 million values, and a list of them in a field that is not
