@@ -2,6 +2,7 @@
 // tolerance lookup).
 #include "harness/compare.hpp"
 #include "harness/engines.hpp"
+#include "harness/numbers.hpp"
 
 #include "analytic/torque_free.hpp"
 #include "core/cancel.hpp"
@@ -23,7 +24,6 @@ namespace crossdyn::harness {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // One compared quantity of a scene: a scalar column, or an attitude (four quaternion columns).
 struct Quantity {
@@ -100,12 +100,6 @@ struct Lookup {
 int column_index(const RunResult& r, const std::string& name) {
   const auto it = std::find(r.columns.begin(), r.columns.end(), name);
   return it == r.columns.end() ? -1 : static_cast<int>(it - r.columns.begin());
-}
-
-std::string fmt_g(double v, int digits = 6) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*g", digits, v);
-  return b;
 }
 
 // Fills bound, normalised, status from error and scale (NaN errors fail).
@@ -789,9 +783,9 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
                           : "PASS, " + std::to_string(c.count(CheckStatus::Pass)) +
                                 " checks passed"),
               "", "  ");
-  out += wrap("integrator " + c.settings.method.str() + ", rtol " + fmt_g(c.settings.rtol) + ", atol " +
-                  fmt_g(c.settings.atol) + "; output every " + fmt_g(c.settings.output_step) +
-                  " s to " + fmt_g(c.settings.duration) + " s",
+  out += wrap("integrator " + c.settings.method.str() + ", rtol " + fmt_g(c.settings.rtol, 6) + ", atol " +
+                  fmt_g(c.settings.atol, 6) + "; output every " + fmt_g(c.settings.output_step, 6) +
+                  " s to " + fmt_g(c.settings.duration, 6) + " s",
               "", "  ");
   out += "\n";
 
@@ -830,8 +824,8 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
   auto add = [&rows](const Check& k) {
     const bool run = k.group == "run";
     rows.push_back({k.quantity, who(k), run ? "-" : sci(k.error),
-                    !run || k.status == CheckStatus::Fail ? fmt_g(k.time) : "-",
-                    k.first_exceeded ? fmt_g(*k.first_exceeded) : "-", run ? "-" : sci(k.normalised),
+                    !run || k.status == CheckStatus::Fail ? fmt_g(k.time, 6) : "-",
+                    k.first_exceeded ? fmt_g(*k.first_exceeded, 6) : "-", run ? "-" : sci(k.normalised),
                     to_string(k.status)});
   };
   for (const Check* k : fails) add(*k);

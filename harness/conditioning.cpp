@@ -4,6 +4,7 @@
 
 #include "core/errors.hpp"
 #include "harness/engines.hpp"
+#include "harness/numbers.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
@@ -16,7 +17,6 @@ namespace crossdyn::harness {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // Every entry of a TreeAccel in one vector per kind (the kinds of conditioning.hpp).
 std::vector<std::vector<double>> kinds_of(const TreeAccel& a) {

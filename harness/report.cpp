@@ -8,6 +8,7 @@
 #include "core/output.hpp"
 #include "harness/locations.hpp"
 #include "harness/scene_geometry.hpp"
+#include "harness/numbers.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -44,7 +45,7 @@ using json = nlohmann::ordered_json;
 namespace {
 
 // NaN and infinity are not JSON numbers: they become null (documented in the report script).
-json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json number(double v) { return json_number<json>(v); }
 
 json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
 json quat(const Eigen::Quaterniond& q) { return json::array({q.w(), q.x(), q.y(), q.z()}); }
@@ -288,7 +289,7 @@ std::string xml_escape(const std::string& s) {
   return out;
 }
 
-std::string fmt_g(double v) {
+std::string fmt_6g(double v) {
   if (!std::isfinite(v)) return sci(v);
   char b[64];
   std::snprintf(b, sizeof b, "%.6g", v);
@@ -301,12 +302,12 @@ std::string describe_failure(const Check& c) {
   if (c.quantity == "comparison") return c.note;  // nothing compared (harness/verify.hpp)
   std::string who = c.b.empty() ? c.a : c.a + " vs " + c.b;
   if (c.group == "run")
-    return who + ": run failed at t = " + fmt_g(c.time) + " s: " + c.note;
+    return who + ": run failed at t = " + fmt_6g(c.time) + " s: " + c.note;
   std::string line = c.quantity + ", " + who + ": max error " + sci(c.error, 4) + " at t = " +
-                     fmt_g(c.time) + " s > bound " + sci(c.bound, 4) + " (atol " +
+                     fmt_6g(c.time) + " s > bound " + sci(c.bound, 4) + " (atol " +
                      sci(c.tolerance.atol, 2) + " + rtol " + sci(c.tolerance.rtol, 2) + " * " +
                      sci(c.scale, 4) + "), error/bound " + sci(c.normalised);
-  if (c.first_exceeded) line += ", first over at t = " + fmt_g(*c.first_exceeded) + " s";
+  if (c.first_exceeded) line += ", first over at t = " + fmt_6g(*c.first_exceeded) + " s";
   if (!c.note.empty()) line += " (" + c.note + ")";
   return line;
 }
@@ -421,7 +422,7 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
             for (const EngineRun& r : c.runs)
               if (r.label == k->a) t = r.result.stats.wall_seconds;
         cases << "    <testcase classname=\"" << xml_escape(classname) << "\" name=\""
-              << xml_escape(name) << "\" time=\"" << fmt_g(t) << "\"";
+              << xml_escape(name) << "\" time=\"" << fmt_6g(t) << "\"";
         std::vector<const Check*> failed, passed, excluded, skip;
         for (const Check* k : checks) {
           if (k->status == CheckStatus::Fail) failed.push_back(k);
@@ -456,7 +457,7 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
     }
     body << "  <testsuite name=\"" << xml_escape(ids[i]) << "\" tests=\"" << tests
          << "\" failures=\"" << failures << "\" errors=\"" << errors << "\" skipped=\"" << skipped
-         << "\" time=\"" << fmt_g(time) << "\">\n"
+         << "\" time=\"" << fmt_6g(time) << "\">\n"
          << "    <properties>\n      <property name=\"file\" value=\"" << xml_escape(s.path)
          << "\"/>\n    </properties>\n"
          << cases.str() << "  </testsuite>\n";
@@ -470,7 +471,7 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
       << "<testsuites name=\"crossdyn verify\" tests=\"" << all_tests << "\" failures=\""
       << all_failures << "\" errors=\"" << all_errors << "\" skipped=\"" << all_skipped
-      << "\" time=\"" << fmt_g(all_time) << "\">\n"
+      << "\" time=\"" << fmt_6g(all_time) << "\">\n"
       << body.str() << "</testsuites>\n";
   return out.str();
 }

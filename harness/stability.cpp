@@ -8,6 +8,7 @@
 #include "core/scene/scene.hpp"
 #include "harness/compare.hpp"
 #include "harness/engines.hpp"
+#include "harness/numbers.hpp"
 
 #include <cctype>
 #include <cstdlib>
@@ -25,7 +26,6 @@ namespace crossdyn::harness {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 std::string g3(double v) {
   char b[32];

@@ -6,6 +6,7 @@
 #include "core/output.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/numbers.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -19,9 +20,7 @@ namespace crossdyn::harness {
 namespace {
 
 namespace fs = std::filesystem;
-using json = nlohmann::json;
-
-json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+using page_json = nlohmann::json;  // the pages' JSON keeps sorted keys (harness::json keeps order)
 
 // Unique ids, one per map: <scene>-<knob> (page <id>.html, <id>.csv).
 std::vector<std::string> map_ids(const std::vector<StabilityMap>& maps) {
@@ -30,8 +29,8 @@ std::vector<std::string> map_ids(const std::vector<StabilityMap>& maps) {
   return unique_ids(bases, {"index"}, '_');
 }
 
-json map_json(const StabilityMap& m, const std::string& id) {
-  json j;
+page_json map_json(const StabilityMap& m, const std::string& id) {
+  page_json j;
   j["scene"] = m.scene;
   j["file"] = m.file;
   j["id"] = id;
@@ -41,10 +40,10 @@ json map_json(const StabilityMap& m, const std::string& id) {
   j["limits"] = {{"tolerance", m.limits.tolerance},
                  {"drift_limit", m.limits.drift_limit},
                  {"diverged_error", m.limits.diverged_error}};
-  json cols = json::array();
+  page_json cols = page_json::array();
   for (const StabilityColumn& c : m.columns) {
-    json lambda = json::array();  // per engine, in "engines" order
-    for (double l : c.lambda_max) lambda.push_back(number(l));
+    page_json lambda = page_json::array();  // per engine, in "engines" order
+    for (double l : c.lambda_max) lambda.push_back(json_number<page_json>(l));
     cols.push_back({{"value", c.value},
                     {"reference", c.reference},
                     {"reference_note", c.reference_note},
@@ -53,7 +52,7 @@ json map_json(const StabilityMap& m, const std::string& id) {
   j["columns"] = cols;
   j["engines"] = m.engines;
   j["integrators"] = m.integrators;
-  json cells = json::array();
+  page_json cells = page_json::array();
   for (const StabilityCell& c : m.cells)
     cells.push_back({{"engine", c.engine},
                      {"integrator", c.integrator},
@@ -63,11 +62,11 @@ json map_json(const StabilityMap& m, const std::string& id) {
                      {"column", c.column},
                      {"class", class_name(c.result.cls)},
                      {"why", c.result.why},
-                     {"history_error", number(c.history_error)},
-                     {"cpu", c.result.cls == StabilityClass::NoReference ? json(nullptr) : number(c.cpu)},
+                     {"history_error", json_number<page_json>(c.history_error)},
+                     {"cpu", c.result.cls == StabilityClass::NoReference ? page_json(nullptr) : json_number<page_json>(c.cpu)},
                      {"rhs_calls", c.rhs_calls},
                      {"steps", c.steps},
-                     {"h_lambda", number(c.h_lambda)}});
+                     {"h_lambda", json_number<page_json>(c.h_lambda)}});
   j["cells"] = cells;
   j["findings"] = m.findings;
   j["notes"] = m.notes;
@@ -84,15 +83,15 @@ bool stability_owned(const fs::path& name) {
 }  // namespace
 
 std::string stability_json(const std::vector<StabilityMap>& maps) {
-  json j;
+  page_json j;
   j["tool"] = "crossdyn";
   j["kind"] = "stability";
   j["version"] = version();
-  json classes = json::array();
+  page_json classes = page_json::array();
   for (StabilityClass c : kStabilityClasses) classes.push_back(class_name(c));
   j["classes"] = classes;
   const std::vector<std::string> ids = map_ids(maps);
-  json list = json::array();
+  page_json list = page_json::array();
   for (std::size_t i = 0; i < maps.size(); ++i) list.push_back(map_json(maps[i], ids[i]));
   j["maps"] = list;
   return j.dump(1) + "\n";

@@ -11,6 +11,7 @@
 #include "core/scene/scene.hpp"
 #include "harness/conditioning.hpp"
 #include "harness/engines.hpp"
+#include "harness/numbers.hpp"
 
 #include <time.h>
 
@@ -28,19 +29,12 @@ namespace crossdyn::harness {
 
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 // CPU time of the process, s (clock_gettime(2), CLOCK_PROCESS_CPUTIME_ID).
 double cpu_now() {
   timespec ts{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
-
-std::string fmt_g(double v, int digits = 3) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*g", digits, v);
-  return b;
 }
 
 // "1e-08" style for settings (tolerances, steps): at most 3 significant digits, and an exponent

@@ -6,6 +6,7 @@
 #include "core/output.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/numbers.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -19,9 +20,7 @@ namespace crossdyn::harness {
 namespace {
 
 namespace fs = std::filesystem;
-using json = nlohmann::json;
-
-json number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+using page_json = nlohmann::json;  // the pages' JSON keeps sorted keys (harness::json keeps order)
 
 // Unique ids, one per scene (page <id>-study.html, <id>-study.csv).
 std::vector<std::string> study_ids(const std::vector<SceneStudy>& scenes) {
@@ -30,8 +29,8 @@ std::vector<std::string> study_ids(const std::vector<SceneStudy>& scenes) {
   return unique_ids(bases, {"index", "scaling"}, '_');
 }
 
-json scene_json(const SceneStudy& s, const std::string& id) {
-  json j;
+page_json scene_json(const SceneStudy& s, const std::string& id) {
+  page_json j;
   j["scene"] = s.scene;
   j["file"] = s.file;
   j["id"] = id;
@@ -42,37 +41,37 @@ json scene_json(const SceneStudy& s, const std::string& id) {
   j["reference"] = {{"kind", s.reference.kind},
                     {"description", s.reference.description},
                     {"runs", s.reference.runs},
-                    {"agreement", number(s.reference.agreement)},
+                    {"agreement", json_number<page_json>(s.reference.agreement)},
                     {"worst_pair", s.reference.worst_pair},
-                    {"cpu_seconds", number(s.reference.cpu_seconds)}};
+                    {"cpu_seconds", json_number<page_json>(s.reference.cpu_seconds)}};
   j["notes"] = s.notes;
-  json recs = json::array();
+  page_json recs = page_json::array();
   for (double t : recommendation_targets()) {
     const auto best = cheapest_within(s, t);
     recs.push_back({{"target", t},
                     {"text", recommendation(s, t)},
-                    {"row", best ? json(*best) : json(nullptr)}});
+                    {"row", best ? page_json(*best) : page_json(nullptr)}});
   }
   j["recommendations"] = recs;
-  json rows = json::array();
+  page_json rows = page_json::array();
   for (const StudyRow& r : s.rows)
     rows.push_back({{"engine", r.engine},
                     {"integrator", r.integrator},
                     {"fixed_step", r.fixed_step},
-                    {"tolerance", r.fixed_step ? json(nullptr) : number(r.tolerance)},
-                    {"dt", r.fixed_step ? number(r.dt) : json(nullptr)},
+                    {"tolerance", r.fixed_step ? page_json(nullptr) : json_number<page_json>(r.tolerance)},
+                    {"dt", r.fixed_step ? json_number<page_json>(r.dt) : page_json(nullptr)},
                     {"setting", r.setting()},
                     {"ok", r.ok},
                     {"failure", r.failure},
-                    {"cpu_median", number(r.cpu_median)},
-                    {"cpu_min", number(r.cpu_min)},
-                    {"cpu_max", number(r.cpu_max)},
+                    {"cpu_median", json_number<page_json>(r.cpu_median)},
+                    {"cpu_min", json_number<page_json>(r.cpu_min)},
+                    {"cpu_max", json_number<page_json>(r.cpu_max)},
                     {"repeats", r.repeats},
                     {"rhs_calls", r.rhs_calls},
                     {"steps", r.steps},
                     {"rejected", r.rejected},
-                    {"end_error", r.ok ? number(r.error.end) : json(nullptr)},
-                    {"history_error", r.ok ? number(r.error.history) : json(nullptr)},
+                    {"end_error", r.ok ? json_number<page_json>(r.error.end) : page_json(nullptr)},
+                    {"history_error", r.ok ? json_number<page_json>(r.error.history) : page_json(nullptr)},
                     {"end_quantity", r.error.end_quantity},
                     {"history_quantity", r.error.history_quantity},
                     {"front_end", r.front_end},
@@ -81,26 +80,26 @@ json scene_json(const SceneStudy& s, const std::string& id) {
   return j;
 }
 
-json scaling_json(const ScalingStudy& s) {
-  json j;
+page_json scaling_json(const ScalingStudy& s) {
+  page_json j;
   j["links"] = s.links;
   j["budget"] = s.budget;
   j["csv"] = "scaling.csv";
   j["page"] = "scaling.html";
-  json lines = json::array();
+  page_json lines = page_json::array();
   for (const ScalingLine& l : s.lines) {
-    json points = json::array();
+    page_json points = page_json::array();
     for (const ScalingPoint& p : l.points)
       points.push_back({{"links", p.links},
-                        {"seconds_per_call", p.ok ? number(p.seconds_per_call) : json(nullptr)},
+                        {"seconds_per_call", p.ok ? json_number<page_json>(p.seconds_per_call) : page_json(nullptr)},
                         {"calls", p.calls},
                         {"ok", p.ok},
                         {"note", p.note},
-                        {"condition", number(p.condition)},
+                        {"condition", json_number<page_json>(p.condition)},
                         {"system_size", p.system_size},
-                        {"accel_deviation", number(p.accel_deviation)}});
-    lines.push_back({{"engine", l.engine}, {"exponent", number(l.exponent)},
-                     {"condition_exponent", number(l.condition_exponent)}, {"system", l.system},
+                        {"accel_deviation", json_number<page_json>(p.accel_deviation)}});
+    lines.push_back({{"engine", l.engine}, {"exponent", json_number<page_json>(l.exponent)},
+                     {"condition_exponent", json_number<page_json>(l.condition_exponent)}, {"system", l.system},
                      {"points", points}});
   }
   j["lines"] = lines;
@@ -121,7 +120,7 @@ bool study_owned(const fs::path& name) {
 
 std::string study_json(const std::vector<SceneStudy>& scenes, const std::optional<ScalingStudy>& scaling,
                        const std::string& what_is_timed) {
-  json j;
+  page_json j;
   j["tool"] = "crossdyn";
   j["kind"] = "study";
   j["version"] = version();
@@ -129,10 +128,10 @@ std::string study_json(const std::vector<SceneStudy>& scenes, const std::optiona
   j["error_metric"] = study_error_text();
   j["csv_header"] = study_csv_header();
   const std::vector<std::string> ids = study_ids(scenes);
-  json list = json::array();
+  page_json list = page_json::array();
   for (std::size_t i = 0; i < scenes.size(); ++i) list.push_back(scene_json(scenes[i], ids[i]));
   j["scenes"] = list;
-  j["scaling"] = scaling ? scaling_json(*scaling) : json(nullptr);
+  j["scaling"] = scaling ? scaling_json(*scaling) : page_json(nullptr);
   return j.dump(1) + "\n";
 }
 

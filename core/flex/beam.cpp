@@ -6,7 +6,6 @@
 #include <boost/math/tools/roots.hpp>
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -15,6 +14,7 @@
 #include <utility>
 
 #include "core/errors.hpp"
+#include "core/scene/text.hpp"
 
 namespace crossdyn::flex {
 
@@ -132,11 +132,7 @@ void add_foreshortening(const BeamSpec& s, const std::array<int, 2>& across,
 
 std::string join_problem(const SpecProblem& p) { return p.key + ": " + p.what; }
 
-std::string shortest(double x) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, x);
-  return std::string(buf, r.ptr);
-}
+using scene::shortest;
 
 }  // namespace
 

@@ -17,17 +17,14 @@
 
 #include "core/errors.hpp"
 #include "core/input_file.hpp"
+#include "core/scene/text.hpp"
 
 namespace crossdyn::flex {
 
 namespace {
 
-std::string shortest(double x) {
-  if (x == 0) x = 0;  // -0 as 0
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, x);
-  return std::string(buf, r.ptr);
-}
+// x for a message: its shortest round-trip form, -0 as 0.
+std::string shown(double x) { return scene::shortest(x == 0 ? 0.0 : x); }
 
 // A field as written, for messages: at most 40 characters, non-printable bytes as '?'.
 std::string excerpt(std::string_view s) {
@@ -166,10 +163,10 @@ double number(const Table& t, const Row& r, std::size_t col, double limit = 1e12
     fail_at(t.label, r.line, f.column, column + "expected a number, found " + excerpt(f.text));
   if (std::abs(x) > limit)
     fail_at(t.label, r.line, f.column,
-            column + "absurd value " + shortest(x) + " (magnitude above " + shortest(limit) + ")");
+            column + "absurd value " + shown(x) + " (magnitude above " + shown(limit) + ")");
   if (x != 0 && std::abs(x) < 1e-100)  // as the scene reader (kTiny): subnormal values make NaN runs
     fail_at(t.label, r.line, f.column,
-            column + "value " + shortest(x) + " is too small to compute with (a magnitude above 0 "
+            column + "value " + shown(x) + " is too small to compute with (a magnitude above 0 "
             "and below 1e-100)");
   return x;
 }
@@ -291,7 +288,7 @@ FlexBody read_nodes(const Table& t, const NodesLayout& L) {
     node.mass = number(t, r, L.mass);
     if (node.mass < 0)
       fail_at(t.label, r.line, r.fields[L.mass].column,
-              "column 'mass': negative mass " + shortest(node.mass) + " kg (a node's mass is >= 0)");
+              "column 'mass': negative mass " + shown(node.mass) + " kg (a node's mass is >= 0)");
     total += node.mass;
     for (int a = 0; a < 3; ++a) node.p_BoNi_B(a) = number(t, r, L.p[static_cast<std::size_t>(a)]);
     if (L.J) {
@@ -397,7 +394,7 @@ void read_modes(const Table& t, FlexBody& f) {
       const double fr = number(t, r, freq);
       if (fr < 0)
         fail_at(t.label, r.line, r.fields[freq].column,
-                "column 'frequency_hz': negative frequency " + shortest(fr) + " Hz");
+                "column 'frequency_hz': negative frequency " + shown(fr) + " Hz");
       const double omega = 2 * std::numbers::pi * fr;
       f.K(ki, ki) = omega * omega * M_k;
       // The stiffness made from the frequency holds the bound a K.<mode> column holds (1e18), so
@@ -405,19 +402,19 @@ void read_modes(const Table& t, FlexBody& f) {
       // shape of 1e11 made K = 3.6e27 from 8.7 Hz).
       if (!(f.K(ki, ki) <= 1e18))
         fail_at(t.label, r.line, r.fields[freq].column,
-                "column 'frequency_hz': " + shortest(fr) + " Hz with the mode's modal mass " +
-                    shortest(M_k) + " kg gives the stiffness (2 pi f)^2 M = " + shortest(f.K(ki, ki)) +
+                "column 'frequency_hz': " + shown(fr) + " Hz with the mode's modal mass " +
+                    shown(M_k) + " kg gives the stiffness (2 pi f)^2 M = " + shown(f.K(ki, ki)) +
                     ", above 1e18: check the mode shape's scale in the nodes file");
       if (ratio != kNone) {
         const double z = number(t, r, ratio);
         if (z < 0)
           fail_at(t.label, r.line, r.fields[ratio].column,
-                  "column 'damping_ratio': negative damping ratio " + shortest(z));
+                  "column 'damping_ratio': negative damping ratio " + shown(z));
         f.D(ki, ki) = 2 * z * omega * M_k;
         if (!(f.D(ki, ki) <= 1e18))
           fail_at(t.label, r.line, r.fields[ratio].column,
-                  "column 'damping_ratio': " + shortest(z) + " gives the damping 2 zeta (2 pi f) M = " +
-                      shortest(f.D(ki, ki)) + ", above 1e18: check the mode shape's scale in the nodes file");
+                  "column 'damping_ratio': " + shown(z) + " gives the damping 2 zeta (2 pi f) M = " +
+                      shown(f.D(ki, ki)) + ", above 1e18: check the mode shape's scale in the nodes file");
       }
     }
     for (Eigen::Index j = 0; j < n; ++j) {
@@ -449,8 +446,8 @@ void read_modes(const Table& t, FlexBody& f) {
           const std::string a = f.mode_names[static_cast<std::size_t>(i)], b = f.mode_names[static_cast<std::size_t>(j)];
           fail_at(t.label, line, col,
                   std::string("column '") + which + "." + b + "': " + which + "(" + a + ", " + b +
-                      ") = " + shortest(A(i, j)) + " differs from " + which + "(" + b + ", " + a +
-                      ") = " + shortest(A(j, i)) + " (line " + std::to_string(line0) + "): " + which +
+                      ") = " + shown(A(i, j)) + " differs from " + which + "(" + b + ", " + a +
+                      ") = " + shown(A(j, i)) + " (line " + std::to_string(line0) + "): " + which +
                       " must be symmetric");
         }
   };
@@ -516,13 +513,13 @@ NodalCsv write_nodal_csv(const FlexBody& f) {
     for (std::string_view c : kComponent) s += "," + m + "." + std::string(c);
   s += "\n";
   for (const FlexNode& node : f.nodes) {
-    s += node.name + "," + shortest(node.mass);
-    for (int a = 0; a < 3; ++a) s += "," + shortest(node.p_BoNi_B(a));
+    s += node.name + "," + shown(node.mass);
+    for (int a = 0; a < 3; ++a) s += "," + shown(node.p_BoNi_B(a));
     const Eigen::Matrix3d& J = node.J_Ni_B;
-    for (double v : {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)}) s += "," + shortest(v);
+    for (double v : {J(0, 0), J(1, 1), J(2, 2), J(0, 1), J(0, 2), J(1, 2)}) s += "," + shown(v);
     for (int m = 0; m < f.modes(); ++m) {
-      for (int k = 0; k < 3; ++k) s += "," + shortest(node.Phi_B(k, m));
-      for (int k = 0; k < 3; ++k) s += "," + shortest(node.Psi_B(k, m));
+      for (int k = 0; k < 3; ++k) s += "," + shown(node.Phi_B(k, m));
+      for (int k = 0; k < 3; ++k) s += "," + shown(node.Psi_B(k, m));
     }
     s += "\n";
   }
@@ -534,8 +531,8 @@ NodalCsv write_nodal_csv(const FlexBody& f) {
   d += "\n";
   for (int i = 0; i < f.modes(); ++i) {
     d += f.mode_names[static_cast<std::size_t>(i)];
-    for (int j = 0; j < f.modes(); ++j) d += "," + shortest(f.K(i, j));
-    for (int j = 0; j < f.modes(); ++j) d += "," + shortest(f.D(i, j));
+    for (int j = 0; j < f.modes(); ++j) d += "," + shown(f.K(i, j));
+    for (int j = 0; j < f.modes(); ++j) d += "," + shown(f.D(i, j));
     d += "\n";
   }
   return out;

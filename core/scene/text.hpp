@@ -1,4 +1,4 @@
-// Text helpers of the scene reader and writer (internal to core/scene/).
+// Text helpers of the scene reader and writer (internal to core/: also the flexible-body data readers).
 #pragma once
 
 #include <cstddef>

@@ -186,14 +186,20 @@ TEST_CASE("Ctrl-C during `compare` and `verify`: between engines, during a run, 
     require_interrupted(p, SIGTERM);
   }
   SECTION("verify, while the report script runs") {
-    const std::string python = write(d / "slow_python.sh", "#!/bin/sh\nexec sleep 1000\n");
+    // The script marks that it started (the report is built in a staging folder, so d/report
+    // appears only at the end), then sleeps until it is stopped.
+    const std::string started = d / "python_started";
+    const std::string python =
+        write(d / "slow_python.sh", "#!/bin/sh\n: > '" + started + "'\nexec sleep 1000\n");
     fs::permissions(python, fs::perms::owner_all);
     ChildProcess p({program(), "verify", crossdyn::test::scene_path("spear1_case1"), "--python",
                     python, "--report=" + d / "report"});
     REQUIRE(p.wait_for("verify: ", kPhaseTimeout));  // the scene is done; the report comes next
-    for (int i = 0; i < 600 && !fs::exists(d / "report"); ++i) p.wait_for("\x01", 0.1);
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    for (int i = 0; i < kPhaseTimeout * 10 && !fs::exists(started); ++i) p.wait_for("\x01", 0.1);
+    REQUIRE(fs::exists(started));  // the signal lands while the report script runs
     require_interrupted(p, SIGINT);
+    // No report, not half of one, and no staging folder left behind.
+    CHECK(d.entries() == std::vector<std::string>{"chain30.yaml", "python_started", "slow_python.sh"});
   }
   for (const char* f : {"c.json", "v.json", "v.xml"}) CHECK_FALSE(fs::exists(d / f));
 }
