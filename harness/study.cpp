@@ -388,9 +388,11 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
   if (options.repeat < 1) throw InputError("--repeat: must be at least 1");
 
   // Engines that cannot run the scene are left out with the reason.
+  // The reference from the engines studied (a scene one engine cannot run is a question for that
+  // engine's user alone): one engine named gives that engine at two integrators.
   std::vector<EngineSpec> reference_specs = options.reference_engines;
   if (reference_specs.empty())
-    for (const std::string& e : engine_names()) reference_specs.push_back({e, e, {}});
+    for (const std::string& e : engines) reference_specs.push_back({e, e, {}});
   std::set<std::string> unusable;
   auto usable = [&](const std::string& engine, const EngineOptions& eo) {
     if (unusable.count(engine)) return false;
@@ -468,11 +470,12 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
       }
     s.reference.agreement = worst;
     if (!(worst <= options.reference_agreement))
-      throw StudyRefused(system.file + ": no reference: the engines do not agree at the tightest "
-                         "settings: " + s.reference.worst_pair + " differ by " + sci(worst) +
+      throw StudyRefused(system.file + ": no reference: the reference runs do not agree at the "
+                         "tightest settings: " + s.reference.worst_pair + " differ by " + sci(worst) +
                          " (largest on " + worst_quantity + ") > " + sci(options.reference_agreement) +
-                         " (history error, the study's metric); the study needs a reference the "
-                         "engines agree on",
+                         " (history error, the study's metric): every target would be measured "
+                         "against a reference no better than that; compare the engines on this "
+                         "scene (`crossdyn compare`) to see which one differs",
                          kExitCheckFailed);
     reference = mean_history(system, runs);
     s.reference.kind = "engines";
@@ -485,7 +488,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
         }() +
         " at rtol = atol = " + setting_text(options.reference_tolerance) +
         "), which agree to " + sci(worst) + " (worst pair: " + s.reference.worst_pair +
-        "; required: " + sci(options.reference_agreement) + ")";
+        "): the reference is good to about " + sci(worst, 2) + ", so targets below " +
+        sci(kReferenceMargin * worst, 2) + " are not measured";
   }
   s.reference.cpu_seconds = cpu_now() - ref_c0;
   const ErrorMetric metric(system, reference);
@@ -615,8 +619,16 @@ std::string config_text(const StudyRow& r) {
 }
 }  // namespace
 
+double smallest_supported_target(const SceneStudy& s) {
+  return s.reference.kind == "engines" ? kReferenceMargin * s.reference.agreement : 0.0;
+}
+
 std::string recommendation(const SceneStudy& s, double target, bool history) {
   const std::string what = history ? "history error" : "end-state error";
+  if (target < smallest_supported_target(s))
+    return "for " + sci(target, 1) + " " + what + " on " + s.scene + ": not measured: the reference is " +
+           "good to " + sci(s.reference.agreement, 2) + " on this scene (the spread of its runs); " +
+           "targets below " + sci(smallest_supported_target(s), 2) + " are not measured";
   const auto best = cheapest_within(s, target, history);
   if (best) {
     const StudyRow& r = s.rows[*best];

@@ -113,10 +113,16 @@ struct StudyOptions {
   std::optional<long> max_steps;         // per run
   double timeout = 60;                   // per run, s of wall-clock time (0: none)
   // The reference when the scene has no analytic solution.
-  std::vector<EngineSpec> reference_engines;  // empty: every engine, default options
+  // empty: the engines studied (`engines`, or every engine when that is empty), default options
+  std::vector<EngineSpec> reference_engines;
   std::vector<std::string> reference_integrators{"rkf78", "dopri5"};
   double reference_tolerance = 1e-13;
-  double reference_agreement = 1e-11;
+  // The reference runs' largest pairwise history error (their spread, the reference's own error
+  // estimate) the study accepts. Above it the scene is refused: with the default, 1e-5, the
+  // loosest target (1e-4) would be measured against a reference less than ten times better.
+  // Below it every target at least kReferenceMargin x the spread is measured and the others are
+  // declined with the reason (recommendation()).
+  double reference_agreement = 1e-5;
   std::optional<long> reference_max_steps;  // the reference runs' step limit (empty: max_steps)
   // Each reference run's own time budget, s of wall-clock time (0: none): independent of the
   // per-run `timeout`, which is for the configurations (issue 23, class 11: a tiny --timeout
@@ -191,6 +197,13 @@ std::optional<std::size_t> cheapest_within(const SceneStudy& s, double target, b
 std::string recommendation(const SceneStudy& s, double target, bool history = false);
 // The targets recommendations are made for: 1e-4, 1e-6, 1e-8, 1e-10.
 const std::vector<double>& recommendation_targets();
+// A target is measured only when it is at least this many times the reference's own error (the
+// spread of the reference runs): below that, the reference's error would be part of what is
+// measured.
+inline constexpr double kReferenceMargin = 10;
+// The smallest target the study's reference supports: 0 for an analytic reference, else
+// kReferenceMargin x the reference runs' spread.
+double smallest_supported_target(const SceneStudy& s);
 
 // Text table (fits 100 columns), the reference and the recommendations.
 std::string format_study(const SceneStudy& s);

@@ -11,6 +11,7 @@
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/settings.hpp"
 #include "harness/shard.hpp"
 #include "harness/study.hpp"
 
@@ -33,6 +34,7 @@ struct StudyCliOptions {
   int repeat = 3;
   std::optional<long> max_steps;
   double timeout = 60;
+  std::optional<double> duration, output_step;  // overrides of the scenes' run block, as `run`'s
   std::string report, csv;
   bool scaling = false;
   int max_links = 128;
@@ -110,10 +112,19 @@ int study(const StudyCliOptions& o) {
   std::vector<std::string> paths;
   for (const std::string& s : o.scenes) paths.push_back(harness::resolve_scene(s));
   std::vector<System> systems;
+  harness::RunOverrides overrides;
+  overrides.duration = o.duration;
+  overrides.output_step = o.output_step;
+  harness::check_overrides(overrides);
   for (const std::string& p : paths) {
     std::vector<SceneWarning> warnings;
     systems.push_back(read_scene(p, &warnings));
     for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+    // --duration, --output-step: checked with the scene's other settings (InputError naming the
+    // option), then the scene's own, so that every run of the study (reference too) uses them.
+    const IntegratorSettings checked = harness::settings_for(systems.back(), overrides);
+    systems.back().run.duration = checked.duration;
+    systems.back().run.output_step = checked.output_step;
   }
   // Every output against every input the scenes were read from (nodal data files too).
   std::vector<NamedPath> outputs{{"standard output", "-"}}, folders;
@@ -181,7 +192,9 @@ int study(const StudyCliOptions& o) {
         {"--dts", harness::shortest_list(options.dts)},
         {"--repeat", std::to_string(options.repeat)},
         {"--max-steps", o.max_steps ? std::to_string(*o.max_steps) : "(none)"},
-        {"--timeout", harness::shortest_list({options.timeout})}};
+        {"--timeout", harness::shortest_list({options.timeout})},
+        {"--duration", o.duration ? harness::shortest_list({*o.duration}) : "(the scene's)"},
+        {"--output-step", o.output_step ? harness::shortest_list({*o.output_step}) : "(the scene's)"}};
     part_file->stream() << harness::sweep_part_json("study", part_options, shard, plan, "null", items);
     commit_together({&*part_file});
     std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
@@ -264,6 +277,9 @@ void add_study_command(CLI::App& app, int& exit_code) {
   sub->add_option("--repeat", o->repeat, "Timed runs per configuration; the median is reported (default 3)");
   sub->add_option("--max-steps", o->max_steps, "Per run: fail the run after N steps");
   sub->add_option("--timeout", o->timeout, "Per run: fail the run after SECONDS (default 60; 0: none)");
+  sub->add_option("--duration", o->duration, "Override the scenes' run length, s (every run, the reference too)");
+  sub->add_option("--output-step", o->output_step,
+                  "Override the scenes' output step, s (the times the errors are measured at)");
   sub->add_option("--report", o->report,
                   "Write the pages (index.html, <scene>-study.html, scaling.html), PNG charts and "
                   "CSV files into DIR");

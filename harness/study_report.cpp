@@ -43,12 +43,15 @@ page_json scene_json(const SceneStudy& s, const std::string& id) {
                     {"runs", s.reference.runs},
                     {"agreement", json_number<page_json>(s.reference.agreement)},
                     {"worst_pair", s.reference.worst_pair},
+                    {"smallest_target", json_number<page_json>(smallest_supported_target(s))},
                     {"cpu_seconds", json_number<page_json>(s.reference.cpu_seconds)}};
   j["notes"] = s.notes;
   page_json recs = page_json::array();
   for (double t : recommendation_targets()) {
-    const auto best = cheapest_within(s, t);
+    const bool measured = t >= smallest_supported_target(s);
+    const auto best = measured ? cheapest_within(s, t) : std::nullopt;
     recs.push_back({{"target", t},
+                    {"measured", measured},
                     {"text", recommendation(s, t)},
                     {"row", best ? page_json(*best) : page_json(nullptr)}});
   }
