@@ -190,6 +190,14 @@ std::vector<bool> pareto_front(const std::vector<double>& cost, const std::vecto
 // (max(1e-15, reference.agreement)) count as equal.
 void mark_fronts(SceneStudy& s);
 
+// True when the row's step size was set by the output times, not by its own setting: rkf78 (and
+// rk4) end a step at every output time (core/integrate.hpp), so when rkf78 took at most 10 % more
+// steps than there are output intervals, nearly every step ended at an output time and its error
+// measures the output step, not its tolerance; rk4 with dt above the output step takes the output
+// step. The dense methods (dopri5, dop853, bulirsch-stoer, cvode-*) interpolate the output times
+// and are never capped.
+bool step_set_by_output_times(const SceneStudy& s, const StudyRow& r);
+
 // The cheapest row (least median CPU) whose end-state error (or history error) is <= target.
 std::optional<std::size_t> cheapest_within(const SceneStudy& s, double target, bool history = false);
 // "for 1e-08 end-state error on spear1_case1 use kane + dopri5 at rtol 1e-09: 0.41 ms of CPU", or

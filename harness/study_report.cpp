@@ -59,6 +59,7 @@ page_json scene_json(const SceneStudy& s, const std::string& id) {
   page_json rows = page_json::array();
   for (const StudyRow& r : s.rows)
     rows.push_back({{"engine", r.engine},
+                    {"step_set_by_output_times", step_set_by_output_times(s, r)},
                     {"integrator", r.integrator},
                     {"fixed_step", r.fixed_step},
                     {"tolerance", r.fixed_step ? page_json(nullptr) : json_number<page_json>(r.tolerance)},

@@ -123,6 +123,53 @@ TEST_CASE("study: a reference good to less than the targets states its error and
   }
 }
 
+TEST_CASE("study: a row whose steps the output times set is marked, in the table and in the "
+          "recommendation; dense methods and rkf78 with sparse outputs are not (issue 24)") {
+  StudyOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"rkf78", "dop853"};
+  o.tolerances = {1e-4, 1e-10};
+  o.repeat = 1;
+  SECTION("output every 0.05 s: rkf78 steps every output time whatever its tolerance") {
+    const SceneStudy st = study_scene(scene("spear1_case1", 2, 0.05), o);
+    REQUIRE(st.rows.size() == 4);
+    for (const StudyRow& r : st.rows) {
+      INFO(r.integrator << " " << r.setting() << ": " << r.steps << " steps");
+      REQUIRE(r.ok);
+      CHECK(step_set_by_output_times(st, r) == (r.integrator == "rkf78"));
+    }
+    // rkf78 at rtol 1e-4 reaches the error of rtol 1e-10: the output step, not the tolerance.
+    const std::string table = format_study(st);
+    CHECK(table.find("rtol 1e-04*") != std::string::npos);
+    CHECK(table.find("* step set by the output times") != std::string::npos);
+    bool said = false;
+    for (double t : recommendation_targets()) {
+      const auto best = cheapest_within(st, t);
+      if (best && st.rows[*best].integrator == "rkf78") {
+        said = true;
+        CHECK(recommendation(st, t).find("its step was set by the output step (0.05 s)") != std::string::npos);
+      }
+    }
+    CHECK((said || table.find("set by the output step") == std::string::npos));
+  }
+  SECTION("one output interval: rkf78 takes the steps its tolerance allows") {
+    const SceneStudy st = study_scene(scene("spear1_case1", 2, 2), o);
+    for (const StudyRow& r : st.rows) {
+      INFO(r.integrator << " " << r.setting() << ": " << r.steps << " steps");
+      CHECK_FALSE(step_set_by_output_times(st, r));
+    }
+    CHECK(format_study(st).find("* step set by the output times") == std::string::npos);
+  }
+  SECTION("rk4: a step above the output step is the output step") {
+    o.integrators = {"rk4"};
+    o.dts = {0.1, 0.025};
+    const SceneStudy st = study_scene(scene("spear1_case1", 1, 0.05), o);
+    REQUIRE(st.rows.size() == 2);
+    CHECK(step_set_by_output_times(st, st.rows[0]));        // dt 0.1 > 0.05
+    CHECK_FALSE(step_set_by_output_times(st, st.rows[1]));  // dt 0.025
+  }
+}
+
 TEST_CASE("study: --duration and --output-step override every scene's run block, reference too, and "
           "are checked like run's") {
   const test::ProgramResult r = test::run_crossdyn(
