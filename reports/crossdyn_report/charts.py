@@ -159,28 +159,40 @@ def chart_joints(scene, runs, out_dir, sid):
             phi = joint_rotation_vectors(r, system, j)
             if phi is not None:
                 phis[(r.label, j["name"])] = phi
+    # Rotors (a revolute joint turning more than a full turn in some run, e.g. a reaction wheel at
+    # hundreds of rad) get their own panels: on one axis with them a 0.2 rad hinge is a flat line.
+    def turned(j):
+        spans = [np.nanmax(np.abs(r.col(j["name"] + ".angle"))) for r in runs
+                 if r.has(j["name"] + ".angle") and len(r.t)]
+        return max(spans) if spans else 0.0
+    rotors = [j for j in revolute if turned(j) > 2 * np.pi]
+    hinges = [j for j in revolute if j not in rotors]
     panels = []
-    if revolute:
-        panels += [("rev-angle", None), ("rev-rate", None)]
+    if hinges:
+        panels += [("rev-angle", hinges), ("rev-rate", hinges)]
+    if rotors:
+        panels += [("rev-angle", rotors), ("rev-rate", rotors)]
     if spherical:
         panels += [("sph-angle", None), ("sph-rate", None)] + [("sph-phi", j) for j in spherical]
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.5 * len(panels) + 1.0), sharex=True,
                              squeeze=False)
     axes = axes[:, 0]
     colour_of = {j["name"]: JOINT_COLOURS[i % len(JOINT_COLOURS)] for i, j in enumerate(joints)}
-    rev_colours = [colour_of[j["name"]] for j in revolute]
     sph_colours = [colour_of[j["name"]] for j in spherical]
     for ax, (kind, joint) in zip(axes, panels):
-        if kind == "rev-angle":
-            _joint_lines(ax, runs, revolute, lambda r, j: r.col(j["name"] + ".angle") if r.has(j["name"] + ".angle")
-                         else None, rev_colours)
-            ax.set_ylabel("revolute angle (rad)")
-            rad_axis(ax, "rad")
-        elif kind == "rev-rate":
-            _joint_lines(ax, runs, revolute, lambda r, j: r.col(j["name"] + ".rate") if r.has(j["name"] + ".rate")
-                         else None, rev_colours)
-            ax.set_ylabel("revolute rate (rad/s)")
-            rad_axis(ax, "rad/s")
+        if kind in ("rev-angle", "rev-rate"):
+            group = joint  # the hinges or the rotors
+            what = "rotor" if group and group[0] in rotors else "revolute"
+            if kind == "rev-angle":
+                _joint_lines(ax, runs, group, lambda r, j: r.col(j["name"] + ".angle")
+                             if r.has(j["name"] + ".angle") else None, [colour_of[j["name"]] for j in group])
+                ax.set_ylabel("%s angle (rad)" % what)
+                rad_axis(ax, "rad")
+            else:
+                _joint_lines(ax, runs, group, lambda r, j: r.col(j["name"] + ".rate")
+                             if r.has(j["name"] + ".rate") else None, [colour_of[j["name"]] for j in group])
+                ax.set_ylabel("%s rate (rad/s)" % what)
+                rad_axis(ax, "rad/s")
         elif kind == "sph-angle":
             _joint_lines(ax, runs, spherical, lambda r, j: np.linalg.norm(phis[(r.label, j["name"])], axis=1)
                          if (r.label, j["name"]) in phis else None, sph_colours)
@@ -221,7 +233,9 @@ def chart_joints(scene, runs, out_dir, sid):
     caption = ""
     if revolute:
         caption += ("Revolute joints: angle (rad) and rate (rad/s) of each child about its hinge axis, "
-                    "relative to its parent. ")
+                    "relative to its parent%s. " % (
+                        "; rotors (more than a full turn: %s) on their own panels, below the hinges"
+                        % ", ".join(j["name"] for j in rotors) if rotors and hinges else ""))
     if spherical:
         caption += ("Spherical joints: the joint rotation q_J = q_offset^-1 q_NP^-1 q_NC computed from "
                     "the parent's and child's attitudes in each run, as its rotation angle |phi| and "
