@@ -4,7 +4,7 @@ parameter values across, integrator x step (or tolerance) down, cells coloured b
 import os
 
 import numpy as np
-from matplotlib.colors import ListedColormap
+from matplotlib.colors import to_rgb
 from matplotlib.patches import Patch
 
 from .common import gfmt, plt, save_figure, write_atomic
@@ -40,24 +40,47 @@ def chart_map(m, out_dir):
     if not engines or not m["columns"]:
         return None
     classes = list(CLASS_COLOURS)
-    cmap = ListedColormap([CLASS_COLOURS[k] for k in classes])
     nrows = max(len(_rows(m, e)) for e in engines)
     ncols = len(m["columns"])
     fig, axes = plt.subplots(len(engines), 1, figsize=(max(7.0, 0.95 * ncols + 3.4), (0.3 * nrows + 1.6) * len(engines) + 0.8),
                              squeeze=False)
+    # Within its class a cell is shaded by the size of its error (issue 24): log10 of the history
+    # error, from the class's smallest error on this map (full colour) to its largest (mixed half
+    # with white); the exponent is printed in cells without another number.
+    logs = {}
+    for c in m["cells"]:
+        e = c.get("history_error")
+        if e is not None and np.isfinite(e) and e > 0:
+            logs.setdefault(c["class"], []).append(np.log10(e))
+    span = {k: (min(v), max(v)) for k, v in logs.items()}
+
+    def shade(c):
+        rgb = np.array(to_rgb(CLASS_COLOURS[c["class"]]))
+        e = c.get("history_error")
+        if c["class"] not in span or e is None or not np.isfinite(e) or e <= 0:
+            return rgb
+        lo, hi = span[c["class"]]
+        t = 0.0 if hi <= lo else (np.log10(e) - lo) / (hi - lo)
+        return rgb + (1.0 - rgb) * 0.5 * t
+
     for ax, engine in zip(axes[:, 0], engines):
         rows = _rows(m, engine)
         grid = np.full((len(rows), ncols), np.nan)
+        image = np.ones((len(rows), ncols, 4))
+        image[:, :, 3] = 0.0  # no cell: transparent
         text = [["" for _ in range(ncols)] for _ in rows]
         for c in m["cells"]:
             if c["engine"] != engine:
                 continue
             i = rows.index((c["integrator"], c["setting"], c["setting_text"]))
             grid[i, c["column"]] = classes.index(c["class"])
+            image[i, c["column"], :3] = shade(c)
+            image[i, c["column"], 3] = 1.0
             if c.get("h_lambda") is not None and c["class"] != "no reference":
                 text[i][c["column"]] = "%.2g" % c["h_lambda"]
-        ax.imshow(np.ma.masked_invalid(grid), cmap=cmap, vmin=-0.5, vmax=len(classes) - 0.5, aspect="auto",
-                  interpolation="nearest")
+            elif c.get("history_error") is not None and np.isfinite(c["history_error"]) and c["history_error"] > 0:
+                text[i][c["column"]] = "%d" % int(np.floor(np.log10(c["history_error"])))
+        ax.imshow(image, aspect="auto", interpolation="nearest")
         for i in range(len(rows)):
             for j in range(ncols):
                 if text[i][j]:
@@ -87,8 +110,11 @@ def chart_map(m, out_dir):
     name = "%s.png" % m["id"]
     save_figure(fig, os.path.join(out_dir, name))
     return name, ("Each cell is one run of %s: the engine (panel) with the integrator and step or "
-                  "tolerance (row) at one value of %s (column), coloured by its class. Numbers in rk4 "
-                  "cells are h |lambda|max: rk4 is stable only below about 2.8. |lambda|max (top axis) is "
+                  "tolerance (row) at one value of %s (column), coloured by its class, and shaded "
+                  "within its class by the size of its history error (full colour: the class's "
+                  "smallest error on this map; paler: larger). Numbers in rk4 cells are h |lambda|max: "
+                  "rk4 is stable only below about 2.8; in the other cells, the exponent of the history "
+                  "error (-7: 1e-7 to 1e-6). |lambda|max (top axis) is "
                   "the largest |eigenvalue| of that engine's right-hand-side Jacobian at t = 0."
                   % (m["scene"], m["parameter"]["description"]))
 
