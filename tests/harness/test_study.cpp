@@ -170,43 +170,41 @@ TEST_CASE("study: a row whose steps the output times set is marked, in the table
   }
 }
 
-TEST_CASE("study: a run a looser setting already took past the step limit is not made, and says "
-          "why (issue 24: stability cells stop as soon as their class is decided)") {
+TEST_CASE("study: an rk4 run with a shorter step than one past the step limit is not made, and "
+          "says why, while adaptive methods are always run (issue 24)") {
   StudyOptions o;
   o.engines = {"kane"};
-  o.integrators = {"dop853", "rk4"};
-  o.dts = {0.05, 0.01, 0.002};  // 40, 200, 1000 steps over 2 s
   o.repeat = 1;
   o.max_steps = 150;
   o.reference_max_steps = 10000000;  // the limit is the configurations' only
-  SECTION("loose to tight: the tighter rows are not run") {
-    o.tolerances = {1e-4, 1e-10, 1e-12};
-    o.max_steps = 5;  // dop853 takes 3 steps at 1e-4, 10 at 1e-10, 16 at 1e-12 (spear1_case1, 2 s)
-    o.integrators = {"dop853"};
+  SECTION("rk4, given out of order: shorter than a failed step is not run, longer is") {
+    o.integrators = {"rk4"};
+    o.dts = {0.01, 0.05, 0.002};  // 200 (over the limit), 40, 1000 steps over 2 s
     const SceneStudy st = study_scene(scene("spear1_case1", 2, 0.05), o);
     REQUIRE(st.rows.size() == 3);
     INFO(st.rows[0].failure << " | " << st.rows[1].failure << " | " << st.rows[2].failure);
-    CHECK(st.rows[0].ok);
-    CHECK_FALSE(st.rows[1].ok);
-    CHECK(st.rows[1].failure.find("step limit") != std::string::npos);
-    CHECK(st.rows[1].steps > 0);  // it ran
-    CHECK_FALSE(st.rows[2].ok);
-    CHECK(st.rows[2].failure.rfind("not run: rtol 1e-10 already failed (", 0) == 0);
-    CHECK(st.rows[2].failure.find("a tighter tolerance takes more steps") != std::string::npos);
-    CHECK(st.rows[2].steps == 0);  // it did not run
-  }
-  SECTION("rk4: a shorter step than one that hit the limit is not run; a longer one is") {
-    o.integrators = {"rk4"};
-    o.dts = {0.002, 0.05, 0.01};  // 1000 (over the limit), 40, 200 (over the limit) steps
-    const SceneStudy st = study_scene(scene("spear1_case1", 2, 0.05), o);
-    REQUIRE(st.rows.size() == 3);
     CHECK_FALSE(st.rows[0].ok);
     CHECK(st.rows[0].failure.find("step limit") != std::string::npos);
-    CHECK(st.rows[1].ok);  // looser than the failed one: run
+    CHECK(st.rows[0].steps > 0);  // it ran
+    CHECK(st.rows[1].ok);         // longer than the failed step: run
     CHECK_FALSE(st.rows[2].ok);
-    // 0.01 is longer than 0.002, so it was run (and failed by itself)
-    CHECK(st.rows[2].failure.find("not run") == std::string::npos);
-    CHECK(st.rows[2].failure.find("step limit") != std::string::npos);
+    CHECK(st.rows[2].failure.rfind("not run: dt 0.01 already failed (", 0) == 0);
+    CHECK(st.rows[2].failure.find("a shorter step takes more steps") != std::string::npos);
+    CHECK(st.rows[2].steps == 0);  // it did not run
+  }
+  SECTION("an adaptive method is run at every tolerance, even after a looser one failed") {
+    o.integrators = {"dop853"};
+    o.tolerances = {1e-4, 1e-10, 1e-12};
+    o.max_steps = 5;  // dop853 takes 3 steps at 1e-4, 10 at 1e-10, 16 at 1e-12 (spear1_case1, 2 s)
+    const SceneStudy st = study_scene(scene("spear1_case1", 2, 0.05), o);
+    REQUIRE(st.rows.size() == 3);
+    CHECK(st.rows[0].ok);
+    for (std::size_t i : {1, 2}) {
+      INFO(st.rows[i].failure);
+      CHECK(st.rows[i].failure.find("step limit") != std::string::npos);
+      CHECK(st.rows[i].failure.find("not run") == std::string::npos);
+      CHECK(st.rows[i].steps > 0);
+    }
   }
 }
 
