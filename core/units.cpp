@@ -9,8 +9,10 @@ namespace {
 constexpr double kDeg = std::numbers::pi / 180.0;  // rad per degree
 
 // Every unit the reader knows. Factors are exact definitions: 1 deg = pi/180 rad,
-// 1 rpm = 2 pi rad / 60 s, 1 min = 60 s.
-constexpr std::array<Unit, 24> kUnits{{
+// 1 rpm = 2 pi rad / 60 s, 1 min = 60 s, 1 mN = 1e-3 N. Per degree is per pi/180 rad:
+// 1 N m/deg = 180/pi N m/rad. The first unit of a dimension is its SI unit.
+constexpr double kPerDeg = 180.0 / std::numbers::pi;  // (per degree) / (per radian)
+constexpr std::array<Unit, 38> kUnits{{
     {"rad", Dimension::Angle, 1.0},
     {"deg", Dimension::Angle, kDeg},
     {"rad/s", Dimension::AngularRate, 1.0},
@@ -27,13 +29,27 @@ constexpr std::array<Unit, 24> kUnits{{
     {"min", Dimension::Time, 60.0},
     {"kg m^2", Dimension::Inertia, 1.0},
     {"N m", Dimension::Torque, 1.0},
+    {"mN m", Dimension::Torque, 1e-3},
     {"N m/rad", Dimension::Stiffness, 1.0},
+    {"N m/deg", Dimension::Stiffness, kPerDeg},
+    {"mN m/rad", Dimension::Stiffness, 1e-3},
+    {"mN m/deg", Dimension::Stiffness, 1e-3 * kPerDeg},
     {"N m s/rad", Dimension::Damping, 1.0},
+    {"N m s/deg", Dimension::Damping, kPerDeg},
+    {"mN m s/rad", Dimension::Damping, 1e-3},
+    {"mN m s/deg", Dimension::Damping, 1e-3 * kPerDeg},
     {"m/s", Dimension::Velocity, 1.0},
+    {"rad/s^2", Dimension::AngularAcceleration, 1.0},
+    {"deg/s^2", Dimension::AngularAcceleration, kDeg},
     // Accepted alternative spellings (same factors).
     {"Nm", Dimension::Torque, 1.0},
+    {"mNm", Dimension::Torque, 1e-3},
     {"Nm/rad", Dimension::Stiffness, 1.0},
+    {"Nm/deg", Dimension::Stiffness, kPerDeg},
+    {"mNm/rad", Dimension::Stiffness, 1e-3},
+    {"mNm/deg", Dimension::Stiffness, 1e-3 * kPerDeg},
     {"Nms/rad", Dimension::Damping, 1.0},
+    {"Nms/deg", Dimension::Damping, kPerDeg},
     {"degrees", Dimension::Angle, kDeg},
     {"radians", Dimension::Angle, 1.0},
 }};
@@ -101,6 +117,8 @@ std::string dimension_name(Dimension d) {
       return "a rotational damping";
     case Dimension::Velocity:
       return "a velocity";
+    case Dimension::AngularAcceleration:
+      return "an angular acceleration";
   }
   return "?";
 }

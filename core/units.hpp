@@ -26,13 +26,14 @@ enum class Dimension {
   Stiffness,    // N m/rad
   Damping,      // N m s/rad
   Velocity,     // m/s
+  AngularAcceleration,  // rad/s^2 (no key takes one yet: known so that a wrong use is named)
 };
 
 // Every dimension with a unit, in the order the documentation lists them.
 inline constexpr Dimension kDimensions[] = {
-    Dimension::Angle,  Dimension::AngularRate, Dimension::Length,    Dimension::Mass,
-    Dimension::Time,   Dimension::Inertia,     Dimension::Torque,    Dimension::Stiffness,
-    Dimension::Damping, Dimension::Velocity,
+    Dimension::Angle,   Dimension::AngularRate, Dimension::Length,  Dimension::Mass,
+    Dimension::Time,    Dimension::Inertia,     Dimension::Torque,  Dimension::Stiffness,
+    Dimension::Damping, Dimension::Velocity,    Dimension::AngularAcceleration,
 };
 
 struct Unit {

@@ -324,9 +324,14 @@ bool finish_time_check(Check& c, const EngineRun& A, const EngineRun& B, bool st
   return true;
 }
 
-bool has_dampers(const System& s) {
+// Dampers on joints (joints[].damper) and a flexible body's modal damping (its matrix D) both
+// dissipate energy; the reason names which one the scene has.
+bool has_joint_dampers(const System& s) {
   for (const Joint& j : s.joints)
     if (j.damping != 0) return true;
+  return false;
+}
+bool has_modal_damping(const System& s) {
   for (const Body& b : s.bodies)
     if (b.flex && b.flex->D.size() > 0 && b.flex->D.cwiseAbs().maxCoeff() > 0) return true;
   return false;
@@ -368,7 +373,8 @@ int SceneComparison::count(CheckStatus s) const {
 
 std::string energy_not_conserved_reason(const System& s) {
   std::vector<std::string> why;
-  if (has_dampers(s)) why.push_back("dampers");
+  if (has_joint_dampers(s)) why.push_back("joint dampers");
+  if (has_modal_damping(s)) why.push_back("modal damping");
   if (has_motors(s)) why.push_back("motors");
   if (has_external_torques(s)) why.push_back("external torques");
   if (std::any_of(s.joints.begin(), s.joints.end(), [](const Joint& j) { return j.prescribed.has_value(); }))

@@ -29,9 +29,10 @@
 // look up "H.drift" / "E.drift" only and default to atol = rtol = 1e-9. Exclusions match the same
 // keys and carry their reason into every table.
 //
-// E drift is not checked when the scene has dampers, motors, external torques or prescribed
-// joints (not conserved); H drift is not checked when it has external torques or a prescribed
-// base (a prescribed joint inside the tree is internal: H stays). Engine runs that fail are recorded as a
+// E drift is not checked when the scene has joint dampers, modal damping (a flexible body's),
+// motors, external torques or prescribed joints (not conserved; the note names which); H drift
+// is not checked when it has external torques or a prescribed base (a prescribed joint inside the
+// tree is internal: H stays). Engine runs that fail are recorded as a
 // failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
 // that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
 //

@@ -119,28 +119,122 @@ bool only_document(const YAML::Node& doc, const std::string& text) {
   return true;
 }
 
+// A unit after a flow list, "inertia: [30, 20, 12] kg m^2" or "{parent_point: [0, 1, 0] m}":
+// YAML ends the value at ']', and yaml-cpp 0.7 stops at the unit with "end of map not found" (block
+// mapping), "end of map flow not found" or "end of sequence flow not found" (flow), its mark at
+// the unit's first character (tests/scene/test_scene_errors.cpp). Found from that mark: a unit
+// (a letter, then no YAML indicator up to the end of the line, a comment or a flow ',', '}' or
+// ']') right after a ']' on the same line, and the list that ']' closes. `end` is set to the end
+// of the unit.
+std::optional<UnitAfterList> find_unit_after_list(const std::string& text, const YAML::Mark& mark,
+                                                  std::size_t& end) {
+  if (mark.is_null() || mark.pos <= 0 || static_cast<std::size_t>(mark.pos) >= text.size())
+    return std::nullopt;
+  const auto at = static_cast<std::size_t>(mark.pos);
+  // The mark must be where the text says it is (a byte-order mark or another encoding: not).
+  const std::size_t line_start = text.rfind('\n', at - 1);
+  const std::size_t column = line_start == std::string::npos ? at : at - line_start - 1;
+  if (column != static_cast<std::size_t>(mark.column) ||
+      std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n') != mark.line)
+    return std::nullopt;
+  const auto first = static_cast<unsigned char>(text[at]);
+  if (!(std::isalpha(first) || first >= 0x80)) return std::nullopt;
+  end = at;
+  while (end < text.size() && text[end] != '\n' && text[end] != '\r' && text[end] != ',' &&
+         text[end] != ']' && text[end] != '}' &&
+         !(text[end] == '#' && (text[end - 1] == ' ' || text[end - 1] == '\t')))
+    ++end;
+  std::size_t unit_end = end;
+  while (unit_end > at && (text[unit_end - 1] == ' ' || text[unit_end - 1] == '\t')) --unit_end;
+  const std::string unit = text.substr(at, unit_end - at);
+  if (unit.find_first_of(":[{\"'&*!|>`@%") != std::string::npos) return std::nullopt;
+  std::size_t b = at;
+  while (b > 0 && (text[b - 1] == ' ' || text[b - 1] == '\t')) --b;
+  if (b == 0 || text[b - 1] != ']') return std::nullopt;
+  const std::size_t close = b - 1;
+  std::size_t open = std::string::npos;
+  int depth = 0;
+  for (std::size_t i = close + 1; i-- > 0;) {
+    if (text[i] == ']') ++depth;
+    if (text[i] == '[' && --depth == 0) {
+      open = i;
+      break;
+    }
+  }
+  if (open == std::string::npos) return std::nullopt;
+  // The key: "key:" before the '[', or before the list that holds it (a row of a matrix).
+  std::string key;
+  for (std::size_t from = open, level = 0; key.empty() && level < 4; ++level) {
+    std::size_t k = from;
+    while (k > 0 && (text[k - 1] == ' ' || text[k - 1] == '\t')) --k;
+    if (k > 0 && text[k - 1] == ':') {
+      const std::size_t key_end = k - 1;
+      std::size_t key_begin = key_end;
+      while (key_begin > 0 && (std::isalnum(static_cast<unsigned char>(text[key_begin - 1])) ||
+                               text[key_begin - 1] == '_' || text[key_begin - 1] == '-'))
+        --key_begin;
+      key = text.substr(key_begin, key_end - key_begin);
+      break;
+    }
+    if (k == 0 || (text[k - 1] != '[' && text[k - 1] != ',')) break;
+    // An element of an enclosing flow list: find that list's '['.
+    int d = 0;
+    std::size_t i = k;
+    for (; i-- > 0;) {
+      if (text[i] == ']' || text[i] == '}') ++d;
+      if (text[i] == '[' || text[i] == '{') {
+        if (d == 0) break;
+        --d;
+      }
+    }
+    if (i == std::string::npos || text[i] != '[') break;
+    from = i;
+  }
+  return UnitAfterList{open, mark, unit, text.substr(open, close + 1 - open), key, false};
+}
+
+// The document of `text`. A unit after a list (find_unit_after_list) is noted for the reader to
+// report at its key, blanked, and the text parsed again (at most kMaxReportedErrors times); any
+// other YAML error stops the reader, with the units after lists found before it.
 Val parse_yaml(const Reader& r, const std::string& text) {
   YAML::Node doc;
-  try {
-    doc = YAML::Load(text);
-    // One document only. Not YAML::LoadAll: yaml-cpp 0.7's document loop never ends when junk
-    // follows a document's top-level scalar ("\"a\", b" yields empty documents forever; found by
-    // the fuzzer, tests/scene/fuzz_regressions/loadall-hang-*.yaml). Two calls are bounded.
-    if (only_document(doc, text)) return Val{doc, "", doc.Mark()};
-    std::istringstream in(text);
-    YAML::Parser parser(in);
-    DocumentStarts starts;
-    parser.HandleNextDocument(starts);
-    if (parser.HandleNextDocument(starts))
-      r.fail(starts.starts.size() > 1 ? starts.starts[1] : YAML::Mark(), "",
-             "a second YAML document or text after the end of the first; a scene file holds one "
-             "document");
-  } catch (const YAML::Exception& e) {
-    // yaml-cpp's depth guard reports ErrorMsg::BAD_FILE ("bad file"); say what it means.
-    r.fail(
-        e.mark, "",
-        "malformed YAML: " +
-            (e.msg == "bad file" ? std::string("nesting too deep (yaml-cpp: bad file)") : e.msg));
+  std::string patched;  // the text with each unit after a list found so far blanked
+  const std::string* source = &text;
+  for (;;) {
+    try {
+      doc = YAML::Load(*source);
+      // One document only. Not YAML::LoadAll: yaml-cpp 0.7's document loop never ends when junk
+      // follows a document's top-level scalar ("\"a\", b" yields empty documents forever; found
+      // by the fuzzer, tests/scene/fuzz_regressions/loadall-hang-*.yaml). Two calls are bounded.
+      if (only_document(doc, *source)) return Val{doc, "", doc.Mark()};
+      std::istringstream in(*source);
+      YAML::Parser parser(in);
+      DocumentStarts starts;
+      parser.HandleNextDocument(starts);
+      if (parser.HandleNextDocument(starts))
+        r.fail(starts.starts.size() > 1 ? starts.starts[1] : YAML::Mark(), "",
+               "a second YAML document or text after the end of the first; a scene file holds one "
+               "document");
+      break;
+    } catch (const YAML::Exception& e) {
+      std::size_t end = 0;
+      if (auto u = find_unit_after_list(*source, e.mark, end)) {
+        r.note_unit_after_list(std::move(*u));
+        if (r.units_after_lists() <= kMaxReportedErrors) {
+          if (source == &text) patched = text;
+          std::fill(patched.begin() + static_cast<std::ptrdiff_t>(e.mark.pos),
+                    patched.begin() + static_cast<std::ptrdiff_t>(end), ' ');
+          source = &patched;
+          continue;
+        }
+        r.stop(e.mark);  // more than a message shows: stop with those
+      }
+      // yaml-cpp's depth guard reports ErrorMsg::BAD_FILE ("bad file"); say what it means.
+      r.fail(e.mark, "",
+             "malformed YAML: " +
+                 (e.msg == "bad file" ? std::string("nesting too deep (yaml-cpp: bad file)")
+                                      : e.msg));
+    }
   }
   if (doc.IsNull()) {
     std::vector<std::string> required;
@@ -156,11 +250,19 @@ Val parse_yaml(const Reader& r, const std::string& text) {
 // The scene's own keys
 
 void read_header(const Reader& r, const MapView& top, System& s) {
-  s.name = r.name(top.at("name"));
-  if (auto f = top.get("description")) s.description = r.text(*f);
-  if (auto f = top.get("source")) s.source = r.text(*f);
-  if (auto f = top.get("analytic")) s.analytic = r.word(*f);
-  if (auto f = top.get("zero_linear_momentum")) s.zero_linear_momentum = r.boolean(*f);
+  r.attempt([&] { s.name = r.name(top.at("name")); });
+  r.attempt([&] {
+    if (auto f = top.get("description")) s.description = r.text(*f);
+  });
+  r.attempt([&] {
+    if (auto f = top.get("source")) s.source = r.text(*f);
+  });
+  r.attempt([&] {
+    if (auto f = top.get("analytic")) s.analytic = r.word(*f);
+  });
+  r.attempt([&] {
+    if (auto f = top.get("zero_linear_momentum")) s.zero_linear_momentum = r.boolean(*f);
+  });
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -170,18 +272,38 @@ void read_header(const Reader& r, const MapView& top, System& s) {
 struct BodyIndex {
   std::vector<Val> vals;                                 // each body's mapping, for messages
   std::unordered_map<std::string, int> index;            // name => index
-  std::vector<std::string> names;                        // in file order
+  std::vector<std::string> names;                        // in file order ("" when unreadable)
   std::vector<std::optional<Eigen::Vector3d>> p_RoBo_R;  // center_of_mass, when given
+  std::vector<bool> broken;  // read with errors (recorded): what depends on it is not checked
+  bool all_named = true;     // false: a body had no readable name, so a joint may name it
 
-  // The body a joint names, or an error naming the known ones.
+  // The body a joint names, or an error naming the known ones (a skip when a body without a
+  // readable name may be the one meant).
   int find(const Reader& r, const Field& f) const {
     const std::string n = r.name(f);
     const auto it = index.find(n);
-    if (it == index.end())
-      r.fail(f.val, "unknown body '" + n + "'" + suggestion(n, names) + "; bodies: " + join(names));
+    if (it == index.end()) {
+      if (!all_named) r.skip();
+      std::vector<std::string> known;
+      for (const std::string& b : names)
+        if (!b.empty()) known.push_back(b);
+      r.fail(f.val, "unknown body '" + n + "'" + suggestion(n, known) + "; bodies: " + join(known));
+    }
     return it->second;
   }
 };
+
+// The name of a body mapping that could not be read as a whole, when it has a plain one.
+std::string plain_name(const YAML::Node& body) {
+  if (!body.IsMap()) return "";
+  std::string name;
+  for (YAML::const_iterator it = body.begin(); it != body.end(); ++it) {
+    const YAML::detail::iterator_value kv = *it;
+    if (kv.first.IsScalar() && kv.first.Scalar() == "name" && kv.second.IsScalar())
+      name = kv.second.Scalar();
+  }
+  return name;
+}
 
 // A flexible body's mass and inertia are its nodes' sums; when the scene gives them too they must
 // agree (to kFlexRigidTolerance relative), a check of the modal data against the author's numbers.
@@ -211,55 +333,95 @@ void check_flex_rigid(const Reader& r, const MapView& m, const flex::FlexModel& 
   }
 }
 
-Body read_body(const Reader& r, const MapView& m) {
-  Body b;
-  b.name = r.name(m.at("name"));
+// A body's keys after its name; each key's errors are recorded and the others read on. False
+// when any had an error.
+bool read_body(const Reader& r, const MapView& m, Body& b,
+               std::optional<Eigen::Vector3d>& p_RoBo_R) {
+  bool ok = true;
   if (auto ff = m.get("flexible")) {
-    if (auto com = m.get("center_of_mass"))
-      r.fail(com->val, "a flexible body's origin is its nodes' centre of mass: center_of_mass is not "
-                       "allowed (points on it are measured from that CM, or name a node)");
-    flex::FlexModel model = read_flexible(r, *ff);
-    check_flex_rigid(r, m, model);
-    b.mass = model.mass;
-    b.I_BBo_B = model.I_BBo_B;
-    if (!(b.mass > 0) || b.mass > kMaxMass)
-      r.fail(ff->val, "the nodes' total mass " + shortest(b.mass) + " kg is outside (0, 1e9] kg");
-    b.flex = std::move(model.flex);
+    ok &= r.attempt([&] {
+      if (auto com = m.get("center_of_mass"))
+        r.fail(com->val, "a flexible body's origin is its nodes' centre of mass: center_of_mass is "
+                         "not allowed (points on it are measured from that CM, or name a node)");
+    });
+    ok &= r.attempt([&] {
+      flex::FlexModel model = read_flexible(r, *ff);
+      check_flex_rigid(r, m, model);
+      b.mass = model.mass;
+      b.I_BBo_B = model.I_BBo_B;
+      if (!(b.mass > 0) || b.mass > kMaxMass)
+        r.fail(ff->val, "the nodes' total mass " + shortest(b.mass) + " kg is outside (0, 1e9] kg");
+      b.flex = std::move(model.flex);
+    });
   } else {
+    // (A mistyped `flexible` is the error, not the mass and inertia a rigid body would need.)
     for (const char* key : {"mass", "inertia"})
       if (!m.get(key))
-        r.fail(m.self(), std::string("missing required key '") + key + "' in a body (a rigid body "
-                         "needs mass and inertia; a flexible one takes them from its nodes)");
-    const Field mass = *m.get("mass");
-    b.mass = r.number(mass);
-    if (!(b.mass > 0)) r.fail(mass.val, "mass must be positive, found " + shortest(b.mass) + " kg");
-    if (b.mass > kMaxMass)
-      r.fail(mass.val, "absurd mass " + shortest(b.mass) + " kg (limit 1e9 kg)");
-    b.I_BBo_B = r.inertia(*m.get("inertia"));
+        ok &= r.attempt([&] {
+          if (m.mistyped("flexible")) r.skip();
+          m.missing(key, std::string("missing required key '") + key +
+                             "' in a body (a rigid body needs mass and inertia; a flexible one "
+                             "takes them from its nodes)");
+        });
+    if (const auto mass = m.get("mass"))
+      ok &= r.attempt([&] {
+        b.mass = r.number(*mass);
+        if (!(b.mass > 0))
+          r.fail(mass->val, "mass must be positive, found " + shortest(b.mass) + " kg");
+        if (b.mass > kMaxMass)
+          r.fail(mass->val, "absurd mass " + shortest(b.mass) + " kg (limit 1e9 kg)");
+      });
+    if (const auto inertia = m.get("inertia"))
+      ok &= r.attempt([&] { b.I_BBo_B = r.inertia(*inertia); });
+    if (const auto com = m.get("center_of_mass"))
+      ok &= r.attempt([&] { p_RoBo_R = r.vector(*com); });
   }
-  if (auto tf = m.get("torque")) {
-    const MapView t(r, tf->val, "bodies[].torque");
-    if (auto f = t.get("frame"))
-      b.torque_frame = r.word(*f) == "inertial" ? Body::Frame::Inertial : Body::Frame::Body;
-    b.torque = r.profile<3>(t.at("profile"), kAnyJoint);
-  }
-  return b;
+  if (auto tf = m.get("torque"))
+    ok &= r.attempt([&] {
+      const MapView t(r, tf->val, "bodies[].torque");
+      if (auto f = t.get("frame"))
+        b.torque_frame = r.word(*f) == "inertial" ? Body::Frame::Inertial : Body::Frame::Body;
+      b.torque = r.profile<3>(t.at("profile"), kAnyJoint);
+    });
+  return ok;
 }
 
+// Each body is read on its own: its errors are recorded, and a body with errors keeps its place
+// (and its name, when readable) so that the joints naming it are read too.
 BodyIndex read_bodies(const Reader& r, const MapView& top, System& s) {
   BodyIndex bi;
-  for (const Val& item : r.list(top.at("bodies"))) {
-    const MapView m(r, item, "bodies[]");
-    Body b = read_body(r, m);
-    if (auto it = bi.index.find(b.name); it != bi.index.end())
-      r.fail(m.at("name").val,
-             "duplicate body name '" + b.name + "' (first at line " +
-                 std::to_string(bi.vals[static_cast<std::size_t>(it->second)].mark.line + 1) + ")");
-    const auto com = m.get("center_of_mass");
-    bi.p_RoBo_R.push_back(com ? std::optional(r.vector(*com)) : std::nullopt);
-    bi.index.emplace(b.name, static_cast<int>(s.bodies.size()));
+  std::vector<Val> items;
+  if (!r.attempt([&] { items = r.list(top.at("bodies")); })) {
+    bi.all_named = false;
+    return bi;
+  }
+  for (const Val& item : items) {
+    Body b;
+    std::optional<Eigen::Vector3d> com;
+    bool named = false, duplicate = false;
+    const bool ok = r.attempt([&] {
+      const MapView m(r, item, "bodies[]");
+      const Field name = m.at("name");
+      b.name = r.name(name);
+      named = true;
+      if (auto it = bi.index.find(b.name); it != bi.index.end()) {
+        duplicate = true;
+        r.record(name.val.mark, name.val.path,
+                 "duplicate body name '" + b.name + "' (first at line " +
+                     std::to_string(bi.vals[static_cast<std::size_t>(it->second)].mark.line + 1) +
+                     ")");
+      }
+      if (!read_body(r, m, b, com)) r.skip();
+    });
+    if (!named) {
+      b.name = plain_name(item.node);
+      if (b.name.empty()) bi.all_named = false;
+    }
+    if (!b.name.empty() && !duplicate) bi.index.emplace(b.name, static_cast<int>(s.bodies.size()));
+    bi.p_RoBo_R.push_back(com);
     bi.names.push_back(b.name);
     bi.vals.push_back(item);
+    bi.broken.push_back(!ok || duplicate);
     s.bodies.push_back(std::move(b));
   }
   return bi;
@@ -292,29 +454,33 @@ std::string why_not(JointType type, const std::string& key) {
   return "";
 }
 
-// Spring, damper and motor (revolute and spherical joints).
+// Spring, damper and motor (revolute and spherical joints), each read on its own.
 void read_loads(const Reader& r, const MapView& m, const std::string& type, Joint& J) {
   const unsigned bit = joint_type(J.type).bit;
-  if (auto f = m.get("spring")) {
-    const MapView sp(r, f->val, "joints[].spring", bit, type);
-    const Field k = sp.at("stiffness");
-    J.stiffness = r.number(k);
-    if (J.stiffness < 0) r.fail(k.val, "negative stiffness " + shortest(J.stiffness) + " N m/rad");
-    if (auto a = sp.get("neutral_angle")) J.neutral_angle = r.number(*a);
-  }
-  if (auto f = m.get("damper")) {
-    const MapView dm(r, f->val, "joints[].damper", bit, type);
-    const Field c = dm.at("damping");
-    J.damping = r.number(c);
-    if (J.damping < 0) r.fail(c.val, "negative damping " + shortest(J.damping) + " N m s/rad");
-  }
-  if (auto f = m.get("motor")) {
-    const MapView mo(r, f->val, "joints[].motor", bit, type);
-    if (J.type == JointType::Revolute)
-      J.motor_revolute = r.profile<1>(mo.at("profile"), bit);
-    else
-      J.motor_spherical = r.profile<3>(mo.at("profile"), bit);
-  }
+  if (auto f = m.get("spring"))
+    r.attempt([&] {
+      const MapView sp(r, f->val, "joints[].spring", bit, type);
+      const Field k = sp.at("stiffness");
+      J.stiffness = r.number(k);
+      if (J.stiffness < 0)
+        r.fail(k.val, "negative stiffness " + shortest(J.stiffness) + " N m/rad");
+      if (auto a = sp.get("neutral_angle")) J.neutral_angle = r.number(*a);
+    });
+  if (auto f = m.get("damper"))
+    r.attempt([&] {
+      const MapView dm(r, f->val, "joints[].damper", bit, type);
+      const Field c = dm.at("damping");
+      J.damping = r.number(c);
+      if (J.damping < 0) r.fail(c.val, "negative damping " + shortest(J.damping) + " N m s/rad");
+    });
+  if (auto f = m.get("motor"))
+    r.attempt([&] {
+      const MapView mo(r, f->val, "joints[].motor", bit, type);
+      if (J.type == JointType::Revolute)
+        J.motor_revolute = r.profile<1>(mo.at("profile"), bit);
+      else
+        J.motor_spherical = r.profile<3>(mo.at("profile"), bit);
+    });
 }
 
 // A prescribed revolute joint (docs/prescribed-motion.md): the profile, and no loads of its own
@@ -377,15 +543,17 @@ void read_initial(const Reader& r, const MapView& m, const std::string& type, Ra
 
 // A joint's point on its parent or child (`side`): `<side>_point`, or `<side>_node` on a flexible
 // body, whose undeformed position it then is (docs/flexible-bodies.md "Joints at nodes").
-Eigen::Vector3d joint_point(const Reader& r, const MapView& m, const System& s, int body,
-                            const std::string& side, int& node) {
+Eigen::Vector3d joint_point(const Reader& r, const MapView& m, const System& s,
+                            const BodyIndex& bodies, int body, const std::string& side, int& node) {
   const auto point = m.get(side + "_point");
   const auto named = m.get(side + "_node");
   const Body& b = s.bodies[static_cast<std::size_t>(body)];
+  // A node of a body read with errors (its flexible block, perhaps): that body's errors say it.
+  if (named && bodies.broken[static_cast<std::size_t>(body)]) r.skip();
   if (!named) {
     if (!point)
-      r.fail(m.self(), "missing required key '" + side + "_point' in a joint (or '" + side +
-                           "_node' for a node of a flexible " + side + ")");
+      m.missing(side + "_point", "missing required key '" + side + "_point' in a joint (or '" +
+                                     side + "_node' for a node of a flexible " + side + ")");
     return r.vector(*point);
   }
   if (point)
@@ -405,66 +573,77 @@ Eigen::Vector3d joint_point(const Reader& r, const MapView& m, const System& s, 
   return b.flex->nodes[static_cast<std::size_t>(node)].p_BoNi_B;
 }
 
-RawJoint read_joint(const Reader& r, const Val& item, const System& s, const BodyIndex& bodies,
-                    const std::unordered_map<std::string, const RawJoint*>& earlier) {
+// One joint into `raw`. Its name, type and keys come first (an error there ends the joint);
+// then each part that does not depend on another is read on its own, its errors recorded.
+void read_joint(const Reader& r, const Val& item, const System& s, const BodyIndex& bodies,
+                const std::unordered_map<std::string, const RawJoint*>& earlier, RawJoint& raw) {
   MapView m(r, item, "joints[]");  // every joint type's keys, until the type is known
-  Joint J;
-  const Field name = m.at("name");
-  J.name = r.name(name);
-  if (auto it = earlier.find(J.name); it != earlier.end())
-    r.fail(name.val, "duplicate joint name '" + J.name + "' (first at line " +
-                         std::to_string(it->second->node.mark.line + 1) + ")");
-  if (bodies.index.count(J.name))
-    r.fail(name.val, "joint name '" + J.name + "' is also a body name; output columns \"" + J.name +
-                         ".*\" would clash");
+  Joint& j = raw.joint;
+  r.attempt([&] {
+    const Field name = m.at("name");
+    j.name = r.name(name);
+    if (auto it = earlier.find(j.name); it != earlier.end())
+      r.fail(name.val, "duplicate joint name '" + j.name + "' (first at line " +
+                           std::to_string(it->second->node.mark.line + 1) + ")");
+    if (bodies.index.count(j.name))
+      r.fail(name.val, "joint name '" + j.name + "' is also a body name; output columns \"" +
+                           j.name + ".*\" would clash");
+  });
   const Field type = m.at("type");
   const std::string type_word = r.word(type);
-  J.type = type_of(type_word);
-  m.narrow(joint_type(J.type).bit, type_word,
-           [&J](const std::string& key) { return why_not(J.type, key); });
+  j.type = type_of(type_word);
+  m.narrow(joint_type(j.type).bit, type_word,
+           [&j](const std::string& key) { return why_not(j.type, key); });
 
-  RawJoint raw{J, item, type.val, m.at("child").val, std::nullopt, std::nullopt};
-  Joint& j = raw.joint;
-  j.child = bodies.find(r, m.at("child"));
+  raw.type_val = type.val;
+  raw.child_val = m.at("child").val;
+  const bool child = r.attempt([&] { j.child = bodies.find(r, m.at("child")); });
   const auto prescribed = j.type == JointType::Revolute ? m.get("prescribed") : std::nullopt;
   if (j.type != JointType::Free) {
-    if (const auto parent = m.get("parent")) {
-      raw.parent_val = parent->val;
-      j.parent = bodies.find(r, *parent);
-      j.p_PoJ_P = joint_point(r, m, s, j.parent, "parent", j.parent_node);
-    } else {
-      // Only a prescribed revolute joint may leave out its parent: it then holds the base and
-      // turns it about an axis fixed in N (docs/prescribed-motion.md).
-      if (!prescribed)
-        r.fail(m.self(), "missing required key 'parent' in a joint (only a revolute joint with a "
-                         "`prescribed` motion may leave it out, to turn the base about an axis "
-                         "fixed in N)");
-      if (auto pn = m.get("parent_node"))
-        r.fail(pn->val, "this joint has no parent body (its parent is the inertial frame N, which "
-                        "has no nodes); give parent_point, a point in N");
-      j.parent = -1;
-      if (auto pp = m.get("parent_point")) j.p_PoJ_P = r.vector(*pp);
-    }
-    j.p_CoJ_C = joint_point(r, m, s, j.child, "child", j.child_node);
-    if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
+    r.attempt([&] {
+      if (const auto parent = m.get("parent")) {
+        raw.parent_val = parent->val;
+        j.parent = bodies.find(r, *parent);
+        j.p_PoJ_P = joint_point(r, m, s, bodies, j.parent, "parent", j.parent_node);
+      } else {
+        // Only a prescribed revolute joint may leave out its parent: it then holds the base and
+        // turns it about an axis fixed in N (docs/prescribed-motion.md).
+        if (!prescribed)
+          m.missing("parent", "missing required key 'parent' in a joint (only a revolute joint "
+                              "with a `prescribed` motion may leave it out, to turn the base "
+                              "about an axis fixed in N)");
+        if (auto pn = m.get("parent_node"))
+          r.fail(pn->val, "this joint has no parent body (its parent is the inertial frame N, "
+                          "which has no nodes); give parent_point, a point in N");
+        j.parent = -1;
+        if (auto pp = m.get("parent_point")) j.p_PoJ_P = r.vector(*pp);
+      }
+    });
+    if (child)
+      r.attempt([&] { j.p_CoJ_C = joint_point(r, m, s, bodies, j.child, "child", j.child_node); });
+    r.attempt([&] {
+      if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
+    });
   }
-  if (j.type == JointType::Revolute) j.axis_P = r.direction(m.at("axis"));
-  if (prescribed) read_prescribed(r, m, *prescribed, type_word, j);
+  if (j.type == JointType::Revolute) r.attempt([&] { j.axis_P = r.direction(m.at("axis")); });
+  if (prescribed) r.attempt([&] { read_prescribed(r, m, *prescribed, type_word, j); });
   if (j.type == JointType::Revolute || j.type == JointType::Spherical)
     read_loads(r, m, type_word, j);
-  read_initial(r, m, type_word, raw);
-  return raw;
+  r.attempt([&] { read_initial(r, m, type_word, raw); });
 }
 
+// Each joint is read on its own; one with errors keeps its place, unread parts left default.
 std::vector<RawJoint> read_joints(const Reader& r, const MapView& top, const System& s,
                                   const BodyIndex& bodies) {
   std::vector<RawJoint> raw;
-  const std::vector<Val> items = r.list(top.at("joints"));
+  std::vector<Val> items;
+  if (!r.attempt([&] { items = r.list(top.at("joints")); })) return raw;
   raw.reserve(items.size());  // `earlier` points into raw
   std::unordered_map<std::string, const RawJoint*> earlier;
   for (const Val& item : items) {
-    raw.push_back(read_joint(r, item, s, bodies, earlier));
-    earlier.emplace(raw.back().joint.name, &raw.back());
+    raw.push_back(RawJoint{Joint{}, item, item, item, std::nullopt, std::nullopt});
+    r.attempt([&] { read_joint(r, item, s, bodies, earlier, raw.back()); });
+    if (!raw.back().joint.name.empty()) earlier.emplace(raw.back().joint.name, &raw.back());
   }
   return raw;
 }
@@ -538,26 +717,36 @@ void read_run(const Reader& r, const MapView& top, System& s) {
   auto limit = [&r](const Val& v, const std::string& problem) {
     if (!problem.empty()) r.fail(v, problem);
   };
-  const Field d = m.at("duration");
-  s.run.duration = r.number(d);
-  limit(d.val, run_limits::duration_problem(s.run.duration));
-  const Field o = m.at("output_step");
-  s.run.output_step = r.number(o);
-  limit(o.val, run_limits::output_step_problem(s.run.output_step, s.run.duration));
-  if (auto f = m.get("integrator")) s.run.integrator = r.word(*f);
+  // Each key on its own; a check against another key only when that one was read.
+  const bool duration = r.attempt([&] {
+    const Field d = m.at("duration");
+    s.run.duration = r.number(d);
+    limit(d.val, run_limits::duration_problem(s.run.duration));
+  });
+  r.attempt([&] {
+    const Field o = m.at("output_step");
+    s.run.output_step = r.number(o);
+    limit(o.val, run_limits::output_step_problem(
+                     s.run.output_step, duration ? s.run.duration : s.run.output_step));
+  });
+  const bool integrator = r.attempt([&] {
+    if (auto f = m.get("integrator")) s.run.integrator = r.word(*f);
+  });
   for (const char* key : {"rtol", "atol"})
-    if (auto f = m.get(key)) {
-      const double x = r.number(*f);
-      limit(f->val, run_limits::tolerance_problem(key, x));
-      (std::string(key) == "rtol" ? s.run.rtol : s.run.atol) = x;
-    }
-  if (auto f = m.get("dt")) {
-    s.run.dt = r.number(*f);
-    s.run.dt_given = true;
-    limit(f->val, run_limits::dt_problem(s.run.dt));
-    if (s.run.integrator.value() != Integrator::Rk4)
-      limit(f->val, run_limits::first_step_problem(s.run.dt, IntegratorSettings{}.min_step));
-  }
+    if (auto f = m.get(key))
+      r.attempt([&] {
+        const double x = r.number(*f);
+        limit(f->val, run_limits::tolerance_problem(key, x));
+        (std::string(key) == "rtol" ? s.run.rtol : s.run.atol) = x;
+      });
+  if (auto f = m.get("dt"))
+    r.attempt([&] {
+      s.run.dt = r.number(*f);
+      s.run.dt_given = true;
+      limit(f->val, run_limits::dt_problem(s.run.dt));
+      if (integrator && s.run.integrator.value() != Integrator::Rk4)
+        limit(f->val, run_limits::first_step_problem(s.run.dt, IntegratorSettings{}.min_step));
+    });
 }
 
 Tolerance read_tolerance(const Reader& r, const Val& v, Tolerance base) {
@@ -580,26 +769,31 @@ void read_compare(const Reader& r, const MapView& top, System& s) {
     // `default` first, whatever the key order: the others take what they omit from it.
     for (const MapView::Entry& e : t.entries())
       if (e.key == "default")
-        s.compare.default_tolerance = read_tolerance(r, e.value, s.compare.default_tolerance);
+        r.attempt([&] {
+          s.compare.default_tolerance = read_tolerance(r, e.value, s.compare.default_tolerance);
+        });
     for (const MapView::Entry& e : t.entries()) {
       if (e.key == "default") continue;
-      r.name(Val{YAML::Node(e.key), e.value.path, e.key_mark}, "quantity name", true);
-      s.compare.tolerances.emplace_back(e.key,
-                                        read_tolerance(r, e.value, s.compare.default_tolerance));
+      r.attempt([&] {
+        r.name(Val{YAML::Node(e.key), e.value.path, e.key_mark}, "quantity name", true);
+        s.compare.tolerances.emplace_back(
+            e.key, read_tolerance(r, e.value, s.compare.default_tolerance));
+      });
     }
   }
   if (auto ef = m.get("exclude")) {
     std::unordered_set<std::string> excluded;
-    for (const Val& item : r.list(*ef)) {
-      const MapView x(r, item, "compare.exclude[]");
-      const Field qf = x.at("quantity");
-      const std::string q = r.name(qf);
-      if (!excluded.insert(q).second) r.fail(qf.val, "quantity '" + q + "' is excluded twice");
-      const Field rf = x.at("reason");
-      const std::string reason = r.text(rf);
-      if (reason.empty()) r.fail(rf.val, "give a reason for excluding '" + q + "'");
-      s.compare.excluded.emplace_back(q, reason);
-    }
+    for (const Val& item : r.list(*ef))
+      r.attempt([&] {
+        const MapView x(r, item, "compare.exclude[]");
+        const Field qf = x.at("quantity");
+        const std::string q = r.name(qf);
+        if (!excluded.insert(q).second) r.fail(qf.val, "quantity '" + q + "' is excluded twice");
+        const Field rf = x.at("reason");
+        const std::string reason = r.text(rf);
+        if (reason.empty()) r.fail(rf.val, "give a reason for excluding '" + q + "'");
+        s.compare.excluded.emplace_back(q, reason);
+      });
   }
 }
 
@@ -619,15 +813,21 @@ System read(const Reader& r, const std::string& text) {
   const MapView top(r, root, "");
   System s;
   s.file = r.file();
+  // Errors are recorded where they are independent (reader.hpp); a pass that needs all before it
+  // runs only when nothing was recorded.
   read_header(r, top, s);
   const BodyIndex bodies = read_bodies(r, top, s);
   std::vector<RawJoint> raw = read_joints(r, top, s, bodies);
-  shift_points(raw, bodies);
-  order(r, top.at("joints").val, raw, bodies, s);
-  read_run(r, top, s);
-  read_compare(r, top, s);
-  check_analytic(r, top, s);
-  check_topology(s);  // the promise of scene.hpp, checked by the function engines call
+  if (!r.failed()) {
+    shift_points(raw, bodies);
+    r.attempt([&] { order(r, top.at("joints").val, raw, bodies, s); });
+  }
+  r.attempt([&] { read_run(r, top, s); });
+  r.attempt([&] { read_compare(r, top, s); });
+  if (!r.failed()) {
+    check_analytic(r, top, s);
+    check_topology(s);  // the promise of scene.hpp, checked by the function engines call
+  }
   return s;
 }
 
@@ -641,8 +841,12 @@ System read_scene_text(const std::string& text, const std::string& file_label,
   try {
     s = scene::read(reader, text);
   } catch (const YAML::Exception& e) {  // anything yaml-cpp throws past parsing
-    reader.fail(e.mark, "", "malformed YAML: " + e.msg);
+    reader.record(e.mark, "", "malformed YAML: " + e.msg);
+  } catch (const InputError& e) {  // an error that ends the reading, after those recorded
+    reader.keep(e);
+  } catch (const scene::Reader::Skip&) {  // (every skip follows a recorded error)
   }
+  reader.finish();  // every error, if any
   if (warnings)
     warnings->insert(warnings->end(), reader.warnings().begin(), reader.warnings().end());
   return s;

@@ -41,7 +41,157 @@ std::string describe(const YAML::Node& n) {
   return "?";
 }
 
+// `s` with every run of white space (a list written over several lines) made one space.
+std::string one_line(const std::string& s) {
+  std::string out;
+  for (char c : s) {
+    const bool space = c == ' ' || c == '\t' || c == '\n' || c == '\r';
+    if (space && (out.empty() || out.back() == ' ')) continue;
+    out += space ? ' ' : c;
+  }
+  if (!out.empty() && out.back() == ' ') out.pop_back();
+  return out;
+}
+
+// "[30 kg m^2, 20 kg m^2, 12 kg m^2]" for the list "[30, 20, 12]" and the unit "kg m^2", or ""
+// when the list holds more than plain numbers (nested lists, mappings, quoted text).
+std::string with_each_element(const std::string& list, const std::string& unit) {
+  if (list.size() < 2 || list.front() != '[' || list.back() != ']') return "";
+  const std::string inner = list.substr(1, list.size() - 2);
+  if (inner.find_first_of("[]{}\"'#") != std::string::npos) return "";
+  std::string out = "[";
+  std::size_t from = 0;
+  for (;;) {
+    const std::size_t comma = inner.find(',', from);
+    const std::string element = one_line(inner.substr(from, comma - from));
+    if (element.empty()) return "";
+    out += (from == 0 ? "" : ", ") + element + " " + unit;
+    if (comma == std::string::npos) break;
+    from = comma + 1;
+  }
+  return out + "]";
+}
+
+// What to write instead of a unit after a list, for the key of schema row `row` (nullptr when
+// not known).
+std::string unit_after_list_message(const UnitAfterList& u, const Key* row) {
+  const std::string head = "a unit after a list is not read (YAML ends the value at ']'): ";
+  const std::string list = one_line(u.list);
+  const std::string inner = list.substr(1, list.size() - 2);
+  if (row != nullptr && row->path == "(list with unit).value")
+    return head + "write the unit in `unit`: {value: " + list + ", unit: " + u.unit + "}";
+  if (row != nullptr) switch (row->type) {
+      case Type::List:
+        return head + "write the unit with each value inside the list" +
+               (row->path.ends_with("profile") ? " ({t: 2 s, value: 0.1 " + u.unit + "})" : "");
+      case Type::Direction:
+      case Type::Attitude:
+        return head + "this key takes bare numbers, without a unit: write " + list;
+      case Type::Quantity:
+        return "a list is not read here: this key takes one number and its unit" +
+               (inner.find_first_of("[]{},") == std::string::npos
+                    ? ", " + inner + " " + u.unit
+                    : std::string());
+      case Type::Number:
+        return "a list is not read here: this key takes one bare number";
+      case Type::Text:
+      case Type::Name:
+      case Type::Word:
+      case Type::Bool:
+      case Type::Map:
+        return "'[' begins a list in YAML, which ends at ']': put the whole value in quotes, "
+               "\"" + list + " " + u.unit + "\"";
+      case Type::Vector:
+      case Type::Inertia:
+        break;
+    }
+  std::string out = head + "write {value: " + list + ", unit: " + u.unit + "} (one unit for all)";
+  const std::string each = with_each_element(list, u.unit);
+  if (!each.empty()) out += " or " + each + " (each element with its unit)";
+  if (row == nullptr) return out;
+  out += "; a bare " + list + " is in " + units::unit_names(row->dimension).front() + " (SI)";
+  const auto written = units::find_unit(u.unit);
+  if (!written)
+    out += "; and '" + u.unit + "' is not a known unit: " + units::dimension_name(row->dimension) +
+           " is in " + units::units_of(row->dimension);
+  else if (written->dimension != row->dimension)
+    out += "; and '" + u.unit + "' is " + units::dimension_name(written->dimension) +
+           ", but this key expects " + units::dimension_name(row->dimension) + " (" +
+           units::units_of(row->dimension) + ")";
+  return out;
+}
+
 }  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Several errors
+
+void Reader::keep(const InputError& e) const {
+  // Two passes may read one value (a prescribed joint's initial block): say it once.
+  for (const Recorded& x : errors_)
+    if (x.message == e.what()) return;
+  const auto* located = dynamic_cast<const SceneError*>(&e);
+  if (located != nullptr && std::find(quiet_paths_.begin(), quiet_paths_.end(),
+                                      located->path()) != quiet_paths_.end())
+    return;
+  if (errors_.size() >= kMaxRecordedErrors) {
+    ++more_errors_;
+    return;
+  }
+  errors_.push_back(Recorded{located ? located->line() : std::numeric_limits<int>::max(),
+                             located ? located->column() : 0, e.what()});
+}
+
+void Reader::record(const YAML::Mark& m, const std::string& path, const std::string& what) const {
+  attempt([&] { fail(m, path, what); });
+}
+
+void Reader::unit_after_list(const Val& v, const Key* row) const {
+  const YAML::Mark m = v.node.Mark();
+  if (units_after_lists_.empty() || m.is_null() || !v.node.IsSequence()) return;
+  for (UnitAfterList& u : units_after_lists_)
+    if (!u.reported && u.list_pos == static_cast<std::size_t>(m.pos)) {
+      u.reported = true;
+      record(u.mark, v.path, unit_after_list_message(u, row));
+      quiet_paths_.push_back(v.path);
+    }
+}
+
+void Reader::finish() const {
+  for (UnitAfterList& u : units_after_lists_) {
+    if (u.reported) continue;
+    u.reported = true;
+    // The key as written; its schema row when every row of that name has the same form.
+    const Key* row = nullptr;
+    bool one_form = !u.key.empty();
+    for (const Key& k : keys()) {
+      const std::string_view p = k.path;
+      const std::size_t dot = p.rfind('.');
+      if ((dot == std::string_view::npos ? p : p.substr(dot + 1)) != u.key) continue;
+      if (row != nullptr && ((row->type == Type::List) != (k.type == Type::List) ||
+                             row->dimension != k.dimension))
+        one_form = false;
+      row = &k;
+    }
+    record(u.mark, u.key, unit_after_list_message(u, one_form ? row : nullptr));
+  }
+  if (errors_.empty()) {
+    if (skipped_) throw std::logic_error("scene reader: a part was skipped without an error");
+    return;
+  }
+  std::stable_sort(errors_.begin(), errors_.end(), [](const Recorded& a, const Recorded& b) {
+    return a.line != b.line ? a.line < b.line : a.column < b.column;
+  });
+  std::string message;
+  const std::size_t shown = std::min(errors_.size(), kMaxReportedErrors);
+  for (std::size_t i = 0; i < shown; ++i) message += (i == 0 ? "" : "\n") + errors_[i].message;
+  if (const std::size_t more = errors_.size() + more_errors_ - shown; more > 0)
+    message += "\n... and " + std::to_string(more) + " more error" + (more == 1 ? "" : "s");
+  if (stopped_line_ > 0)
+    message += "\n... and perhaps more after line " + std::to_string(stopped_line_) +
+               ", where the reader stopped";
+  throw InputError(message);
+}
 
 // ---------------------------------------------------------------------------------------------
 // MapView
@@ -75,18 +225,26 @@ MapView::MapView(const Reader& r, const Val& v, std::string schema_path, unsigne
     if (!k.IsScalar()) r.fail(km, v.path, "a key must be a plain name, found " + describe(k));
     const std::string key = k.Scalar();
     const std::string path = key_path(v.path, key);
-    if (const auto [first, fresh] = seen.emplace(key, km.line); !fresh)
-      r.fail(
+    // Unknown and duplicate keys are recorded and left out; the other keys are read on.
+    if (const auto [first, fresh] = seen.emplace(key, km.line); !fresh) {
+      r.record(
           km, path,
           "duplicate key '" + key + "' (first at line " + std::to_string(first->second + 1) + ")");
-    if (!any_key && std::find(named.begin(), named.end(), key) == named.end())
-      r.fail(km, path,
-             "unknown key " + quoted_excerpt(key) + " in " + noun_ + suggestion(key, named) +
-                 "; known keys: " + join(named));
+      continue;
+    }
+    if (!any_key && std::find(named.begin(), named.end(), key) == named.end()) {
+      r.record(km, path,
+               "unknown key " + quoted_excerpt(key) + " in " + noun_ + suggestion(key, named) +
+                   "; known keys: " + join(named));
+      unknown_.push_back(key);
+      continue;
+    }
     // A key without a value ("mass:") has a null node whose mark is the next token's: use the
     // key's.
     entries_.push_back(
         Entry{key, km, value.IsNull() ? Val{value, path, km} : r.sub(v, value, path)});
+    if (r.units_after_lists() > 0)
+      r.unit_after_list(entries_.back().value, find(key_path(schema_path_, key), joints));
   }
   check_required();
 }
@@ -106,8 +264,20 @@ void MapView::check_required() const {
         if (e.value.node.IsNull()) r_.fail(e.value, "key '" + name + "' has no value");
         found = true;
       }
-    if (!found) r_.fail(self_, "missing required key '" + name + "' in " + noun_);
+    if (!found) missing(name, "missing required key '" + name + "' in " + noun_);
   }
+}
+
+bool MapView::mistyped(const std::string& key) const {
+  for (const std::string& u : unknown_)
+    if (!suggestion(u, {key}).empty()) return true;
+  return false;
+}
+
+void MapView::missing(const std::string& key, const std::string& message) const {
+  // A mistyped key ("mas" for "mass") is reported as unknown, with the suggestion: not twice.
+  if (mistyped(key)) r_.skip();
+  r_.fail(self_, message);
 }
 
 const Key& MapView::row(std::string_view key) const {
@@ -136,7 +306,7 @@ Field MapView::at(std::string_view key) const {
     throw std::logic_error("scene schema: '" + std::string(k.path) + "' is optional; use get()");
   for (const Entry& e : entries_)
     if (e.key == key) return Field{e.value, &k};
-  r_.fail(self_, "missing required key '" + std::string(key) + "' in " + noun_);
+  missing(std::string(key), "missing required key '" + std::string(key) + "' in " + noun_);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -145,8 +315,9 @@ Field MapView::at(std::string_view key) const {
 void Reader::fail(const YAML::Mark& m, const std::string& path, const std::string& what) const {
   const int line = m.is_null() || m.line < 0 ? 1 : m.line + 1;
   const int column = m.is_null() || m.column < 0 ? 1 : m.column + 1;
-  throw InputError(file_ + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " +
-                   (path.empty() ? "" : path + ": ") + what);
+  throw SceneError(file_ + ":" + std::to_string(line) + ":" + std::to_string(column) + ": " +
+                       (path.empty() ? "" : path + ": ") + what,
+                   line, column, path);
 }
 
 void Reader::warn(const Val& v, const std::string& what) const {

@@ -3,9 +3,11 @@
 // missing engines, and the analytic pseudo-engine's columns.
 #include <catch2/catch.hpp>
 
+#include "core/scene/scene.hpp"
 #include "harness/compare.hpp"
 #include "tests/harness/synthetic.hpp"
 #include "tests/support/close.hpp"
+#include "tests/support/paths.hpp"
 
 #include <cmath>
 
@@ -214,10 +216,34 @@ TEST_CASE("compare: E drift is not checked when the scene has motors or dampers"
   CHECK(c.passed());
   const Check e = find_checks(c, "E.drift", "x")[0];
   CHECK(e.status == CheckStatus::Excluded);
-  CHECK(e.note == "not conserved: scene has dampers and motors");
+  CHECK(e.note == "not conserved: scene has joint dampers and motors");
   CHECK(find_checks(c, "H.drift", "x")[0].status == CheckStatus::Pass);
-  CHECK(crossdyn::harness::energy_not_conserved_reason(s) == "scene has dampers and motors");
+  CHECK(crossdyn::harness::energy_not_conserved_reason(s) == "scene has joint dampers and motors");
   CHECK(crossdyn::harness::momentum_not_conserved_reason(s).empty());
+}
+
+TEST_CASE("compare: the E drift exclusion names joint dampers and modal damping apart") {
+  using crossdyn::harness::energy_not_conserved_reason;
+  // scenarios/hub_nodal_panel.yaml: 0.5 % modal damping and no joint damper.
+  const System panel = crossdyn::read_scene(crossdyn::test::scene_path("hub_nodal_panel"));
+  CHECK(energy_not_conserved_reason(panel) == "scene has modal damping");
+  const SceneComparison c = compare_runs(
+      panel, {engine_run("x", make_run(panel)), engine_run("y", make_run(panel))});
+  const Check e = find_checks(c, "E.drift", "x")[0];
+  CHECK(e.status == CheckStatus::Excluded);
+  CHECK(e.note == "not conserved: scene has modal damping");
+
+  System s = two_body_system();
+  CHECK(energy_not_conserved_reason(s).empty());
+  s.joints[1].damping = 0.5;
+  CHECK(energy_not_conserved_reason(s) == "scene has joint dampers");
+  s.bodies[1].flex = crossdyn::FlexBody{};
+  s.bodies[1].flex->D = Eigen::MatrixXd::Zero(2, 2);  // modes without damping dissipate nothing
+  CHECK(energy_not_conserved_reason(s) == "scene has joint dampers");
+  s.bodies[1].flex->D(1, 1) = 0.01;
+  CHECK(energy_not_conserved_reason(s) == "scene has joint dampers and modal damping");
+  s.joints[1].damping = 0;
+  CHECK(energy_not_conserved_reason(s) == "scene has modal damping");
 }
 
 TEST_CASE("compare: a failed engine run is a failure with engine, time and reason") {

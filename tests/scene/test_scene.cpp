@@ -300,6 +300,22 @@ TEST_CASE("units: every spelling converts to SI") {
       {"N m s/rad", Dimension::Damping, 1},
       {"N*m*s/rad", Dimension::Damping, 1},
       {"m/s", Dimension::Velocity, 1},
+      // Millinewton metres, per degree (1 N m/deg = 180/pi N m/rad), angular accelerations.
+      {"mN m", Dimension::Torque, 1e-3},
+      {"mN*m", Dimension::Torque, 1e-3},
+      {"mNm", Dimension::Torque, 1e-3},
+      {"N m/deg", Dimension::Stiffness, 180 / kPi},
+      {"Nm/deg", Dimension::Stiffness, 180 / kPi},
+      {"N*m / deg", Dimension::Stiffness, 180 / kPi},
+      {"mN m/rad", Dimension::Stiffness, 1e-3},
+      {"mN m/deg", Dimension::Stiffness, 1e-3 * 180 / kPi},
+      {"mNm/deg", Dimension::Stiffness, 1e-3 * 180 / kPi},
+      {"N m s/deg", Dimension::Damping, 180 / kPi},
+      {"Nms/deg", Dimension::Damping, 180 / kPi},
+      {"mN m s/rad", Dimension::Damping, 1e-3},
+      {"mN m s/deg", Dimension::Damping, 1e-3 * 180 / kPi},
+      {"rad/s^2", Dimension::AngularAcceleration, 1},
+      {"deg/s^2", Dimension::AngularAcceleration, kPi / 180},
   };
   for (const Case& c : cases) {
     INFO(c.text);
@@ -308,9 +324,49 @@ TEST_CASE("units: every spelling converts to SI") {
     CHECK(u->dimension == c.dimension);
     CHECK(close(u->to_si, c.si, 0, kUlps));
   }
+  CHECK_FALSE(units::find_unit("MN m"));  // a meganewton metre is no spacecraft torque
   CHECK_FALSE(units::find_unit("furlong"));
   CHECK_FALSE(units::find_unit("Deg"));  // units are case-sensitive (mN vs MN)
   CHECK(units::normalise_unit("  N  *  m /  rad ") == "N m/rad");
+}
+
+TEST_CASE("units: a scene's stiffness, damping and torque per degree and in mN m") {
+  const std::string text = R"(name: per_degree
+bodies:
+  - {name: hub, mass: 100 kg, inertia: [10, 20, 25]}
+  - {name: arm, mass: 5 kg, inertia: [1, 1, 1]}
+  - {name: rod, mass: 5 kg, inertia: [1, 1, 1]}
+joints:
+  - {name: base, type: free, child: hub}
+  - name: hinge
+    type: revolute
+    parent: hub
+    child: arm
+    parent_point: [1, 0, 0]
+    child_point: [-1, 0, 0]
+    axis: [0, 0, 1]
+    spring: {stiffness: 2 N m/deg}
+    damper: {damping: 0.5 N m s/deg}
+    motor: {profile: [{t: 0, value: 5 mN m}, {t: 1 s, value: -3 mNm}]}
+  - name: ball
+    type: spherical
+    parent: hub
+    child: rod
+    parent_point: [-1, 0, 0]
+    child_point: [1, 0, 0]
+    spring: {stiffness: 40 mN m/deg}
+    damper: {damping: 7 mN m s/rad}
+run: {duration: 2 s, output_step: 0.1 s}
+)";
+  const System s = read_scene_text(text, "per_degree.yaml");
+  const Joint& hinge = joint(s, "hinge");
+  CHECK(close(hinge.stiffness, 2 * 180 / kPi, 0, kUlps));  // 114.59 N m/rad
+  CHECK(close(hinge.damping, 0.5 * 180 / kPi, 0, kUlps));
+  CHECK(close(hinge.motor_revolute.value(0.5)[0], 5e-3, 0, kUlps));
+  CHECK(close(hinge.motor_revolute.value(1.5)[0], -3e-3, 0, kUlps));
+  const Joint& ball = joint(s, "ball");
+  CHECK(close(ball.stiffness, 40e-3 * 180 / kPi, 0, kUlps));
+  CHECK(close(ball.damping, 7e-3, 0, kUlps));
 }
 
 TEST_CASE("quantities with units in a scene are converted to SI") {
