@@ -4,7 +4,7 @@
 
 #include "core/integrate.hpp"
 
-#include <Eigen/Dense>
+#include <Eigen/Core>
 
 #include <algorithm>
 #include <cmath>

@@ -3,7 +3,6 @@
 // of the discrete free body.
 #include <catch2/catch.hpp>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <boost/math/quadrature/gauss.hpp>
 
@@ -16,10 +15,13 @@
 #include "core/errors.hpp"
 #include "core/flex/beam.hpp"
 #include "tests/support/close.hpp"
+#include "tests/support/linalg.hpp"
 
 using namespace crossdyn;
 using namespace crossdyn::flex;
 using crossdyn::test::close;
+using crossdyn::test::generalized_symmetric_eigenvalues;
+using crossdyn::test::symmetric_eigenvalues;
 
 namespace {
 
@@ -85,8 +87,8 @@ Eigen::VectorXd free_body_frequencies(const FlexBody& f, const Eigen::MatrixXd& 
   const Eigen::MatrixXd M = rest_mass_matrix(f);
   Eigen::MatrixXd Kfull = Eigen::MatrixXd::Zero(6 + n, 6 + n);
   Kfull.bottomRightCorner(n, n) = K;
-  const Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::MatrixXd> es(Kfull, M);
-  return es.eigenvalues().tail(n).cwiseMax(0).cwiseSqrt();  // the six zeros first
+  // The six zeros first.
+  return generalized_symmetric_eigenvalues(Kfull, M).tail(n).cwiseMax(0).cwiseSqrt();
 }
 
 double observed_order(double e_coarse, double e_fine) { return std::log2(e_coarse / e_fine); }
@@ -203,7 +205,7 @@ TEST_CASE("K is diagonal positive definite with the closed-form frequencies and 
   CHECK(test::all_close(f.K, Eigen::MatrixXd(f.K.transpose()), 0, 0));
   CHECK(f.K.isDiagonal(0));
   CHECK(f.D.isZero(0));
-  CHECK(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(f.K).eigenvalues().minCoeff() > 0);
+  CHECK(symmetric_eigenvalues(f.K).minCoeff() > 0);
   for (int k = 0; k < 6; ++k) {
     const double w = omega(s, free_free_root(k % 3 + 1), k < 3 ? 0 : 1);
     CHECK(close(std::sqrt(f.K(k, k) / modal_mass(f, k, k)), w, 0, 1e-14));
@@ -510,7 +512,7 @@ TEST_CASE("geometric stiffening: G_i = -integral from the clamp of phi_k' phi_l'
     for (const FlexNode& node : f.nodes) along_beam.push_back(&node);
     if (from_top) std::reverse(along_beam.begin(), along_beam.end());
     for (const FlexNode* node : along_beam) {
-      const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(node->G).eigenvalues();
+      const Eigen::VectorXd ev = symmetric_eigenvalues(node->G);
       CHECK(ev.maxCoeff() <= 1e-12 * std::abs(tip.G(0, 0)));
       CHECK(node->G(0, 0) <= previous);
       previous = node->G(0, 0);

@@ -4,7 +4,6 @@
 // the reported joint torque against the energy, the angular momentum of a free system, a rigid
 // body's torque I theta'', the small-motion frequencies of a spinning clamped beam from its
 // Lagrangian, and the conservation of E and H with the second-order displacement field.
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <cmath>
@@ -17,6 +16,7 @@
 #include "core/scene/scene.hpp"
 #include "formulations/kane/kane_engine.hpp"
 #include "tests/kane/kane_flex_systems.hpp"
+#include "tests/support/linalg.hpp"
 
 using namespace crossdyn;
 using namespace crossdyn::test::kane;
@@ -341,9 +341,9 @@ std::vector<std::complex<double>> spinning_beam_eigenvalues(const System& s, dou
   const MatrixXd Keff = fb.K + W * W * (KG - Ms);
   MatrixXd A = MatrixXd::Zero(2 * n, 2 * n);
   A.topRightCorner(n, n).setIdentity();
-  A.bottomLeftCorner(n, n) = -Mm.ldlt().solve(Keff);
-  A.bottomRightCorner(n, n) = -Mm.ldlt().solve(Gy);
-  const Eigen::VectorXcd ev = Eigen::EigenSolver<MatrixXd>(A).eigenvalues();
+  A.bottomLeftCorner(n, n) = -test::ldlt_solve(Mm, Keff);
+  A.bottomRightCorner(n, n) = -test::ldlt_solve(Mm, Gy);
+  const Eigen::VectorXcd ev = test::eigenvalues(A);
   return {ev.data(), ev.data() + ev.size()};
 }
 
@@ -365,7 +365,7 @@ std::vector<std::complex<double>> engine_eigenvalues(const System& s, double t) 
     for (int i = 0; i < n; ++i)
       A(i, j) = (fp[static_cast<std::size_t>(i)] - fm[static_cast<std::size_t>(i)]) / (2 * h);
   }
-  const Eigen::VectorXcd ev = Eigen::EigenSolver<MatrixXd>(A).eigenvalues();
+  const Eigen::VectorXcd ev = test::eigenvalues(A);
   return {ev.data(), ev.data() + ev.size()};
 }
 

@@ -9,11 +9,10 @@
 #include "formulations/kane/kane_engine.hpp"
 #include "tests/kane/kane_systems.hpp"
 #include "tests/support/close.hpp"
+#include "tests/support/linalg.hpp"
 #include "tests/support/paths.hpp"
 #include "core/scene/scene.hpp"
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <random>
@@ -22,6 +21,8 @@ using namespace crossdyn;
 using namespace crossdyn::test::kane;
 using crossdyn::test::all_close;
 using crossdyn::test::close;
+using crossdyn::test::llt_solve;
+using crossdyn::test::symmetric_eigenvalues;
 
 namespace {
 
@@ -79,8 +80,7 @@ TEST_CASE("kane: M is symmetric positive definite and 1/2 u^T M u is the sum of 
                   << ", max |M| = " << M.cwiseAbs().maxCoeff());
       CHECK(all_close(M, Mp, 0.0, 1e-12));
       CHECK(all_close(Mp, Eigen::MatrixXd(Mp.transpose()), 0.0, 1e-12));  // symmetric
-      const double lmin =
-          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M).eigenvalues().minCoeff();
+      const double lmin = symmetric_eigenvalues(M).minCoeff();
       CHECK(lmin > 0);
       const Eigen::VectorXd u = Eigen::Map<const Eigen::VectorXd>(x.data() + nq, nu);
       CHECK(close(0.5 * u.dot(M * u), e.kinetic_energy(x.data()), 0.0, 1e-13));
@@ -98,9 +98,9 @@ TEST_CASE("kane: the L^T D L solve in rhs agrees with Eigen's LLT of M") {
       e.rhs(0.3, x.data(), xdot.data());
       const Eigen::MatrixXd M = e.mass_matrix(x.data());
       const Eigen::VectorXd f = e.generalized_forces(0.3, x.data());
-      const Eigen::LLT<Eigen::MatrixXd> llt(M);
-      REQUIRE(llt.info() == Eigen::Success);
-      const Eigen::VectorXd udot_ref = llt.solve(f);
+      Eigen::ComputationInfo llt_info{};
+      const Eigen::VectorXd udot_ref = llt_solve(M, f, &llt_info);
+      REQUIRE(llt_info == Eigen::Success);
       const Eigen::VectorXd udot = Eigen::Map<const Eigen::VectorXd>(xdot.data() + nq, nu);
       INFO(s.name << ": max |u' - u'_LLT| = " << (udot - udot_ref).cwiseAbs().maxCoeff());
       CHECK(all_close(udot, udot_ref, 1e-13, 1e-11));

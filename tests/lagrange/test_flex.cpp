@@ -3,7 +3,6 @@
 // node of a free flexible body, the equivalence of a zero-mode body with a rigid one, the vibration
 // period of a momentum-free mode, the balance laws at random states of a tree with joints at nodes,
 // and the validation of what the engine cannot run.
-#include <Eigen/Eigenvalues>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <numbers>

@@ -1,7 +1,6 @@
 // The Lagrange engine at single states: every term of the Boltzmann-Hamel equations against an
 // independent evaluation (closed forms, finite differences of the engine's own energies) and the
 // balance laws the accelerations must satisfy.
-#include <Eigen/Eigenvalues>
 #include <catch2/catch.hpp>
 #include <random>
 #include <set>
@@ -14,11 +13,14 @@
 #include "tests/lagrange/flex_scenes.hpp"
 #include "tests/lagrange/scenes.hpp"
 #include "tests/support/close.hpp"
+#include "tests/support/linalg.hpp"
 
 using namespace crossdyn;
 using crossdyn::lagrange::LagrangeEngine;
 using crossdyn::test::all_close;
 using crossdyn::test::close;
+using crossdyn::test::ldlt_solve;
+using crossdyn::test::symmetric_eigenvalues;
 
 namespace {
 
@@ -80,7 +82,7 @@ TEST_CASE("lagrange: a single free body reproduces Euler's equations", "[lagrang
     const Eigen::Vector3d w = st.w_NB_B;
     const Eigen::Vector3d tau_B = inertial ? st.q_NB.toRotationMatrix().transpose() * tau : tau;
     // I w' = tau - w x I w (Euler 1758; Kane, Likins & Levinson 1983, Eq. 3.1.1); v' = 0.
-    const Eigen::Vector3d wdot = I.ldlt().solve(tau_B - w.cross(I * w));
+    const Eigen::Vector3d wdot = ldlt_solve(I, tau_B - w.cross(I * w));
     CHECK(all_close(t.udot.segment<3>(3), wdot, 1e-13, 1e-12));
     CHECK(all_close(t.udot.head<3>(), Eigen::Vector3d::Zero(), 1e-14, 0));
     // The gyroscopic term is Hamel's term alone: B^T W^T p = w x I w; T has no q* dependence.
@@ -155,13 +157,12 @@ TEST_CASE(
       const double scale = t.M.cwiseAbs().maxCoeff();
       CHECK(all_close(t.M, H, 1e-12 * scale, 0));
       CHECK(all_close(t.M, t.M.transpose(), 0, 0));
-      const Eigen::VectorXd lambda =
-          Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(t.M).eigenvalues();
+      const Eigen::VectorXd lambda = symmetric_eigenvalues(t.M);
       CHECK(lambda.minCoeff() > 0);
       // The solve (the engine's own Cholesky factorisation): pi'' satisfies
       // M pi'' = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p, checked against an independent LDLT.
       const Eigen::VectorXd f = t.N + t.dL - t.Mdot_u - t.hamel;
-      const Eigen::VectorXd udot_ref = t.M.ldlt().solve(f);
+      const Eigen::VectorXd udot_ref = ldlt_solve(t.M, f);
       CHECK(all_close(t.udot, udot_ref, 1e-10 * (1 + udot_ref.norm()), 0));
       CHECK(all_close(t.M * t.udot, f, 1e-12 * scale * (1 + t.udot.norm()), 0));
     }

@@ -11,10 +11,9 @@
 #include "core/scene/scene.hpp"
 #include "tests/newton_euler/ne_prescribed_scenes.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
+#include "tests/support/linalg.hpp"
 
 #include <catch2/catch.hpp>
-
-#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -220,7 +219,7 @@ TEST_CASE("newton-euler geometric stiffening: small-motion frequencies of a spin
       if (stiffening) KG -= node.mass * node.e_B.dot(P * (node.p_BoNi_B - p_clamp)) * node.G;
     }
     const MatrixXd K_eff = flex.K + W * W * (KG - Msoft);
-    const MatrixXd A_model = -Mee.ldlt().solve(K_eff);
+    const MatrixXd A_model = -test::ldlt_solve(Mee, K_eff);
 
     // The state at time t: hub and beam turned by the profile's angle, spinning at W; eta = +-h e_k.
     const double angle = s.joints[0].prescribed->angle(t);
@@ -259,7 +258,7 @@ TEST_CASE("newton-euler geometric stiffening: small-motion frequencies of a spin
       A_engine.col(k) = (plus - minus) / (2 * h);
     }
     const VectorXd w2_model =
-        Eigen::EigenSolver<MatrixXd>(-A_model, false).eigenvalues().real().cwiseMax(-1e300);
+        test::eigenvalues(-A_model, /*compute_eigenvectors=*/false).real().cwiseMax(-1e300);
     INFO("stiffening " << stiffening << ": model d eta''/d eta\n" << A_model << "\nengine\n" << A_engine
                        << "\nomega^2 (model) " << w2_model.transpose());
     CHECK((A_engine - A_model).norm() < 1e-6 * A_model.norm());
