@@ -124,7 +124,7 @@ TEST_CASE("study: a reference good to less than the targets states its error and
 }
 
 TEST_CASE("study: a row whose steps the output times set is marked, in the table and in the "
-          "recommendation; dense methods and rkf78 with sparse outputs are not (issue 24)") {
+          "recommendation: dense methods and rkf78 with sparse outputs are not (issue 24)") {
   StudyOptions o;
   o.engines = {"kane"};
   o.integrators = {"rkf78", "dop853"};
