@@ -103,7 +103,16 @@ class Reader {
   [[noreturn]] void fail(const Val& v, const std::string& what) const {
     fail(v.mark, v.path, what);
   }
-  void warn(const Val& v, const std::string& what) const;
+  // A warning at v's line and key; `code` is its stable name (SceneWarning::code).
+  void warn(const Val& v, const std::string& code, const std::string& what) const;
+  // The times of every profile read (its `t` values, with where they are), for the check
+  // against the run's duration once the run block is read (check_profile_times).
+  struct ProfileTime {
+    Val val;
+    double t;
+    int profile;  // which profile, counted from 0 in reading order
+  };
+  const std::vector<ProfileTime>& profile_times() const { return profile_times_; }
 
   Val sub(const Val& parent, const YAML::Node& n, std::string path) const {
     YAML::Mark m = n.Mark();
@@ -145,6 +154,8 @@ class Reader {
 
   std::string file_;
   mutable std::vector<SceneWarning> warnings_;
+  mutable std::vector<ProfileTime> profile_times_;
+  mutable int profiles_ = 0;
 };
 
 template <typename WhyNot>
