@@ -11,6 +11,7 @@
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/scene_warnings.hpp"
 #include "harness/settings.hpp"
 #include "harness/verify.hpp"
 
@@ -133,15 +134,16 @@ struct CompareCommandOptions {
   std::string json;
   bool failures_only = false;
   bool allow_no_comparison = false;
+  bool strict = false;
 };
 
 int compare(const CompareCommandOptions& o) {
   // Everything that can be refused is refused before the engines run (exit 2).
   const harness::CompareOptions options = harness::to_compare_options(o.common);
   const std::string scene = harness::resolve_scene(o.scene);
-  std::vector<SceneWarning> warnings;
-  const System system = read_scene(scene, &warnings);
-  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  const harness::CheckedScene checked = harness::read_checked_scene(scene);
+  const System& system = checked.system;
+  harness::print_warnings(checked.warnings, std::cerr);  // --quiet too: it silences progress only
   // Every output against every input the scene was read from (nodal data files too).
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.json.empty()) outputs.push_back({"--json", o.json});
@@ -158,10 +160,13 @@ int compare(const CompareCommandOptions& o) {
   std::cout << harness::format_comparison(c, o.failures_only);
   check_written(std::cout);
   if (json) {
-    json->stream() << harness::json_summary({harness::SceneOutcome{scene, system, c, ""}});
+    harness::SceneOutcome outcome{scene, system, c, ""};
+    outcome.warnings = checked.warnings;
+    json->stream() << harness::json_summary({outcome});
     commit_together({&*json});
   }
-  return c.passed() ? kExitOk : kExitCheckFailed;
+  return harness::strict_status(c.passed() ? kExitOk : kExitCheckFailed, o.strict,
+                                checked.warnings.size());
 }
 
 }  // namespace
@@ -174,7 +179,8 @@ void add_compare_command(CLI::App& app, int& exit_code) {
       "them at the output times: per quantity and engine pair the largest difference, when it\n"
       "happened and the tolerance (pass when max|a - b| <= atol + rtol * max|b|), and each\n"
       "engine's drift of H and E. Failures come first. Exit status 0 all pass, 1 a check failed\n"
-      "or nothing was compared, 2 bad input, 3 a write failed, 130 interrupted.");
+      "or nothing was compared (or, with --strict, the scene has a warning), 2 bad input, 3 a\n"
+      "write failed, 130 interrupted. Scene warnings are printed on stderr.");
   sub->add_option("scene", o->scene,
                   "Scene file (YAML), e.g. scenarios/spear1_case1.yaml, or a scene name (see "
                   "`crossdyn list`)")
@@ -185,7 +191,10 @@ void add_compare_command(CLI::App& app, int& exit_code) {
                 "by default that fails with exit status 1");
   sub->add_option("--json", o->json, "Also write the comparison as JSON to FILE (atomically)");
   sub->add_flag("--failures", o->failures_only, "List only the failed checks");
-  sub->add_flag("--quiet,-q", o->common.quiet, "No progress line on stderr");
+  sub->add_flag("--quiet,-q", o->common.quiet, "No progress line on stderr (scene warnings are still printed)");
+  sub->add_flag("--strict", o->strict,
+                "Exit with status 1 when the scene has a warning and every check passed (the "
+                "outputs written as usual)");
   sub->callback([o, &exit_code] { exit_code = compare(*o); });
 }
 

@@ -13,6 +13,7 @@
 #include "harness/settings.hpp"
 #include "harness/shard.hpp"
 #include "harness/verify.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include <filesystem>
 #include <iostream>
@@ -105,7 +106,10 @@ int converge(const ConvergeOptions& o) {
   const std::string scene = harness::resolve_scene(o.scene);
   std::vector<SceneWarning> warnings;
   const System system = read_scene(scene, &warnings);
-  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  // The reader's warnings (as `crossdyn: warning: ...`); the scene checks of run, compare, verify
+  // and draw (harness/scene_warnings.hpp) are theirs: a merge of this command's parts could not
+  // repeat them.
+  harness::print_warnings(warnings, std::cerr);
   // Every output against every input the scene was read from (nodal data files too).
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.json.empty()) outputs.push_back({"--json", o.json});

@@ -14,6 +14,7 @@
 #include "harness/engines.hpp"
 #include "harness/locations.hpp"
 #include "harness/scene_geometry.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include <cctype>
 #include <cstdlib>
@@ -36,6 +37,7 @@ struct DrawOptions {
   std::string python = "/usr/bin/python3";
   std::string geometry;  // "" : not kept
   bool no_motion = false;
+  bool strict = false;
   int panels = 4;
 };
 
@@ -67,9 +69,9 @@ std::string lower(std::string s) {
 
 int draw(const DrawOptions& o) {
   const std::string scene = harness::resolve_scene(o.scene);
-  std::vector<SceneWarning> warnings;
-  const System system = read_scene(scene, &warnings);
-  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  const harness::CheckedScene checked = harness::read_checked_scene(scene);
+  const System& system = checked.system;
+  harness::print_warnings(checked.warnings, std::cerr);
   const std::string out = o.output.empty() ? harness::file_safe(system.name, true, "scene") + ".png" : o.output;
   // The picture is a PNG: a name without .png is a mistake (and keeps `-o scene.yaml` from ever
   // replacing an input).
@@ -122,7 +124,8 @@ int draw(const DrawOptions& o) {
   const TempFolder tmp;
   const fs::path geometry = tmp.path() / "geometry.json";
   const fs::path picture = tmp.path() / "picture.png";
-  const std::string document = g::geometry_json(system, g::initial_configuration(system), frames, source);
+  const std::string document = g::geometry_json(system, g::initial_configuration(system), frames, source,
+                                                checked.warnings);
   write_file_atomic(geometry.string(), document);
   harness::run_python(o.python, {script.string(), geometry.string(), picture.string()});
   std::ifstream in(picture, std::ios::binary);
@@ -136,7 +139,7 @@ int draw(const DrawOptions& o) {
   if (source.state == "failed")
     std::cerr << "crossdyn draw: the kane run failed (" << source.note << "); the picture shows "
               << frames.size() << " of " << o.panels << " later times\n";
-  return kExitOk;
+  return harness::strict_status(kExitOk, o.strict, checked.warnings.size());
 }
 
 }  // namespace
@@ -149,7 +152,10 @@ void add_draw_command(CLI::App& app, int& exit_code) {
       "box with its x/y/z axes, joint points seen from both bodies, revolute axes with the\n"
       "direction of a positive angle, spherical joints, offsets applied, names), and the\n"
       "configuration at a few later times from a kane run at the scene's settings. Look at it\n"
-      "before trusting a new scene: the engines all agree on a wrong axis sign or joint point.");
+      "before trusting a new scene: the engines all agree on a wrong axis sign or joint point.\n"
+      "The scene's warnings (a child folded into its parent, mirror-image panels that do not move\n"
+      "as mirror images, an angle without a unit above 2 pi, ...) are printed on stderr and in\n"
+      "the picture.");
   sub->add_option("scene", o->scene, "Scene file (YAML), or a scene name (crossdyn list)")->required();
   sub->add_option("--output,-o", o->output,
                   "The PNG file to write, atomically (default: <scene name>.png in the current folder)");
@@ -159,6 +165,8 @@ void add_draw_command(CLI::App& app, int& exit_code) {
   sub->add_option("--panels", o->panels, "Number of times drawn from the run: 0, T/(n-1), ..., T (default 4)");
   sub->add_option("--python", o->python,
                   "Python with matplotlib (default: /usr/bin/python3, Debian's)");
+  sub->add_flag("--strict", o->strict,
+                "Exit with status 1 when the scene has a warning (the picture is still written)");
   sub->callback([o, &exit_code] { exit_code = draw(*o); });
 }
 

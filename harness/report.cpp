@@ -8,6 +8,7 @@
 #include "core/output.hpp"
 #include "harness/locations.hpp"
 #include "harness/scene_geometry.hpp"
+#include "harness/scene_warnings.hpp"
 #include "harness/numbers.hpp"
 
 #include <nlohmann/json.hpp>
@@ -193,9 +194,13 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
   const std::vector<std::string> ids = scene_ids(scenes);
   json out_scenes = json::array();
   int n_checks = 0, n_failed = 0, n_scenes_failed = 0, n_bad = 0;
+  std::size_t n_warnings = 0;
   for (std::size_t i = 0; i < scenes.size(); ++i) {
     const SceneOutcome& s = scenes[i];
     json j = {{"id", ids[i]}, {"path", s.path}, {"page", ids[i] + ".html"}};
+    // The scene's warnings (harness/scene_warnings.hpp): not failures, so not in "passed".
+    j["warnings"] = warnings_json(s.warnings);
+    n_warnings += s.warnings.size();
     if (!s.comparison) {
       j["scene"] = fs::path(s.path).stem().string();
       j["passed"] = false;
@@ -267,7 +272,8 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
                       {"scenes_failed", n_scenes_failed},
                       {"scenes_unreadable", n_bad},
                       {"checks", n_checks},
-                      {"checks_failed", n_failed}}},
+                      {"checks_failed", n_failed},
+                      {"warnings", n_warnings}}},
           {"scenes", out_scenes}};
 }
 
@@ -455,12 +461,22 @@ std::string junit_xml(const std::vector<SceneOutcome>& scenes) {
         }
       }
     }
+    // The scene's warnings: a property each ("warning": "<code>: <detail>") and the lines crossdyn
+    // printed on stderr in the suite's <system-err>; a warning is neither a failure nor an error.
+    std::string warning_properties, warning_lines;
+    for (const SceneWarning& w : s.warnings) {
+      warning_properties += "      <property name=\"warning\" value=\"" +
+                            xml_escape(w.code + ": " + w.detail()) + "\"/>\n";
+      warning_lines += warning_line(w) + "\n";
+    }
     body << "  <testsuite name=\"" << xml_escape(ids[i]) << "\" tests=\"" << tests
          << "\" failures=\"" << failures << "\" errors=\"" << errors << "\" skipped=\"" << skipped
          << "\" time=\"" << fmt_6g(time) << "\">\n"
          << "    <properties>\n      <property name=\"file\" value=\"" << xml_escape(s.path)
-         << "\"/>\n    </properties>\n"
-         << cases.str() << "  </testsuite>\n";
+         << "\"/>\n" << warning_properties << "    </properties>\n"
+         << cases.str();
+    if (!warning_lines.empty()) body << "    <system-err>" << xml_escape(warning_lines) << "</system-err>\n";
+    body << "  </testsuite>\n";
     all_tests += tests;
     all_failures += failures;
     all_errors += errors;
@@ -703,7 +719,8 @@ void carry_over(const fs::path& from, const fs::path& to, bool (*owned)(const fs
 
 // The drawing geometry of a scene: t = 0 from the scene, later pictures from the kane run (or the
 // first run that has output), see harness/scene_geometry.hpp.
-std::string scene_geometry(const System& system, const SceneComparison& c) {
+std::string scene_geometry(const System& system, const SceneComparison& c,
+                           const std::vector<SceneWarning>& warnings) {
   namespace g = geometry;
   g::MotionSource source;
   source.duration = c.settings.duration;
@@ -729,7 +746,7 @@ std::string scene_geometry(const System& system, const SceneComparison& c) {
       source.note += std::string(source.note.empty() ? "" : "; ") + e.what();
     }
   }
-  return g::geometry_json(system, g::initial_configuration(system), frames, source);
+  return g::geometry_json(system, g::initial_configuration(system), frames, source, warnings);
 }
 
 }  // namespace
@@ -781,7 +798,8 @@ std::unique_ptr<StagedFolder> build_report(const std::vector<SceneOutcome>& scen
     }
     if (scenes[i].system) {
       const fs::path rel = fs::path("data") / ids[i] / "geometry.json";
-      write_file_atomic((out / rel).string(), scene_geometry(*scenes[i].system, *scenes[i].comparison));
+      write_file_atomic((out / rel).string(), scene_geometry(*scenes[i].system, *scenes[i].comparison,
+                                                         scenes[i].warnings));
       geometry_files[i] = rel.generic_string();
     }
   }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "core/output.hpp"
+#include "core/scene/scene.hpp"
 #include "harness/compare.hpp"
 
 #include <filesystem>
@@ -26,6 +27,8 @@ struct SceneOutcome {
   // converge_json), or why it was not run; informational, never part of the verdict.
   std::string converge_json{};
   std::string converge_note{};
+  // The scene's warnings (harness/scene_warnings.hpp), when it could be read; never a failure.
+  std::vector<SceneWarning> warnings{};
 };
 
 // The scene x check-group summary cell (verify's table, the report index, JSON "groups").

@@ -9,6 +9,7 @@
 #include "core/scene/scene.hpp"
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
+#include "harness/scene_warnings.hpp"
 #include "harness/settings.hpp"
 
 #include <iostream>
@@ -26,6 +27,7 @@ struct RunOptions {
   std::string output;
   bool stats = false;
   bool quiet = false;
+  bool strict = false;
   EngineOptions engine_options;
   std::optional<std::string> stabilization;  // --stabilization, a name of ConstraintStabilization
   bool no_rechart = false;
@@ -36,9 +38,9 @@ int run(const RunOptions& o) {
   harness::check_overrides(o.overrides);
   const std::string scene = harness::resolve_scene(o.scene);
   const bool to_stdout = o.output.empty() || o.output == "-";
-  std::vector<SceneWarning> warnings;
-  const System system = read_scene(scene, &warnings);
-  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  const harness::CheckedScene checked = harness::read_checked_scene(scene);
+  const System& system = checked.system;
+  harness::print_warnings(checked.warnings, std::cerr);  // --quiet too: it silences progress only
   // The output (standard output when the rows go there, e.g. `>> nodes.csv`) against every
   // input the scene was read from (nodal data files too).
   check_outputs_are_not_inputs({to_stdout ? NamedPath{"standard output", "-"}
@@ -86,7 +88,7 @@ int run(const RunOptions& o) {
   }
   if (file) commit_together({&*file});
   else check_written(out);
-  return kExitOk;
+  return harness::strict_status(kExitOk, o.strict, checked.warnings.size());
 }
 
 }  // namespace
@@ -114,7 +116,10 @@ void add_run_command(CLI::App& app, int& exit_code) {
                   "Write the CSV to FILE (atomically: complete file or none; '-' is stdout; see "
                   "docs/outputs.md for devices, FIFOs, symbolic links and read-only files)");
   sub->add_flag("--stats", o->stats, "Print step and right-hand-side counts to stderr");
-  sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
+  sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr (scene warnings are still printed)");
+  sub->add_flag("--strict", o->strict,
+                "Exit with status 1 when the scene has a warning (after the run, the output "
+                "written as usual)");
   sub->add_option("--stabilization", o->stabilization,
                   "newton-euler: " + known_names<ConstraintStabilization>() + " (default " +
                       EngineOptions{}.stabilization.str() + ")")

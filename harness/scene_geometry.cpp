@@ -1,5 +1,6 @@
 // Drawing geometry of a scene (see scene_geometry.hpp). Drawing code only: no engine uses it.
 #include "harness/scene_geometry.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
@@ -306,7 +307,8 @@ json configuration_json(const Configuration& c, bool centred) {
 }  // namespace
 
 std::string geometry_json(const System& system, const Configuration& initial,
-                          const std::vector<Configuration>& motion, const MotionSource& source) {
+                          const std::vector<Configuration>& motion, const MotionSource& source,
+                          const std::vector<SceneWarning>& warnings) {
   json bodies = json::array();
   const int base = system.base_body();
   for (std::size_t b = 0; b < system.bodies.size(); ++b) {
@@ -370,6 +372,7 @@ std::string geometry_json(const System& system, const Configuration& initial,
                     "spherical: R_PC = R_offset R(q_J)"})},
       {"bodies", bodies},
       {"joints", joints},
+      {"warnings", warnings_json(warnings)},
       {"initial", configuration_json(initial, false)},
       {"motion", {{"engine", source.engine},
                   {"state", source.state},

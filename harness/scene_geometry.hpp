@@ -20,6 +20,7 @@
 // joint frame turns with the node's slope psi = Psi_node eta.
 #pragma once
 
+#include "core/scene/scene.hpp"
 #include "core/system.hpp"
 
 #include <Eigen/Core>
@@ -140,8 +141,10 @@ std::vector<Configuration> motion_frames(const System& system, const std::vector
 
 // The geometry document the drawing script reads (reports/scene_view.py), format documented there
 // and in reports/README.md: the bodies (equivalent boxes), joints (points, axes, offsets), the
-// t = 0 configuration in N and the later configurations (CM at the origin).
+// t = 0 configuration in N, the later configurations (CM at the origin) and the scene's warnings
+// (harness/scene_warnings.hpp: the picture prints these, and makes none of its own).
 std::string geometry_json(const System& system, const Configuration& initial,
-                          const std::vector<Configuration>& motion, const MotionSource& source);
+                          const std::vector<Configuration>& motion, const MotionSource& source,
+                          const std::vector<SceneWarning>& warnings);
 
 }  // namespace crossdyn::harness::geometry

@@ -1,5 +1,6 @@
 // Sharded verify: the slicing, part files and their merge (see shard.hpp).
 #include "harness/shard.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
@@ -426,9 +427,31 @@ System system_from(const PartField& j) {
   return s;
 }
 
+// A scene warning whole (the reader's line and key too), so that merge gives back exactly what
+// the shard printed.
+json part_warning_to(const SceneWarning& w) {
+  return {{"code", w.code}, {"subject", w.subject}, {"file", w.file}, {"line", w.line},
+          {"column", w.column}, {"key", w.key}, {"message", w.message}};
+}
+
+SceneWarning part_warning_from(const PartField& j) {
+  SceneWarning w;
+  w.code = j.at("code").str();
+  w.subject = j.at("subject").str();
+  w.file = j.at("file").str();
+  w.line = j.at("line").i32();
+  w.column = j.at("column").i32();
+  w.key = j.at("key").str();
+  w.message = j.at("message").str();
+  return w;
+}
+
 json outcome_to(const SceneOutcome& o) {
   json j = {{"path", o.path}, {"input_error", o.input_error}, {"internal_error", o.internal_error},
             {"converge_json", o.converge_json}, {"converge_note", o.converge_note}};
+  json warnings = json::array();
+  for (const SceneWarning& w : o.warnings) warnings.push_back(part_warning_to(w));
+  j["warnings"] = warnings;
   j["system"] = o.system ? system_to(*o.system) : json(nullptr);
   if (o.comparison) {
     const SceneComparison& c = *o.comparison;
@@ -450,6 +473,13 @@ SceneOutcome outcome_from(const PartField& j) {
   o.internal_error = j.at("internal_error").boolean();
   o.converge_json = j.at("converge_json").str();
   o.converge_note = j.at("converge_note").str();
+  // Parts written before scene warnings were carried have none: refused by name, since merging
+  // them would lose the warnings the shard printed.
+  if (!j.has("warnings"))
+    throw InputError("field '" + j.where() + "/warnings' is missing: the part was written by an "
+                     "older crossdyn, which did not carry the scenes' warnings; run that shard "
+                     "again with this crossdyn");
+  for (const PartField& w : each(j.at("warnings"))) o.warnings.push_back(part_warning_from(w));
   if (!j.at("system").is_null()) o.system = system_from(j.at("system"));
   if (!j.at("comparison").is_null()) {
     const PartField jc = j.at("comparison");
@@ -975,13 +1005,29 @@ bool same_number(double a, double b) {
 // made again from the part's scene and runs with compare_runs and require_comparison, the code
 // the unsharded verify uses, and every check, note and run state must be the same.
 void recheck_outcome(const Part& part, SceneOutcome& o, bool allow_no_comparison) {
-  if (!o.comparison) return;
-  SceneComparison& c = *o.comparison;
   const auto refuse = [&](const std::string& what) {
     throw InputError("part '" + part.file + "', scene '" + o.path + "': " + what +
                      ": the part does not hold what its numbers give (edited, or written by "
                      "another program); run that shard again");
   };
+  // The scene's geometry warnings are made again from its scene; the reader's (with a line) are
+  // the part's own, since the scene text the part carries is written with units.
+  if (!o.system && !o.warnings.empty()) refuse("it has scene warnings but no scene");
+  if (o.system) {
+    std::vector<SceneWarning> given;
+    for (const SceneWarning& w : o.warnings)
+      if (w.line == 0) given.push_back(w);
+    const std::vector<SceneWarning> made = geometry_warnings(*o.system);
+    const auto same = [](const SceneWarning& a, const SceneWarning& b) {
+      return a.code == b.code && a.subject == b.subject && a.message == b.message && a.file == b.file &&
+             a.key == b.key && a.column == b.column;
+    };
+    if (given.size() != made.size() || !std::equal(given.begin(), given.end(), made.begin(), same))
+      refuse("field 'warnings' is not what its scene gives (" + std::to_string(given.size()) +
+             " geometry warnings in the part, " + std::to_string(made.size()) + " from its scene)");
+  }
+  if (!o.comparison) return;
+  SceneComparison& c = *o.comparison;
   if (!o.system) refuse("field 'system' is missing beside a comparison");
   for (const EngineRun& r : c.runs) {
     const bool failed = r.result.failure.has_value();

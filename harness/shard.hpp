@@ -21,7 +21,8 @@
 // "command": "verify" (absent: verify), "shard": {"index": K, "count": N}, "scenes": [{"path",
 // "sha256", "cost", "shard"} for every scene of the whole run, in the run's order], "outcomes": [the full SceneOutcome of every scene
 // of slice K: the scene as read (write_scene_text), the comparison with its runs' rows, checks and
-// notes, converge's result]}. Doubles are written in shortest round-trip form, and NaN and
+// notes, converge's result, the scene's warnings (all their fields; merge makes the geometry ones
+// again from the scene and refuses a part without them)]}. Doubles are written in shortest round-trip form, and NaN and
 // infinities as the strings "nan", "inf", "-inf", so a merged file carries the same numbers to
 // the last bit. Run times (wall_seconds) are each part's own. A sweep part has "options" ([[option,
 // value], ...]), "scenes" (the units, each with its "item"), "frame" and "items" instead.

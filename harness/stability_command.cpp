@@ -15,6 +15,7 @@
 #include "harness/shard.hpp"
 #include "harness/stability.hpp"
 #include "harness/study.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -136,7 +137,10 @@ int stability(const StabilityCliOptions& o) {
     system.run.duration = *o.duration;
     system.run.output_step = std::min(system.run.output_step, *o.duration);
   }
-  for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+  // The reader's warnings (as `crossdyn: warning: ...`); the scene checks of run, compare, verify
+  // and draw (harness/scene_warnings.hpp) are theirs: a merge of this command's parts could not
+  // repeat them.
+  harness::print_warnings(warnings, std::cerr);
   for (std::size_t i = 0; i < o.settings.size(); ++i) {  // a knob set twice is refused
     const std::string knob = o.settings[i].substr(0, o.settings[i].find('='));
     for (std::size_t j = 0; j < i; ++j)

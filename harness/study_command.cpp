@@ -14,6 +14,7 @@
 #include "harness/settings.hpp"
 #include "harness/shard.hpp"
 #include "harness/study.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -119,7 +120,10 @@ int study(const StudyCliOptions& o) {
   for (const std::string& p : paths) {
     std::vector<SceneWarning> warnings;
     systems.push_back(read_scene(p, &warnings));
-    for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+    // The reader's warnings (as `crossdyn: warning: ...`); the scene checks of run, compare, verify
+    // and draw (harness/scene_warnings.hpp) are theirs: a merge of this command's parts could not
+    // repeat them.
+    harness::print_warnings(warnings, std::cerr);
     // --duration, --output-step: checked with the scene's other settings (InputError naming the
     // option), then the scene's own, so that every run of the study (reference too) uses them.
     const IntegratorSettings checked = harness::settings_for(systems.back(), overrides);

@@ -7,6 +7,7 @@
 #include "core/scene/scene.hpp"
 #include "harness/converge.hpp"
 #include "harness/locations.hpp"
+#include "harness/scene_warnings.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -19,14 +20,20 @@
 
 namespace crossdyn::harness {
 
-int VerifyResult::exit_code() const {
+int VerifyResult::exit_code(bool strict) const {
   bool failed = false, error = false;
   for (const SceneOutcome& s : scenes) {
     if (!s.comparison && !s.internal_error) return kExitBadInput;
     error = error || s.internal_error;
     failed = failed || (s.comparison && !s.comparison->passed());
   }
-  return error ? kExitRunFailed : failed ? kExitCheckFailed : kExitOk;
+  return strict_status(error ? kExitRunFailed : failed ? kExitCheckFailed : kExitOk, strict, warnings());
+}
+
+std::size_t VerifyResult::warnings() const {
+  std::size_t n = 0;
+  for (const SceneOutcome& s : scenes) n += s.warnings.size();
+  return n;
 }
 
 std::vector<std::string> scene_files(const VerifyOptions& o) {
@@ -137,10 +144,11 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
     s.path = path;
     const auto start = std::chrono::steady_clock::now();
     try {
-      std::vector<SceneWarning> warnings;
       // A folder's scenes must be regular files (a FIFO there is refused, never waited on).
-      s.system = read_scene(path, &warnings, o.scenes.empty() ? Pipes::Refuse : Pipes::Allow);
-      for (const SceneWarning& w : warnings) std::cerr << w.text() << '\n';
+      CheckedScene checked = read_checked_scene(path, o.scenes.empty() ? Pipes::Refuse : Pipes::Allow);
+      s.system = std::move(checked.system);
+      s.warnings = std::move(checked.warnings);
+      print_warnings(s.warnings, std::cerr);  // once per scene, --quiet or not
       settings_for(*s.system, overrides);  // the run limits on the scene with the overrides
       s.comparison = o.compare_fn ? o.compare_fn(*s.system, o.compare)
                                   : compare_scene(*s.system, o.compare);
@@ -191,7 +199,7 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
   return result;
 }
 
-std::string format_verify_table(const VerifyResult& r) {
+std::string format_verify_table(const VerifyResult& r, bool strict) {
   // Columns: the groups any scene has, in the fixed order.
   std::vector<std::string> groups;
   std::vector<std::vector<GroupSummary>> per_scene;
@@ -288,11 +296,21 @@ std::string format_verify_table(const VerifyResult& r) {
     failures += "  ... " + std::to_string(left_out) +
                 " more failed checks: see `crossdyn compare SCENE` or the JSON summary\n";
   if (!failures.empty()) out += "\nfailed (per scene and quantity, the worst pair):\n" + failures;
+  // The scenes' warnings: every one, each under its scene (they are not failures).
+  std::string warned;
+  for (const SceneOutcome& s : r.scenes)
+    for (const SceneWarning& w : s.warnings)
+      warned += "  " + (s.comparison ? s.comparison->scene : s.system ? s.system->name : s.path) +
+                ": " + w.detail() + " [" + w.code + "]\n";
+  if (!warned.empty())
+    out += "\nscene warnings (not failures" +
+           std::string(strict ? "; with --strict they make the exit status 1" : "") + "):\n" + warned;
   char totals[256];
   std::snprintf(totals, sizeof totals,
-                "\n%zu scenes, %d checks: %d passed, %d failed, %d excluded, %d skipped\n",
+                "\n%zu scenes, %d checks: %d passed, %d failed, %d excluded, %d skipped; %zu scene "
+                "warning%s\n",
                 r.scenes.size(), n_checks, n_checks - n_failed - n_excluded - n_skipped, n_failed,
-                n_excluded, n_skipped);
+                n_excluded, n_skipped, r.warnings(), r.warnings() == 1 ? "" : "s");
   out += totals;
   return out;
 }

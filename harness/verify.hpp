@@ -27,7 +27,8 @@ struct VerifyOptions {
   std::string scenarios_dir;                // "": the first of scene_folders() (locations.hpp)
   CompareOptions compare;
   bool allow_no_comparison = false;         // a scene that compares nothing passes (with a note)
-  bool quiet = false;                       // no per-scene progress lines on stderr
+  bool quiet = false;                       // no per-scene progress lines on stderr (warnings stay)
+  bool strict = false;                      // a scene warning makes an exit status 0 a 1
   // Flexible scenes: also run `converge` (kane, at most kVerifyConvergeModels models) for the
   // report's model-size table and chart; informational, never part of the verdict.
   bool converge = true;
@@ -38,8 +39,9 @@ struct VerifyOptions {
 struct VerifyResult {
   std::vector<SceneOutcome> scenes;
   // 2 a scene could not be read, else 3 a scene's comparison ended with an error, else 1 a check
-  // failed (or a scene compared nothing), else 0.
-  int exit_code() const;
+  // failed (or a scene compared nothing), else (with `strict`) 1 a scene has a warning, else 0.
+  int exit_code(bool strict = false) const;
+  std::size_t warnings() const;  // the scenes' warnings, all together
 };
 
 // The scene files verify runs: the given ones (names resolved as `crossdyn run` does), or every
@@ -61,7 +63,8 @@ std::string nothing_compared(const SceneComparison& c);
 void require_comparison(SceneComparison& c, bool allow);
 
 // The scene x check-group table: per cell the worst normalised error and PASS/FAIL; failed checks
-// listed under it with their numbers.
-std::string format_verify_table(const VerifyResult& result);
+// listed under it with their numbers; then the scenes' warnings, one line each, and the totals
+// (with the number of warnings, and what --strict, when `strict`, makes of them).
+std::string format_verify_table(const VerifyResult& result, bool strict = false);
 
 }  // namespace crossdyn::harness

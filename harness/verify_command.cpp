@@ -10,6 +10,7 @@
 #include "harness/commands.hpp"
 #include "harness/locations.hpp"
 #include "harness/report.hpp"
+#include "harness/scene_warnings.hpp"
 #include "harness/shard.hpp"
 #include "harness/verify.hpp"
 
@@ -92,7 +93,7 @@ void open_outputs(VerifyCommandOptions& o, std::vector<NamedPath> inputs, Output
 // reported and never changes the verdict: the JSON and JUnit files are still written and the
 // old report folder is left as it was. Returns the exit status.
 int write_outputs(VerifyCommandOptions& o, Outputs& out, const harness::VerifyResult& result) {
-  std::cout << harness::format_verify_table(result);
+  std::cout << harness::format_verify_table(result, o.verify.strict);
   check_written(std::cout);
   if (out.json_file) out.json_file->stream() << harness::json_summary(result.scenes);
   if (out.junit_file) out.junit_file->stream() << harness::junit_xml(result.scenes);
@@ -114,7 +115,8 @@ int write_outputs(VerifyCommandOptions& o, Outputs& out, const harness::VerifyRe
     } catch (const std::exception& e) {
       report_failed = true;
       std::cerr << "crossdyn: report not written: " << e.what()
-                << " (the verdict above stands; exit status " << result.exit_code() << ")\n";
+                << " (the verdict above stands; exit status " << result.exit_code(o.verify.strict)
+                << ")\n";
     }
     if (interrupt_requested()) throw RunFailure("report", 0.0, "", "interrupted");
   }
@@ -125,7 +127,7 @@ int write_outputs(VerifyCommandOptions& o, Outputs& out, const harness::VerifyRe
   if (report) std::cout << "report: " << *o.report << "/index.html\n";
   if (report_failed) std::cout << "report: NOT WRITTEN (see the message on stderr)\n";
   check_written(std::cout);
-  return result.exit_code();
+  return result.exit_code(o.verify.strict);
 }
 
 // verify --shard K/N --part FILE: slice K's scenes only, its table, and the part file for merge.
@@ -152,7 +154,7 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
     std::cerr << "verify: shard " << shard.index << "/" << shard.count << ": " << own.size()
               << " of " << files.size() << " scenes\n";
   const harness::VerifyResult result = harness::run_verify(o.verify, own);
-  std::cout << harness::format_verify_table(result);
+  std::cout << harness::format_verify_table(result, o.verify.strict);
   // What the outcomes depend on besides the scenes: merge refuses parts that differ in any.
   const harness::CompareCliOptions& c = o.common;
   const auto opt_num = [](const std::optional<double>& v) {
@@ -176,7 +178,7 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
   commit_together({&*part_file});
   std::cout << "part " << shard.index << "/" << shard.count << ": " << o.part << '\n';
   check_written(std::cout);
-  return result.exit_code();
+  return result.exit_code(o.verify.strict);
 }
 
 int verify(VerifyCommandOptions& o) {
@@ -242,6 +244,9 @@ int merge_parts_command(VerifyCommandOptions& o) {
       throw InputError("merge: --python is for the report of verify's parts; parts of `crossdyn " +
                        command + "` are merged as the command writes them (its reports run "
                        "/usr/bin/python3)");
+    if (o.verify.strict)
+      throw InputError("merge: --strict is for verify's parts (their scene warnings); parts of "
+                       "`crossdyn " + command + "` are merged as the command writes them");
     if ((!converge && o.json_option->count() > 0) || !o.junit.empty() || !o.report_script.empty() ||
         (converge && (!o.csv.empty() || o.report)))
       throw InputError("merge: parts of `crossdyn " + command + "` give " +
@@ -271,6 +276,8 @@ int merge_parts_command(VerifyCommandOptions& o) {
   if (!o.verify.quiet)
     std::cerr << "merge: " << parts.size() << " parts, " << result.scenes.size() << " scenes ("
               << checked << " scene files on disk checked against their SHA-256)\n";
+  // The scenes' warnings, as verify printed them in the shards: once per scene, --quiet or not.
+  for (const harness::SceneOutcome& s : result.scenes) harness::print_warnings(s.warnings, std::cerr);
   return write_outputs(o, out, result);
 }
 
@@ -284,8 +291,10 @@ void add_verify_command(CLI::App& app, int& exit_code) {
       "one scene x check table (worst normalised error, PASS/FAIL), write a JSON summary and, when\n"
       "asked, JUnit XML and an HTML report. A scene that cannot be read or whose comparison fails\n"
       "is reported and the others still run. The report comes last and never changes the exit\n"
-      "status: 0 all pass, 1 a check failed or a scene compared nothing, 2 bad input, 3 a scene\n"
-      "ended with an error or an output could not be written, 130 interrupted.");
+      "status: 0 all pass, 1 a check failed or a scene compared nothing (or, with --strict, a\n"
+      "scene has a warning), 2 bad input, 3 a scene ended with an error or an output could not\n"
+      "be written, 130 interrupted. Scene warnings are printed on stderr, once per scene, and\n"
+      "are in the table, the JSON summary, the JUnit XML and the report; they are not failures.");
   sub->add_option("scenes", o->verify.scenes,
                   "Scene files or names (default: every scene of the scenes folder)");
   sub->add_option("--scenarios", o->verify.scenarios_dir,
@@ -311,7 +320,11 @@ void add_verify_command(CLI::App& app, int& exit_code) {
   sub->add_option("--report-script", o->report_script,
                   "The report script to run (default: reports/make_report.py of the source tree "
                   "crossdyn was built from; a script beside the scenes is never run)");
-  sub->add_flag("--quiet,-q", o->verify.quiet, "No progress line per scene on stderr");
+  sub->add_flag("--quiet,-q", o->verify.quiet,
+                "No progress line per scene on stderr (scene warnings are still printed)");
+  sub->add_flag("--strict", o->verify.strict,
+                "Exit with status 1 when a scene has a warning and nothing worse happened (every "
+                "output written as usual; with --shard, the slice's status)");
   sub->add_flag("--no-converge", [o](std::int64_t) { o->verify.converge = false; },
                 "Do not run `converge` on flexible scenes (the report's model-size section)");
   sub->add_option("--shard", o->shard,
@@ -359,7 +372,11 @@ void add_merge_command(CLI::App& app, int& exit_code) {
   sub->add_option("--report-script", o->report_script,
                   "The report script to run (default: reports/make_report.py of the source tree "
                   "crossdyn was built from)");
-  sub->add_flag("--quiet,-q", o->verify.quiet, "No summary line on stderr");
+  sub->add_flag("--quiet,-q", o->verify.quiet,
+                "No summary line on stderr (the scenes' warnings are still printed)");
+  sub->add_flag("--strict", o->verify.strict,
+                "verify parts: exit with status 1 when a scene has a warning and nothing worse "
+                "happened, as `verify --strict` (every output written as usual)");
   sub->callback([o, &exit_code] { exit_code = merge(*o); });
 }
 

@@ -31,13 +31,12 @@ from crossdyn_report.common import Run, plt, warn, write_atomic  # noqa: E402
 
 
 def scene_pictures(scene, out_dir, sid):
-    """The scene drawn at t = 0 and at later times: [(file, alt, caption)], note on the run. Sets
-    scene["picture_notes"]: what the picture flags (likely mistakes, asymmetries), for the pages."""
+    """The scene drawn at t = 0 and at later times: [(file, alt, caption)], note on the run. The
+    picture shows the scene's warnings as crossdyn made them (the summary's "warnings" are the
+    same list, for the pages)."""
     if not scene.get("geometry"):
         return [], ""
     geom = scene_view.load(os.path.join(out_dir, scene["geometry"]))
-    scene["picture_notes"] = (scene_view.geometry_warnings(geom, geom["initial"]) +
-                              scene_view.symmetry_notes(geom, geom["initial"]))
     pictures = []
     name = "%s-scene.png" % sid
     write_atomic(os.path.join(out_dir, name), scene_view.initial_png(geom))
@@ -92,10 +91,9 @@ def scene_page(env, scene, out_dir):
 
 
 def write_scene_page(env, scene, out_dir):
-    """Writes one scene's page and pictures; returns what the index needs back from it (the
-    picture's notes, set by scene_pictures), or None."""
+    """Writes one scene's page and pictures (the index needs nothing back: the scene's warnings are
+    in the summary)."""
     write_atomic(os.path.join(out_dir, scene["page"]), scene_page(env, scene, out_dir))
-    return scene.get("picture_notes")
 
 
 _worker_env = None
@@ -224,9 +222,7 @@ def main(argv):
     scenes = summary.get("scenes", [])
     for scene in scenes:
         scene.setdefault("group_order", summary.get("group_order", []))
-    for scene, notes in zip(scenes, scene_pages(env, scenes, out_dir)):
-        if notes is not None:
-            scene["picture_notes"] = notes
+    scene_pages(env, scenes, out_dir)
     write_atomic(os.path.join(out_dir, "index.html"),
                  pages.render(env, "index.html", pages.index_context(summary)))
     return 0

@@ -43,8 +43,13 @@
 namespace crossdyn {
 
 std::string SceneWarning::text() const {
-  return file + ":" + std::to_string(line) + ":" + std::to_string(column) +
+  return file + (line > 0 ? ":" + std::to_string(line) + ":" + std::to_string(column) : "") +
          ": warning: " + (key.empty() ? "" : key + ": ") + message;
+}
+
+std::string SceneWarning::detail() const {
+  return (line > 0 ? "line " + std::to_string(line) + ": " : std::string()) +
+         (key.empty() ? "" : key + ": ") + message;
 }
 
 namespace scene {
@@ -760,6 +765,28 @@ Tolerance read_tolerance(const Reader& r, const Val& v, Tolerance base) {
   return base;
 }
 
+// A profile step at or after the run's end is never applied (value(t) takes it from its time on):
+// usually a time in the wrong unit, or a duration shortened without the profile. One warning
+// per profile, at its first such step.
+void check_profile_times(const Reader& r, const System& s) {
+  int warned = -1;
+  const std::vector<Reader::ProfileTime>& times = r.profile_times();
+  for (std::size_t i = 0; i < times.size(); ++i) {
+    const Reader::ProfileTime& p = times[i];
+    if (p.profile == warned || p.t < s.run.duration) continue;
+    warned = p.profile;
+    int later = 0;
+    for (std::size_t k = i + 1; k < times.size() && times[k].profile == p.profile; ++k) ++later;
+    r.warn(p.val, "profile-after-end",
+           "this step at t = " + shortest(p.t) + " s is " +
+               (p.t == s.run.duration ? "at" : "after") + " the run's end (run.duration " +
+               shortest(s.run.duration) + " s), so it is never applied" +
+               (later == 0 ? std::string()
+                           : " (nor " + std::string(later == 1 ? "is the 1 step" : "are the " +
+                                 std::to_string(later) + " steps") + " after it)"));
+  }
+}
+
 void read_compare(const Reader& r, const MapView& top, System& s) {
   const auto cf = top.get("compare");
   if (!cf) return;
@@ -823,6 +850,7 @@ System read(const Reader& r, const std::string& text) {
     r.attempt([&] { order(r, top.at("joints").val, raw, bodies, s); });
   }
   r.attempt([&] { read_run(r, top, s); });
+  if (!r.failed()) r.attempt([&] { check_profile_times(r, s); });
   r.attempt([&] { read_compare(r, top, s); });
   if (!r.failed()) {
     check_analytic(r, top, s);

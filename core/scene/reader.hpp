@@ -151,7 +151,16 @@ class Reader {
   [[noreturn]] void fail(const Val& v, const std::string& what) const {
     fail(v.mark, v.path, what);
   }
-  void warn(const Val& v, const std::string& what) const;
+  // A warning at v's line and key; `code` is its stable name (SceneWarning::code).
+  void warn(const Val& v, const std::string& code, const std::string& what) const;
+  // The times of every profile read (its `t` values, with where they are), for the check
+  // against the run's duration once the run block is read (check_profile_times).
+  struct ProfileTime {
+    Val val;
+    double t;
+    int profile;  // which profile, counted from 0 in reading order
+  };
+  const std::vector<ProfileTime>& profile_times() const { return profile_times_; }
 
   // ----- several errors (see the top of this file) ---------------------------------------------
   // Thrown to stop reading a part whose problem is an error already recorded elsewhere (a joint
@@ -246,6 +255,8 @@ class Reader {
   // Keys whose value was a list with a unit after it: what their read says next (a list where a
   // quantity was expected) is that error again, left out.
   mutable std::vector<std::string> quiet_paths_;
+  mutable std::vector<ProfileTime> profile_times_;
+  mutable int profiles_ = 0;
 };
 
 template <typename WhyNot>

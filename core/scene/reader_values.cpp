@@ -320,10 +320,11 @@ void Reader::fail(const YAML::Mark& m, const std::string& path, const std::strin
                    line, column, path);
 }
 
-void Reader::warn(const Val& v, const std::string& what) const {
+void Reader::warn(const Val& v, const std::string& code, const std::string& what) const {
   const YAML::Mark& m = v.mark;
   warnings_.push_back(SceneWarning{file_, m.is_null() || m.line < 0 ? 1 : m.line + 1,
-                                   m.is_null() || m.column < 0 ? 1 : m.column + 1, v.path, what});
+                                   m.is_null() || m.column < 0 ? 1 : m.column + 1, v.path, what,
+                                   code, v.path});
 }
 
 std::vector<Val> Reader::list(const Val& v, const std::string& what, bool non_empty) const {
@@ -483,7 +484,7 @@ double Reader::quantity(const Val& v, Dimension d, std::optional<double> factor)
     const std::string written = v.node.Scalar();
     char degrees[32];
     std::snprintf(degrees, sizeof degrees, "%.1f", x * 180 / std::numbers::pi);
-    warn(v, written + " has no unit and is read as " + shortest(x) + " rad = " + degrees +
+    warn(v, "angle-unitless-large", written + " has no unit and is read as " + shortest(x) + " rad = " + degrees +
                 " deg; write '" + written + " deg' or '" + written + " rad'");
   }
   return sane(v, unit.empty() ? x : x * unit_factor(v, unit, d), d);
@@ -666,6 +667,7 @@ Eigen::Matrix3d Reader::inertia(const Field& f) const {
 template <int D>
 PiecewiseConstant<D> Reader::profile(const Field& f, unsigned joints) const {
   PiecewiseConstant<D> p;
+  const int which = profiles_++;
   const std::string item_path = std::string(f.key->path) + "[]";
   for (const Val& item : list(f)) {
     const MapView m(*this, item, item_path, joints);
@@ -682,6 +684,7 @@ PiecewiseConstant<D> Reader::profile(const Field& f, unsigned joints) const {
       value = vector(m.at("value"));
     p.times.push_back(t);
     p.values.push_back(value);
+    profile_times_.push_back({tf.val, t, which});
   }
   return p;
 }

@@ -15,16 +15,23 @@
 
 namespace crossdyn {
 
-// Something in a scene file that is read but probably not what its author meant (an angle
-// without a unit whose magnitude is above 2 pi). The scene is valid; the commands print each
-// warning on stderr (text()) before they run it.
+// Something in a scene that is valid but probably not what its author meant. The reader makes
+// some (an angle without a unit whose magnitude is above 2 pi, a profile step at or after the
+// run's end), with the line and column; the harness adds the checks of the scene's geometry
+// (harness/scene_warnings.hpp), which have no line. Every command that reads a scene prints each
+// on stderr, "crossdyn: warning: <file>: <detail()>"; a warning is not an error.
 struct SceneWarning {
   std::string file;
-  int line = 1, column = 1;  // 1-based
-  std::string key;           // key path, "joints[1].initial.angle"
-  std::string message;       // "5 has no unit and is read as 5 rad = 286.5 deg; ..."
-  // "<file>:<line>:<column>: warning: <key>: <message>"
+  int line = 0, column = 0;  // 1-based; 0 when the warning is about the scene as a whole
+  std::string key;           // key path, "joints[1].initial.angle"; "" for a geometry check
+  std::string message;       // "7 has no unit and is read as 7 rad = 401.1 deg; ..."
+  std::string code;          // stable short name: "angle-unitless-large", "cm-inboard", ...
+  std::string subject;       // what it concerns: the key path, or the joint(s) or body
+  // "<file>:<line>:<column>: warning: <key>: <message>" (the reader's form, for messages in tests)
   std::string text() const;
+  // "line 9: joints[1].initial.angle: 7 has no unit ..." or the geometry check's sentence: what
+  // follows "<file>: " on stderr, and what the drawing and the reports show.
+  std::string detail() const;
 };
 
 // Reads, validates and converts (units to SI, center_of_mass to the CM frame, joints to tree

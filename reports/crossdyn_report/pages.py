@@ -87,6 +87,7 @@ def index_context(summary):
     present = [g for g in order if any(x["group"] == g for s in scenes for x in s.get("groups", []))]
     rows = []
     failed_checks = []
+    warned = []  # every scene warning: (scene, page, message, code)
     for s in scenes:
         by = {x["group"]: x for x in s.get("groups", [])}
         cells = []
@@ -112,7 +113,10 @@ def index_context(summary):
             if c["status"] == "FAIL":
                 failed_checks.append(dict(scene=s.get("scene"), page=s["page"], line=check_line(c)))
         rows.append(dict(scene=s.get("scene"), page=s["page"], cells=cells, result=scene_result(s),
-                         input_error=s.get("input_error", ""), picture_notes=len(s.get("picture_notes", []))))
+                         input_error=s.get("input_error", ""), warnings=len(s.get("warnings", []))))
+        for w in s.get("warnings", []):
+            warned.append(dict(scene=s.get("scene"), page=s["page"], message=w.get("message", ""),
+                               code=w.get("code", "")))
     counts = summary.get("counts", {})
     n = counts.get("scenes", len(scenes))
     unreadable = counts.get("scenes_unreadable", 0)
@@ -124,7 +128,7 @@ def index_context(summary):
         scenes_total=n, scenes_passed=n - failed - unreadable, scenes_failed=failed,
         scenes_unreadable=unreadable, checks=status_counts(all_checks), checks_total=len(all_checks),
         columns=[dict(group=g, title=GROUP_TITLES.get(g, g), help=GROUP_HELP.get(g, "")) for g in present],
-        rows=rows, failed_checks=failed_checks,
+        rows=rows, failed_checks=failed_checks, warned=warned,
         unreadable=[r for r in rows if r["input_error"]],
         pass_rule=PASS_RULE, summary=summary.get("pass_rule", {}))
 
@@ -271,7 +275,8 @@ def scene_context(scene, pictures, charts, motion_note, converge=None):
         counts=status_counts(checks), checks_total=len(checks),
         failed=[check_line(c) for c in checks if c["status"] == "FAIL"],
         description=system.get("description", ""), source=system.get("source", ""),
-        pictures=pictures, motion_note=motion_note, picture_notes=scene.get("picture_notes", []),
+        pictures=pictures, motion_note=motion_note,
+        warnings=[dict(message=w.get("message", ""), code=w.get("code", "")) for w in scene.get("warnings", [])],
         tables=scene_tables(system) if system else None,
         run_text=("0 to %s s, output every %s s, integrator %s (rtol %s, atol %s). Total linear momentum %s."
                   % (gfmt(settings.get("duration_s", run.get("duration_s"))),

@@ -19,6 +19,9 @@ numbers, matrices lists of 3 rows; SI units; frames as in core/system.hpp:
                      bodies: [{p_NoBo_N, R_NB, nodes_N (flexible bodies: the nodes, deformed)}],
                      joints: [{p_NoJ_N_parent, p_NoJ_N_child, gap_m, axis_N_parent, axis_N_child,
                                axis_mismatch_rad, phi_J_rad}]}
+    warnings    the scene's warnings as crossdyn printed them (harness/scene_warnings.hpp):
+                [{code, subject, line (null: none), column, message}]; the picture shows these and
+                makes none of its own, so that it and the terminal always say the same
 
 New kinds of things are added as new keys (a body's node displacements per configuration, a
 prescribed joint's flag), so a reader ignores what it does not know.
@@ -46,7 +49,8 @@ BODY_COLOURS = ["#9a9a9a", "#ff9f1c", "#9467bd", "#17becf", "#8c564b", "#e377c2"
                 "#6b8e23", "#4682b4", "#d2691e"]  # base grey, then the others
 AXIS_ARROW = "#5b0f8a"   # revolute axes
 SWING = "#111111"        # where the child's CM goes for a positive angle
-MISMATCH = "#ff0000"     # joint points or axes that should coincide but do not
+MISMATCH = "#ff0000"     # joint points or axes that should coincide but do not; scene warnings
+SYMMETRY = "#b35900"     # the mirror-axes warning: mirror-image panels that do not move as such
 SPIN = "#d1007f"         # the base's initial angular velocity
 N_COLOUR = "0.35"
 VIEW = dict(elev=22, azim=-60)
@@ -350,66 +354,11 @@ def direction_name(v):
     return " ".join(parts)
 
 
-def geometry_warnings(geom, frame):
-    """Things that are very likely mistakes, named in red on the picture."""
-    out = []
-    for joint, js in zip(geom["joints"], frame["joints"]):
-        if joint["type"] == "free":
-            continue
-        if js["gap_m"] > 1e-9:
-            out.append("%s: the parent's and the child's joint points are %s m apart"
-                       % (joint["name"], gfmt(js["gap_m"], 3)))
-        if js.get("axis_mismatch_rad", 0) > 1e-6:
-            out.append("%s: the axis fixed in the child is %s deg off the parent's"
-                       % (joint["name"], gfmt(math.degrees(js["axis_mismatch_rad"]), 3)))
-        # A child folded back into its parent: its CM inboard of the joint (on the parent's side)
-        # and inside the parent's box. Usually a sign of child_point or of the offset.
-        p, c = joint["parent"], joint["child"]
-        if p < 0:
-            continue
-        p_J = np.asarray(js["p_NoJ_N_parent"], float)
-        out_of_parent = p_J - np.asarray(frame["bodies"][p]["p_NoBo_N"], float)
-        to_child = np.asarray(frame["bodies"][c]["p_NoBo_N"], float) - p_J
-        inboard = np.dot(out_of_parent, to_child) < -0.3 * np.linalg.norm(out_of_parent) * np.linalg.norm(to_child)
-        if inboard and inside_box(frame["bodies"][c]["p_NoBo_N"], geom["bodies"][p], frame["bodies"][p]):
-            out.append("%s: %s's CM is inboard of the joint, inside %s's box: check the sign of "
-                       "child_point and the offset" % (joint["name"], geom["bodies"][c]["name"],
-                                                       geom["bodies"][p]["name"]))
-    return out
-
-
-def symmetry_notes(geom, frame):
-    """Pairs of revolute joints on one parent that carry identical bodies at the same or mirror-image
-    points, where a positive angle does not move the two children as mirror images: often a flipped
-    axis sign, sometimes the design. Said, not judged."""
-    out = []
-    rev = [(joint, js) for joint, js in zip(geom["joints"], frame["joints"]) if joint["type"] == "revolute"]
-    bodies = geom["bodies"]
-    for k, (ja, sa) in enumerate(rev):
-        for jb, sb in rev[k + 1:]:
-            if ja["parent"] != jb["parent"]:
-                continue
-            ba, bb = bodies[ja["child"]], bodies[jb["child"]]
-            if abs(ba.get("mass_kg", 0) - bb.get("mass_kg", 0)) > 1e-9 * max(1.0, abs(ba.get("mass_kg", 0))) or \
-                    not np.allclose(ba["shape"]["size_m"], bb["shape"]["size_m"], rtol=1e-9, atol=1e-12):
-                continue
-            da, db = positive_direction(frame, ja, sa), positive_direction(frame, jb, sb)
-            if da is None or db is None:
-                continue
-            pa, pb = np.asarray(sa["p_NoJ_N_parent"], float), np.asarray(sb["p_NoJ_N_parent"], float)
-            if np.linalg.norm(pa - pb) > 1e-9:
-                n = (pa - pb) / np.linalg.norm(pa - pb)
-                db = db - 2 * np.dot(db, n) * n  # the mirror image of b's direction
-                where = "at mirror-image points"
-            else:
-                where = "at one point"
-            if np.dot(da, db) < -0.5:
-                out.append("note: %s and %s carry identical bodies %s of %s, yet a positive angle moves them "
-                           "other than as mirror images (%s towards N %s, %s towards N %s)" % (
-                               ja["name"], jb["name"], where, bodies[ja["parent"]]["name"], ba["name"],
-                               direction_name(positive_direction(frame, ja, sa)), bb["name"],
-                               direction_name(positive_direction(frame, jb, sb))))
-    return out
+def scene_warnings(geom):
+    """The scene's warnings crossdyn made (the document's "warnings"): [(message, colour)], red for
+    a likely mistake, orange for mirror-axes (a flipped axis sign, or the design)."""
+    return [(w["message"], SYMMETRY if w.get("code") == "mirror-axes" else MISMATCH)
+            for w in geom.get("warnings", [])]
 
 
 def draw_configuration(painter, geom, frame, half, detail=True, labels=None, initial=False):
@@ -651,19 +600,25 @@ def draw_initial(fig, geom, title=None):
     fig.legend([h for h, _ in handles], [t for _, t in handles], loc="lower left", ncol=3,
                bbox_to_anchor=(0.01, 0.085), fontsize=7.8, frameon=False,
                handler_map={tuple: HandlerTuple(ndivide=None, pad=0.3)})
-    notes = joint_notes(geom, frame)
-    warnings = geometry_warnings(geom, frame)
-    symmetry = symmetry_notes(geom, frame)
-    y = 0.245
-    for text, colour, weight in ([(w, MISMATCH, "bold") for w in warnings] +
-                                 [(n, "#b35900", "bold") for n in symmetry] +
-                                 [(n, "0.1", "normal") for n in notes])[:8]:
-        fig.text(0.015, y, text, fontsize=8, color=colour, weight=weight, ha="left", va="top")
-        y -= 0.018
+    for text, colour, weight, size, y in text_lines(scene_warnings(geom), joint_notes(geom, frame)):
+        fig.text(0.015, y, text, fontsize=size, color=colour, weight=weight, ha="left", va="top")
     fig.suptitle(title or "%s at t = 0, as crossdyn read it" % geom.get("scene", ""), fontsize=12, y=0.985)
     fig.text(0.015, 0.008, conventions_text(), fontsize=7.3, wrap=True, va="bottom", ha="left", color="0.25")
     labels.place(p3, fig)
     return ax
+
+
+def text_lines(warnings, notes, top=0.245):
+    """The lines under the 3-D view, above the legend: every scene warning first (bold, in its
+    colour), then the joints' notes while there is room: 5 lines at 8 pt, or up to 8 at 7 pt.
+    Past 8 warnings the last line says how many more there are. [(text, colour, weight, size, y)]."""
+    lines = [(w, colour, "bold") for w, colour in warnings]
+    if len(lines) > 8:
+        lines = lines[:7] + [("... and %d more scene warnings (printed by crossdyn, and in the report)"
+                              % (len(lines) - 7), MISMATCH, "bold")]
+    lines += [(n, "0.1", "normal") for n in notes][:max(0, (5 if len(lines) <= 5 else 8) - len(lines))]
+    size, step = (8, 0.018) if len(lines) <= 5 else (7, 0.0115)
+    return [(text, colour, weight, size, top - k * step) for k, (text, colour, weight) in enumerate(lines)]
 
 
 def motion_title(geom):

@@ -38,6 +38,13 @@ std::vector<SceneOutcome> outcomes() {
   out.push_back({"scenarios/good.yaml", good,
                  compare_runs(good, {engine_run("kane", make_run(good)), engine_run("lagrange", make_run(good))}),
                  ""});
+  // A scene warning: not a failure; a property and the suite's <system-err> in JUnit.
+  crossdyn::SceneWarning w;
+  w.file = "scenarios/good.yaml";
+  w.code = "cm-inboard";
+  w.subject = "hinge";
+  w.message = "hinge: arm's CM is inboard of the joint, inside hub's box: check the sign of <child_point>";
+  out.back().warnings.push_back(w);
 
   System bad = two_body_system();
   bad.name = "bad";
@@ -94,7 +101,7 @@ TEST_CASE("junit: testsuites / testsuite / testcase structure with consistent co
     suite_by_name[suite.get<std::string>("<xmlattr>.name")] = &suite;
     int n = 0, f = 0, e = 0, s = 0;
     for (const auto& [ctag, tc] : suite) {
-      if (ctag == "<xmlattr>" || ctag == "properties") continue;
+      if (ctag == "<xmlattr>" || ctag == "properties" || ctag == "system-err") continue;
       REQUIRE(ctag == "testcase");
       ++n;
       CHECK(tc.get<std::string>("<xmlattr>.classname").rfind("crossdyn.verify.", 0) == 0);
@@ -120,6 +127,19 @@ TEST_CASE("junit: testsuites / testsuite / testcase structure with consistent co
   // One case per engine run and per quantity: 2 runs + 12 pair quantities + 2 drifts.
   CHECK(attr_int(*suite_by_name.at("good"), "tests") == 16);
   CHECK(attr_int(*suite_by_name.at("good"), "failures") == 0);
+  // The warning: a property of its scene's suite, and the line crossdyn printed in <system-err>;
+  // the other suites have neither.
+  std::vector<std::string> warning_properties;
+  for (const auto& [tag, p] : suite_by_name.at("good")->get_child("properties"))
+    if (p.get<std::string>("<xmlattr>.name") == "warning") warning_properties.push_back(p.get<std::string>("<xmlattr>.value"));
+  CHECK(warning_properties == std::vector<std::string>{
+                                  "cm-inboard: hinge: arm's CM is inboard of the joint, inside hub's box: "
+                                  "check the sign of <child_point>"});
+  CHECK(suite_by_name.at("good")->get<std::string>("system-err") ==
+        "crossdyn: warning: scenarios/good.yaml: hinge: arm's CM is inboard of the joint, inside hub's box: "
+        "check the sign of <child_point>\n");
+  CHECK(suite_by_name.at("bad")->count("system-err") == 0);
+  CHECK(suite_by_name.at("bad")->get_child("properties").size() == 1);
   // bad: hinge.rate fails (lagrange vs kane) and newton-euler's run fails.
   CHECK(attr_int(*suite_by_name.at("bad"), "failures") == 2);
   CHECK(attr_int(*suite_by_name.at("broken"), "errors") == 1);
@@ -172,6 +192,17 @@ TEST_CASE("json summary: counts, every check with its numbers, scene data, unrea
     }
   CHECK(j["counts"]["checks"] == checks);
   CHECK(j["counts"]["checks_failed"] == failed);
+  // The scenes' warnings: a list per scene (empty for none, and for an unreadable scene), counted;
+  // not failures.
+  CHECK(j["counts"]["warnings"] == 1);
+  CHECK(j["scenes"][0]["passed"] == true);
+  REQUIRE(j["scenes"][0]["warnings"].size() == 1);
+  CHECK(j["scenes"][0]["warnings"][0]["code"] == "cm-inboard");
+  CHECK(j["scenes"][0]["warnings"][0]["subject"] == "hinge");
+  CHECK(j["scenes"][0]["warnings"][0]["line"].is_null());
+  CHECK(j["scenes"][0]["warnings"][0]["message"] ==
+        "hinge: arm's CM is inboard of the joint, inside hub's box: check the sign of <child_point>");
+  for (int i : {1, 2, 3}) CHECK(j["scenes"][i]["warnings"] == nlohmann::json::array());
   REQUIRE(j["scenes"].size() == 4);
 
   const nlohmann::json& bad = j["scenes"][1];

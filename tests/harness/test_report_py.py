@@ -181,14 +181,30 @@ class Pages(unittest.TestCase):
         self.assertNotIn("joint angles", text)
         self.assertNotIn("<script", html)
 
-    def test_a_scene_whose_picture_flags_something_is_pointed_at(self):
+    def test_a_scene_with_warnings_is_pointed_at_and_its_warnings_listed(self):
         summary = summary_three_scenes()
-        summary["scenes"][0]["picture_notes"] = ["hinge1: arm's CM is inboard of the joint"]
+        summary["scenes"][0]["warnings"] = [
+            {"code": "cm-inboard", "subject": "hinge1", "line": None, "column": None,
+             "message": "hinge1: arm's CM is inboard of the joint, inside hub's box: check the sign of "
+                        "child_point and the offset"}]
         html = pages.render(self.env, "index.html", pages.index_context(summary))
-        self.assertIn('<a href="good.html#picture">look at the picture: 1 note</a>', html)
-        self.assertEqual(html.count("look at the picture:"), 1)
+        self.assertIn('<a href="good.html#warnings">1 scene warning: look at the picture</a>', html)
+        self.assertEqual(html.count("1 scene warning: look at the picture"), 1)
+        text = visible(html)
+        self.assertIn("1 scene warning (below; not failures).", text)
+        # The index lists every warning under its scene.
+        self.assertIn("Scene warnings", text)
+        self.assertIn("good: hinge1: arm's CM is inboard of the joint, inside hub's box: check the sign of "
+                      "child_point and the offset [cm-inboard]", text)
         page = pages.render(self.env, "scene.html", pages.scene_context(summary["scenes"][0], [], [], ""))
-        self.assertIn("The picture flags: hinge1: arm's CM is inboard of the joint", visible(page))
+        self.assertIn("Scene warnings (crossdyn printed these on stderr; not failures): hinge1: arm's CM is "
+                      "inboard of the joint", visible(page))
+        self.assertIn('id="warnings"', page)
+        # No warnings: no section, no marker.
+        clean = pages.render(self.env, "index.html", pages.index_context(summary_three_scenes()))
+        self.assertNotIn("scene warning:", clean)
+        self.assertNotIn("scene warnings (below", visible(clean))
+        self.assertNotIn('id="warnings"', clean)
 
     def test_scene_page_links_csv_and_has_no_empty_columns(self):
         s = summary_three_scenes()["scenes"][1]
@@ -281,20 +297,47 @@ def geometry(child_at, child_point):
 
 
 class ScenePicture(unittest.TestCase):
-    def test_a_child_folded_into_its_parent_is_flagged(self):
-        good = geometry([2.0, 0, 0], [-1.0, 0, 0])
-        self.assertEqual(scene_view.geometry_warnings(good, good["initial"]), [])
+    def test_the_picture_prints_the_warnings_crossdyn_made_and_none_of_its_own(self):
+        # A child folded into its parent: the picture no longer judges the geometry itself
+        # (harness/scene_warnings.cpp does, tests/harness/test_scene_warnings.cpp); it prints the
+        # document's "warnings", red, mirror-axes orange, in the order given.
         folded = geometry([0.2, 0, 0], [0.8, 0, 0])
-        warnings = scene_view.geometry_warnings(folded, folded["initial"])
-        self.assertEqual(warnings, ["hinge: arm's CM is inboard of the joint, inside hub's box: check the sign "
-                                    "of child_point and the offset"])
-        # A rotor turning about its own CM inside its parent is normal.
-        rotor = geometry([1.0, 0, 0], [0.0, 0, 0])
-        self.assertEqual(scene_view.geometry_warnings(rotor, rotor["initial"]), [])
-        # Two points that should be one are named, with the distance.
-        apart = geometry([2.0, 0, 0], [-0.5, 0, 0])
-        self.assertEqual(scene_view.geometry_warnings(apart, apart["initial"]),
-                         ["hinge: the parent's and the child's joint points are 0.5 m apart"])
+        self.assertEqual(scene_view.scene_warnings(folded), [])
+        folded["warnings"] = [
+            {"code": "cm-inboard", "subject": "hinge", "line": None, "column": None,
+             "message": "hinge: arm's CM is inboard of the joint, inside hub's box: check the sign of "
+                        "child_point and the offset"},
+            {"code": "mirror-axes", "subject": "a and b", "line": None, "column": None, "message": "a and b ..."}]
+        self.assertEqual(scene_view.scene_warnings(folded),
+                         [(folded["warnings"][0]["message"], scene_view.MISMATCH),
+                          ("a and b ...", scene_view.SYMMETRY)])
+        captured = []
+        original = scene_view.png_bytes
+        scene_view.png_bytes = lambda fig: captured.append(fig) or b""
+        try:
+            scene_view.initial_png(folded)
+        finally:
+            scene_view.png_bytes = original
+        texts = {t.get_text(): t for t in captured[0].texts}
+        red = texts[folded["warnings"][0]["message"]]
+        self.assertEqual(matplotlib_colour(red.get_color()), matplotlib_colour(scene_view.MISMATCH))
+        self.assertEqual(red.get_weight(), "bold")
+        self.assertEqual(matplotlib_colour(texts["a and b ..."].get_color()),
+                         matplotlib_colour(scene_view.SYMMETRY))
+
+    def test_every_warning_is_printed_before_the_notes_and_none_is_dropped_for_them(self):
+        red = scene_view.MISMATCH
+        notes = ["note %d" % k for k in range(6)]
+        lines = scene_view.text_lines([("w0", red)], notes)
+        self.assertEqual([t for t, *_ in lines], ["w0", "note 0", "note 1", "note 2", "note 3"])
+        self.assertEqual({size for *_, size, _ in lines}, {8})  # five lines fit at 8 pt
+        lines = scene_view.text_lines([("w%d" % k, red) for k in range(6)], notes)
+        self.assertEqual([t for t, *_ in lines], ["w0", "w1", "w2", "w3", "w4", "w5", "note 0", "note 1"])
+        self.assertEqual({size for *_, size, _ in lines}, {7})  # eight at 7 pt, in the same room
+        self.assertGreater(min(y for *_, y in lines), 0.15)     # above the legend
+        lines = scene_view.text_lines([("w%d" % k, red) for k in range(10)], notes)
+        self.assertEqual([t for t, *_ in lines][-2:],
+                         ["w6", "... and 3 more scene warnings (printed by crossdyn, and in the report)"])
 
     def test_a_failed_run_still_gives_a_picture_that_says_so(self):
         g = geometry([2.0, 0, 0], [-1.0, 0, 0])
@@ -307,41 +350,55 @@ class ScenePicture(unittest.TestCase):
                          ["hinge: axis (0, 0, 1) in hub, (0, 0, 1) in N; + angle moves arm towards N +y"])
 
 
+def matplotlib_colour(c):
+    from matplotlib.colors import to_rgb
+    return tuple(round(x, 6) for x in to_rgb(c))
+
+
 class CheckScenes(unittest.TestCase):
     """The Basilisk-like hinged panels and two copies with one wrong sign each
-    (tests/harness/scenes): the picture of each says what is wrong, the correct one says nothing."""
+    (tests/harness/scenes): crossdyn draw prints each one's warnings on stderr and puts the same
+    in the geometry document the picture is drawn from; the correct one has none."""
 
-    def geometry(self, name):
+    def draw(self, name):
         scene = os.path.join(SOURCE, "tests", "harness", "scenes", name + ".yaml")
         with tempfile.TemporaryDirectory() as tmp:
             out = os.path.join(tmp, "geometry.json")
-            subprocess.run([CROSSDYN, "draw", scene, "--no-motion", "-o", os.path.join(tmp, "p.png"),
-                            "--geometry", out], check=True, stdout=subprocess.DEVNULL)
-            return scene_view.load(out)
+            r = subprocess.run([CROSSDYN, "draw", scene, "--no-motion", "-o", os.path.join(tmp, "p.png"),
+                                "--geometry", out], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               text=True)
+            return scene_view.load(out), r.stderr, scene
 
-    def messages(self, g):
-        f = g["initial"]
-        return scene_view.geometry_warnings(g, f), scene_view.symmetry_notes(g, f), scene_view.joint_notes(g, f)
+    def messages(self, name):
+        g, err, scene = self.draw(name)
+        warnings = [m for m, _ in scene_view.scene_warnings(g)]
+        # The terminal says exactly what the picture says, one line each.
+        self.assertEqual([ln for ln in err.splitlines() if ln.startswith("crossdyn: warning: ")],
+                         ["crossdyn: warning: %s: %s" % (scene, m) for m in warnings])
+        return g, warnings, scene_view.joint_notes(g, g["initial"])
 
     def test_the_correct_panels_raise_nothing(self):
-        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels"))
+        g, warnings, notes = self.messages("hinged_panels")
         self.assertEqual(warnings, [])
-        self.assertEqual(symmetry, [])
+        self.assertEqual(g["warnings"], [])
         self.assertIn("hinge1: axis (0, -1, 0) in hub, (0, -1, 0) in N (offset); + angle moves panel1 towards N +z",
                       notes)
         self.assertIn("hinge2: axis (0, 1, 0) in hub, (0, 1, 0) in N; + angle moves panel2 towards N +z", notes)
 
     def test_a_flipped_axis_is_named(self):
-        warnings, symmetry, notes = self.messages(self.geometry("hinged_panels_flipped_axis"))
-        self.assertEqual(warnings, [])
-        self.assertEqual(symmetry, ["note: hinge1 and hinge2 carry identical bodies at mirror-image points of "
+        g, warnings, notes = self.messages("hinged_panels_flipped_axis")
+        self.assertEqual(warnings, ["hinge1 and hinge2 carry identical bodies at mirror-image points of "
                                     "hub, yet a positive angle moves them other than as mirror images (panel1 towards "
                                     "N -z, panel2 towards N +z)"])
+        self.assertEqual([w["code"] for w in g["warnings"]], ["mirror-axes"])
 
     def test_a_flipped_child_point_is_named(self):
-        warnings, _, _ = self.messages(self.geometry("hinged_panels_flipped_child_point"))
-        self.assertEqual(warnings, ["hinge1: panel1's CM is inboard of the joint, inside hub's box: check the "
-                                    "sign of child_point and the offset"])
+        g, warnings, _ = self.messages("hinged_panels_flipped_child_point")
+        self.assertEqual(warnings[0], "hinge1: panel1's CM is inboard of the joint, inside hub's box: check the "
+                                      "sign of child_point and the offset")
+        self.assertEqual([w["code"] for w in g["warnings"]], ["cm-inboard", "mirror-axes"])
+        self.assertEqual(g["warnings"][0]["subject"], "hinge1")
+        self.assertIsNone(g["warnings"][0]["line"])
 
 
 class StabilityMap(unittest.TestCase):

@@ -254,7 +254,7 @@ TEST_CASE("scene geometry: the geometry document has what the drawing script rea
   source.note = "kane: failed at t = 1 s";
   source.duration = 10;
   const nlohmann::json j = nlohmann::json::parse(
-      g::geometry_json(s, g::initial_configuration(s), {}, source));
+      g::geometry_json(s, g::initial_configuration(s), {}, source, {}));
   CHECK(j["format"] == "crossdyn scene geometry");
   CHECK(j["version"] == 1);
   REQUIRE(j["bodies"].size() == 3);

@@ -188,6 +188,10 @@ TEST_CASE("a bare angle above 2 pi draws a warning naming the file, line and key
   CHECK(w[0].text() ==
         "w.yaml:9:23: warning: joints[1].initial.angle: 7 has no unit and is read as 7 rad = "
         "401.1 deg; write '7 deg' or '7 rad'");
+  CHECK(w[0].code == "angle-unitless-large");
+  CHECK(w[0].subject == "joints[1].initial.angle");
+  CHECK(w[0].detail() == "line 9: joints[1].initial.angle: 7 has no unit and is read as 7 rad = 401.1 "
+                         "deg; write '7 deg' or '7 rad'");
   CHECK(joint(s, "h").angle0 == 7.0);  // still read as radians
   // Below a full turn, with a unit, or not an angle: no warning.
   for (const char* initial :
@@ -235,9 +239,9 @@ TEST_CASE("the program prints scene warnings on stderr and still runs the scene"
     const test::ProgramResult r = test::run_crossdyn(args);
     INFO(r.output);
     CHECK(r.status == 0);
-    CHECK(r.output.find(scene.string() +
-                        ":9:23: warning: joints[1].initial.angle: 7 has no unit and is read as 7 "
-                        "rad = 401.1 deg; write '7 deg' or '7 rad'") != std::string::npos);
+    CHECK(r.output.find("crossdyn: warning: " + scene.string() +
+                        ": line 9: joints[1].initial.angle: 7 has no unit and is read as 7 "
+                        "rad = 401.1 deg; write '7 deg' or '7 rad'\n") != std::string::npos);
   }
   CHECK(fs::exists(out));
   fs::remove_all(dir);
