@@ -118,6 +118,17 @@ void Runner::run(State& x) {
   check_state(engine_, 0.0, x);
   emit(0.0, x.data());
   if (on_step_) on_step_(0.0, result_.stats);
+  if (x.empty()) {
+    // Every motion prescribed (no state: a rigid scene whose joints are all prescribed, or a
+    // converge model that keeps no modes of such a scene): nothing to integrate, whatever the
+    // method; the rows are the prescribed motion at the output times. (dop853's error norm and
+    // CVODE's matrices need at least one state.)
+    for (std::size_t k = 1; k < outputs_.size(); ++k) {
+      guard(outputs_[k - 1], x);
+      emit(outputs_[k], x.data());
+    }
+    return;
+  }
   switch (s_.method.value()) {
     case Integrator::Rk4: fixed_rk4(x); break;
     case Integrator::Dopri5: {

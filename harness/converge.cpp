@@ -4,6 +4,7 @@
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
 #include "core/scene/scene.hpp"
+#include "harness/study.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -267,40 +268,70 @@ std::vector<int> full_counts_of(const ConvergeResult& frame) {
   return full;
 }
 
-// Runs `s` as model `m` and compares it with the full model's run.
+// Runs `s` as model `m` and compares it with the full model's run; `metric` holds the full
+// model's scales (its quantities are the full model's: a smaller model's are a subset).
 void run_and_compare(ConvergeModel& m, const System& s, const EngineRun& full_run,
-                     const CompareOptions& one) {
+                     const ErrorMetric& metric, const CompareOptions& one, double accuracy) {
   SceneComparison c = compare_scene(s, one);
   m.run = std::move(c.runs.at(0));
   m.run.label = m.label;
-  if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
+  auto failed = [&m](const std::string& why) {
     m.passed = false;
-    m.worst_normalised = std::numeric_limits<double>::infinity();
-    m.worst_quantity = "run: " + (m.run.result.failure ? std::string(m.run.result.failure->what())
-                                                       : m.run.note);
+    m.checks.clear();
+    m.scales.clear();
+    m.worst_relative = m.worst_normalised = std::numeric_limits<double>::infinity();
+    m.worst_quantity = "run: " + why;
+  };
+  if (m.run.state != EngineRun::State::Ok || m.run.result.failure) {
+    failed(m.run.result.failure ? std::string(m.run.result.failure->what()) : m.run.note);
     return;
   }
   SceneComparison d = compare_runs(s, {full_run, m.run});
-  m.passed = true;
   for (Check& k : d.checks) {
     if (k.b.empty() || k.group == "run" || k.group == "t") {
-      if (k.status == CheckStatus::Fail) m.passed = false;  // "t": output times differ
+      if (k.status == CheckStatus::Fail) {  // "t": the output times differ
+        failed(k.group == "t" ? "its output times differ from the full model's" : k.note);
+        return;
+      }
       continue;
     }
-    if (k.status == CheckStatus::Fail) m.passed = false;
-    if (k.status != CheckStatus::Excluded && !(k.normalised <= m.worst_normalised)) {
-      m.worst_normalised = k.normalised;
-      m.worst_quantity = k.quantity;
-    }
+    m.scales.push_back(k.status == CheckStatus::Excluded ? std::numeric_limits<double>::quiet_NaN()
+                                                         : metric.scale(k.quantity));
     m.checks.push_back(std::move(k));
   }
+  judge_converge_model(m, accuracy);
 }
 
 }  // namespace
 
+void judge_converge_model(ConvergeModel& m, double accuracy) {
+  if (m.full || m.worst_quantity.rfind("run: ", 0) == 0) return;  // nothing compared
+  m.worst_relative = 0;
+  m.worst_normalised = 0;
+  m.worst_quantity.clear();
+  for (std::size_t i = 0; i < m.checks.size(); ++i) {
+    const Check& k = m.checks[i];
+    if (k.status == CheckStatus::Excluded) continue;
+    if (!(k.normalised <= m.worst_normalised)) m.worst_normalised = k.normalised;
+    const double scale = i < m.scales.size() ? m.scales[i] : std::numeric_limits<double>::quiet_NaN();
+    if (!(scale > 0)) continue;  // a quantity the metric does not judge
+    const double relative = std::isfinite(k.error) ? k.error / scale : std::numeric_limits<double>::infinity();
+    if (!(relative <= m.worst_relative) || m.worst_quantity.empty()) {
+      if (!(relative <= m.worst_relative)) m.worst_relative = relative;
+      if (m.worst_quantity.empty() || relative >= m.worst_relative) m.worst_quantity = k.quantity;
+    }
+  }
+  m.passed = m.worst_relative <= accuracy;
+}
+
 ConvergeResult converge_frame(const System& system, const CompareOptions& options,
-                              std::vector<ConvergeJob>* jobs) {
+                              std::vector<ConvergeJob>* jobs, double accuracy) {
+  if (!(accuracy > 0) || !std::isfinite(accuracy) || accuracy >= 1)
+    throw InputError("--accuracy: " + sci(accuracy) +
+                     " is not an accuracy: give the largest relative change a model may make, "
+                     "above 0 and below 1 (e.g. 1e-3: 0.1 % of each quantity's scale)");
   ConvergeResult r;
+  r.accuracy = accuracy;
   r.scene = system.name;
   r.groups = mode_groups(system);
   if (r.groups.empty())
@@ -354,12 +385,15 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
                                           const CompareOptions& options, std::string* note) {
   cancel::poll();
   const CompareOptions one = one_engine(options);
+  const History full_history = pinned_history(system, full_run.result);
+  const ErrorMetric metric(system, full_history);
   ConvergeModel m;
   m.counts = job.counts;
   for (int c : job.counts) m.modes += c;
   m.label = model_label(system, frame.groups, job.counts);
   if (job.slices == 0) {
-    run_and_compare(m, truncate_modes(system, frame.groups, job.counts), full_run, one);
+    run_and_compare(m, truncate_modes(system, frame.groups, job.counts), full_run, metric, one,
+                    frame.accuracy);
     return m;
   }
   const std::size_t b = static_cast<std::size_t>(job.slice_body);
@@ -386,7 +420,7 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
   m.slices = job.slices;
   m.slice_body = job.slice_body;
   m.label += ", " + system.bodies[b].name + " " + std::to_string(job.slices) + " slices";
-  run_and_compare(m, *s, full_run, one);
+  run_and_compare(m, *s, full_run, metric, one, frame.accuracy);
   return m;
 }
 
@@ -399,9 +433,9 @@ void converge_finish(ConvergeResult& r) {
       r.smallest = static_cast<int>(i);
 }
 
-ConvergeResult converge_scene(const System& system, const CompareOptions& options) {
+ConvergeResult converge_scene(const System& system, const CompareOptions& options, double accuracy) {
   std::vector<ConvergeJob> jobs;
-  ConvergeResult r = converge_frame(system, options, &jobs);
+  ConvergeResult r = converge_frame(system, options, &jobs, accuracy);
   // The full model first: every other model is compared with it.
   r.models.push_back(converge_full_model(system, r, options));
   const EngineRun full_run = r.models.front().run;
@@ -417,23 +451,28 @@ ConvergeResult converge_scene(const System& system, const CompareOptions& option
 
 std::string format_converge(const ConvergeResult& r) {
   std::vector<std::vector<std::string>> rows{
-      {"model", "modes", "largest change / tolerance", "in", "verdict"}};
+      {"model", "modes", "largest change", "in", "verdict"}};
   for (std::size_t i = 0; i < r.models.size(); ++i) {
     const ConvergeModel& m = r.models[i];
-    rows.push_back({m.label, std::to_string(m.modes), m.full ? "reference" : sci(m.worst_normalised),
+    rows.push_back({m.label, std::to_string(m.modes), m.full ? "reference" : sci(m.worst_relative),
                     m.full ? "" : m.worst_quantity,
                     m.full ? "" : m.passed ? "within"
                                   : m.worst_quantity.rfind("run: ", 0) == 0 ? "RUN FAILED"
                                                                             : "CHANGES"});
   }
   std::ostringstream out;
-  out << "converge " << r.scene << " (engine " << r.engine
-      << "): every model against the full model, the scene's tolerances; \"largest change / "
-         "tolerance\" <= 1 is within them\n\n"
+  out << "converge " << r.scene << " (engine " << r.engine << "): every model against the full model\n"
+      << "accuracy " << sci(r.accuracy)
+      << " (--accuracy): a model is within it when no quantity changes by more than " << sci(r.accuracy)
+      << " of its scale\n  (the size of its kind of motion in the full model, as `crossdyn study` "
+         "measures errors; attitudes in rad).\n  This is what you ask of the model; the scene's "
+         "compare tolerances are for checking that the engines agree.\n\n"
       << text_table(rows) << '\n';
   const ConvergeModel& s = r.models[static_cast<std::size_t>(r.smallest)];
-  out << "smallest model within the scene's tolerances: " << s.label << " (" << s.modes << " of "
-      << r.models.front().modes << " modes)\n";
+  out << "smallest model within the accuracy " << sci(r.accuracy) << ": " << s.label << " (" << s.modes
+      << " of " << r.models.front().modes << " modes";
+  if (!s.full) out << "; largest change " << sci(s.worst_relative) << ", in " << s.worst_quantity;
+  out << ")\n";
   // The re-sliced body, from the row's label ("..., boom 30 slices"): several beams may be re-sliced.
   auto sliced = [](const ConvergeModel& m) {
     const std::size_t at = m.label.rfind(", ");
@@ -447,8 +486,8 @@ std::string format_converge(const ConvergeResult& r) {
           << m.worst_quantity.substr(5) << "), so nothing was compared\n";
     else if (m.slices > 0)
       out << "slicing: " << sliced(m) << "with " << m.slices << " slices: the answer "
-          << (m.passed ? "stays within" : "changes beyond") << " the tolerances (largest change "
-          << sci(m.worst_normalised) << " of the tolerance" +
+          << (m.passed ? "stays within" : "changes beyond") << " the accuracy (largest change "
+          << sci(m.worst_relative) +
                  (m.worst_quantity.empty() ? std::string() : ", in " + m.worst_quantity)
           << ")\n";
   // Observed order of the slicing error: the change from N/2 to N slices over the change from N
@@ -464,10 +503,10 @@ std::string format_converge(const ConvergeResult& r) {
       continue;
     }
     double fine = std::numeric_limits<double>::quiet_NaN();
-    for (const Check& k : b.checks)
-      if (k.quantity == a.worst_quantity) fine = k.normalised;
-    if (std::isfinite(a.worst_normalised) && std::isfinite(fine) && a.worst_normalised > 0 && fine > 0) {
-      const double ratio = a.worst_normalised / fine;
+    for (std::size_t i = 0; i < b.checks.size() && i < b.scales.size(); ++i)
+      if (b.checks[i].quantity == a.worst_quantity) fine = b.checks[i].error / b.scales[i];
+    if (std::isfinite(a.worst_relative) && std::isfinite(fine) && a.worst_relative > 0 && fine > 0) {
+      const double ratio = a.worst_relative / fine;
       const std::string body = sliced(a);
       char line[400];
       std::snprintf(line, sizeof line,
@@ -488,6 +527,7 @@ std::string converge_json(const ConvergeResult& r) {
   json j;
   j["scene"] = r.scene;
   j["engine"] = r.engine;
+  j["accuracy"] = r.accuracy;
   json groups = json::array();
   for (const ModeGroup& g : r.groups)
     groups.push_back({{"body", g.body}, {"group", g.name}, {"modes", g.modes.size()}});
@@ -495,11 +535,17 @@ std::string converge_json(const ConvergeResult& r) {
   json models = json::array();
   for (const ConvergeModel& m : r.models) {
     json checks = json::array();
-    for (const Check& k : m.checks)
-      checks.push_back({{"quantity", k.quantity}, {"error", num(k.error)}, {"bound", num(k.bound)},
-                        {"normalised", num(k.normalised)}, {"status", to_string(k.status)}});
+    for (std::size_t i = 0; i < m.checks.size(); ++i) {
+      const Check& k = m.checks[i];
+      const double scale = i < m.scales.size() ? m.scales[i] : std::numeric_limits<double>::quiet_NaN();
+      checks.push_back({{"quantity", k.quantity}, {"error", num(k.error)}, {"scale", num(scale)},
+                        {"relative", num(scale > 0 ? k.error / scale : std::numeric_limits<double>::quiet_NaN())},
+                        {"bound", num(k.bound)}, {"normalised", num(k.normalised)},
+                        {"status", to_string(k.status)}});
+    }
     models.push_back({{"label", m.label}, {"counts", m.counts}, {"modes", m.modes},
                       {"full", m.full}, {"slices", m.slices}, {"passed", m.passed},
+                      {"worst_relative", num(m.worst_relative)},
                       {"worst_normalised", num(m.worst_normalised)},
                       {"worst_quantity", m.worst_quantity}, {"checks", checks}});
   }

@@ -17,10 +17,17 @@
 // Comparison. Each model is run by one engine (default kane) with the scene's run settings, and
 // compared with the full model's run by compare_runs (harness/compare.hpp): every quantity of the
 // smaller model's output layout (so the modal coordinates the smaller model keeps are compared
-// too), with the scene's tolerances: pass when max_t |model - full| <= atol + rtol max_t |full|.
-// A model passes when every quantity passes. The smallest model is the passing model with the
-// fewest modes (ties: the first in the table's order, which lists fewer modes of earlier groups
-// first).
+// too). The verdict is the accuracy a user asks of the model (`--accuracy`, default
+// kConvergeAccuracy = 1e-3; issue 24), not the scene's compare tolerances (those say whether the
+// engines agree, i.e. whether the code is right): each quantity's change is measured as the
+// study's error metric measures an error (harness/study.hpp ErrorMetric: |model - full| over the
+// scale S_q of q's kind of motion in the full model's run; attitudes: the rotation angle, rad),
+//   relative change = max_t |x_q,model(t) - x_q,full(t)| / S_q,
+// and a model is within the accuracy when its largest relative change is at most the accuracy.
+// Quantities the metric does not judge (extra columns, excluded quantities) are shown, not judged.
+// The change as a multiple of the compare tolerance (Check::normalised) is kept in the JSON. The
+// smallest model is the model within the accuracy with the fewest modes (ties: the first in the
+// table's order, which lists fewer modes of earlier groups first).
 //
 // Slicing. A body made by the beam generator (its FlexBody::scene_form is a `beam:` block) is
 // also re-generated with half and twice its slices (every mode kept; the scene is written with
@@ -79,15 +86,27 @@ struct ConvergeModel {
   int slice_body = -1;         // the body of a slicing row
   EngineRun run;
   std::vector<Check> checks;   // against the full model (pairwise checks only)
-  double worst_normalised = 0; // max over checks of error / bound (0 for the full model)
-  std::string worst_quantity;
-  bool passed = false;         // ran to the end and every check passed (the full model: ran)
+  // Per check, the scale S_q of its quantity in the full model's run (study.hpp's metric); NaN
+  // for a check the metric does not judge. relative change = Check::error / S_q.
+  std::vector<double> scales;
+  double worst_relative = 0;   // max over judged checks of the relative change (0 for the full model)
+  std::string worst_quantity;  // where it is ("run: ..." when the run did not reach the end)
+  double worst_normalised = 0; // max over checks of error / compare bound (the scene's tolerances)
+  bool passed = false;         // ran to the end, worst_relative <= the accuracy (the full model: ran)
 };
+
+// The default of `converge --accuracy`: a model within 0.1 % of the full model's motion.
+inline constexpr double kConvergeAccuracy = 1e-3;
+
+// The verdict of a model that ran from its checks and scales: worst_relative, worst_quantity,
+// worst_normalised and passed against `accuracy` (merge recomputes parts' models with it).
+void judge_converge_model(ConvergeModel& m, double accuracy);
 
 struct ConvergeResult {
   std::string scene;
   std::string engine;
   std::vector<ModeGroup> groups;
+  double accuracy = kConvergeAccuracy;  // --accuracy: the largest relative change within it
   std::vector<ConvergeModel> models;  // the full model first, then every other model
   int smallest = -1;                  // index into models of the smallest passing model
   std::vector<std::string> notes;     // slicing rows that could not be made, and why
@@ -106,7 +125,8 @@ inline constexpr int kMaxConvergeModels = 256;
 // Runs every model with `options.engines[0]` (the one engine) and compares each with the full
 // model. Throws InputError when the scene has no flexible body with modes, or too many models;
 // cancel::Cancelled when interrupted.
-ConvergeResult converge_scene(const System& system, const CompareOptions& options);
+ConvergeResult converge_scene(const System& system, const CompareOptions& options,
+                              double accuracy = kConvergeAccuracy);
 
 // converge_scene in pieces (`converge --shard` runs some models, `merge` puts them back): the
 // result without models (scene, engine, groups) and the jobs of the scene in table order (every
@@ -120,7 +140,7 @@ struct ConvergeJob {
   int slices = 0;       // with this many slices (0: a model with `counts` modes)
 };
 ConvergeResult converge_frame(const System& system, const CompareOptions& options,
-                              std::vector<ConvergeJob>* jobs);
+                              std::vector<ConvergeJob>* jobs, double accuracy = kConvergeAccuracy);
 ConvergeModel converge_full_model(const System& system, const ConvergeResult& frame,
                                   const CompareOptions& options);
 std::optional<ConvergeModel> converge_job(const System& system, const ConvergeResult& frame,
@@ -128,11 +148,12 @@ std::optional<ConvergeModel> converge_job(const System& system, const ConvergeRe
                                           const CompareOptions& options, std::string* note);
 void converge_finish(ConvergeResult& result);
 
-// The table (one row per model: modes, worst normalised change and its quantity, pass/fail) and
-// the conclusion line.
+// The table (one row per model: modes, largest relative change and its quantity, within the
+// accuracy or not) and the conclusion line.
 std::string format_converge(const ConvergeResult& r);
 
-// JSON: scene, engine, groups, models (label, counts, modes, passed, worst, checks), smallest.
+// JSON: scene, engine, accuracy, groups, models (label, counts, modes, passed, worst relative
+// change and its quantity, worst normalised, checks with their relative change), smallest.
 std::string converge_json(const ConvergeResult& r);
 
 }  // namespace crossdyn::harness

@@ -1,5 +1,5 @@
 // crossdyn converge SCENE: re-run a flexible scene with fewer modes and name the smallest model
-// within the scene's tolerances (harness/converge.hpp).
+// within the accuracy asked (--accuracy; harness/converge.hpp).
 #include <CLI/CLI.hpp>
 
 #include "core/errors.hpp"
@@ -28,6 +28,7 @@ struct ConvergeOptions {
   std::string scene;
   harness::CompareCliOptions common;
   std::string engine = "kane";
+  double accuracy = harness::kConvergeAccuracy;
   std::string json;
   std::string shard, part;  // --shard K/N --part FILE
 };
@@ -49,7 +50,7 @@ int converge_shard(const ConvergeOptions& o, const std::string& scene, const Sys
                    const harness::CompareOptions& options, AtomicFile& part_file) {
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
   std::vector<harness::ConvergeJob> jobs;
-  harness::ConvergeResult frame = harness::converge_frame(system, options, &jobs);
+  harness::ConvergeResult frame = harness::converge_frame(system, options, &jobs, o.accuracy);
   std::vector<harness::ShardScene> plan;
   for (std::size_t k = 0; k < jobs.size(); ++k) {
     harness::ShardScene u;
@@ -74,6 +75,7 @@ int converge_shard(const ConvergeOptions& o, const std::string& scene, const Sys
   const auto opt = [](const auto& v) { return v ? harness::shortest_text(static_cast<double>(*v)) : std::string("(scene's)"); };
   const harness::PartOptions part_options{
       {"--engine", o.engine},
+      {"--accuracy", harness::shortest_text(o.accuracy)},
       {"--integrator", o.common.integrator ? *o.common.integrator : "(scene's)"},
       {"--rtol", opt(o.common.rtol)},
       {"--atol", opt(o.common.atol)},
@@ -95,6 +97,10 @@ int converge(const ConvergeOptions& o) {
   harness::CompareCliOptions cli = o.common;
   cli.engines = o.engine;
   const harness::CompareOptions options = harness::to_compare_options(cli);
+  if (!(o.accuracy > 0 && o.accuracy < 1))
+    throw InputError("--accuracy: " + harness::shortest_text(o.accuracy) +
+                     " is not an accuracy: give the largest relative change a model may make, above "
+                     "0 and below 1 (e.g. 1e-3: 0.1 % of each quantity's scale)");
   const bool sharded = !o.shard.empty() || !o.part.empty();
   if (sharded) {
     harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
@@ -129,7 +135,7 @@ int converge(const ConvergeOptions& o) {
     if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
     json.emplace(o.json, "--json");
   }
-  const harness::ConvergeResult r = harness::converge_scene(system, options);
+  const harness::ConvergeResult r = harness::converge_scene(system, options, o.accuracy);
   write_converge_outputs(r, json);
   return kExitOk;
 }
@@ -164,17 +170,22 @@ void add_converge_command(CLI::App& app, int& exit_code) {
       "converge",
       "Model no more than the scene needs: re-run a flexible scene with 0, 1, ... n modes of\n"
       "every mode group (the beam generator's bending planes qx, qy), compare each run with the\n"
-      "full model's on every quantity with the scene's tolerances, and name the smallest model\n"
-      "that stays within them. Exit status 0 done, 2 bad input (or no flexible body), 3 the\n"
+      "full model's on every quantity, and name the smallest model within --accuracy of it (each\n"
+      "quantity's change relative to its scale, as `crossdyn study` measures errors; the scene's\n"
+      "compare tolerances are for checking that the engines agree, not used here). Exit status 0 done, 2 bad input (or no flexible body), 3 the\n"
       "full model's run failed or a write failed, 130 interrupted.");
   sub->add_option("scene", o->scene,
                   "Scene file (YAML) with a flexible body, or a scene name (see `crossdyn list`)")
       ->required();
   sub->add_option("--engine", o->engine, "The engine that runs every model (default: kane)");
+  sub->add_option("--accuracy", o->accuracy,
+                  "The largest change a model may make against the full model, relative to each "
+                  "quantity's scale (its kind of motion's size in the full model; attitudes in rad) "
+                  "(default 1e-3)");
   sub->add_option("--integrator", o->common.integrator,
                   known_names<Integrator>() + " (default: the scene's)");
-  sub->add_option("--rtol", o->common.rtol, "Relative tolerance (default: the scene's)");
-  sub->add_option("--atol", o->common.atol, "Absolute tolerance (default: the scene's)");
+  sub->add_option("--rtol", o->common.rtol, "The integrator's relative tolerance (default: the scene's run block)");
+  sub->add_option("--atol", o->common.atol, "The integrator's absolute tolerance (default: the scene's run block)");
   sub->add_option("--dt", o->common.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
   sub->add_option("--max-steps", o->common.max_steps, "Per run: fail the run after N steps");
   sub->add_option("--timeout", o->common.timeout, "Per run: fail the run after SECONDS");

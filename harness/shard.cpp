@@ -1188,27 +1188,26 @@ void recheck_item(const Part& part, const ShardScene& unit, const std::string& t
                to_string(again.status) + " from error " + num_text(k.error) + " and bound " +
                num_text(k.bound));
     }
-    bool passed = true;
-    double worst = 0;
-    std::string worst_q;
-    for (const Check& k : m.checks) {
-      if (k.status == CheckStatus::Fail) passed = false;
-      if (k.status != CheckStatus::Excluded && !(k.normalised <= worst)) {
-        worst = k.normalised;
-        worst_q = k.quantity;
-      }
-    }
     if (m.worst_quantity.rfind("run: ", 0) == 0) {  // the model's run failed
       if (m.passed) refuse("field 'passed': true for a model whose run failed (" + m.worst_quantity + ")");
       if (!m.checks.empty()) refuse("field 'checks': checks for a model whose run failed");
       return;
     }
-    if (m.passed && !passed) refuse("field 'passed': true, but a check of the model failed");
-    if (!same_number(worst, m.worst_normalised))
+    // The verdict again from the checks' errors and scales, at the frame's accuracy.
+    ConvergeModel again = m;
+    judge_converge_model(again, converge_frame_from(part.frame).accuracy);
+    if (again.passed != m.passed)
+      refuse("field 'passed': " + std::string(m.passed ? "true" : "false") + " in the part, but its " +
+             "largest relative change " + num_text(again.worst_relative) + " is " +
+             (again.passed ? "within" : "beyond") + " the accuracy");
+    if (!same_number(again.worst_relative, m.worst_relative))
+      refuse("field 'worst_relative': " + num_text(m.worst_relative) + " in the part, " +
+             num_text(again.worst_relative) + " from its checks");
+    if (!same_number(again.worst_normalised, m.worst_normalised))
       refuse("field 'worst_normalised': " + num_text(m.worst_normalised) + " in the part, " +
-             num_text(worst) + " from its checks");
-    if (worst_q != m.worst_quantity)
-      refuse("field 'worst_quantity': '" + m.worst_quantity + "' in the part, '" + worst_q +
+             num_text(again.worst_normalised) + " from its checks");
+    if (again.worst_quantity != m.worst_quantity)
+      refuse("field 'worst_quantity': '" + m.worst_quantity + "' in the part, '" + again.worst_quantity +
              "' from its checks");
   } else if (part.command == "study") {
     const StudyItem item = study_item_from(text);
@@ -1483,10 +1482,12 @@ namespace {
 json model_to(const ConvergeModel& m) {
   json checks = json::array();
   for (const Check& k : m.checks) checks.push_back(check_to(k));
+  json scales = json::array();
+  for (double x : m.scales) scales.push_back(num(x));
   return {{"counts", m.counts}, {"modes", m.modes}, {"label", m.label}, {"full", m.full},
-          {"slices", m.slices}, {"slice_body", m.slice_body}, {"checks", checks},
-          {"worst_normalised", num(m.worst_normalised)}, {"worst_quantity", m.worst_quantity},
-          {"passed", m.passed}};
+          {"slices", m.slices}, {"slice_body", m.slice_body}, {"checks", checks}, {"scales", scales},
+          {"worst_relative", num(m.worst_relative)}, {"worst_normalised", num(m.worst_normalised)},
+          {"worst_quantity", m.worst_quantity}, {"passed", m.passed}};
 }
 
 ConvergeModel model_from(const PartField& j) {
@@ -1498,6 +1499,11 @@ ConvergeModel model_from(const PartField& j) {
   m.slices = j.at("slices").i32();
   m.slice_body = j.at("slice_body").i32();
   for (const PartField& k : each(j.at("checks"))) m.checks.push_back(check_from(k));
+  m.scales = j.at("scales").numbers();
+  if (m.scales.size() != m.checks.size())
+    j.at("scales").fail("has " + std::to_string(m.scales.size()) + " values for " +
+                        std::to_string(m.checks.size()) + " checks (one scale per check)");
+  m.worst_relative = j.at("worst_relative").number();
   m.worst_normalised = j.at("worst_normalised").number();
   m.worst_quantity = j.at("worst_quantity").str();
   m.passed = j.at("passed").boolean();
@@ -1509,7 +1515,7 @@ ConvergeModel model_from(const PartField& j) {
 std::string converge_frame_json(const ConvergeResult& r) {
   json groups = json::array();
   for (const ModeGroup& g : r.groups) groups.push_back({{"body", g.body}, {"name", g.name}, {"modes", g.modes}});
-  const json j = {{"scene", r.scene}, {"engine", r.engine}, {"groups", groups},
+  const json j = {{"scene", r.scene}, {"engine", r.engine}, {"accuracy", r.accuracy}, {"groups", groups},
                   {"full", r.models.empty() ? json(nullptr) : model_to(r.models.front())}};
   return j.dump();
 }
@@ -1518,6 +1524,8 @@ ConvergeResult converge_frame_from_field(const PartField& j) {
   ConvergeResult r;
   r.scene = j.at("scene").str();
   r.engine = j.at("engine").str();
+  r.accuracy = j.at("accuracy").number();
+  if (!(r.accuracy > 0 && r.accuracy < 1)) j.at("accuracy").fail("must be above 0 and below 1");
   for (const PartField& g : each(j.at("groups")))
     r.groups.push_back({g.at("body").i32(), g.at("name").str(),
                         g.at("modes").ints()});

@@ -241,6 +241,24 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
       if (std::isfinite(v)) scale[group[c]] = std::max(scale[group[c]], v);
     }
   }
+  // Floors for H and E (issue 24): a scene whose angular momentum is zero (a deployment from
+  // rest, counter-rotating wheels) has max_t |H| at rounding level (3e-13 N m s on
+  // pointing_flex), and every run's H would be judged against that noise. The floor is the
+  // momentum and energy its bodies' rotations carry, each alone:
+  //   S_H >= sum_b I_b w_b,   S_E >= sum_b I_b w_b^2 / 2,
+  // with w_b = max_t |w_NB| (the body's w scale) and I_b = trace(I_BBo_B) / 2, which is at least
+  // the largest principal moment and at most 1.5 times it (triangle inequality of inertias).
+  double H_floor = 0, E_floor = 0;
+  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+    const auto w = scale.find("w:" + std::to_string(b));
+    if (w == scale.end() || !std::isfinite(w->second)) continue;
+    const double I = 0.5 * system.bodies[b].I_BBo_B.trace();
+    if (!(I > 0) || !std::isfinite(I)) continue;
+    H_floor += I * w->second;
+    E_floor += 0.5 * I * w->second * w->second;
+  }
+  for (const auto& [g, floor] : {std::pair<const char*, double>{"H", H_floor}, {"E", E_floor}})
+    if (scale.count(g)) scale[g] = std::max(scale[g], floor);
   for (Quantity& q : quantities_) {
     const std::string& g = group[static_cast<std::size_t>(q.columns[0])];
     q.scale = g.empty() || !(scale[g] > 0) ? 1.0 : scale[g];
@@ -248,6 +266,22 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
 }
 
 StudyError ErrorMetric::error(const History& run) const { return error(run, *reference_); }
+
+double ErrorMetric::scale(const std::string& quantity) const {
+  for (const Quantity& q : quantities_)
+    if (q.name == quantity) return q.attitude ? 1.0 : q.scale;
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+History pinned_history(const System& system, const RunResult& run) {
+  History h;
+  h.columns = pinned_columns(system).size();
+  if (run.columns.size() < h.columns) return History{{}, h.columns};
+  h.data.reserve(h.columns * run.rows());
+  const std::size_t n = h.columns;
+  run.for_each_row([&h, n](const double* row) { h.data.insert(h.data.end(), row, row + n); });
+  return h;
+}
 
 StudyError ErrorMetric::error(const History& a, const History& b) const {
   StudyError e;

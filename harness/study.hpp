@@ -19,7 +19,9 @@
 //   attitudes, joint angles S = 1 (absolute, rad)
 //   joint rates            S = max over the scene's joints and t of |rate| or |w_PC_C|
 //   modal coordinates      S = max over the body's modes and t of |eta|  (rates likewise)
-//   H, E                   S = max_t |H|, max_t |E|
+//   H, E                   S = max_t |H|, max_t |E|, at least sum_b I_b w_b and sum_b I_b w_b^2 / 2
+//                          (I_b = trace(I_BBo_B) / 2, w_b its body's w scale): a scene whose H is
+//                          zero is judged against its bodies' momentum, not rounding noise
 // (S = 1 when the reference's whole kind is zero). The end-state error is max_q e_q(T), the
 // history error max_q max_t e_q(t) over the output times.
 //
@@ -74,6 +76,9 @@ struct History {
   const double* row(std::size_t k) const { return data.data() + k * columns; }
 };
 
+// The pinned values of a finished run's rows (every engine writes the pinned columns first).
+History pinned_history(const System& system, const RunResult& run);
+
 // How a run differs from the reference (see the header comment).
 struct StudyError {
   double end = std::numeric_limits<double>::quiet_NaN();
@@ -89,6 +94,9 @@ class ErrorMetric {
   StudyError error(const History& run) const;
   // Error of `a` against `b` with this metric's scales (the reference-agreement check).
   StudyError error(const History& a, const History& b) const;
+  // The scale S_q of a compared quantity, by name ("hub.wx", "hub.attitude": 1, "H"), NaN for a
+  // name the metric does not compare. converge judges its models' changes with it (--accuracy).
+  double scale(const std::string& quantity) const;
 
  private:
   struct Quantity {

@@ -461,17 +461,18 @@ def chart_drift(scene, runs, out_dir, sid):
 
 def chart_converge(scene, out_dir, sid):
     """`crossdyn converge` (verify runs it on flexible scenes): every model's largest change
-    against the full model, as a multiple of the scene's tolerance, on a log scale; the line at 1
-    is the tolerance. Returns (file name, caption) or None."""
+    against the full model, relative to each quantity's scale, on a log scale; the line is the
+    accuracy asked (--accuracy). Returns (file name, caption) or None."""
     conv = scene.get("converge")
     if not conv or len(conv.get("models", [])) < 2:
         return None
     models = [m for m in conv["models"] if not m.get("full")]
     labels = [m["label"] for m in models]
-    values = [m["worst_normalised"] if m["worst_normalised"] is not None else float("inf")
+    accuracy = conv.get("accuracy", 1e-3)
+    values = [m["worst_relative"] if m.get("worst_relative") is not None else float("inf")
               for m in models]
     finite = [v for v in values if np.isfinite(v) and v > 0]
-    top = max(finite + [10.0]) * 10
+    top = max(finite + [10.0 * accuracy]) * 10
     shown = [top if not np.isfinite(v) else max(v, TINY) for v in values]
     colours = ["#2ca02c" if m["passed"] else "#d62728" for m in models]
     hatches = ["//" if m.get("slices") else "" for m in models]
@@ -481,24 +482,27 @@ def chart_converge(scene, out_dir, sid):
     for b, h in zip(bars, hatches):
         b.set_hatch(h)
     ax.set_xscale("log")
-    ax.axvline(1.0, color="0.2", linestyle="--", lw=1.2)
+    ax.axvline(accuracy, color="0.2", linestyle="--", lw=1.2)
     ax.set_yticks(y)
     ax.set_yticklabels(labels, fontsize="small")
     ax.invert_yaxis()
-    ax.set_xlabel("largest change against the full model / tolerance (log scale; <= 1 is within)")
+    ax.set_xlabel("largest change against the full model, relative to the quantity's scale "
+                  "(log scale; <= %s is within)" % format(accuracy, "g"))
     ax.grid(True, axis="x", alpha=0.3)
     from matplotlib.patches import Patch
     outside_legend(fig, handles=[Patch(color="#2ca02c"), Patch(color="#d62728"),
                                  Patch(facecolor="white", edgecolor="0.3", hatch="//")],
-                   labels=["within the tolerances", "changes the answer", "slicing row"],
+                   labels=["within the accuracy", "changes the answer", "slicing row"],
                    title="model")
     ax.set_title("Model no more than the scene needs: smallest model %s" % conv.get("smallest", ""),
                  fontsize="medium")
     name = finish(fig, "%s-converge.png" % sid, out_dir)
     return name, ("Each model with fewer modes (and each beam re-sliced with half and twice its "
                   "slices, hatched) run by %s and compared with the full model on every quantity; "
-                  "the bar is the largest change as a multiple of that quantity's tolerance "
-                  "(zero is drawn at 1e-17). Green stays within the scene's tolerances." % conv.get("engine", "kane"))
+                  "the bar is the largest change relative to that quantity's scale (the size of its "
+                  "kind of motion in the full model; attitudes in rad; zero is drawn at 1e-17). "
+                  "Green stays within the accuracy %s (the dashed line)."
+                  % (conv.get("engine", "kane"), format(accuracy, "g")))
 
 
 # ---- `crossdyn study`: speed against accuracy, and the scaling of the right-hand side ----

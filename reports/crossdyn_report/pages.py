@@ -246,13 +246,14 @@ def converge_context(scene, chart):
         return dict(rows=[], chart=None, smallest="", engine="", note=note) if note else None
     rows = []
     for m in conv.get("models", []):
-        worst = m.get("worst_normalised")
+        worst = m.get("worst_relative", m.get("worst_normalised"))
         rows.append(dict(label=m["label"], modes=m["modes"],
                          change="reference" if m.get("full") else sci(worst if worst is not None else float("inf")),
                          where="" if m.get("full") else m.get("worst_quantity", ""),
                          verdict="" if m.get("full") else ("within" if m["passed"] else "changes"),
                          cls="" if m.get("full") else ("pass" if m["passed"] else "fail")))
     return dict(rows=rows, chart=chart, smallest=conv.get("smallest", ""), engine=conv.get("engine", ""),
+                accuracy=sci(conv.get("accuracy", 1e-3)),
                 note=note, notes=conv.get("notes", []))
 
 

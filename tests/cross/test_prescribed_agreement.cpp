@@ -183,3 +183,49 @@ TEST_CASE("cvode-bdf agrees with dop853 on spear1_case1 and its error falls with
     }
   }
 }
+
+TEST_CASE("a scene whose every motion is prescribed (no state to integrate) runs in every engine "
+          "with every integrator, and its rows are the profile (issue 24)") {
+  // A rigid hub on a prescribed spin-up joint: kane and lagrange have no state at all. dop853 and
+  // CVODE stopped at t = 0 ("step-size underflow", "CVODE set-up failed in SUNDenseMatrix"), so
+  // `converge` could not run the 0-mode model of spinup_beam (every joint there is prescribed).
+  const System s = read_scene_text(R"(name: spin_rigid
+bodies:
+  - name: hub
+    mass: 100 kg
+    inertia: [10, 10, 10]
+joints:
+  - name: spin
+    type: revolute
+    child: hub
+    parent_point: [0, 0, 0]
+    child_point: [0, 0, 0]
+    axis: [0, 0, 1]
+    prescribed: {profile: spin-up, rate: 10 rad/s, ramp_time: 15 s}
+run: {duration: 8 s, output_step: 0.5 s, integrator: dop853}
+)", "spin_rigid.yaml");
+  // docs/prescribed-motion.md, Kane, Ryan and Banerjee 1987, Eq. (61), t <= T.
+  const double W = 10, T = 15, pi = std::acos(-1.0);
+  auto theta = [&](double t) {
+    return (W / T) * (t * t / 2 + std::pow(T / (2 * pi), 2) * (std::cos(2 * pi * t / T) - 1));
+  };
+  auto theta_dot = [&](double t) { return (W / T) * (t - (T / (2 * pi)) * std::sin(2 * pi * t / T)); };
+  auto theta_ddot = [&](double t) { return (W / T) * (1 - std::cos(2 * pi * t / T)); };
+  for (const std::string& engine : kEngines)
+    for (const std::string method : {"dop853", "dopri5", "rkf78", "bulirsch-stoer", "cvode-bdf", "rk4"}) {
+      INFO(engine << " + " << method);
+      const RunResult r = run_engine(engine, s, method, 1e-10);
+      REQUIRE_FALSE(r.failure);
+      REQUIRE(r.rows() == 17);
+      const int t = r.column("t"), a = r.column("spin.angle"), w = r.column("spin.rate"),
+                tq = r.column("spin.torque"), wz = r.column("hub.wz");
+      for (std::size_t k = 0; k < r.rows(); ++k) {
+        const double tk = r.at(k, static_cast<std::size_t>(t));
+        CHECK(r.at(k, static_cast<std::size_t>(a)) == Approx(theta(tk)).margin(1e-9));
+        CHECK(r.at(k, static_cast<std::size_t>(w)) == Approx(theta_dot(tk)).margin(1e-9));
+        CHECK(r.at(k, static_cast<std::size_t>(wz)) == Approx(theta_dot(tk)).margin(1e-9));
+        // The torque the motion takes: I_zz theta'' (the hub spins about its CM).
+        CHECK(r.at(k, static_cast<std::size_t>(tq)) == Approx(10 * theta_ddot(tk)).margin(1e-8));
+      }
+    }
+}

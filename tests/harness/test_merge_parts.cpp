@@ -221,6 +221,9 @@ TEST_CASE("class 5, a merged verdict is the verdict of the numbers: study, stabi
   for (const auto& [pointer, value, field] : std::vector<std::tuple<std::string, json, std::string>>{
            {m + "/passed", true, "field 'passed'"},
            {m + "/worst_normalised", 0.5, "field 'worst_normalised'"},
+           {m + "/worst_relative", 0.5, "field 'worst_relative'"},
+           {"/frame/accuracy", 0.999, "field 'passed'"},
+           {"/frame/accuracy", 0, "field '/frame/accuracy' must be above 0 and below 1"},
            {m + "/worst_quantity", "array.qx1", "field 'worst_quantity'"},
            {mp + "/checks/0/status", "FAIL", "field 'status'"},
            {mp + "/checks/0/error", 1e9, "field 'normalised'"},

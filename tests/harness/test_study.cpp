@@ -283,29 +283,62 @@ TEST_CASE("study: an adaptive method's error falls with its tolerance, decade by
 }
 
 TEST_CASE("study: the error metric") {
-  System s = read_scene(test::scene_path("torque_free_asymmetric"));
-  // Columns t, body.wx wy wz, body.qw qx qy qz, H, E.
+  System s = read_scene(test::scene_path("torque_free_asymmetric"));  // I = diag(100, 200, 300)
+  // Columns t, body.wx wy wz, body.qw qx qy qz, H, E. w = (3, 0, 4): |w| = 5, H = |I w| = 1236.9,
+  // E = (100 * 9 + 300 * 16) / 2 = 2850. The scales: w 5; H max(1236.9, I_b |w|) = 1500 and E
+  // max(2850, I_b |w|^2 / 2) = 3750, with I_b = trace(I) / 2 = 300 (study.hpp).
   History ref, run;
   ref.columns = run.columns = 10;
   const double angle = 1e-3;
-  ref.data = {0, 3, 0, 4, 1, 0, 0, 0, 10, 20,   //
-              1, 3, 0, 4, 1, 0, 0, 0, 10, 20};
-  run.data = {0, 3, 0, 4, 1, 0, 0, 0, 10, 20,   //
-              1, 3, 0.05, 4, std::cos(angle / 2), std::sin(angle / 2), 0, 0, 10, 20.2};
+  ref.data = {0, 3, 0, 4, 1, 0, 0, 0, 1236.9, 2850,   //
+              1, 3, 0, 4, 1, 0, 0, 0, 1236.9, 2850};
+  run.data = {0, 3, 0, 4, 1, 0, 0, 0, 1236.9, 2850,   //
+              1, 3, 0.05, 4, std::cos(angle / 2), std::sin(angle / 2), 0, 0, 1236.9, 2850 + 37.5};
   const ErrorMetric m(s, ref);
+  CHECK(m.scale("body.wy") == Approx(5));
+  CHECK(m.scale("H") == Approx(1500));
+  CHECK(m.scale("E") == Approx(3750));
+  CHECK(m.scale("body.attitude") == 1);
+  CHECK(std::isnan(m.scale("nothing")));
   const StudyError e = m.error(run);
-  // w: 0.05 / |w| = 0.05 / 5; E: 0.2 / 20; attitude: 1e-3 rad.
+  // w: 0.05 / |w| = 0.05 / 5; E: 37.5 / 3750; attitude: 1e-3 rad.
   CHECK(e.end == Approx(0.01));
   CHECK(e.history == Approx(0.01));
   CHECK((e.end_quantity == "body.wy" || e.end_quantity == "E"));
-  run.data[12] = 0;     // wy as the reference's
-  run.data[19] = 19.0;  // E off by 5 % at the end
+  run.data[12] = 0;              // wy as the reference's
+  run.data[19] = 2850 - 187.5;   // E off by 5 % of its scale at the end
   CHECK(m.error(run).end == Approx(0.05));
   CHECK(m.error(run).end_quantity == "E");
-  run.data[19] = 20;  // E back: the attitude's 1e-3 rad is the largest
+  run.data[19] = 2850;  // E back: the attitude's 1e-3 rad is the largest
   CHECK(m.error(run).end == Approx(angle));
   CHECK(m.error(run).end_quantity == "body.attitude");
   CHECK(m.error(ref).history == 0);
+}
+
+TEST_CASE("study: a quantity that is zero in the physics is judged against the motion's scale, "
+          "not its rounding noise (H of a scene at zero momentum, issue 24)") {
+  System s = read_scene(test::scene_path("torque_free_asymmetric"));
+  History ref, run;
+  ref.columns = run.columns = 10;
+  // H at rounding level (the motion is a counter-rotation elsewhere): 3e-13 and 9e-13 N m s.
+  ref.data = {0, 3, 0, 4, 1, 0, 0, 0, 3e-13, 2850, 1, 3, 0, 4, 1, 0, 0, 0, 2e-13, 2850};
+  run.data = {0, 3, 0, 4, 1, 0, 0, 0, 3e-13, 2850, 1, 3, 0, 4, 1, 0, 0, 0, 9e-13, 2850};
+  const ErrorMetric m(s, ref);
+  CHECK(m.scale("H") == Approx(1500));
+  CHECK(m.error(run).history == Approx(7e-13 / 1500));
+  // The committed scene with zero angular momentum is studied (was refused: its reference runs
+  // "differ by 7.3e-01, largest on H", noise over noise).
+  System flex = read_scene(test::scene_path("pointing_flex"));
+  flex.run.duration = 5;
+  StudyOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"dop853"};
+  o.tolerances = {1e-6};
+  o.repeat = 1;
+  const SceneStudy st = study_scene(flex, o);
+  CHECK(st.reference.agreement < 1e-9);
+  REQUIRE(st.rows.size() == 1);
+  CHECK(st.rows[0].error.history < 1e-3);
 }
 
 TEST_CASE("study: the Pareto front of hand-made points") {
