@@ -1326,7 +1326,7 @@ std::string study_item_json(const StudyItem& item) {
     json rows = json::array();
     for (const StudyRow& r : s.rows) rows.push_back(row_to(r));
     j["study"] = {{"scene", s.scene}, {"file", s.file}, {"duration", num(s.duration)},
-                  {"output_step", num(s.output_step)},
+                  {"output_step", num(s.output_step)}, {"targets", s.targets},
                   {"reference", {{"kind", ref.kind}, {"description", ref.description},
                                  {"runs", ref.runs}, {"agreement", num(ref.agreement)},
                                  {"worst_pair", ref.worst_pair}, {"cpu_seconds", num(ref.cpu_seconds)}}},
@@ -1346,6 +1346,9 @@ StudyItem study_item_from_field(const PartField& j) {
     s.file = js.at("file").str();
     s.duration = js.at("duration").number();
     s.output_step = js.at("output_step").number();
+    s.targets = js.at("targets").numbers();
+    for (double t : s.targets)
+      if (!(t > 0 && t < 1)) js.at("targets").fail("holds " + shortest_text(t) + ", not an accuracy above 0 and below 1");
     const PartField jr = js.at("reference");
     s.reference.kind = jr.at("kind").str();
     s.reference.description = jr.at("description").str();

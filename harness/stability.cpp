@@ -363,9 +363,7 @@ StabilityMap stability_frame(const System& system, const Knob& knob, const Stabi
   m.integrators = o.integrators.empty()
                       ? std::vector<std::string>{"rk4", "dopri5", "dop853", "cvode-bdf"}
                       : o.integrators;
-  m.limits.tolerance = o.tolerance ? *o.tolerance
-                                   : system.compare.default_tolerance.atol +
-                                         system.compare.default_tolerance.rtol;
+  m.limits.tolerance = o.tolerance ? *o.tolerance : kStabilityAccuracy;
   m.limits.drift_limit = o.drift_limit;
   return m;
 }
@@ -749,7 +747,9 @@ std::string format_stability(const StabilityMap& m) {
   std::ostringstream o;
   o << "Stability map of " << m.scene << " against " << m.knob.description << " ("
     << m.knob.spec << (m.knob.unit.empty() ? "" : ", " + m.knob.unit) << ")\n";
-  o << "accurate: history error <= " << sci(m.limits.tolerance, 2) << "; drift: relative H or E drift > "
+  o << "accurate: history error <= " << sci(m.limits.tolerance, 2)
+    << " (--accuracy, relative to each quantity's scale; not the scene's compare tolerances)"
+    << "; drift: relative H or E drift > "
     << sci(m.limits.drift_limit, 2) << " where conserved\n";
   o << "legend: . accurate  i inaccurate  d drift  X diverged  S singular  C too costly  ? no reference\n";
   o << "|lambda|max: the largest |eigenvalue| of each engine's Jacobian at t = 0, 1/s\n\n";

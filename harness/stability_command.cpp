@@ -97,7 +97,10 @@ int stability(const StabilityCliOptions& o) {
   options.integrators = harness::parse_names(o.integrators, "--integrators", integrator_names(), "integrator");
   if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
   if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
-  if (o.tolerance && !(*o.tolerance > 0)) throw InputError("--tolerance: must be positive");
+  if (o.tolerance && !(*o.tolerance > 0 && *o.tolerance < 1))
+    throw InputError("--accuracy: " + harness::shortest_text(*o.tolerance) + " is not an accuracy: give "
+                     "the history error counted accurate, relative to each quantity's scale, above 0 "
+                     "and below 1 (e.g. 1e-6)");
   options.tolerance = o.tolerance;
   if (!(o.drift_limit > 0)) throw InputError("--drift-limit: must be positive");
   options.drift_limit = o.drift_limit;
@@ -216,7 +219,7 @@ int stability(const StabilityCliOptions& o) {
       {"--integrators", o.integrators.empty() ? "(default)" : o.integrators},
       {"--tolerances", harness::shortest_list(options.tolerances)},
       {"--dts", harness::shortest_list(options.dts)},
-      {"--tolerance", o.tolerance ? harness::shortest_text(*o.tolerance) : "(scene's)"},
+      {"--accuracy", harness::shortest_text(o.tolerance ? *o.tolerance : harness::kStabilityAccuracy)},
       {"--drift-limit", harness::shortest_text(o.drift_limit)},
       {"--max-steps", std::to_string(o.max_steps)},
       {"--timeout", harness::shortest_text(o.timeout)},
@@ -278,8 +281,10 @@ void add_stability_command(CLI::App& app, int& exit_code) {
                   "Comma-separated integrators (default: rk4, dopri5, dop853, cvode-bdf)"));
   list_option(sub->add_option("--tolerances", o->tolerances, "Adaptive methods' rtol = atol (default 1e-3,1e-6,1e-9,1e-12)"));
   list_option(sub->add_option("--dts", o->dts, "rk4 steps, s (default: the output step / 1, 2, 4, ... 64)"));
-  sub->add_option("--tolerance", o->tolerance,
-                  "History error counted accurate (default: the scene's default compare tolerance, atol + rtol)");
+  sub->add_option("--accuracy", o->tolerance,
+                  "History error counted accurate, relative to each quantity's scale (the study's "
+                  "error metric) (default 1e-6). Not the scene's compare tolerances, which check "
+                  "that the engines agree");
   sub->add_option("--drift-limit", o->drift_limit, "Relative H or E drift counted as drift (default 1e-6)");
   sub->add_option("--max-steps", o->max_steps, "Per run: too costly after N steps (default 200000)");
   sub->add_option("--timeout", o->timeout, "Per run: too costly after SECONDS (default 20; 0: none)");

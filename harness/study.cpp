@@ -410,6 +410,7 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
   SceneStudy s;
   s.scene = system.name;
   s.file = system.file;
+  s.targets = options.targets.empty() ? recommendation_targets() : options.targets;
   const IntegratorSettings base = IntegratorSettings::from(system.run);
   s.duration = base.duration;
   s.output_step = base.output_step;
@@ -735,6 +736,13 @@ std::string format_study(const SceneStudy& s) {
   out << wrap100("scene " + s.scene + " (" + s.file + "): " + fmt_g(s.duration, 6) + " s, output every " +
                  fmt_g(s.output_step, 6) + " s");
   out << wrap100("reference: " + s.reference.description);
+  {
+    std::string list;
+    for (double t : s.targets) list += (list.empty() ? "" : ", ") + sci(t, 0);
+    out << wrap100("accuracy asked (--accuracy): " + list + ": each recommendation names the cheapest "
+                   "configuration whose end-state error (below) is within it. The scene's compare "
+                   "tolerances are not used here: they check that the engines agree.");
+  }
   out << "cpu: median CPU of the integration (simulate() only, no CSV), ms; error: max over the\n"
          "compared quantities of |x - ref| / scale (attitude, angles: rad), at the end (end) and\n"
          "over every output time (history); front: on the Pareto front of cpu and end error (e),\n"
@@ -767,7 +775,7 @@ std::string format_study(const SceneStudy& s) {
     for (const std::string& f : failures) out << wrap100("  " + f);
   }
   out << "\n";
-  for (double t : recommendation_targets()) out << wrap100(recommendation(s, t));
+  for (double t : s.targets) out << wrap100(recommendation(s, t));
   for (const std::string& n : s.notes) out << wrap100("note: " + n);
   return out.str();
 }

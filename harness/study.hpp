@@ -137,6 +137,11 @@ struct StudyOptions {
   // must not leave the study without a reference).
   double reference_timeout = 600;
   bool use_analytic = true;
+  // The accuracies a user asks (`study --accuracy`): a recommendation for each, the cheapest
+  // configuration whose end-state error (this header's metric, relative to each quantity's scale)
+  // is within it. Empty: recommendation_targets(). Not the scene's compare tolerances, which say
+  // whether the engines agree.
+  std::vector<double> targets;
   ProgressLine* progress = nullptr;      // optional progress display
 };
 
@@ -181,6 +186,7 @@ struct SceneStudy {
   std::string scene, file;
   double duration = 0, output_step = 0;
   StudyReference reference;
+  std::vector<double> targets;      // the accuracies recommendations are made for (StudyOptions)
   std::vector<StudyRow> rows;
   std::vector<std::string> notes;   // engines not built, and the like
 };
@@ -211,7 +217,7 @@ std::optional<std::size_t> cheapest_within(const SceneStudy& s, double target, b
 // "for 1e-08 end-state error on spear1_case1 use kane + dopri5 at rtol 1e-09: 0.41 ms of CPU", or
 // what the study found instead when no configuration reaches the target.
 std::string recommendation(const SceneStudy& s, double target, bool history = false);
-// The targets recommendations are made for: 1e-4, 1e-6, 1e-8, 1e-10.
+// The default accuracies recommendations are made for (`--accuracy`): 1e-4, 1e-6, 1e-8, 1e-10.
 const std::vector<double>& recommendation_targets();
 // A target is measured only when it is at least this many times the reference's own error (the
 // spread of the reference runs): below that, the reference's error would be part of what is

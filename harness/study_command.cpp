@@ -31,7 +31,7 @@ namespace {
 struct StudyCliOptions {
   std::vector<std::string> scenes;
   std::string engines, integrators;
-  std::optional<std::string> tolerances, dts;
+  std::optional<std::string> tolerances, dts, accuracy;
   int repeat = 3;
   std::optional<long> max_steps;
   double timeout = 60;
@@ -84,6 +84,14 @@ int study(const StudyCliOptions& o) {
   options.engines = harness::parse_names(o.engines, "--engines", engine_names(), "engine");
   options.integrators = harness::parse_names(o.integrators, "--integrators", integrator_names(), "integrator");
   if (o.tolerances) options.tolerances = harness::parse_values(*o.tolerances, "--tolerances", true);
+  if (o.accuracy) {
+    options.targets = harness::parse_values(*o.accuracy, "--accuracy", true);
+    for (double t : options.targets)
+      if (!(t < 1))
+        throw InputError("--accuracy: " + harness::shortest_text(t) + " is not an accuracy: give the "
+                         "end-state errors to recommend for, relative to each quantity's scale, below 1 "
+                         "(e.g. 1e-4,1e-6 or 1e-3..1e-8)");
+  }
   if (o.dts) options.dts = harness::parse_values(*o.dts, "--dts", false);
   if (o.repeat < 1 || o.repeat > 1000)
     throw InputError("--repeat: must be from 1 to 1000, got " + std::to_string(o.repeat));
@@ -193,6 +201,7 @@ int study(const StudyCliOptions& o) {
         {"--engines", o.engines.empty() ? "(all)" : o.engines},
         {"--integrators", o.integrators.empty() ? "(all)" : o.integrators},
         {"--tolerances", harness::shortest_list(options.tolerances)},
+        {"--accuracy", harness::shortest_list(options.targets)},
         {"--dts", harness::shortest_list(options.dts)},
         {"--repeat", std::to_string(options.repeat)},
         {"--max-steps", o.max_steps ? std::to_string(*o.max_steps) : "(none)"},
@@ -274,6 +283,12 @@ void add_study_command(CLI::App& app, int& exit_code) {
                                                }() + ")"));
   list_option(sub->add_option("--integrators", o->integrators,
                   "Comma-separated integrators (default: all: " + known_names<Integrator>() + ")"));
+  list_option(sub->add_option("--accuracy", o->accuracy,
+                              "The accuracies to recommend a configuration for: end-state errors "
+                              "relative to each quantity's scale (the study's error metric), a list "
+                              "(1e-4,1e-6) or a range one per decade (1e-3..1e-8) (default "
+                              "1e-4,1e-6,1e-8,1e-10). Not the scene's compare tolerances")
+                  ->type_name("LIST"));
   list_option(sub->add_option("--tolerances", o->tolerances,
                   "Adaptive methods' rtol = atol: a range one per decade (1e-4..1e-13, the default) "
                   "or a list (1e-4,1e-8)"));

@@ -47,7 +47,8 @@ page_json scene_json(const SceneStudy& s, const std::string& id) {
                     {"cpu_seconds", json_number<page_json>(s.reference.cpu_seconds)}};
   j["notes"] = s.notes;
   page_json recs = page_json::array();
-  for (double t : recommendation_targets()) {
+  j["targets"] = s.targets;
+  for (double t : s.targets) {
     const bool measured = t >= smallest_supported_target(s);
     const auto best = measured ? cheapest_within(s, t) : std::nullopt;
     recs.push_back({{"target", t},

@@ -10,14 +10,14 @@ mkdir -p "$O"
 # Explicit steppers against a hinge spring's stiffness: the rk4 limit h |lambda|max ~ 2.8.
 $C stability hub_two_panels --vary hinge1.stiffness --values 500..5e6 --timeout 60 -q --report "$O/hinge" > "$O/hinge.txt"
 # A stiff flexible appendage: the solar array's modal stiffness x 1 ... x 1e4 (EI x 1e4).
-$C stability hub_flex_array --vary array.modal_stiffness --values 1..1e4 --duration 6 --tolerance 1e-6 --timeout 60 -q --report "$O/modal" > "$O/modal.txt"
+$C stability hub_flex_array --vary array.modal_stiffness --values 1..1e4 --duration 6 --accuracy 1e-6 --timeout 60 -q --report "$O/modal" > "$O/modal.txt"
 # Where the implicit method wins: the array's modes 1000 x stiffer, damped from 0.5 % to twice
 # critical (decaying stiff modes, which BDF steps over and an explicit method must resolve).
-$C stability hub_flex_array --set array.modal_stiffness=1000 --vary array.modal_damping --values 0.005,0.05,0.5,2 --duration 6 --tolerance 1e-6 --timeout 60 -q --report "$O/damping" > "$O/damping.txt"
+$C stability hub_flex_array --set array.modal_stiffness=1000 --vary array.modal_damping --values 0.005,0.05,0.5,2 --duration 6 --accuracy 1e-6 --timeout 60 -q --report "$O/damping" > "$O/damping.txt"
 # Fast rotors: the wheel from 10 rad/s to 10,000 rpm.
-$C stability dual_spin --vary bearing.rate --values 10,104.7,314,1047 --duration 5 --tolerance 1e-6 -q --report "$O/rotor" > "$O/rotor.txt"
+$C stability dual_spin --vary bearing.rate --values 10,104.7,314,1047 --duration 5 --accuracy 1e-6 -q --report "$O/rotor" > "$O/rotor.txt"
 # Long horizons, with newton-euler's constraint stabilisation none / baumgarte / projection.
-$C stability chain5 --vary duration --values 10,100,1000 --engines kane,lagrange,newton-euler:none,newton-euler:baumgarte,newton-euler:projection --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 --tolerance 1e-6 --timeout 120 -q --report "$O/horizon" > "$O/horizon.txt"
+$C stability chain5 --vary duration --values 10,100,1000 --engines kane,lagrange,newton-euler:none,newton-euler:baumgarte,newton-euler:projection --integrators dopri5,dop853 --tolerances 1e-6,1e-9,1e-12 --accuracy 1e-6 --timeout 120 -q --report "$O/horizon" > "$O/horizon.txt"
 # Chain length.
 $C stability chain5 --vary links --values 2,4,8,16 --duration 2 -q --report "$O/chain" > "$O/chain.txt"
 # Euler-angle lock: lagrange with and without re-charting, runs that end before and after the lock.

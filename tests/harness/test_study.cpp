@@ -488,3 +488,58 @@ TEST_CASE("study: a tiny study writes its table, CSV and report (pages, PNG, CSV
   CHECK(other.output.find("neither empty nor a crossdyn study report") != std::string::npos);
   fs::remove_all(dir);
 }
+
+TEST_CASE("the accuracy asked has one name in study and stability: study --accuracy sets the "
+          "recommendations, stability --accuracy the accurate class, neither the compare "
+          "tolerances (issue 24)") {
+  // study: a recommendation for each accuracy asked, and only for those; said in the header.
+  auto r = test::run_crossdyn("study spear1_case1 --engines kane --integrators dop853 "
+                              "--tolerances 1e-4..1e-9 --repeat 1 --accuracy 1e-3,1e-5 -q");
+  CHECK(r.status == 0);
+  CHECK_THAT(r.output, Catch::Contains("accuracy asked (--accuracy): 1e-03, 1e-05") &&
+                           Catch::Contains("compare tolerances are not used here") &&
+                           Catch::Contains("for 1e-03 end-state error") &&
+                           Catch::Contains("for 1e-05 end-state error") &&
+                           !Catch::Contains("for 1e-04 end-state error") &&
+                           !Catch::Contains("1e-10 end-state error"));
+  // In process: the targets are the study's, and a row recommended is within its target.
+  System s = read_scene(test::scene_path("spear1_case1"));
+  StudyOptions o;
+  o.engines = {"kane"};
+  o.integrators = {"dop853"};
+  o.tolerances = {1e-4, 1e-6, 1e-8};
+  o.repeat = 1;
+  o.targets = {1e-2, 1e-7};
+  const SceneStudy st = study_scene(s, o);
+  CHECK(st.targets == o.targets);
+  for (double t : st.targets) {
+    const auto best = cheapest_within(st, t);
+    REQUIRE(best);
+    CHECK(st.rows[*best].error.end <= t);
+  }
+  for (const char* bad : {"0", "1", "2", "-1e-3", "nan", "1e-3,1e-3"}) {
+    r = test::run_crossdyn(std::string("study spear1_case1 --engines kane -q --accuracy ") + bad);
+    INFO(bad << ": " << r.output);
+    CHECK(r.status == 2);
+    CHECK_THAT(r.output, Catch::Contains("--accuracy"));
+  }
+
+  // stability: the accurate class's limit is --accuracy (default 1e-6), whatever the scene's
+  // compare block says: the same cells are accurate at 1e-6 and not at 1e-12.
+  const std::string map = "stability spear1_case1 --vary duration --values 1 --engines kane "
+                          "--integrators dop853 --tolerances 1e-3,1e-6,1e-9 -q";
+  r = test::run_crossdyn(map);
+  CHECK(r.status == 0);
+  CHECK_THAT(r.output, Catch::Contains("accurate: history error <= 1.0e-06 (--accuracy") &&
+                           Catch::Contains("not the scene's compare tolerances"));
+  r = test::run_crossdyn(map + " --accuracy 1e-12");
+  CHECK(r.status == 0);
+  CHECK_THAT(r.output, Catch::Contains("accurate: history error <= 1.0e-12 (--accuracy") &&
+                           !Catch::Contains("accurate up to"));
+  for (const char* bad : {"0", "1", "-1", "nan"}) {
+    r = test::run_crossdyn(map + " --accuracy " + bad);
+    INFO(bad << ": " << r.output);
+    CHECK(r.status == 2);
+    CHECK_THAT(r.output, Catch::Contains("--accuracy"));
+  }
+}
