@@ -474,7 +474,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
       for (const std::string& integ : options.reference_integrators) {
         IntegratorSettings rs = settings;
         rs.method = integ;
-        rs.rtol = rs.atol = options.reference_tolerance;
+        rs.rtol = options.reference_tolerance;
+        rs.atol = options.reference_tolerance * options.reference_atol_factor;
         if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
         const std::string label = run_label(spec.label, integ, options.reference_tolerance);
         progress.show(system.name + ": reference run " + label, true);
@@ -529,7 +530,8 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
           for (const std::string& i : options.reference_integrators) l += (l.empty() ? "" : " and ") + i;
           return l;
         }() +
-        " at rtol = atol = " + setting_text(options.reference_tolerance) +
+        " at rtol " + setting_text(options.reference_tolerance) + ", atol " +
+        setting_text(options.reference_tolerance * options.reference_atol_factor) +
         "), which agree to " + sci(worst) + " (worst pair: " + s.reference.worst_pair +
         "): the reference is good to about " + sci(worst, 2) + ", so targets below " +
         sci(kReferenceMargin * worst, 2) + " are not measured";

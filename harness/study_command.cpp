@@ -267,7 +267,7 @@ void add_study_command(CLI::App& app, int& exit_code) {
       "Timed: " + harness::study_timing_text() + "\n\n"
       "Error: " + harness::study_error_text() + "\n\n"
       "Reference: the analytic solution where the scene has one; otherwise the mean of every\n"
-      "engine run with rkf78 and dopri5 at rtol = atol = 1e-13, used only when every pair of them\n"
+      "engine run with rkf78 and dop853 at rtol 1e-13 (atol 1e-17), used only when every pair of them\n"
       "agrees to 1e-11 (else the scene is refused, with the pair and the difference).\n\n"
       "--scaling: the right-hand-side cost (median CPU per call) on chainN, N = 2 ... --max-links,\n"
       "one line per engine, with the exponent fitted over the upper half of N.\n\n"

@@ -89,7 +89,7 @@ TEST_CASE("study: a reference good to less than the targets states its error and
     INFO(st.reference.description);
     CHECK(st.reference.agreement > 1e-10);
     CHECK(st.reference.agreement <= 1e-5);
-    // The reference from the engines studied only: kane and lagrange at rkf78 and dopri5.
+    // The reference from the engines studied only: kane and lagrange at rkf78 and dop853.
     CHECK(st.reference.runs.size() == 4);
     for (const std::string& r : st.reference.runs) CHECK(r.find("newton-euler") == std::string::npos);
     CHECK(st.reference.description.find("the reference is good to about") != std::string::npos);
