@@ -209,6 +209,32 @@ void Runner::limits(double t) {
   if (result_.stats.steps + result_.stats.rejected >= s_.max_steps)
     throw RunFailure(engine_.name(), t, "",
                      "step limit reached (" + std::to_string(s_.max_steps) + " steps)");
+  if (s_.give_up_factor > 0) predict_cost(t);
+}
+
+void Runner::predict_cost(double t) {
+  // At each tenth of the step limit from the second on: the last tenth's pace (steps per
+  // simulated second) extrapolated to the duration, against give_up_factor x the steps left.
+  const double used = static_cast<double>(result_.stats.steps + result_.stats.rejected);
+  const double M = static_cast<double>(s_.max_steps);
+  if (used < pace_.next) return;
+  if (pace_.started) {
+    const double spent = used - pace_.used, covered = t - pace_.t;
+    const double need = covered > 0 ? spent / covered * (s_.duration - t)
+                                    : std::numeric_limits<double>::infinity();
+    const double left = M - used;
+    if (need > s_.give_up_factor * left)
+      throw RunFailure(engine_.name(), t, "",
+                       "step limit: stopped early after " + fmt(used) + " of " + fmt(M) +
+                           " steps (accepted and rejected): at its pace over the last " +
+                           fmt(spent) + " steps it needs about " + fmt(need) +
+                           " steps more to reach t = " + fmt(s_.duration) + " s, more than " +
+                           fmt(s_.give_up_factor) + " x the " + fmt(left) + " steps left");
+  }
+  pace_.started = true;
+  pace_.used = used;
+  pace_.t = t;
+  pace_.next = used + M / 10;
 }
 
 void Runner::underflow(double t, double dt) const {

@@ -87,6 +87,8 @@ class Runner {
   void guard(double t, const State& x);
   // Cancellation and the step limit (guard(), and each trial step retried inside a stepper).
   void limits(double t);
+  // IntegratorSettings::give_up_factor: at each tenth of the step limit, the pace's prediction.
+  void predict_cost(double t);
   // An adaptive step below min_step ends the run (underflow() only then; underflow_failure()
   // always). When the last rejection was a blow-up, the failure names its quantity and reason:
   // no step, however short, got past it.
@@ -117,6 +119,14 @@ class Runner {
   std::vector<double> breaks_;
   std::vector<double> row_;
   std::vector<double> held_;  // rows computed by hold(), row-major
+  // predict_cost(): the start of the current tenth of the step limit (steps used, the simulated
+  // time then), and where the next tenth begins.
+  struct Pace {
+    bool started = false;
+    double used = 0, t = 0;
+    double next = 0;
+  };
+  Pace pace_;
 };
 
 }  // namespace crossdyn::integrate_detail

@@ -15,12 +15,19 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdio>
+#include <deque>
+#include <exception>
 #include <map>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
+#include <thread>
 
 namespace crossdyn::harness {
 
@@ -345,6 +352,24 @@ std::string reference_budget_note(const StabilityOptions& o) {
          seconds_text(o.timeout) + ")";
 }
 
+// How the reference of each value is made, said once in the map's notes (a study note).
+std::string reference_method_note(const StabilityMap& m, double tolerance) {
+  return "the reference at each value is the mean of two independent runs (two engines, each with "
+         "its own integrator, dop853 and rkf78; one engine: at both) at rtol = atol = " +
+         g3(tolerance) + " (" + g3(kReferenceTolerancePerLimit) + " x the accuracy limit " +
+         g3(m.limits.tolerance) + ", within 1e-13 to 1e-8), made again at 1e-13 where they agree "
+         "to less than " + g3(kReferenceRetry) + " x the limit; each column states its runs and "
+         "their agreement, the reference's own error";
+}
+
+// Runs ended early by their pace (StabilityOptions::give_up_factor), said once.
+std::string give_up_note(const StabilityOptions& o) {
+  return "a run whose pace over a tenth of its step limit showed it would need more than " +
+         g3(o.give_up_factor) + " x the steps left to finish was stopped early as too costly (its "
+         "reason says \"stopped early\" and gives the prediction; its steps and right-hand sides "
+         "are those made until then)";
+}
+
 std::vector<EngineSpec> engine_specs_of(const StabilityOptions& o) {
   std::vector<EngineSpec> specs = o.engine_specs;
   if (specs.empty())
@@ -368,8 +393,25 @@ StabilityMap stability_frame(const System& system, const Knob& knob, const Stabi
   return m;
 }
 
-StabilityValue stability_value(const System& system, const Knob& knob, double v,
-                               const StabilityMap& m, const StabilityOptions& o) {
+namespace {
+
+// The reference of a map (stability.hpp, "The reference"): the engines in the order they are
+// tried (kane and newton-euler first: minimal and maximal coordinates, the cheapest pair), two
+// runs, each engine with its own integrator.
+std::vector<EngineSpec> reference_engines_of(const std::vector<EngineSpec>& specs) {
+  std::vector<std::string> names;
+  for (const EngineSpec& sp : specs)
+    if (std::find(names.begin(), names.end(), sp.engine) == names.end()) names.push_back(sp.engine);
+  std::vector<EngineSpec> out;
+  for (const char* preferred : {"kane", "newton-euler", "lagrange"})
+    if (std::find(names.begin(), names.end(), preferred) != names.end()) out.push_back({preferred, preferred, {}});
+  for (const std::string& n : names)
+    if (n != "kane" && n != "newton-euler" && n != "lagrange") out.push_back({n, n, {}});
+  return out;
+}
+
+// The study options of one value (stability_value and stability_values).
+StudyOptions study_options_of(const StabilityMap& m, const StabilityOptions& o, double reference_tolerance) {
   const std::vector<EngineSpec> specs = engine_specs_of(o);
   StudyOptions so;
   so.engine_specs = specs;
@@ -381,83 +423,325 @@ StabilityValue stability_value(const System& system, const Knob& knob, double v,
   so.reference_max_steps = 20000000;  // the reference may be costly; its own time budget holds
   so.timeout = o.timeout;
   so.reference_timeout = o.reference_timeout;
-  so.progress = o.progress;
+  so.give_up_factor = o.give_up_factor;
+  so.progress = nullptr;  // the scheduler draws it (the runs may be on several threads)
+  so.reference_engines = reference_engines_of(specs);
+  so.reference_integrators = {"dop853", "rkf78"};
+  so.reference_run_limit = 2;
+  so.reference_tolerance = reference_tolerance;
+  // atol = rtol, as the maps were measured with (the study's 1e-4 x rtol atol is for its 1e-13
+  // runs; here the two runs' agreement, checked against the limit, is the guard).
+  so.reference_atol_factor = 1;
   // The reference must be better than what `accurate` means (half the limit), not the study's
   // 1e-11: stiff and fast scenes accumulate rounding at 1e-13 (the reference runs of
   // hub_flex_array with K x 1e4 agree to 3e-8), and a map of 1e-6 accuracy needs no better.
   // (Not the study's default either, which accepts a reference good to 1e-5 and declines targets.)
   so.reference_agreement = std::max(1e-11, 0.5 * m.limits.tolerance);
+  return so;
+}
 
-  StabilityValue out;
-  const System s = apply_knob(system, knob, v);
-  StabilityColumn& col = out.column;
-  col.value = v;
-  for (const EngineSpec& sp : specs) col.lambda_max.push_back(jacobian_spectral_radius(s, sp.engine));
-  auto lambda_of = [&](const std::string& label) {
-    for (std::size_t e = 0; e < specs.size(); ++e)
-      if (specs[e].label == label) return col.lambda_max[e];
-    return kNaN;
-  };
-  const std::size_t c = 0;  // add_stability_value sets the map's column
-  const bool H_conserved = momentum_not_conserved_reason(s).empty();
-  const bool E_conserved = energy_not_conserved_reason(s).empty();
-  StudyOptions sv = so;
-  if (sv.dts.empty())
-    for (int k = 0; k <= 6; ++k) sv.dts.push_back(s.run.output_step / std::pow(2.0, k));
-  try {
-    const SceneStudy st = study_scene(s, sv);
-    col.reference_note = st.reference.description;
-    out.study_notes = st.notes;
-    if (st.reference.kind != "analytic") out.study_notes.push_back(reference_budget_note(o));
-    for (const StudyRow& r : st.rows) {
-      StabilityCell cell;
-      cell.engine = r.engine;
-      cell.integrator = r.integrator;
-      cell.fixed_step = r.fixed_step;
-      cell.setting = r.fixed_step ? r.dt : r.tolerance;
-      cell.column = c;
-      cell.cpu = r.cpu_median;
-      cell.rhs_calls = r.rhs_calls;
-      cell.steps = r.steps;
-      cell.history_error = r.error.history;
-      if (r.fixed_step) cell.h_lambda = r.dt * lambda_of(r.engine);
-      CellFacts f;
-      f.ok = r.ok;
-      f.failure = r.failure;
-      f.history_error = r.error.history;
-      f.drift_H = r.drift_H;
-      f.drift_E = r.drift_E;
-      f.H_conserved = H_conserved;
-      f.E_conserved = E_conserved;
-      cell.facts = f;
-      cell.result = classify(f, m.limits);
-      out.cells.push_back(cell);
+// One value's work while the sweep runs: its scene, setup, reference runs and rows.
+struct ValueWork {
+  double value = 0;
+  System scene;
+  StabilityColumn column;
+  std::unique_ptr<StudySetup> setup;
+  std::vector<History> reference_runs;
+  std::size_t reference_left = 0;
+  std::unique_ptr<StudyBaseline> baseline;
+  std::unique_ptr<ErrorMetric> metric;
+  std::optional<std::string> refused;  // StudyRefused's text
+  std::vector<double> cpu;             // per row
+};
+
+// A unit of work: a reference run of a value, or a chain of its rows.
+struct Task {
+  std::size_t value = 0;
+  bool reference = false;
+  std::size_t index = 0;  // the reference run, or the chain
+};
+
+// The sweep's runs on `jobs` threads (1: the calling thread alone). Tasks: first every value's
+// reference runs, then, as each value's reference is made, its chains of rows. Shared state is
+// only the queue and the counters, under one mutex; each task writes only its own value's
+// reference slot or its chain's rows. The first exception (an interrupt: cancel::Cancelled)
+// stops the other workers after their current run (which an interrupt also ends) and is
+// rethrown here.
+class Sweep {
+ public:
+  Sweep(std::vector<ValueWork>& work, const StabilityMap& m, const StabilityOptions& o)
+      : work_(work), map_(m), o_(o) {}
+
+  void run(int jobs) {
+    for (std::size_t v = 0; v < work_.size(); ++v) {
+      ValueWork& w = work_[v];
+      if (w.refused) continue;
+      w.reference_left = w.setup->reference_runs.size();
+      w.reference_runs.assign(w.reference_left, History{});
+      total_ += w.reference_left;
+      if (w.reference_left == 0) reference_done(v);  // analytic: the cells at once
+      for (std::size_t i = 0; i < w.reference_runs.size(); ++i) queue_.push_back({v, true, i});
     }
-  } catch (const StudyRefused& r) {
-    col.reference = false;
-    col.reference_note = r.what();
-    out.study_notes.push_back(reference_budget_note(o));
-    out.refused_note = "at " + knob.spec + " = " + g3(v) + ": " + r.what();
-    for (const std::string& e : m.engines)
-      for (const std::string& i : m.integrators) {
-        const bool fixed = Choice<Integrator>(i) == Integrator::Rk4;
-        for (double x : fixed ? sv.dts : sv.tolerances) {
-          StabilityCell cell;
-          cell.engine = e;
-          cell.integrator = i;
-          cell.fixed_step = fixed;
-          cell.setting = x;
-          cell.column = c;
-          CellFacts f;
-          f.reference = false;
-          f.failure = r.what();  // why the reference could not be made: the cell says it
-          cell.facts = f;
-          cell.result = classify(f, m.limits);
-          out.cells.push_back(cell);
+    for (ValueWork& w : work_)
+      if (w.setup && !w.refused) total_ += w.setup->rows.size();
+    if (jobs <= 1) {
+      worker();
+    } else {
+      std::vector<std::thread> threads;
+      for (int j = 0; j < jobs; ++j) threads.emplace_back([this] { worker(); });
+      for (std::thread& t : threads) t.join();
+    }
+    if (error_) std::rethrow_exception(error_);
+  }
+
+ private:
+  void worker() {
+    for (;;) {
+      Task t;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        wake_.wait(lock, [this] { return error_ || !queue_.empty() || running_ == 0; });
+        if (error_ || queue_.empty()) {
+          wake_.notify_all();
+          return;
         }
+        t = queue_.front();
+        queue_.pop_front();
+        ++running_;
       }
+      try {
+        do_task(t);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (!error_) error_ = std::current_exception();
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      --running_;
+      wake_.notify_all();
+    }
+  }
+
+  void do_task(const Task& t) {
+    ValueWork& w = work_[t.value];
+    if (t.reference) {
+      show(map_.knob.spec + " = " + g3(w.value) + ", reference run " + w.setup->reference_runs[t.index].label);
+      std::optional<std::string> refused;
+      History h;
+      try {
+        h = study_reference_run(*w.setup, t.index);
+      } catch (const StudyRefused& r) {
+        refused = r.what();
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      count_run(w);
+      if (refused && !w.refused) w.refused = refused;
+      w.reference_runs[t.index] = std::move(h);
+      if (--w.reference_left == 0) reference_done(t.value);  // under the mutex: cheap
+      return;
+    }
+    const std::vector<std::size_t>& chain = w.setup->chains[t.index];
+    for (std::size_t k = 0; k < chain.size(); ++k) {
+      StudyRow& row = w.setup->rows[chain[k]];
+      const std::string skip = study_skip_reason(w.setup->rows, chain, k);
+      if (!skip.empty()) {
+        row.failure = skip;
+      } else {
+        show(map_.knob.spec + " = " + g3(w.value) + ", " + row.engine + " + " + row.integrator +
+             " at " + row.setting());
+        w.cpu[chain[k]] = study_run_row(*w.setup, *w.metric, row, true);
+      }
+      std::lock_guard<std::mutex> lock(mutex_);
+      count_run(w);
+    }
+  }
+
+  // The reference runs of value v are done (the mutex is held): the baseline, a retry at the
+  // tightest tolerance when the two runs agree to less than a tenth of the accuracy limit, or
+  // the value's chains queued.
+  void reference_done(std::size_t v) {
+    ValueWork& w = work_[v];
+    const double tight = 1e-13;
+    const bool can_tighten = !w.setup->analytic && w.setup->options.reference_tolerance > tight;
+    if (!w.refused) {
+      try {
+        StudyBaseline b = study_baseline(*w.setup, w.reference_runs);
+        if (can_tighten && !(b.reference.agreement <= kReferenceRetry * map_.limits.tolerance)) {
+          retry(v);
+          return;
+        }
+        w.baseline = std::make_unique<StudyBaseline>(std::move(b));
+      } catch (const StudyRefused& r) {
+        if (can_tighten && r.exit_status() == kExitCheckFailed) {  // they disagree: tighter
+          retry(v);
+          return;
+        }
+        w.refused = r.what();
+      }
+    }
+    if (w.refused) {
+      done_ += w.setup->rows.size();  // no cell is run
+      return;
+    }
+    w.metric = std::make_unique<ErrorMetric>(w.setup->system, w.baseline->history);
+    w.cpu.assign(w.setup->rows.size(), 0.0);
+    for (std::size_t c = 0; c < w.setup->chains.size(); ++c) queue_.push_back({v, false, c});
+    wake_.notify_all();
+  }
+
+  void retry(std::size_t v) {
+    ValueWork& w = work_[v];
+    StudyOptions so = w.setup->options;
+    so.reference_tolerance = 1e-13;
+    w.setup = std::make_unique<StudySetup>(study_setup(w.scene, so));
+    w.reference_left = w.setup->reference_runs.size();
+    w.reference_runs.assign(w.reference_left, History{});
+    total_ += w.reference_left;
+    for (std::size_t i = 0; i < w.reference_left; ++i) queue_.push_front({v, true, i});
+    wake_.notify_all();
+  }
+
+  // A run is done (the mutex is held): the progress line.
+  void count_run(const ValueWork& w) {
+    ++done_;
+    show_locked(map_.knob.spec + " = " + g3(w.value) + ": " + std::to_string(done_) + " of " +
+                std::to_string(total_) + " runs done");
+  }
+  // "<what>: 12 of 300 runs done".
+  void show(const std::string& what) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    show_locked(what + ": " + std::to_string(done_) + " of " + std::to_string(total_) + " runs done");
+  }
+  void show_locked(const std::string& text) {
+    if (!o_.progress) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_ < std::chrono::milliseconds(250)) return;
+    last_ = now;
+    o_.progress->phase(text);
+  }
+
+  std::vector<ValueWork>& work_;
+  const StabilityMap& map_;
+  const StabilityOptions& o_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<Task> queue_;
+  int running_ = 0;
+  std::size_t done_ = 0, total_ = 0;
+  std::exception_ptr error_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+}  // namespace
+
+std::vector<StabilityValue> stability_values(const System& system, const Knob& knob,
+                                             const std::vector<double>& values, const StabilityMap& m,
+                                             const StabilityOptions& o) {
+  const std::vector<EngineSpec> specs = engine_specs_of(o);
+  const double reference_tolerance =
+      std::clamp(kReferenceTolerancePerLimit * m.limits.tolerance, 1e-13, 1e-8);
+  // Each value's scene, |lambda|max and setup, here (cheap); the runs in the sweep.
+  std::vector<ValueWork> work(values.size());
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    ValueWork& w = work[k];
+    w.value = values[k];
+    w.scene = apply_knob(system, knob, values[k]);
+    w.column.value = values[k];
+    for (const EngineSpec& sp : specs) w.column.lambda_max.push_back(jacobian_spectral_radius(w.scene, sp.engine));
+    StudyOptions so = study_options_of(m, o, reference_tolerance);
+    if (so.dts.empty())
+      for (int i = 0; i <= 6; ++i) so.dts.push_back(w.scene.run.output_step / std::pow(2.0, i));
+    w.setup = std::make_unique<StudySetup>(study_setup(w.scene, so));
+  }
+  if (o.progress) o.progress->start(system.name + " stability", 0);
+  Sweep(work, m, o).run(std::max(1, o.jobs));
+  if (o.progress) o.progress->clear();
+
+  std::vector<StabilityValue> out;
+  for (ValueWork& w : work) {
+    StabilityValue sv;
+    StabilityColumn& col = sv.column;
+    col = w.column;
+    const System& s = w.scene;
+    const StudySetup& u = *w.setup;
+    auto lambda_of = [&](const std::string& label) {
+      for (std::size_t e = 0; e < specs.size(); ++e)
+        if (specs[e].label == label) return col.lambda_max[e];
+      return kNaN;
+    };
+    const std::size_t c = 0;  // add_stability_value sets the map's column
+    if (!w.refused) {
+      const bool H_conserved = momentum_not_conserved_reason(s).empty();
+      const bool E_conserved = energy_not_conserved_reason(s).empty();
+      col.reference_note = w.baseline->reference.description;
+      sv.study_notes = u.notes;
+      if (!u.analytic) {
+        sv.study_notes.push_back(reference_method_note(m, reference_tolerance));
+        sv.study_notes.push_back(reference_budget_note(o));
+      }
+      for (const StudyRow& r : u.rows)
+        if (contains(r.failure, "stopped early")) {
+          sv.study_notes.push_back(give_up_note(o));
+          break;
+        }
+      for (std::size_t i = 0; i < u.rows.size(); ++i) {
+        StudyRow r = u.rows[i];
+        study_set_cpu(r, {w.cpu[i]});
+        StabilityCell cell;
+        cell.engine = r.engine;
+        cell.integrator = r.integrator;
+        cell.fixed_step = r.fixed_step;
+        cell.setting = r.fixed_step ? r.dt : r.tolerance;
+        cell.column = c;
+        cell.cpu = r.cpu_median;
+        cell.rhs_calls = r.rhs_calls;
+        cell.steps = r.steps;
+        cell.history_error = r.error.history;
+        if (r.fixed_step) cell.h_lambda = r.dt * lambda_of(r.engine);
+        CellFacts f;
+        f.ok = r.ok;
+        f.failure = r.failure;
+        f.history_error = r.error.history;
+        f.drift_H = r.drift_H;
+        f.drift_E = r.drift_E;
+        f.H_conserved = H_conserved;
+        f.E_conserved = E_conserved;
+        cell.facts = f;
+        cell.result = classify(f, m.limits);
+        sv.cells.push_back(cell);
+      }
+    } else {
+      const std::string& why = *w.refused;
+      col.reference = false;
+      col.reference_note = why;
+      sv.study_notes.push_back(reference_budget_note(o));
+      sv.refused_note = "at " + knob.spec + " = " + g3(w.value) + ": " + why;
+      for (const std::string& e : m.engines)
+        for (const std::string& i : m.integrators) {
+          const bool fixed = Choice<Integrator>(i) == Integrator::Rk4;
+          for (double x : fixed ? u.options.dts : u.options.tolerances) {
+            StabilityCell cell;
+            cell.engine = e;
+            cell.integrator = i;
+            cell.fixed_step = fixed;
+            cell.setting = x;
+            cell.column = c;
+            CellFacts f;
+            f.reference = false;
+            f.failure = why;  // why the reference could not be made: the cell says it
+            cell.facts = f;
+            cell.result = classify(f, m.limits);
+            sv.cells.push_back(cell);
+          }
+        }
+    }
+    out.push_back(std::move(sv));
   }
   return out;
+}
+
+StabilityValue stability_value(const System& system, const Knob& knob, double v,
+                               const StabilityMap& m, const StabilityOptions& o) {
+  return std::move(stability_values(system, knob, {v}, m, o).front());
 }
 
 void add_stability_value(StabilityMap& m, StabilityValue v) {
@@ -476,7 +760,7 @@ StabilityMap stability_scene(const System& system, const Knob& knob, const std::
                              const StabilityOptions& o) {
   if (values.empty()) throw InputError("--values: give at least one value");
   StabilityMap m = stability_frame(system, knob, o);
-  for (double v : values) add_stability_value(m, stability_value(system, knob, v, m, o));
+  for (StabilityValue& v : stability_values(system, knob, values, m, o)) add_stability_value(m, std::move(v));
   m.findings = stability_findings(m);
   return m;
 }

@@ -24,6 +24,7 @@
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <thread>
 
 namespace crossdyn {
 
@@ -43,6 +44,7 @@ struct StabilityCliOptions {
   std::string report, csv;
   bool quiet = false;
   std::string shard, part;  // --shard K/N --part FILE
+  std::optional<int> jobs;  // --jobs N (default: the cores)
 };
 
 // What stability writes besides the text: --csv and --report, opened (refused when unusable,
@@ -115,6 +117,9 @@ int stability(const StabilityCliOptions& o) {
   if (!(o.reference_timeout >= 0) || !std::isfinite(o.reference_timeout))
     throw InputError("--reference-timeout: must be a finite number of seconds >= 0 (0: none)");
   options.reference_timeout = o.reference_timeout;
+  if (o.jobs && (*o.jobs < 1 || *o.jobs > 256))
+    throw InputError("--jobs: " + std::to_string(*o.jobs) + " is outside the allowed range, 1 to 256");
+  options.jobs = o.jobs ? *o.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const bool sharded = !o.shard.empty() || !o.part.empty();
   const harness::ShardSpec shard = harness::parse_shard(o.shard.empty() ? "0/1" : o.shard);
   if (sharded) {
@@ -199,9 +204,10 @@ int stability(const StabilityCliOptions& o) {
   plan = harness::plan_units(std::move(plan), shard.count);
   harness::StabilityMap own = frame;  // this shard's values, for its own text
   std::vector<std::string> items;
-  for (std::size_t k = 0; k < values.size(); ++k) {
-    if (plan[k].shard != shard.index) continue;
-    harness::StabilityValue v = harness::stability_value(system, knob, values[k], frame, options);
+  std::vector<double> mine;
+  for (std::size_t k = 0; k < values.size(); ++k)
+    if (plan[k].shard == shard.index) mine.push_back(values[k]);
+  for (harness::StabilityValue& v : harness::stability_values(system, knob, mine, frame, options)) {
     items.push_back(harness::stability_value_json(v));
     harness::add_stability_value(own, std::move(v));
   }
@@ -297,6 +303,10 @@ void add_stability_command(CLI::App& app, int& exit_code) {
                   "--set array.modal_stiffness=1000 --vary array.modal_damping");
   sub->add_option("--report", o->report, "Write the pages (index.html, one page per map, PNG maps, CSV) into DIR");
   sub->add_option("--csv", o->csv, "Write one CSV line per cell to FILE");
+  sub->add_option("--jobs,-j", o->jobs,
+                  "Runs at once, on N threads (default: the number of cores). The map is the same "
+                  "for any N but for the CPU times and what a wall-clock --timeout stops")
+      ->type_name("N");
   sub->add_flag("--quiet,-q", o->quiet, "No progress line on stderr");
   sub->add_option("--shard", o->shard,
                   "Run only slice K of N of the values (K counts from 0, as Slurm's "

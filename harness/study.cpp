@@ -30,10 +30,11 @@ namespace crossdyn::harness {
 namespace {
 
 
-// CPU time of the process, s (clock_gettime(2), CLOCK_PROCESS_CPUTIME_ID).
+// CPU time of the calling thread, s (clock_gettime(2), CLOCK_THREAD_CPUTIME_ID): a run's own
+// time, also when other runs go on in other threads (`stability --jobs`).
 double cpu_now() {
   timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
 }
 
@@ -406,17 +407,16 @@ bool cost_limit_failure(const std::string& why) {
 }
 }  // namespace
 
-SceneStudy study_scene(const System& system, const StudyOptions& options) {
-  SceneStudy s;
-  s.scene = system.name;
-  s.file = system.file;
-  s.targets = options.targets.empty() ? recommendation_targets() : options.targets;
+StudySetup study_setup(const System& system, const StudyOptions& options) {
+  StudySetup u;
+  u.system = system;
+  u.options = options;
   const IntegratorSettings base = IntegratorSettings::from(system.run);
-  s.duration = base.duration;
-  s.output_step = base.output_step;
-  const std::vector<double> times = output_times(base);
+  u.times = output_times(base);
   const OutputLayout layout(system);
-  const std::size_t pinned = layout.pinned_size();
+  u.pinned = layout.pinned_size();
+  u.H = layout.H();
+  u.E = layout.E();
   Progress progress{options.progress};
   if (options.progress) options.progress->start(system.name, base.duration);
 
@@ -445,182 +445,252 @@ SceneStudy study_scene(const System& system, const StudyOptions& options) {
       return true;
     } catch (const InputError& e) {
       unusable.insert(engine);
-      s.notes.push_back(engine + " left out: " + e.what());
+      u.notes.push_back(engine + " left out: " + e.what());
       return false;
     }
   };
 
-  IntegratorSettings settings = base;
-  settings.keep_rows = false;
-  if (options.max_steps) settings.max_steps = *options.max_steps;
+  u.settings = base;
+  u.settings.keep_rows = false;
+  if (options.max_steps) u.settings.max_steps = *options.max_steps;
 
-  // The reference.
-  History reference;
-  const double ref_c0 = cpu_now();
-  if (options.use_analytic && system.analytic == "torque-free") {
-    const RunResult a = analytic_run(system, times);
-    reference.columns = a.columns.size();
-    a.for_each_row([&reference](const double* row) {
-      reference.data.insert(reference.data.end(), row, row + reference.columns);
-    });
-    if (reference.columns != pinned) throw std::logic_error("analytic run: not the pinned columns");
-    s.reference.kind = "analytic";
-    s.reference.description = "the closed-form torque-free solution (analytic/torque_free.hpp)";
-    s.reference.runs = {"analytic"};
-  } else {
-    std::vector<History> runs;
-    for (const EngineSpec& spec : reference_specs) {
-      if (!usable(spec.engine, spec.options)) continue;
-      for (const std::string& integ : options.reference_integrators) {
-        IntegratorSettings rs = settings;
-        rs.method = integ;
-        rs.rtol = options.reference_tolerance;
-        rs.atol = options.reference_tolerance * options.reference_atol_factor;
-        if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
-        const std::string label = run_label(spec.label, integ, options.reference_tolerance);
-        progress.show(system.name + ": reference run " + label, true);
-        TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs,
-                               options.reference_timeout, pinned, times.size());
-        if (r.result.failure) {
-          const std::string why = r.result.failure->what();
-          throw StudyRefused(system.file + ": no reference: the reference run " + label +
-                                 " failed: " + why +
-                                 (why.find("timed out") != std::string::npos
-                                      ? " (the reference runs' own time budget, not the per-run "
-                                        "timeout)"
-                                      : ""),
-                             kExitRunFailed);
-        }
-        s.reference.runs.push_back(label);
-        runs.push_back(std::move(r.history));
-      }
+  // The reference runs (none: the analytic solution).
+  u.analytic = options.use_analytic && system.analytic == "torque-free";
+  if (!u.analytic) {
+    std::vector<const EngineSpec*> usable_specs;
+    for (const EngineSpec& spec : reference_specs)
+      if (usable(spec.engine, spec.options)) usable_specs.push_back(&spec);
+    const std::vector<std::string>& ri = options.reference_integrators;
+    auto add = [&](const EngineSpec& spec, const std::string& integ) {
+      u.reference_runs.push_back({spec, integ, run_label(spec.label, integ, options.reference_tolerance)});
+    };
+    if (options.reference_run_limit <= 0) {
+      for (const EngineSpec* spec : usable_specs)
+        for (const std::string& integ : ri) add(*spec, integ);
+    } else if (usable_specs.size() >= 2) {  // one run per engine, the integrators in turn
+      for (std::size_t k = 0; k < usable_specs.size() && k < static_cast<std::size_t>(options.reference_run_limit); ++k)
+        add(*usable_specs[k], ri.at(k % ri.size()));
+    } else if (usable_specs.size() == 1) {  // one engine: at each integrator
+      for (std::size_t k = 0; k < ri.size() && k < static_cast<std::size_t>(options.reference_run_limit); ++k)
+        add(*usable_specs[0], ri[k]);
     }
-    if (runs.size() < 2)
-      throw StudyRefused(system.file + ": no reference: fewer than two reference runs could be made "
-                                       "(the scene has no analytic solution)",
-                         kExitRunFailed);
-    const ErrorMetric agreement(system, runs[0]);
-    double worst = -1;
-    std::string worst_quantity;
-    for (std::size_t j = 1; j < runs.size(); ++j)
-      for (std::size_t i = 0; i < j; ++i) {
-        const StudyError e = agreement.error(runs[j], runs[i]);
-        const double v = std::isnan(e.history) ? std::numeric_limits<double>::infinity() : e.history;
-        if (v > worst) {
-          worst = v;
-          worst_quantity = e.history_quantity;
-          s.reference.worst_pair = s.reference.runs[j] + " vs " + s.reference.runs[i];
-        }
-      }
-    s.reference.agreement = worst;
-    if (!(worst <= options.reference_agreement))
-      throw StudyRefused(system.file + ": no reference: the reference runs do not agree at the "
-                         "tightest settings: " + s.reference.worst_pair + " differ by " + sci(worst) +
-                         " (largest on " + worst_quantity + ") > " + sci(options.reference_agreement) +
-                         " (history error, the study's metric): every target would be measured "
-                         "against a reference no better than that; compare the engines on this "
-                         "scene (`crossdyn compare`) to see which one differs",
-                         kExitCheckFailed);
-    reference = mean_history(system, runs);
-    s.reference.kind = "engines";
-    s.reference.description =
-        "the mean of " + std::to_string(runs.size()) + " runs (every engine with " +
-        [&] {
-          std::string l;
-          for (const std::string& i : options.reference_integrators) l += (l.empty() ? "" : " and ") + i;
-          return l;
-        }() +
-        " at rtol " + setting_text(options.reference_tolerance) + ", atol " +
-        setting_text(options.reference_tolerance * options.reference_atol_factor) +
-        "), which agree to " + sci(worst) + " (worst pair: " + s.reference.worst_pair +
-        "): the reference is good to about " + sci(worst, 2) + ", so targets below " +
-        sci(kReferenceMargin * worst, 2) + " are not measured";
   }
-  s.reference.cpu_seconds = cpu_now() - ref_c0;
-  const ErrorMetric metric(system, reference);
 
-  // The configurations.
-  std::vector<EngineSpec> specs = options.engine_specs;
-  if (specs.empty())
-    for (const std::string& e : engines) specs.push_back({e, e, {}});
-  std::map<std::string, const EngineSpec*> spec_of;
-  for (const EngineSpec& sp : specs) spec_of[sp.label] = &sp;
-  std::vector<StudyRow> rows;
-  for (const EngineSpec& spec : specs) {
-    const std::string& engine = spec.label;
+  // The configurations, and the chains they run in.
+  u.specs = options.engine_specs;
+  if (u.specs.empty())
+    for (const std::string& e : engines) u.specs.push_back({e, e, {}});
+  for (const EngineSpec& spec : u.specs) {
     if (!usable(spec.engine, spec.options)) continue;
     for (const std::string& integ : integrators) {
       const bool fixed = Choice<Integrator>(integ) == Integrator::Rk4;
+      if (fixed) u.chains.emplace_back();
       for (double v : fixed ? dts : tolerances) {
         StudyRow r;
-        r.engine = engine;
+        r.engine = spec.label;
         r.integrator = integ;
         r.fixed_step = fixed;
         (fixed ? r.dt : r.tolerance) = v;
-        rows.push_back(r);
+        if (!fixed) u.chains.emplace_back();
+        u.chains.back().push_back(u.rows.size());
+        u.rows.push_back(r);
       }
     }
   }
-  // Interleaved repeats: repeat 1 of every configuration, then repeat 2, ...
+  return u;
+}
+
+History study_reference_run(const StudySetup& u, std::size_t i) {
+  const StudyReferenceRun& run = u.reference_runs.at(i);
+  const StudyOptions& options = u.options;
+  IntegratorSettings rs = u.settings;
+  rs.method = run.integrator;
+  rs.rtol = options.reference_tolerance;
+  rs.atol = options.reference_tolerance * options.reference_atol_factor;
+  if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
+  Progress progress{options.progress};
+  progress.show(u.system.name + ": reference run " + run.label, true);
+  TimedRun r = timed_run(run.spec.label, run.spec.engine, run.spec.options, u.system, rs,
+                         options.reference_timeout, u.pinned, u.times.size());
+  if (r.result.failure) {
+    const std::string why = r.result.failure->what();
+    throw StudyRefused(u.system.file + ": no reference: the reference run " + run.label +
+                           " failed: " + why +
+                           (why.find("timed out") != std::string::npos
+                                ? " (the reference runs' own time budget, not the per-run "
+                                  "timeout)"
+                                : ""),
+                       kExitRunFailed);
+  }
+  return std::move(r.history);
+}
+
+StudyBaseline study_baseline(const StudySetup& u, const std::vector<History>& runs) {
+  StudyBaseline b;
+  const System& system = u.system;
+  const StudyOptions& options = u.options;
+  if (u.analytic) {
+    const RunResult a = analytic_run(system, u.times);
+    b.history.columns = a.columns.size();
+    a.for_each_row([&b](const double* row) {
+      b.history.data.insert(b.history.data.end(), row, row + b.history.columns);
+    });
+    if (b.history.columns != u.pinned) throw std::logic_error("analytic run: not the pinned columns");
+    b.reference.kind = "analytic";
+    b.reference.description = "the closed-form torque-free solution (analytic/torque_free.hpp)";
+    b.reference.runs = {"analytic"};
+    return b;
+  }
+  if (runs.size() < 2)
+    throw StudyRefused(system.file + ": no reference: fewer than two reference runs could be made "
+                                     "(the scene has no analytic solution)",
+                       kExitRunFailed);
+  for (const StudyReferenceRun& r : u.reference_runs) b.reference.runs.push_back(r.label);
+  const ErrorMetric agreement(system, runs[0]);
+  double worst = -1;
+  std::string worst_quantity;
+  for (std::size_t j = 1; j < runs.size(); ++j)
+    for (std::size_t i = 0; i < j; ++i) {
+      const StudyError e = agreement.error(runs[j], runs[i]);
+      const double v = std::isnan(e.history) ? std::numeric_limits<double>::infinity() : e.history;
+      if (v > worst) {
+        worst = v;
+        worst_quantity = e.history_quantity;
+        b.reference.worst_pair = b.reference.runs[j] + " vs " + b.reference.runs[i];
+      }
+    }
+  b.reference.agreement = worst;
+  if (!(worst <= options.reference_agreement))
+    throw StudyRefused(system.file + ": no reference: the reference runs do not agree at the "
+                       "tightest settings: " + b.reference.worst_pair + " differ by " + sci(worst) +
+                       " (largest on " + worst_quantity + ") > " + sci(options.reference_agreement) +
+                       " (history error, the study's metric): every target would be measured "
+                       "against a reference no better than that; compare the engines on this "
+                       "scene (`crossdyn compare`) to see which one differs",
+                       kExitCheckFailed);
+  b.history = mean_history(system, runs);
+  b.reference.kind = "engines";
+  std::string which;
+  if (options.reference_run_limit > 0) {  // the runs named one by one
+    for (std::size_t k = 0; k < u.reference_runs.size(); ++k)
+      which += std::string(k == 0 ? "" : k + 1 == u.reference_runs.size() ? " and " : ", ") +
+               u.reference_runs[k].spec.label + " + " + u.reference_runs[k].integrator;
+  } else {
+    which = "every engine with ";
+    for (std::size_t k = 0; k < options.reference_integrators.size(); ++k)
+      which += (k == 0 ? "" : " and ") + options.reference_integrators[k];
+  }
+  b.reference.description =
+      "the mean of " + std::to_string(runs.size()) + " runs (" + which +
+      (options.reference_atol_factor == 1.0
+           ? " at rtol = atol = " + setting_text(options.reference_tolerance)
+           : " at rtol " + setting_text(options.reference_tolerance) + ", atol " +
+                 setting_text(options.reference_tolerance * options.reference_atol_factor)) +
+      "), which agree to " + sci(worst) + " (worst pair: " + b.reference.worst_pair +
+      "): the reference is good to about " + sci(worst, 2) + ", so targets below " +
+      sci(kReferenceMargin * worst, 2) + " are not measured";
+  return b;
+}
+
+std::string study_skip_reason(const std::vector<StudyRow>& rows, const std::vector<std::size_t>& chain,
+                              std::size_t k) {
+  // An rk4 run with a shorter step than one that already went past the step or time limit is
+  // not made: it takes more steps, for certain (duration / dt). Only rk4: an adaptive method
+  // is not bound to take more steps at a tighter tolerance (on chain5 with 8 links,
+  // newton-euler + cvode-bdf reached the 200000-step limit at rtol 1e-9 and finished at
+  // 1e-12), so skipping those would give a cell a class it did not earn.
+  const StudyRow& row = rows[chain[k]];
+  if (!row.fixed_step) return "";
+  for (std::size_t j = 0; j < k; ++j) {
+    const StudyRow& p = rows[chain[j]];
+    if (p.engine == row.engine && p.integrator == row.integrator && !p.ok &&
+        cost_limit_failure(p.failure) && p.dt > row.dt)
+      return "not run: " + p.setting() + " already failed (" + p.failure +
+             "), and a shorter step takes more steps";
+  }
+  return "";
+}
+
+double study_run_row(const StudySetup& u, const ErrorMetric& metric, StudyRow& row, bool first) {
+  IntegratorSettings rs = u.settings;
+  rs.method = row.integrator;
+  if (row.fixed_step) rs.dt = row.dt;
+  else rs.rtol = rs.atol = row.tolerance;
+  rs.give_up_factor = u.options.give_up_factor;
+  const EngineSpec* spec = nullptr;
+  for (const EngineSpec& sp : u.specs)
+    if (sp.label == row.engine) spec = &sp;
+  if (!spec) throw std::logic_error("study: no engine '" + row.engine + "'");
+  TimedRun r = timed_run(spec->label, spec->engine, spec->options, u.system, rs, u.options.timeout,
+                         u.pinned, u.times.size());
+  if (first) {
+    row.rhs_calls = r.result.stats.rhs_calls;
+    row.steps = r.result.stats.steps;
+    row.rejected = r.result.stats.rejected;
+    if (r.result.failure) {
+      row.failure = r.result.failure->what();
+      return r.cpu;
+    }
+    row.ok = true;
+    row.error = metric.error(r.history);
+    row.drift_H = relative_drift(r.history, static_cast<std::size_t>(u.H));
+    row.drift_E = relative_drift(r.history, static_cast<std::size_t>(u.E));
+  }
+  return r.cpu;
+}
+
+void study_set_cpu(StudyRow& row, const std::vector<double>& cpu) {
+  if (!row.ok || cpu.empty()) return;
+  row.repeats = static_cast<int>(cpu.size());
+  row.cpu_median = median(cpu);
+  row.cpu_min = *std::min_element(cpu.begin(), cpu.end());
+  row.cpu_max = *std::max_element(cpu.begin(), cpu.end());
+}
+
+SceneStudy study_scene(const System& system, const StudyOptions& options) {
+  StudySetup u = study_setup(system, options);
+  Progress progress{options.progress};
+  SceneStudy s;
+  s.scene = system.name;
+  s.file = system.file;
+  s.targets = options.targets.empty() ? recommendation_targets() : options.targets;
+  s.duration = u.settings.duration;
+  s.output_step = u.settings.output_step;
+
+  // The reference.
+  const double ref_c0 = cpu_now();
+  std::vector<History> runs;
+  for (std::size_t i = 0; i < u.reference_runs.size(); ++i) runs.push_back(study_reference_run(u, i));
+  const StudyBaseline baseline = study_baseline(u, runs);
+  s.reference = baseline.reference;
+  s.reference.cpu_seconds = cpu_now() - ref_c0;
+  s.notes = u.notes;
+  const ErrorMetric metric(system, baseline.history);
+
+  // The configurations: interleaved repeats, repeat 1 of every configuration (in its chain's
+  // order), then repeat 2, ...
+  std::vector<StudyRow>& rows = u.rows;
   std::vector<std::vector<double>> cpu(rows.size());
   std::size_t done = 0;
   const std::size_t total = rows.size() * static_cast<std::size_t>(options.repeat);
   for (int rep = 0; rep < options.repeat; ++rep)
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      StudyRow& row = rows[i];
-      ++done;
-      if (rep > 0 && !row.ok) continue;
-      // An rk4 run with a shorter step than one that already went past the step or time limit is
-      // not made: it takes more steps, for certain (duration / dt). Only rk4: an adaptive method
-      // is not bound to take more steps at a tighter tolerance (on chain5 with 8 links,
-      // newton-euler + cvode-bdf reached the 200000-step limit at rtol 1e-9 and finished at
-      // 1e-12), so skipping those would give a cell a class it did not earn.
-      if (rep == 0 && row.fixed_step) {
-        const StudyRow* looser = nullptr;
-        for (std::size_t j = 0; j < i && !looser; ++j) {
-          const StudyRow& p = rows[j];
-          if (p.engine == row.engine && p.integrator == row.integrator && !p.ok &&
-              cost_limit_failure(p.failure) &&
-              (row.fixed_step ? p.dt > row.dt : p.tolerance > row.tolerance))
-            looser = &p;
+    for (const std::vector<std::size_t>& chain : u.chains)
+      for (std::size_t k = 0; k < chain.size(); ++k) {
+        StudyRow& row = rows[chain[k]];
+        ++done;
+        if (rep > 0 && !row.ok) continue;
+        if (rep == 0) {
+          const std::string skip = study_skip_reason(rows, chain, k);
+          if (!skip.empty()) {
+            row.failure = skip;
+            continue;
+          }
         }
-        if (looser) {
-          row.failure = "not run: " + looser->setting() + " already failed (" + looser->failure +
-                        "), and a shorter step takes more steps";
-          continue;
-        }
+        progress.show(system.name + " " + row.engine + " " + row.integrator + " " + row.setting() +
+                      ": run " + std::to_string(done) + " of " + std::to_string(total));
+        cpu[chain[k]].push_back(study_run_row(u, metric, row, rep == 0));
       }
-      progress.show(system.name + " " + row.engine + " " + row.integrator + " " + row.setting() +
-                    ": run " + std::to_string(done) + " of " + std::to_string(total));
-      IntegratorSettings rs = settings;
-      rs.method = row.integrator;
-      if (row.fixed_step) rs.dt = row.dt;
-      else rs.rtol = rs.atol = row.tolerance;
-      const EngineSpec& spec = *spec_of.at(row.engine);
-      TimedRun r = timed_run(spec.label, spec.engine, spec.options, system, rs, options.timeout, pinned,
-                             times.size());
-      if (rep == 0) {
-        row.rhs_calls = r.result.stats.rhs_calls;
-        row.steps = r.result.stats.steps;
-        row.rejected = r.result.stats.rejected;
-        if (r.result.failure) {
-          row.failure = r.result.failure->what();
-          continue;
-        }
-        row.ok = true;
-        row.error = metric.error(r.history);
-        row.drift_H = relative_drift(r.history, static_cast<std::size_t>(layout.H()));
-        row.drift_E = relative_drift(r.history, static_cast<std::size_t>(layout.E()));
-      }
-      cpu[i].push_back(r.cpu);
-    }
-  for (std::size_t i = 0; i < rows.size(); ++i)
-    if (rows[i].ok) {
-      rows[i].repeats = static_cast<int>(cpu[i].size());
-      rows[i].cpu_median = median(cpu[i]);
-      rows[i].cpu_min = *std::min_element(cpu[i].begin(), cpu[i].end());
-      rows[i].cpu_max = *std::max_element(cpu[i].begin(), cpu[i].end());
-    }
+  for (std::size_t i = 0; i < rows.size(); ++i) study_set_cpu(rows[i], cpu[i]);
   if (options.progress) options.progress->clear();
   s.rows = std::move(rows);
   mark_fronts(s);
@@ -1031,7 +1101,7 @@ std::string scaling_csv(const ScalingStudy& s) {
 
 const std::string& study_timing_text() {
   static const std::string t =
-      "CPU time (clock_gettime CLOCK_PROCESS_CPUTIME_ID) of the integration only: one simulate() "
+      "CPU time (clock_gettime CLOCK_THREAD_CPUTIME_ID: the run's own thread) of the integration only: one simulate() "
       "call from the initial state to the end, every step and right-hand side, the engine's "
       "after-step projection, and at each output time the engine's output row with its pinned "
       "values copied to memory set aside beforehand. Not timed: making the engine (before), the "

@@ -6,9 +6,11 @@
 // packing the initial state, every step and right-hand side, the engine's after_step(), and at
 // every output time the engine's output row plus copying its pinned values into memory kept
 // aside (IntegratorSettings::keep_rows = false: no CSV, no row store). The engine is constructed
-// before the clock starts and the error is computed after it stops. CPU time is the process's
-// (clock_gettime CLOCK_PROCESS_CPUTIME_ID); the figure is the median of `repeat` runs, repeated
-// interleaved (repeat 1 of every configuration, then repeat 2, ...), all in this process.
+// before the clock starts and the error is computed after it stops. CPU time is the run's own
+// thread's (clock_gettime CLOCK_THREAD_CPUTIME_ID: the engines and integrators start no threads,
+// so it is the run's whole cost, also while other runs go on in other threads, as in
+// `stability --jobs`); the figure is the median of `repeat` runs, repeated interleaved (repeat 1
+// of every configuration, then repeat 2, ...), all in this process.
 //
 // The error metric (one number per run, the same for the end state and the whole history).
 // Every compared quantity q of the scene (compare.hpp's pinned quantities: body w components,
@@ -140,6 +142,11 @@ struct StudyOptions {
   // Below it every target at least kReferenceMargin x the spread is measured and the others are
   // declined with the reason (recommendation()).
   double reference_agreement = 1e-5;
+  // 0: every reference engine with every reference integrator. N > 0: N runs only, the first N
+  // usable reference engines each with the next reference integrator in turn (kane + dop853,
+  // newton-euler + rkf78), or, when one engine is usable, that engine with the first N
+  // integrators (`stability`: two independent runs, not six).
+  int reference_run_limit = 0;
   std::optional<long> reference_max_steps;  // the reference runs' step limit (empty: max_steps)
   // Each reference run's own time budget, s of wall-clock time (0: none): independent of the
   // per-run `timeout`, which is for the configurations (issue 23, class 11: a tiny --timeout
@@ -151,6 +158,10 @@ struct StudyOptions {
   // is within it. Empty: recommendation_targets(). Not the scene's compare tolerances, which say
   // whether the engines agree.
   std::vector<double> targets;
+  // > 0: a configuration run whose pace shows it cannot finish within its step limit is
+  // ended early as too costly (IntegratorSettings::give_up_factor; `stability` uses it). 0: every
+  // run goes to its limits.
+  double give_up_factor = 0;
   ProgressLine* progress = nullptr;      // optional progress display
 };
 
@@ -203,6 +214,60 @@ struct SceneStudy {
 // Runs the study on one scene. Throws StudyRefused when the reference cannot be made,
 // InputError for bad options, cancel::Cancelled when interrupted.
 SceneStudy study_scene(const System& system, const StudyOptions& options);
+
+// ---- The study in pieces ----
+// What study_scene does, for a caller that runs the pieces itself, for example on several
+// threads (`stability --jobs`): the reference runs are independent of each other, and so are the
+// chains of configurations once the reference is made. study_scene is
+//   StudySetup u = study_setup(system, options);
+//   runs[i] = study_reference_run(u, i)            for each of u.reference_runs (none: analytic)
+//   StudyBaseline b = study_baseline(u, runs);     ErrorMetric metric(u.system, b.history);
+//   for each chain of u.chains, in its order: study_skip_reason, else study_run_row
+//   study_set_cpu on every row
+// The pieces share nothing mutable but the rows each chain writes (u.rows[chain[k]]): two threads
+// may run two chains of one setup at once. Progress is drawn only through options.progress,
+// which is not thread-safe: leave it null when running pieces on several threads.
+struct StudyReferenceRun {
+  EngineSpec spec;
+  std::string integrator;
+  std::string label;  // "kane + rkf78 at 1e-13"
+};
+struct StudySetup {
+  System system;
+  StudyOptions options;
+  IntegratorSettings settings;          // the scene's run: keep_rows false, the options' max_steps
+  std::vector<double> times;            // the output times
+  std::size_t pinned = 0;               // pinned columns
+  int H = -1, E = -1;                   // their H and E columns
+  bool analytic = false;                // the reference is the analytic solution
+  std::vector<StudyReferenceRun> reference_runs;  // empty when analytic
+  std::vector<EngineSpec> specs;        // the configurations' engines
+  std::vector<StudyRow> rows;           // the configurations, not yet run
+  // Indices into rows, each run in its order: one rk4 engine x integrator's steps (a shorter step
+  // after a too costly one is not run), or one adaptive configuration alone.
+  std::vector<std::vector<std::size_t>> chains;
+  std::vector<std::string> notes;       // engines left out, with the reason
+};
+struct StudyBaseline {
+  StudyReference reference;  // cpu_seconds not set
+  History history;
+};
+// InputError for bad options; engines that cannot run the scene are left out (notes).
+StudySetup study_setup(const System& system, const StudyOptions& options);
+// One reference run's history; StudyRefused when it fails.
+History study_reference_run(const StudySetup& setup, std::size_t i);
+// The reference from the runs (in reference_runs order), or the analytic solution; StudyRefused
+// when the runs disagree by more than options.reference_agreement (or fewer than two).
+StudyBaseline study_baseline(const StudySetup& setup, const std::vector<History>& runs);
+// Why rows[chain[k]] is not run (an rk4 step shorter than one of its chain that went past the
+// step or time limit), or "".
+std::string study_skip_reason(const std::vector<StudyRow>& rows, const std::vector<std::size_t>& chain,
+                              std::size_t k);
+// Runs `row` once; `first`: its first run, which sets ok, failure, the counts, error and drift.
+// Returns the run's CPU time, s (cancel::Cancelled when interrupted).
+double study_run_row(const StudySetup& setup, const ErrorMetric& metric, StudyRow& row, bool first);
+// The row's CPU figures from its runs' times (median, min, max, repeats) when it finished.
+void study_set_cpu(StudyRow& row, const std::vector<double>& cpu);
 
 // The Pareto front of points (cost, error): true where no other point has cost <= and
 // error <= with one of them strictly smaller. Points with a non-finite cost or error are never on

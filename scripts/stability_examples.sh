@@ -1,8 +1,8 @@
 #!/bin/bash
 # The standard stability maps of issue 13, as committed in reports/example/stability/: one
 # `crossdyn stability` command per map. Usage: scripts/stability_examples.sh [OUT_DIR]
-# (default /tmp/stability_examples). About 7 minutes on 2 cores (6 min 49 s measured 2026-11-26; 2026-11-24:
-# hinge 104 s, modal 55 s, damping ~60 s, rotor 64 s, horizon 122 s, chain 116 s, lock 2 s).
+# (default /tmp/stability_examples). About 2 minutes on 2 free cores (126 s measured 2026-11-27 with
+# --jobs 2, the default; 380 s before issue 24 item 4: two-run references, runs stopped early).
 set -euo pipefail
 C=${CROSSDYN:-build/crossdyn}
 O=${1:-/tmp/stability_examples}

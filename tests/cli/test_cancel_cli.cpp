@@ -1,7 +1,7 @@
 // Stopping and bounding runs, as a user meets them (docs/stopping.md):
-// Ctrl-C (SIGINT) and SIGTERM at every phase of `run`, `compare` and `verify`, per-run
-// --timeout and --max-steps, the progress line on a terminal (and nothing on a pipe), and a stiff
-// but solvable scene whose first trial step blows up.
+// Ctrl-C (SIGINT) and SIGTERM at every phase of `run`, `compare` and `verify` (and `stability`
+// on several threads), per-run --timeout and --max-steps, the progress line on a terminal (and
+// nothing on a pipe), and a stiff but solvable scene whose first trial step blows up.
 //
 // Bound on time: after the signal, crossdyn must exit with status 130 within kExitBound = 3 s.
 // crossdyn itself exits within about cancel::kForcedExitDelay (0.5 s) even where nothing polls;
@@ -202,6 +202,19 @@ TEST_CASE("Ctrl-C during `compare` and `verify`: between engines, during a run, 
     CHECK(d.entries() == std::vector<std::string>{"chain30.yaml", "python_started", "slow_python.sh"});
   }
   for (const char* f : {"c.json", "v.json", "v.xml"}) CHECK_FALSE(fs::exists(d / f));
+}
+
+TEST_CASE("Ctrl-C during `stability --jobs 2`: every thread's run stops, exit 130 within the bound, no output") {
+  Folder d("sigstab");
+  // chain30 for 5 s (as above: kane about 3 s, lagrange about 7 s at the scene's tolerance): the
+  // reference runs of two values, four at once on two threads, last several seconds each.
+  const std::string chain30 = write(d / "chain30.yaml", chain_scene(30, 5, 0.1));
+  ChildProcess p({program(), "stability", chain30, "--vary", "duration", "--values", "5,4", "--jobs", "2",
+                  "--csv", d / "s.csv", "--report", d / "report"},
+                 ChildProcess::Stderr::Terminal);
+  REQUIRE(p.wait_for("reference run", kPhaseTimeout));
+  require_interrupted(p, SIGINT);
+  CHECK(d.entries() == std::vector<std::string>{"chain30.yaml"});
 }
 
 TEST_CASE("per-run limits: --timeout and --max-steps fail only the run that hits them: other engines and scenes go on") {
