@@ -95,6 +95,13 @@ class Engine {
   // restarts (FSAL and dense-output steppers must not reuse stale derivatives). May throw
   // RunFailure (for example at an Euler-angle singularity with re-charting off).
   virtual bool after_step(double t, double* x) { (void)t; (void)x; return false; }
+  // The constraint projection of after_step() alone, for an integrator that projects inside its
+  // steps (CVODE's BDF: CVodeSetProjFn, so that its multistep history stays on the manifold and
+  // need not be restarted after every step). May be called on trial states of steps that are later
+  // rejected: it moves x onto the constraint manifold and changes nothing else in the engine.
+  // projects() says whether the engine has such a projection in this run.
+  virtual bool projects() const { return false; }
+  virtual void project_state(double t, double* x) { (void)t; (void)x; }
   // (t, x) => engine-neutral accelerations.
   virtual void accelerations(double t, const double* x, TreeAccel& a) = 0;
   // Output columns (core/output_layout.hpp): the pinned ones first, then engine-specific extras.

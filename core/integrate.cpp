@@ -391,7 +391,8 @@ void Runner::dense(Stepper& stepper, State& x, int stages_per_rejection, int ord
     const double t = stepper.current_time();
     guard(t, stepper.current_state());
     // Do not straddle a load breakpoint or the duration: restart with a step that ends on it.
-    const double stop = next_stop(t, end);
+    const double stop = s_.land_on_outputs ? std::min(next_stop(t, end), outputs_[k])
+                                           : next_stop(t, end);
     if (t + stepper.current_time_step() > stop)
       stepper.initialize(State(stepper.current_state()), t, stop - t);
     const long rhs_before = result_.stats.rhs_calls;

@@ -1227,6 +1227,10 @@ void recheck_item(const Part& part, const ShardScene& unit, const std::string& t
     if (st.reference.kind == "engines" && !(st.reference.agreement <= required))
       refuse("field 'reference/agreement': " + num_text(st.reference.agreement) + " is above the " +
              num_text(required) + " a study needs of its reference (the scene is refused, not studied)");
+    if (st.reference.agreement_end > st.reference.agreement)
+      refuse("field 'reference/agreement_end': " + num_text(st.reference.agreement_end) +
+             " is above 'reference/agreement' (" + num_text(st.reference.agreement) +
+             "): the runs cannot differ more at the end than over the run");
     SceneStudy again = st;
     mark_fronts(again);
     const auto yes = [](bool b) { return std::string(b ? "true" : "false"); };
@@ -1329,6 +1333,7 @@ std::string study_item_json(const StudyItem& item) {
                   {"output_step", num(s.output_step)}, {"targets", s.targets},
                   {"reference", {{"kind", ref.kind}, {"description", ref.description},
                                  {"runs", ref.runs}, {"agreement", num(ref.agreement)},
+                                 {"agreement_end", num(ref.agreement_end)},
                                  {"worst_pair", ref.worst_pair}, {"cpu_seconds", num(ref.cpu_seconds)}}},
                   {"rows", rows}, {"notes", s.notes}};
   }
@@ -1354,6 +1359,8 @@ StudyItem study_item_from_field(const PartField& j) {
     s.reference.description = jr.at("description").str();
     s.reference.runs = jr.at("runs").strings();
     s.reference.agreement = jr.at("agreement").number();
+    if (jr.has("agreement_end") && !jr.at("agreement_end").is_null())
+      s.reference.agreement_end = jr.at("agreement_end").number();
     s.reference.worst_pair = jr.at("worst_pair").str();
     s.reference.cpu_seconds = jr.at("cpu_seconds").number();
     for (const PartField& r : each(js.at("rows"))) s.rows.push_back(row_from(r));

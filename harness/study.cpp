@@ -16,8 +16,11 @@
 #include <time.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
@@ -200,7 +203,7 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
   const OutputLayout layout(system);
   const auto& cols = layout.columns();
   // Scale groups (study.hpp): "w:<body>", "rate", "modal:<body>", "modal_rate:<body>", "H", "E";
-  // attitudes and joint angles have scale 1.
+  // attitudes and joint angles: their travel, below.
   std::vector<std::string> group(cols.size());
   for (std::size_t c = 0; c < cols.size(); ++c) {
     const Column& col = cols[c];
@@ -264,13 +267,55 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
     const std::string& g = group[static_cast<std::size_t>(q.columns[0])];
     q.scale = g.empty() || !(scale[g] > 0) ? 1.0 : scale[g];
   }
+  // Angles (issue 24): a joint angle's or a body attitude's scale is how far it turned in the
+  // reference, at least 1 rad: S = max(1 rad, travel). An integrator controls an angle's error
+  // relative to its size (rtol |theta|), and rounding alone grows with it: a wheel that turned
+  // 12,000 rad in 60 s differed by 1.9e-8 rad (1.6e-12 of its travel) between two runs at rtol
+  // 1e-13, so in absolute radians no target below 1e-7 could be measured on any scene with a
+  // fast rotor. A body that turns less than a radian (a pointing hub, a hinge) keeps the absolute
+  // measure. Travel: a joint angle's max_t |theta(t) - theta(0)|; a body's integral of |w_NB|
+  // over the run (trapezoidal rule on the output times: |w| is smooth where the angle is not
+  // sampled finely enough to be unwrapped).
+  int time_column = -1;
+  std::vector<std::array<int, 3>> w_columns(system.bodies.size(), {-1, -1, -1});
+  for (std::size_t c = 0; c < cols.size() && c < reference.columns; ++c) {
+    if (cols[c].kind == ColumnKind::Time) time_column = static_cast<int>(c);
+    if (cols[c].kind == ColumnKind::BodyW && cols[c].body >= 0 &&
+        static_cast<std::size_t>(cols[c].body) < w_columns.size() && cols[c].component >= 0 &&
+        cols[c].component < 3)
+      w_columns[static_cast<std::size_t>(cols[c].body)][static_cast<std::size_t>(cols[c].component)] =
+          static_cast<int>(c);
+  }
+  for (Quantity& q : quantities_) {
+    const Column& col = cols[static_cast<std::size_t>(q.columns[0])];
+    double travel = 0;
+    if (col.kind == ColumnKind::RevoluteAngle && reference.rows() > 0) {
+      const double a0 = reference.row(0)[q.columns[0]];
+      for (std::size_t k = 0; k < reference.rows(); ++k)
+        travel = std::max(travel, std::abs(reference.row(k)[q.columns[0]] - a0));
+    } else if (q.attitude && time_column >= 0 && col.body >= 0 &&
+               static_cast<std::size_t>(col.body) < w_columns.size()) {
+      const std::array<int, 3>& w = w_columns[static_cast<std::size_t>(col.body)];
+      if (w[0] < 0 || w[1] < 0 || w[2] < 0) continue;
+      auto speed = [&](std::size_t k) {
+        const double* r = reference.row(k);
+        return std::sqrt(r[w[0]] * r[w[0]] + r[w[1]] * r[w[1]] + r[w[2]] * r[w[2]]);
+      };
+      for (std::size_t k = 1; k < reference.rows(); ++k)
+        travel += 0.5 * (speed(k) + speed(k - 1)) *
+                  (reference.row(k)[time_column] - reference.row(k - 1)[time_column]);
+    } else {
+      continue;
+    }
+    if (std::isfinite(travel)) q.scale = std::max(1.0, travel);
+  }
 }
 
 StudyError ErrorMetric::error(const History& run) const { return error(run, *reference_); }
 
 double ErrorMetric::scale(const std::string& quantity) const {
   for (const Quantity& q : quantities_)
-    if (q.name == quantity) return q.attitude ? 1.0 : q.scale;
+    if (q.name == quantity) return q.scale;
   return std::numeric_limits<double>::quiet_NaN();
 }
 
@@ -299,7 +344,7 @@ StudyError ErrorMetric::error(const History& a, const History& b) const {
       if (q.attitude) {
         const Eigen::Quaterniond qa(A[q.columns[0]], A[q.columns[1]], A[q.columns[2]], A[q.columns[3]]);
         const Eigen::Quaterniond qb(B[q.columns[0]], B[q.columns[1]], B[q.columns[2]], B[q.columns[3]]);
-        v = rot::angle_between(qa.normalized(), qb.normalized());
+        v = rot::angle_between(qa.normalized(), qb.normalized()) / q.scale;
       } else {
         v = std::abs(A[q.columns[0]] - B[q.columns[0]]) / q.scale;
       }
@@ -507,6 +552,7 @@ History study_reference_run(const StudySetup& u, std::size_t i) {
   rs.method = run.integrator;
   rs.rtol = options.reference_tolerance;
   rs.atol = options.reference_tolerance * options.reference_atol_factor;
+  rs.land_on_outputs = true;  // no interpolated reference values (IntegratorSettings)
   if (options.reference_max_steps) rs.max_steps = *options.reference_max_steps;
   Progress progress{options.progress};
   progress.show(u.system.name + ": reference run " + run.label, true);
@@ -547,19 +593,25 @@ StudyBaseline study_baseline(const StudySetup& u, const std::vector<History>& ru
                        kExitRunFailed);
   for (const StudyReferenceRun& r : u.reference_runs) b.reference.runs.push_back(r.label);
   const ErrorMetric agreement(system, runs[0]);
-  double worst = -1;
-  std::string worst_quantity;
+  double worst = -1, worst_end = -1;
+  std::string worst_quantity, worst_end_quantity;
   for (std::size_t j = 1; j < runs.size(); ++j)
     for (std::size_t i = 0; i < j; ++i) {
       const StudyError e = agreement.error(runs[j], runs[i]);
       const double v = std::isnan(e.history) ? std::numeric_limits<double>::infinity() : e.history;
+      const double v_end = std::isnan(e.end) ? std::numeric_limits<double>::infinity() : e.end;
       if (v > worst) {
         worst = v;
         worst_quantity = e.history_quantity;
         b.reference.worst_pair = b.reference.runs[j] + " vs " + b.reference.runs[i];
       }
+      if (v_end > worst_end) {
+        worst_end = v_end;
+        worst_end_quantity = e.end_quantity;
+      }
     }
   b.reference.agreement = worst;
+  b.reference.agreement_end = std::min(worst_end, worst);
   if (!(worst <= options.reference_agreement))
     throw StudyRefused(system.file + ": no reference: the reference runs do not agree at the "
                        "tightest settings: " + b.reference.worst_pair + " differ by " + sci(worst) +
@@ -586,9 +638,13 @@ StudyBaseline study_baseline(const StudySetup& u, const std::vector<History>& ru
            ? " at rtol = atol = " + setting_text(options.reference_tolerance)
            : " at rtol " + setting_text(options.reference_tolerance) + ", atol " +
                  setting_text(options.reference_tolerance * options.reference_atol_factor)) +
-      "), which agree to " + sci(worst) + " (worst pair: " + b.reference.worst_pair +
-      "): the reference is good to about " + sci(worst, 2) + ", so targets below " +
-      sci(kReferenceMargin * worst, 2) + " are not measured";
+      "), which agree to " + sci(worst) + " over the run (worst pair: " + b.reference.worst_pair +
+      ", largest on " + worst_quantity + ") and to " + sci(b.reference.agreement_end) +
+      " at the end (largest on " + worst_end_quantity + "): the reference is good to about " +
+      sci(worst, 2) + " over the run and " + sci(b.reference.agreement_end, 2) +
+      " at the end, so history-error targets below " + sci(kReferenceMargin * worst, 2) +
+      " and end-state targets below " + sci(kReferenceMargin * b.reference.agreement_end, 2) +
+      " are not measured";
   return b;
 }
 
@@ -723,8 +779,12 @@ void mark_fronts(SceneStudy& s) {
     hist.push_back(r.ok ? r.error.history : kNaN);
   }
   // Errors below the reference's own accuracy (its runs' agreement) are all the same accuracy.
-  const double floor = std::max(1e-15, std::isfinite(s.reference.agreement) ? s.reference.agreement : 0.0);
-  const std::vector<bool> fe = pareto_front(cost, end, floor), fh = pareto_front(cost, hist, floor);
+  auto floor = [&s](bool history) {
+    const double a = s.reference.spread(history);
+    return std::max(1e-15, std::isfinite(a) ? a : 0.0);
+  };
+  const std::vector<bool> fe = pareto_front(cost, end, floor(false)),
+                          fh = pareto_front(cost, hist, floor(true));
   for (std::size_t i = 0; i < s.rows.size(); ++i) {
     s.rows[i].front_end = fe[i];
     s.rows[i].front_history = fh[i];
@@ -762,16 +822,17 @@ bool step_set_by_output_times(const SceneStudy& s, const StudyRow& r) {
   return static_cast<double>(r.steps) <= 1.1 * intervals;
 }
 
-double smallest_supported_target(const SceneStudy& s) {
-  return s.reference.kind == "engines" ? kReferenceMargin * s.reference.agreement : 0.0;
+double smallest_supported_target(const SceneStudy& s, bool history) {
+  return s.reference.kind == "engines" ? kReferenceMargin * s.reference.spread(history) : 0.0;
 }
 
 std::string recommendation(const SceneStudy& s, double target, bool history) {
   const std::string what = history ? "history error" : "end-state error";
-  if (target < smallest_supported_target(s))
+  if (target < smallest_supported_target(s, history))
     return "for " + sci(target, 1) + " " + what + " on " + s.scene + ": not measured: the reference is " +
-           "good to " + sci(s.reference.agreement, 2) + " on this scene (the spread of its runs); " +
-           "targets below " + sci(smallest_supported_target(s), 2) + " are not measured";
+           "good to " + sci(s.reference.spread(history), 2) + (history ? " over the run" : " at the end") +
+           " on this scene (the spread of its runs); targets below " +
+           sci(smallest_supported_target(s, history), 2) + " are not measured";
   const auto best = cheapest_within(s, target, history);
   if (best) {
     const StudyRow& r = s.rows[*best];
@@ -816,9 +877,9 @@ std::string format_study(const SceneStudy& s) {
                    "tolerances are not used here: they check that the engines agree.");
   }
   out << "cpu: median CPU of the integration (simulate() only, no CSV), ms; error: max over the\n"
-         "compared quantities of |x - ref| / scale (attitude, angles: rad), at the end (end) and\n"
-         "over every output time (history); front: on the Pareto front of cpu and end error (e),\n"
-         "history error (h)\n\n";
+         "compared quantities of |x - ref| / scale (attitudes, angles: rad / how far they turned,\n"
+         "at least 1 rad), at the end (end) and over every output time (history); front: on the\n"
+         "Pareto front of cpu and end error (e), history error (h)\n\n";
   std::vector<std::vector<std::string>> rows{
       {"engine", "integrator", "setting", "cpu ms", "rhs", "steps", "rej", "end err", "hist err", "front"}};
   std::vector<std::string> failures;
@@ -1115,8 +1176,10 @@ const std::string& study_error_text() {
       "error = max over the scene's compared quantities q of |x_q - ref_q| / S_q, where S_q is the "
       "size of q's kind of motion in the reference (body w: max |w_body|; joint rates: the largest "
       "joint rate; modal: the body's largest modal value; H, E: max |H|, |E|); attitudes (the "
-      "rotation angle between the two) and joint angles are absolute, in rad. End-state error: at "
-      "the last output time; history error: the largest over every output time.";
+      "rotation angle between the two) and joint angles in rad, relative to how far the body or "
+      "joint turned in the reference, at least 1 rad (a fast rotor's angle is judged by its "
+      "travel, a pointing hub's absolutely). End-state error: at the last output time; history "
+      "error: the largest over every output time.";
   return t;
 }
 

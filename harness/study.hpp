@@ -15,10 +15,12 @@
 // The error metric (one number per run, the same for the end state and the whole history).
 // Every compared quantity q of the scene (compare.hpp's pinned quantities: body w components,
 // body attitudes, joint angles and rates, modal coordinates and rates, H, E) has an error
-//   e_q(t) = |x_q(t) - r_q(t)| / S_q          (attitude: rotation angle between x and r, rad)
+//   e_q(t) = |x_q(t) - r_q(t)| / S_q          (attitude: rotation angle between x and r / S_q)
 // against the reference r, where the scale S_q is the size of q's kind of motion in the reference:
 //   body w components      S = max_t |w_body(t)|   (the body's angular velocity vector)
-//   attitudes, joint angles S = 1 (absolute, rad)
+//   attitudes, joint angles S = max(1 rad, how far it turned in the reference): a joint angle's
+//                          max_t |theta(t) - theta(0)|, a body's integral of |w_NB| dt (an
+//                          angle's error grows with its size: rtol |theta|, and rounding)
 //   joint rates            S = max over the scene's joints and t of |rate| or |w_PC_C|
 //   modal coordinates      S = max over the body's modes and t of |eta|  (rates likewise)
 //   H, E                   S = max_t |H|, max_t |E|, at least sum_b I_b w_b and sum_b I_b w_b^2 / 2
@@ -97,7 +99,7 @@ class ErrorMetric {
   StudyError error(const History& run) const;
   // Error of `a` against `b` with this metric's scales (the reference-agreement check).
   StudyError error(const History& a, const History& b) const;
-  // The scale S_q of a compared quantity, by name ("hub.wx", "hub.attitude": 1, "H"), NaN for a
+  // The scale S_q of a compared quantity, by name ("hub.wx", "hub.attitude", "H"), NaN for a
   // name the metric does not compare. converge judges its models' changes with it (--accuracy).
   double scale(const std::string& quantity) const;
 
@@ -198,6 +200,14 @@ struct StudyReference {
   std::string description;          // one sentence for tables and the report
   std::vector<std::string> runs;    // "kane + rkf78 at 1e-13", ...
   double agreement = 0;             // worst pairwise history error of the reference runs
+  // Worst pairwise end-state error: the reference's own error at the end, against which the
+  // end-state targets are measured (history targets: `agreement`). NaN: not known (an old part).
+  double agreement_end = std::numeric_limits<double>::quiet_NaN();
+  // The spread the targets of one kind are measured against: agreement_end for end-state
+  // targets where known, else agreement.
+  double spread(bool history) const {
+    return history || !(agreement_end >= 0) ? agreement : agreement_end;
+  }
   std::string worst_pair;           // "lagrange + dopri5 vs kane + rkf78"
   double cpu_seconds = 0;           // making the reference (not part of any row)
 };
@@ -298,8 +308,9 @@ const std::vector<double>& recommendation_targets();
 // measured.
 inline constexpr double kReferenceMargin = 10;
 // The smallest target the study's reference supports: 0 for an analytic reference, else
-// kReferenceMargin x the reference runs' spread.
-double smallest_supported_target(const SceneStudy& s);
+// kReferenceMargin x the reference runs' spread (at the end for end-state targets, over the run
+// for history targets: StudyReference::spread).
+double smallest_supported_target(const SceneStudy& s, bool history = false);
 
 // Text table (fits 100 columns), the reference and the recommendations.
 std::string format_study(const SceneStudy& s);

@@ -42,8 +42,10 @@ page_json scene_json(const SceneStudy& s, const std::string& id) {
                     {"description", s.reference.description},
                     {"runs", s.reference.runs},
                     {"agreement", json_number<page_json>(s.reference.agreement)},
+                    {"agreement_end", json_number<page_json>(s.reference.spread(false))},
                     {"worst_pair", s.reference.worst_pair},
                     {"smallest_target", json_number<page_json>(smallest_supported_target(s))},
+                    {"smallest_history_target", json_number<page_json>(smallest_supported_target(s, true))},
                     {"cpu_seconds", json_number<page_json>(s.reference.cpu_seconds)}};
   j["notes"] = s.notes;
   page_json recs = page_json::array();

@@ -205,7 +205,7 @@ TEST_CASE("stability: a run stopped early by its pace keeps the class it earns a
 
 TEST_CASE("the pace prediction never stops a run that finishes within its step limit at a steady pace") {
   // kane + rk4: exactly duration / dt steps. With the limit just above them the run finishes;
-  // just below, it reaches the limit, and the prediction (more than 5 x what is left) stays
+  // just below, it reaches the limit, and the prediction (more than 2 x what is left) stays
   // silent, so the failure is the limit's own.
   const System s = read_scene(test::scene_path("spear1_case1"));
   IntegratorSettings st = IntegratorSettings::from(s.run);
