@@ -3,6 +3,7 @@
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
+#include "core/scene/schema.hpp"
 #include "core/input_file.hpp"
 #include "core/integrate.hpp"
 #include "core/output.hpp"
@@ -67,16 +68,6 @@ json schedule(const PiecewiseConstant<D>& f) {
   return a;
 }
 
-const char* joint_type(JointType t) {
-  switch (t) {
-    case JointType::Free: return "free";
-    case JointType::Revolute: return "revolute";
-    case JointType::Spherical: return "spherical";
-    case JointType::Fixed: return "fixed";
-  }
-  return "?";
-}
-
 // The scene's data and assumptions, in SI, for the report page.
 json system_json(const System& s) {
   json bodies = json::array();
@@ -92,7 +83,7 @@ json system_json(const System& s) {
   json joints = json::array();
   for (const Joint& J : s.joints) {
     json j = {{"name", J.name},
-              {"type", joint_type(J.type)},
+              {"type", std::string(scene::joint_type(J.type).name)},
               {"parent", J.parent < 0 ? "N (inertial)" : s.bodies[J.parent].name},
               {"child", s.bodies[J.child].name}};
     if (J.type == JointType::Free) {

@@ -4,6 +4,7 @@
 
 #include "core/engine.hpp"
 #include "core/errors.hpp"
+#include "core/scene/schema.hpp"
 #include "core/rotation.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -265,16 +266,6 @@ json mat(const Matrix3d& m) {
   return a;
 }
 
-const char* type_name(JointType t) {
-  switch (t) {
-    case JointType::Free: return "free";
-    case JointType::Revolute: return "revolute";
-    case JointType::Spherical: return "spherical";
-    case JointType::Fixed: return "fixed";
-  }
-  return "?";
-}
-
 json configuration_json(const Configuration& c, bool centred) {
   json bodies = json::array();
   for (std::size_t i = 0; i < c.bodies.size(); ++i) {
@@ -333,7 +324,7 @@ std::string geometry_json(const System& system, const Configuration& initial,
   json joints = json::array();
   for (const Joint& J : system.joints) {
     json j = {{"name", J.name},
-              {"type", type_name(J.type)},
+              {"type", std::string(scene::joint_type(J.type).name)},
               {"dof", J.dof()},
               {"prescribed", J.prescribed.has_value()},
               {"parent", J.parent},
