@@ -139,7 +139,7 @@ void rigid_mass_pass(const Model::BodyM& B, const std::vector<int>& sup, const d
     w.Mdot_u(i) += Yd.col(a).dot(Dxi) + Dya.dot(xid);
   }
   if (t == 0) return;
-  // The translation rows in closed form (see the declaration); the translation seeds come first
+  // The translation rows in closed form (see above); the translation seeds come first
   // in sup, so their entries are in M's upper triangle as M(a, j).
   Eigen::Matrix3d R0, R1;
   for (int r = 0; r < 3; ++r)
