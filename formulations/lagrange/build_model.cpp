@@ -1,0 +1,268 @@
+// Construction of the Lagrange engine: the System checked (validate_flex.cpp) and turned into the
+// immutable Model (model.hpp: coordinates, labels, tree structure), and the Workspace
+// (workspace.hpp) sized once. Coordinates: README.md, "Coordinates".
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <utility>
+
+#include "core/cancel.hpp"
+#include "core/errors.hpp"
+#include "core/rotation.hpp"
+#include "core/scene/topology.hpp"
+#include "formulations/lagrange/autodiff.hpp"
+#include "formulations/lagrange/euler_chart.hpp"
+#include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "formulations/lagrange/messages.hpp"
+#include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/passes.hpp"
+#include "formulations/lagrange/workspace.hpp"
+
+namespace crossdyn::lagrange {
+
+LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& options) {
+  auto m = std::make_unique<Model>();
+  const std::string where = (system.file.empty() ? system.name : system.file) + ": ";
+  // The tree (one free joint first, every parent the child of an earlier joint, one joint per
+  // body, indices in range): the one public check, core/scene/topology.hpp.
+  check_topology(system);
+  if (!(options.test_inertia_scale > 0.0) || !std::isfinite(options.test_inertia_scale))
+    throw InputError(where + "engine option test_inertia_scale must be positive, got " +
+                     format_number(options.test_inertia_scale));
+  validate_flex(system, where);
+  for (const Body& b : system.bodies) {
+    Model::BodyM bm;
+    bm.name = b.name;
+    bm.mass = b.mass;
+    bm.I_BBo_B = b.I_BBo_B * options.test_inertia_scale;
+    bm.torque_frame = b.torque_frame;
+    bm.torque = b.torque;
+    if (b.flex) {
+      // The flexible body's mass and inertia are its node sums (docs/flexible-bodies.md).
+      bm.flex = static_cast<int>(m->flex.size());
+      m->flex.emplace_back(*b.flex, options.test_inertia_scale);
+      bm.nm = b.flex->modes();
+      bm.mass = m->flex.back().m;
+      bm.I_BBo_B = m->flex.back().rigid_inertia();
+      m->max_modes = std::max(m->max_modes, bm.nm);
+    }
+    m->total_mass += bm.mass;
+    m->bodies.push_back(std::move(bm));
+  }
+  int i0 = 0;
+  for (std::size_t j = 0; j < system.joints.size(); ++j) {
+    const Joint& J = system.joints[j];
+    Model::JointM jm;
+    jm.name = J.name;
+    jm.type = J.type;
+    jm.parent = J.parent;
+    jm.child = J.child;
+    jm.i0 = i0;
+    // A prescribed revolute joint keeps its coordinate in q* (Joint::dof() is 0: not in the state).
+    jm.dof = J.type == JointType::Revolute ? 1 : J.dof();
+    if (J.type == JointType::Revolute && J.prescribed) {
+      jm.prescribed = true;
+      jm.motion = *J.prescribed;
+      jm.angle0 = J.angle0;
+      m->prescribed_joints.push_back(static_cast<int>(j));
+    }
+    Model::BodyM& child_body = m->bodies[static_cast<std::size_t>(J.child)];
+    jm.size = jm.dof + child_body.nm;
+    if (child_body.flex >= 0) child_body.e0 = i0 + jm.dof;
+    jm.p_PoJ_P = J.p_PoJ_P;
+    jm.p_CoJ_C = J.p_CoJ_C;
+    jm.q_PJ0 = J.q_PJ0.normalized();
+    jm.R_PJ0 = jm.q_PJ0.toRotationMatrix();
+    jm.axis_J = jm.R_PJ0.transpose() * J.axis_P.normalized();
+    const Eigen::Matrix3d K = rot::skew(jm.axis_J);
+    jm.C0 = jm.R_PJ0;
+    jm.C1 = jm.R_PJ0 * K;
+    jm.C2 = jm.R_PJ0 * K * K;
+    if (J.type != JointType::Free && J.parent_node >= 0) {
+      const FlexNode& nd =
+          system.bodies[static_cast<std::size_t>(J.parent)].flex->nodes[static_cast<std::size_t>(
+              J.parent_node)];
+      jm.parent_node = J.parent_node;
+      jm.p_PoJ_P = nd.p_BoNi_B;
+      jm.Phi_P = nd.Phi_B;
+      jm.Psi_P = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.parent)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_P = true;
+        jm.e_P = nd.e_B;
+        jm.Gs_P = 0.5 * (nd.G + nd.G.transpose());
+      }
+    }
+    if (J.type != JointType::Free && J.child_node >= 0) {
+      const FlexNode& nd =
+          system.bodies[static_cast<std::size_t>(J.child)].flex->nodes[static_cast<std::size_t>(
+              J.child_node)];
+      jm.child_node = J.child_node;
+      jm.p_CoJ_C = nd.p_BoNi_B;
+      jm.Phi_C = nd.Phi_B;
+      jm.Psi_C = nd.Psi_B;
+      if (system.bodies[static_cast<std::size_t>(J.child)].flex->geometric_stiffening &&
+          nd.G.size() > 0) {
+        jm.stiff_C = true;
+        jm.e_C = nd.e_B;
+        jm.Gs_C = 0.5 * (nd.G + nd.G.transpose());
+      }
+    }
+    jm.stiffness = J.stiffness;
+    jm.neutral = J.neutral_angle;
+    jm.damping = J.damping;
+    jm.motor_revolute = J.motor_revolute;
+    jm.motor_spherical = J.motor_spherical;
+    const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
+    if (J.type == JointType::Free || J.type == JointType::Spherical) {
+      jm.euler_set = static_cast<int>(m->euler_sets.size());
+      Model::EulerSetM es;
+      es.i0 = J.type == JointType::Free ? i0 + 3 : i0;
+      es.owner = J.type == JointType::Free ? child : J.name;
+      es.what = J.type == JointType::Free ? "attitude of body '" + child + "'"
+                                          : "relative attitude of spherical joint '" + J.name +
+                                                "' (body '" + child + "')";
+      m->euler_sets.push_back(es);
+    }
+    // State labels: q* block (joint coordinates, then the child's modal coordinates).
+    switch (J.type) {
+      case JointType::Free:
+        for (const char* s : {".x", ".y", ".z", ".euler1", ".euler2", ".euler3"})
+          m->labels.push_back(child + s);
+        break;
+      case JointType::Revolute:
+        m->labels.push_back(J.name + ".angle");
+        break;
+      case JointType::Spherical:
+        for (const char* s : {".euler1", ".euler2", ".euler3"}) m->labels.push_back(J.name + s);
+        break;
+      case JointType::Fixed:
+        break;
+    }
+    if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
+      for (const std::string& mode : f->mode_names) m->labels.push_back(child + "." + mode);
+    i0 += jm.size;
+    m->joints.push_back(std::move(jm));
+  }
+  m->n = i0;
+  for (Model::JointM& J : m->joints)
+    if (J.parent_node >= 0) J.parent_e0 = m->bodies[static_cast<std::size_t>(J.parent)].e0;
+  for (Model::JointM& J : m->joints)
+    if (J.child_node >= 0) J.child_e0 = m->bodies[static_cast<std::size_t>(J.child)].e0;
+  // Tree structure: subtrees, the joint of every coordinate, each body's supporting pi'.
+  const std::size_t nj = m->joints.size();
+  for (std::size_t j = 0; j < nj; ++j) {
+    m->all_joints.push_back(static_cast<int>(j));
+    for (int i = 0; i < m->joints[j].size; ++i) m->coordinate_joint.push_back(static_cast<int>(j));
+  }
+  std::vector<int> joint_of_body(m->bodies.size(), -1);
+  for (std::size_t j = 0; j < nj; ++j)
+    joint_of_body[static_cast<std::size_t>(m->joints[j].child)] = static_cast<int>(j);
+  for (std::size_t j = 0; j < nj; ++j) {
+    cancel::poll();
+    // Joint k is below j when walking up from k's child reaches j's child.
+    for (std::size_t k = j; k < nj; ++k) {
+      int b = m->joints[k].child;
+      while (b >= 0 && b != m->joints[j].child)
+        b = m->joints[static_cast<std::size_t>(joint_of_body[static_cast<std::size_t>(b)])].parent;
+      if (b >= 0) m->joints[j].subtree.push_back(static_cast<int>(k));
+    }
+  }
+  m->support.resize(m->bodies.size());
+  for (std::size_t b = 0; b < m->bodies.size(); ++b) {
+    for (int bb = static_cast<int>(b); bb >= 0;) {
+      const Model::JointM& J =
+          m->joints[static_cast<std::size_t>(joint_of_body[static_cast<std::size_t>(bb)])];
+      for (int i = 0; i < J.size; ++i) m->support[b].push_back(J.i0 + i);
+      bb = J.parent;
+    }
+    std::sort(m->support[b].begin(), m->support[b].end());
+  }
+  for (const Joint& J : system.joints) {
+    const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
+    switch (J.type) {
+      case JointType::Free:
+        for (const char* s : {".vx", ".vy", ".vz", ".wx", ".wy", ".wz"})
+          m->labels.push_back(child + s);
+        break;
+      case JointType::Revolute:
+        m->labels.push_back(J.name + ".rate");
+        break;
+      case JointType::Spherical:
+        for (const char* s : {".wx", ".wy", ".wz"}) m->labels.push_back(J.name + s);
+        break;
+      case JointType::Fixed:
+        break;
+    }
+    if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
+      for (const std::string& mode : f->mode_names)
+        m->labels.push_back(child + "." + mode + "_rate");
+  }
+  m->set_of_coordinate.assign(static_cast<std::size_t>(m->n), -1);
+  for (std::size_t s = 0; s < m->euler_sets.size(); ++s)
+    for (int a = 0; a < 3; ++a)
+      m->set_of_coordinate[static_cast<std::size_t>(m->euler_sets[s].i0 + a)] = static_cast<int>(s);
+  // T and V do not depend on the free base's position (the first three coordinates). A
+  // prescribed base's angle is kept: its derivative enters the joint torque.
+  m->base_free = system.base_is_free();
+  m->base_set = m->base_free ? m->joints[0].euler_set : -1;
+  for (int r = m->base_free ? 3 : 0; r < m->n; ++r) m->gradient_dirs.push_back(r);
+  m->has_prescribed = !m->prescribed_joints.empty();
+  m->state_of.assign(static_cast<std::size_t>(m->n), -1);
+  for (int i = 0; i < m->n; ++i) {
+    const Model::JointM& J = m->joints[static_cast<std::size_t>(m->coordinate_joint[static_cast<std::size_t>(i)])];
+    if (J.prescribed && i == J.i0) continue;
+    m->state_of[static_cast<std::size_t>(i)] = static_cast<int>(m->free_index.size());
+    m->free_index.push_back(i);
+  }
+  m->nf = static_cast<int>(m->free_index.size());
+  // A prescribed base has no linear momentum of its own to choose (docs/prescribed-motion.md).
+  m->zero_linear_momentum = system.zero_linear_momentum && m->base_free;
+  m->rechart = options.rechart;
+  m->layout = OutputLayout(system);
+  m->recharts_column = m->layout.add_extra("lagrange.recharts", "");
+
+  // Workspace, sized once.
+  auto w = std::make_unique<Workspace>();
+  const int n = m->n;
+  const int nb = static_cast<int>(m->bodies.size());
+  const std::size_t ns = m->euler_sets.size();
+  w->chart.assign(ns, kDefaultChart);
+  w->last_a2.assign(ns, 0.0);
+  w->A.assign(ns, Eigen::Matrix3d::Identity());
+  w->A_dual.assign(ns, Mat3<Dual<2>>::Identity());
+  w->B.assign(ns, Eigen::Matrix3d::Identity());
+  w->k0.resize(*m);
+  w->k1.resize(*m);
+  size_gradient_workspace(*m, *w);
+  w->Xi.assign(static_cast<std::size_t>(nb), Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n));
+  w->Xi_dot = w->Xi;
+  w->fi0.resize(static_cast<std::size_t>(nb));
+  for (std::size_t b = 0; b < m->bodies.size(); ++b)
+    w->fi0[b].resize(m->bodies[b].nm, m->bodies[b].flex >= 0 &&
+                                          m->flex[static_cast<std::size_t>(m->bodies[b].flex)].stiff);
+  w->he1.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
+  w->he0 = Eigen::VectorXd::Zero(m->max_modes);
+  w->unit = Eigen::VectorXd::Zero(m->max_modes);
+  w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
+  w->M = Eigen::MatrixXd::Zero(n, n);
+  w->U = Eigen::MatrixXd::Zero(n, n);
+  w->DX = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n);
+  w->Y = w->DX;
+  w->Yd = w->DX;
+  for (Eigen::VectorXd* v :
+       {&w->u, &w->qdot, &w->p, &w->Mdot_u, &w->hamel, &w->dL, &w->N, &w->f, &w->udot, &w->seed,
+        &w->inv_diag})
+    *v = Eigen::VectorXd::Zero(n);
+  w->xf = Eigen::VectorXd::Zero(2 * n);
+  w->Mff = Eigen::MatrixXd::Zero(m->nf, m->nf);
+  w->Uff = w->Mff;
+  w->bf = Eigen::VectorXd::Zero(m->nf);
+  w->inv_diag_f = w->bf;
+  w->torque = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m->prescribed_joints.size()));
+  model_ = std::move(m);
+  ws_ = std::move(w);
+}
+
+}  // namespace crossdyn::lagrange

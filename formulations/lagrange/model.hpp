@@ -1,0 +1,104 @@
+// The Lagrange engine's model: the System in the engine's terms, built once by the constructor
+// (build_model.cpp) and immutable after; rhs() reads it and writes the Workspace (workspace.hpp).
+// Coordinates and equations: README.md. Internal header (formulations/lagrange/*.cpp only).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+
+namespace crossdyn::lagrange {
+
+struct LagrangeEngine::Model {
+  struct BodyM {
+    std::string name;
+    double mass = 0;
+    Eigen::Matrix3d I_BBo_B;  // times EngineOptions::test_inertia_scale (rigid bodies)
+    Body::Frame torque_frame = Body::Frame::Body;
+    PiecewiseConstant<3> torque;
+    int flex = -1;  // index into Model::flex; -1 for a rigid body
+    int e0 = -1;    // flexible: index of eta in q* (and of eta' in pi')
+    int nm = 0;     // flexible: number of modes
+  };
+  struct JointM {
+    std::string name;
+    JointType type = JointType::Revolute;
+    int parent = -1, child = -1;
+    int i0 = 0;          // first index of this joint's block in q* and in pi'
+    int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
+    int size = 0;        // block size: dof, then the child's modal coordinates
+    int euler_set = -1;  // index of its Euler-angle set (free, spherical), else -1
+    Eigen::Vector3d p_PoJ_P, p_CoJ_C;
+    Eigen::Matrix3d R_PJ0;
+    Eigen::Quaterniond q_PJ0;
+    Eigen::Vector3d axis_J;  // revolute axis in the joint (child) frame: R_PJ0^T axis_P
+    // Revolute: R_PC(angle) = C0 + C1 sin(angle) + C2 (1 - cos(angle)), i.e. R_PJ0 times
+    // Rodrigues' formula I + sin [n x] + (1 - cos) [n x]^2 (Kane, Likins & Levinson 1983,
+    // Sec. 1.2).
+    Eigen::Matrix3d C0, C1, C2;
+    // Attachment at a node of a flexible parent (child): the node's shapes and slopes, and the
+    // index of the parent's (child's) eta in q*. -1: a rigid attachment.
+    int parent_node = -1, child_node = -1;
+    int parent_e0 = -1, child_e0 = -1;
+    Eigen::Matrix3Xd Phi_P, Psi_P, Phi_C, Psi_C;
+    // Geometric stiffening of the parent (child) node: e_i and G_i (flex_body.hpp), so the node
+    // moves by Phi eta + e (1/2 eta^T G eta) with velocity Pt eta', Pt = Phi + e (G eta)^T.
+    bool stiff_P = false, stiff_C = false;
+    Eigen::Vector3d e_P = Eigen::Vector3d::Zero(), e_C = Eigen::Vector3d::Zero();
+    Eigen::MatrixXd Gs_P, Gs_C;
+    std::vector<int> subtree;  // this joint and every joint below it, in topological order
+    double stiffness = 0, neutral = 0, damping = 0;
+    PiecewiseConstant<1> motor_revolute;
+    PiecewiseConstant<3> motor_spherical;
+    // Prescribed revolute joint (docs/prescribed-motion.md): the angle angle0 + theta(t) and its
+    // rate are not state; the coordinate stays in q* and pi' (internal layout), filled from the
+    // profile at t (LagrangeEngine::expand).
+    bool prescribed = false;
+    PrescribedMotion motion;
+    double angle0 = 0;
+  };
+  struct EulerSetM {
+    int i0 = 0;         // index of the first angle in q* (and of w in pi')
+    std::string owner;  // base body name or spherical joint name
+    std::string what;   // "attitude of body 'main'" / "relative attitude of joint 'j' (...)"
+  };
+
+  std::vector<BodyM> bodies;
+  std::vector<JointM> joints;
+  std::vector<FlexInvariants> flex;       // per flexible body (BodyM::flex)
+  std::vector<EulerSetM> euler_sets;
+  std::vector<int> set_of_coordinate;     // per q* index: its Euler set or -1
+  std::vector<int> gradient_dirs;         // quasi-coordinates the Lagrangian can depend on
+  std::vector<int> coordinate_joint;      // per q* index: the joint whose block holds it
+  std::vector<std::vector<int>> support;  // per body: the pi' indices its twist depends on
+  std::vector<int> all_joints;            // 0, 1, ..., in topological order
+  int n = 0;
+  int max_modes = 0;
+  // Prescribed joints: the state x holds the free coordinates only, nf of them (q*_f, pi'_f).
+  int nf = 0;
+  bool has_prescribed = false;
+  bool base_free = true;               // joints[0] is the free joint (else a prescribed revolute)
+  int base_set = -1;                   // the free base's Euler set (-1: prescribed base)
+  std::vector<int> free_index;         // per state coordinate k < nf: its index in q*
+  std::vector<int> state_of;           // per q* index: its state coordinate, -1 when prescribed
+  std::vector<int> prescribed_joints;  // joint indices of the prescribed joints
+  double total_mass = 0;
+  bool zero_linear_momentum = true;
+  bool rechart = true;
+  std::vector<std::string> labels;   // state labels, size 2n
+  OutputLayout layout;               // pinned columns, then extras
+  int recharts_column = -1;          // extra column lagrange.recharts
+};
+
+using Model = LagrangeEngine::Model;
+
+// What the engine cannot run, or what would make its mass matrix singular: InputError naming the
+// scene file (where), the body or joint and the reason (validate_flex.cpp; build_model.cpp calls it).
+void validate_flex(const System& system, const std::string& where);
+using Workspace = LagrangeEngine::Workspace;
+
+}  // namespace crossdyn::lagrange

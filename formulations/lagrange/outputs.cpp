@@ -1,0 +1,200 @@
+// The Lagrange engine's outputs: energies, momenta, output rows, the engine-neutral accelerations,
+// the prescribed joints' torques and the terms of the equations (inspection). README.md,
+// "Outputs".
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <vector>
+
+#include "core/rotation.hpp"
+#include "formulations/lagrange/energy.hpp"
+#include "formulations/lagrange/euler_chart.hpp"
+#include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/kinematics.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/workspace.hpp"
+
+namespace crossdyn::lagrange {
+
+LagrangeEngine::Terms LagrangeEngine::terms(double t, const double* x) {
+  evaluate(t, expand(t, x));
+  const Workspace& w = *ws_;
+  Eigen::MatrixXd M = w.M;  // evaluate() fills the upper triangle only
+  M.triangularView<Eigen::StrictlyLower>() = M.transpose();
+  return Terms{M, w.p, w.Mdot_u, w.hamel, w.dL, w.N, w.qdot, w.udot};
+}
+
+double LagrangeEngine::kinetic_energy(const double* x, double t) {
+  return kinetic_energy_full(expand(t, x));
+}
+double LagrangeEngine::potential_energy(const double* x, double t) {
+  return potential_energy_full(expand(t, x));
+}
+Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x, double t) {
+  return angular_momentum_full(expand(t, x));
+}
+Eigen::Vector3d LagrangeEngine::linear_momentum_N(const double* x, double t) {
+  return linear_momentum_full(expand(t, x));
+}
+std::vector<double> LagrangeEngine::prescribed_torques(double t, const double* x) {
+  const Model& m = *model_;
+  evaluate(t, expand(t, x));
+  std::vector<double> tau(m.joints.size(), 0.0);
+  for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k)
+    tau[static_cast<std::size_t>(m.prescribed_joints[k])] = ws_->torque(static_cast<Eigen::Index>(k));
+  return tau;
+}
+
+double LagrangeEngine::kinetic_energy_full(const double* x) {
+  Workspace& w = *ws_;
+  for (int i = 0; i < model_->n; ++i) w.k0.q[static_cast<std::size_t>(i)] = x[i];
+  pose_pass(*model_, w.chart.data(), w.k0, true);
+  twist_pass(*model_, w.k0, x + model_->n, model_->all_joints);
+  return kinetic_energy_of(*model_, w.k0, x + model_->n);
+}
+
+double LagrangeEngine::potential_energy_full(const double* x) {
+  return potential_energy_of(*model_, ws_->chart.data(), x);
+}
+
+namespace {
+
+// Per body, from the pose and twist passes in k: linear momentum P (N), angular momentum about Bo
+// h (N) and first mass moment s = sum m_i x_i (N) (docs/flexible-bodies.md "Energy": the nodes'
+// m_i x_i x v_i, plus R_NB J_i w). A flexible body's are R (h_v, h_w, m p_Bo + R s(eta)) with
+// h_w = dT/dw and h_v = dT/dv of flex_body.hpp.
+struct BodyMomenta {
+  Eigen::Vector3d P, h, s;
+};
+BodyMomenta body_momenta(const Model& m, Kin<double>& k, const double* u, std::size_t b) {
+  const Model::BodyM& B = m.bodies[b];
+  if (B.flex < 0)
+    return {k.R_NB[b] * (B.mass * k.v_NBo_B[b]), k.R_NB[b] * (B.I_BBo_B * k.w_NB_B[b]),
+            B.mass * k.p_NoBo_N[b]};
+  Eigen::Vector3d hw, hv;
+  flex_momentum(m.flex[static_cast<std::size_t>(B.flex)], k.fi[b], k.w_NB_B[b], k.v_NBo_B[b],
+                u + B.e0, hw, hv, static_cast<double*>(nullptr));
+  return {k.R_NB[b] * hv, k.R_NB[b] * hw, B.mass * k.p_NoBo_N[b] + k.R_NB[b] * k.fi[b].s};
+}
+
+}  // namespace
+
+Eigen::Vector3d LagrangeEngine::linear_momentum_full(const double* x) {
+  kinetic_energy_full(x);  // pose and twist passes into k0
+  Eigen::Vector3d P = Eigen::Vector3d::Zero();
+  for (std::size_t b = 0; b < model_->bodies.size(); ++b)
+    P += body_momenta(*model_, ws_->k0, x + model_->n, b).P;
+  return P;
+}
+
+// H about the system CM c: sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the
+// angular momentum about the origin, moved to the CM).
+Eigen::Vector3d LagrangeEngine::angular_momentum_full(const double* x) {
+  kinetic_energy_full(x);
+  const Model& m = *model_;
+  Kin<double>& k = ws_->k0;
+  Eigen::Vector3d H = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
+                  s = Eigen::Vector3d::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const BodyMomenta bm = body_momenta(m, k, x + m.n, b);
+    H += k.p_NoBo_N[b].cross(bm.P) + bm.h;
+    P += bm.P;
+    s += bm.s;
+  }
+  return H - (s / m.total_mass).cross(P);
+}
+
+void LagrangeEngine::output_row(double t, const double* xs, double* row) {
+  const Model& m = *model_;
+  Workspace& w = *ws_;
+  const int n = m.n;
+  const double* x = expand(t, xs);
+  if (m.has_prescribed) evaluate(t, x);  // the prescribed joints' torques
+  const double* u = x + n;
+  const double E = kinetic_energy_full(x) + potential_energy_full(x);
+  const double H = angular_momentum_full(x).norm();  // leaves the pose and twist passes in k0
+  // Attitude quaternions: q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^*, q_J from the joint's own
+  // coordinates, q(psi) the node frame's rotation vector psi = Psi eta (exp map).
+  auto node_q = [&](const Eigen::Matrix3Xd& Psi, int e0) {
+    Eigen::Vector3d psi = Eigen::Vector3d::Zero();
+    for (Eigen::Index k = 0; k < Psi.cols(); ++k) psi += Psi.col(k) * x[e0 + k];
+    return rot::from_rotation_vector(psi);
+  };
+  for (const Model::JointM& J : m.joints) {
+    const double* qj = x + J.i0;
+    const auto c = static_cast<std::size_t>(J.child);
+    auto euler_q = [&](const double* a) {
+      const Eigen::Vector4d e = euler_quaternion(
+          kSequences[static_cast<std::size_t>(w.chart[static_cast<std::size_t>(J.euler_set)])],
+          a[0], a[1], a[2]);
+      return Eigen::Quaterniond(e(0), e(1), e(2), e(3));
+    };
+    if (J.type == JointType::Free) {
+      w.q_NB[c] = euler_q(qj + 3);
+      continue;
+    }
+    Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();
+    if (J.type == JointType::Revolute) q_J = Eigen::AngleAxisd(qj[0], J.axis_J);
+    if (J.type == JointType::Spherical) q_J = euler_q(qj);
+    Eigen::Quaterniond q = J.parent >= 0 ? w.q_NB[static_cast<std::size_t>(J.parent)]
+                                         : Eigen::Quaterniond::Identity();  // a prescribed base
+    if (J.parent_node >= 0) q = q * node_q(J.Psi_P, J.parent_e0);
+    q = q * J.q_PJ0 * q_J;
+    if (J.child_node >= 0) q = q * node_q(J.Psi_C, J.child_e0).conjugate();
+    w.q_NB[c] = q.normalized();
+  }
+  RowWriter out(m.layout, row);
+  out.time(t);
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
+    out.body(static_cast<int>(b), w.k0.w_NB_B[b], w.q_NB[b]);
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    if (J.type == JointType::Revolute) out.revolute(static_cast<int>(j), x[J.i0], u[J.i0]);
+    if (J.type == JointType::Spherical)
+      out.spherical(static_cast<int>(j), Eigen::Vector3d(u[J.i0], u[J.i0 + 1], u[J.i0 + 2]));
+  }
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    if (B.flex < 0) continue;
+    out.modal(static_cast<int>(b), Eigen::Map<const Eigen::VectorXd>(x + B.e0, B.nm),
+              Eigen::Map<const Eigen::VectorXd>(u + B.e0, B.nm));
+  }
+  for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k)
+    out.joint_torque(m.prescribed_joints[k], w.torque(static_cast<Eigen::Index>(k)));
+  out.momentum(H);
+  out.energy(E);
+  out.extra(m.recharts_column, static_cast<double>(w.recharts));
+}
+
+void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
+  evaluate(t, expand(t, x));
+  const Model& m = *model_;
+  const Workspace& w = *ws_;
+  const std::size_t nb = m.bodies.size(), nj = m.joints.size();
+  a.wdot_NB_B.assign(nb, Eigen::Vector3d::Zero());
+  a.a_NBo_N.assign(nb, Eigen::Vector3d::Zero());
+  a.angle_ddot.assign(nj, 0.0);
+  a.wdot_PC_C.assign(nj, Eigen::Vector3d::Zero());
+  a.eta_ddot.assign(nb, Eigen::VectorXd());
+  // Body twist xi = Xi(q*) pi' => xi' = Xi pi'' + (dXi/dt) pi'.
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Eigen::Matrix<double, 6, 1> xid = w.Xi[b] * w.udot + w.Xi_dot[b] * w.u;
+    a.wdot_NB_B[b] = xid.head<3>();
+    const Model::BodyM& B = m.bodies[b];
+    // The twist holds v_NBo_B, so a_NBo_N = R_NB (v_NBo_B' + w x v_NBo_B) (Kane & Levinson 1985,
+    // Sec. 2.3, differentiation in two reference frames).
+    const Eigen::Matrix<double, 6, 1> xi = w.Xi[b] * w.u;
+    Eigen::Matrix3d R;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) R(r, c) = w.k1.R_NB[b](r, c).v;
+    a.a_NBo_N[b] = R * (xid.tail<3>() + xi.head<3>().cross(xi.tail<3>()));
+    if (B.flex >= 0) a.eta_ddot[b] = w.udot.segment(B.e0, B.nm);
+  }
+  for (std::size_t j = 0; j < nj; ++j) {
+    const Model::JointM& J = m.joints[j];
+    if (J.type == JointType::Revolute) a.angle_ddot[j] = w.udot(J.i0);
+    if (J.type == JointType::Spherical) a.wdot_PC_C[j] = w.udot.segment<3>(J.i0);
+  }
+}
+
+}  // namespace crossdyn::lagrange

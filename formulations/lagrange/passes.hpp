@@ -1,0 +1,32 @@
+// The passes of one evaluation of the Lagrange engine, (t, q*, pi') => pi'' (README.md, "Passes"),
+// each a function of the immutable Model and the Workspace it fills. LagrangeEngine::evaluate()
+// (lagrange_engine.cpp) calls them in this order, after the charts (euler_charts.cpp). Internal
+// header: declarations only, so that each pass's templates stay in its own file.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "formulations/lagrange/model.hpp"
+
+namespace crossdyn::lagrange {
+
+// mass_matrix.cpp: M (upper triangle), p = dT/dpi', (dM/dt) pi', the seed twists Xi and their rates
+// Xi_dot, the base's R_NB0 and the Dual<1> pose in w.k1. Needs the charts (w.B, w.qdot).
+void mass_pass(const Model& m, Workspace& w, const double* x);
+// generalised_forces.cpp: N, the generalised forces of body torques, modal damping and joint
+// dampers and motors. Needs the mass pass (w.Xi, w.k1.R_NB).
+void generalised_forces(const Model& m, Workspace& w, double t);
+// lagrangian_gradient.cpp: B^T d(T - V)/dq* at fixed pi' (w.dL), in chunks of Dual<K <= 8>. Needs
+// the charts (w.B) and the mass pass (w.R_NB0).
+void lagrangian_gradient(const Model& m, Workspace& w, const double* x);
+// lagrangian_gradient.cpp: sizes the gradient pass's Kin<Dual<K>> for the model (the constructor's;
+// there so that the Dual<K> kinematics are instantiated in that file only).
+void size_gradient_workspace(const Model& m, Workspace& w);
+// hamel_terms.cpp: Hamel's transitivity term B^T W^T p (w.hamel). Needs the charts (w.A_dual) and p.
+void hamel_terms(const Model& m, Workspace& w);
+// solve.cpp: f = N + B^T dL/dq* - (dM/dt) pi' - B^T W^T p, then M pi'' = f (w.udot), or its free
+// block with prescribed joints (and their torques, w.torque). Throws RunFailure at time t when M
+// is not positive definite.
+void solve(const Model& m, Workspace& w, double t);
+
+}  // namespace crossdyn::lagrange

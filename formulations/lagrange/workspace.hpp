@@ -1,0 +1,64 @@
+// The Lagrange engine's workspace: every mutable value of rhs() (scratch of the passes, their
+// results, the current Euler charts), sized once by the constructor (build_model.cpp): rhs() does
+// not allocate. Internal header (formulations/lagrange/*.cpp only).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "formulations/lagrange/autodiff.hpp"
+#include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/kinematics.hpp"
+#include "formulations/lagrange/model.hpp"
+
+namespace crossdyn::lagrange {
+
+inline constexpr int kMaxChunk = 8;  // widest Dual<K> of the gradient pass (lagrangian_gradient.cpp)
+
+template <class T>
+struct Chunks;
+template <int... K>
+struct Chunks<std::integer_sequence<int, K...>> {
+  using type = std::tuple<Kin<Dual<K + 1>>...>;
+};
+using GradientKins = Chunks<std::make_integer_sequence<int, kMaxChunk>>::type;
+
+struct LagrangeEngine::Workspace {
+  std::vector<int> chart;  // per Euler set, index into kSequences
+  long recharts = 0;
+  long wraps = 0;
+  // The middle angle of every Euler set at the last accepted state (pack(), after_step()) and its
+  // time, in the set's chart then: after_step() compares the lock sheet (lock_sheet()) with it.
+  std::vector<double> last_a2;
+  double last_t = 0;
+  bool have_last = false;  // false until pack(): no previous state to compare with
+  long lock_crossings = 0;  // locks crossed between accepted states (re-charting on: re-charted)
+  std::vector<Eigen::Matrix3d> A, B;  // per Euler set at the current q*
+  std::vector<Mat3<Dual<2>>> A_dual;  // per Euler set: A with dA/da2, dA/da3 (charts, hamel)
+  Eigen::Matrix3d R_NB0;              // the base's attitude at the current q*
+  Kin<double> k0;
+  Kin<Dual<1>> k1;
+  GradientKins kg;
+  // Per body: twists of the seeds (w_NB_B, v_NBo_B) and their time derivatives at fixed pi'.
+  std::vector<Eigen::Matrix<double, 6, Eigen::Dynamic>> Xi, Xi_dot;
+  std::vector<FlexInertia<double>> fi0;  // per body: values of k1.fi (flexible bodies)
+  std::vector<Dual<1>> he1;              // flexible mass pass: modal momentum and its rate
+  Eigen::VectorXd he0, unit;             // flexible mass pass: a seed's modal momentum; e_k
+  Eigen::MatrixXd M;
+  Eigen::MatrixXd U;  // Cholesky factor of M (upper triangle), solve
+  Eigen::Matrix<double, 6, Eigen::Dynamic> Y, Yd, DX;  // rigid mass pass: gathered seed twists,
+                                                       // their rates, D times them
+
+  Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
+  std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
+  // Prescribed joints: the full (q*, pi') at t (expand), the free block of M, its factor and
+  // right-hand side, and the joints' torques (per Model::prescribed_joints).
+  Eigen::VectorXd xf;
+  Eigen::MatrixXd Mff, Uff;
+  Eigen::VectorXd bf, inv_diag_f, torque;
+};
+
+}  // namespace crossdyn::lagrange
