@@ -230,7 +230,44 @@ struct BodyMotion {
   Eigen::Vector3d p_NoBo_N, w_NB_B, v_NBo_N;
 };
 
-class KaneEngine final : public Engine {
+// The engine's model: the System, the node tables and every fact derived from them, built once by
+// the constructor (model_building.cpp) and only read afterwards.
+struct KaneModel {
+  explicit KaneModel(const System& system) : system_(system), layout_(system_) {}
+  const System system_;  // the engine's own copy (loads are read from it)
+  std::vector<Node> nodes_;
+  std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
+  int n_q_ = 0, n_u_ = 0;
+  double total_mass_ = 0;
+  std::vector<std::string> labels_;
+  OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
+  int extra0_ = 0;       // first extra column
+  KaneSolver solver_ = KaneSolver::Composite;
+  int max_speed_depth_ = 0;
+  std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
+  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
+  NodeWork ground_;
+  bool has_prescribed_ = false;
+  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
+  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
+};
+
+// The engine's workspace: sized by the constructor, overwritten by every rhs() (which never
+// allocates).
+struct KaneWorkspace {
+  std::vector<NodeWork> work_;
+  std::vector<FlexWork> flex_work_;   // per flexible body (Node::flex)
+  std::vector<ArticulatedWork> art_;  // order-N workspace (sized only when solver_ == OrderN)
+  // Mass matrix (lower triangle, row major); after solve() its factors L and D.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
+  Eigen::VectorXd f_, udot_;
+  std::vector<Eigen::Quaterniond> q_N_;    // output_row: every body's attitude
+  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
+};
+
+// The engine: its model and its workspace (private bases, so that the passes name their members
+// directly), and the passes, one file each (README.md).
+class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace {
  public:
   // Crossover of KaneSolver::Automatic, in speeds on the deepest root-to-leaf path: order-N at
   // and above it (kane_order_n.cpp gives the measurement).
@@ -348,33 +385,6 @@ class KaneEngine final : public Engine {
     Eigen::Vector3d P, H;
   };
   Momenta sum_momenta(const double* u);
-
-  const System system_;  // the engine's own copy (loads are read from it)
-  std::vector<Node> nodes_;
-  std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
-  int n_q_ = 0, n_u_ = 0;
-  double total_mass_ = 0;
-  std::vector<std::string> labels_;
-  OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
-
-  // Workspace, sized in the constructor; rhs() never allocates.
-  std::vector<NodeWork> work_;
-  std::vector<FlexWork> flex_work_;  // per flexible body (Node::flex)
-  KaneSolver solver_ = KaneSolver::Composite;
-  int max_speed_depth_ = 0;
-  std::vector<ArticulatedWork> art_;  // order-N workspace (sized only when solver_ == OrderN)
-  std::vector<int> lambda_;          // parent speed of each speed ([Feath] lambda(i)), -1 for none
-  // Mass matrix (lower triangle, row major); after solve() its factors L and D.
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
-  Eigen::VectorXd f_, udot_;
-  std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
-  int extra0_ = 0;                       // first extra column
-  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
-  NodeWork ground_;
-  bool has_prescribed_ = false;
-  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
-  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
-  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
 }  // namespace crossdyn::kane

@@ -17,7 +17,7 @@ namespace crossdyn::kane {
 // Construction: validate the tree, build the node tables, size the workspace.
 
 KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneSolver solver)
-    : system_(system), layout_(system_) {
+    : KaneModel(system) {
   const std::string file = where(system_);
   const std::size_t nj = system_.joints.size(), nb = system_.bodies.size();
   // The tree (one free joint first, every parent the child of an earlier joint, one joint per
