@@ -5,12 +5,12 @@
 // rigid_rhs fuses Passes 1-3 (kinematics.cpp, accelerations.cpp) and the kinematical equations
 // into one forward loop, Passes 4-6 (subtree_sums.cpp, mass_matrix.cpp, generalized_forces.cpp)
 // into one backward loop, and writes Pass 7's solve (ltdl_solve.cpp) straight into xdot;
-// rigid_output_row fuses Passes 1-2 with sum_momenta() (diagnostics.cpp) and the row.  Why: on
-// these small trees the separate passes' walks over the tree, their flexible, attachment and
-// prescribed branches and the copies between them cost as much as the arithmetic.  Each
-// quantity is formed by the same expressions as in the pass files, in the same order, so the
-// results are the same to the last bit (tests/kane compares the paths); a change to a pass must
-// be made here too.
+// rigid_output_row fuses Passes 1-2 with sum_momenta() (diagnostics.cpp) and the row.  Why: what
+// goes is the work that cannot arise in such a tree (the flexible, attachment and prescribed
+// branches), the passes' separate walks over the tree and the copies between them; the speed-up
+// moved the order-N crossover up from chain3 (12 speeds) to 16 speeds (kane_order_n.cpp).
+// Each quantity is formed by the same expressions as in the pass files, in the same order (the
+// comments below say which pass each step is), so a change to a pass must be made here too.
 #include "formulations/kane/kane_internal.hpp"
 
 #include "core/cancel.hpp"
