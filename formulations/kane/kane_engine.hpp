@@ -231,7 +231,8 @@ struct BodyMotion {
 };
 
 // The engine's model: the System, the node tables and every fact derived from them, built once by
-// the constructor (model_building.cpp) and only read afterwards.
+// the constructor (model_building.cpp) and only read afterwards (docs/style.md item 1; not
+// declared const because the constructor fills it in place).
 struct KaneModel {
   explicit KaneModel(const System& system) : system_(system), layout_(system_) {}
   const System system_;  // the engine's own copy (loads are read from it)
