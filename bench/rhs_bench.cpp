@@ -37,7 +37,7 @@ void bench_rhs(benchmark::State& state, const crossdyn::System& system, const st
   state.counters["states"] = static_cast<double>(x.size());
 }
 
-// The Kane engine with each of its solvers forced (formulations/kane/kane_engine.hpp, "Two
+// The Kane engine with each of its solvers forced (formulations/kane/README.md, "Two
 // solvers"): kane_composite/SCENE and kane_order_n/SCENE, on every committed rigid scene and on
 // chainN as scripts/make_chain.py N writes it (N = 2 ... 128; the crossover of the automatic
 // choice, KaneEngine::kOrderNMinDepth, is read from these):

@@ -1,4 +1,5 @@
-// The factory of the Kane engine (the class and its passes: kane_engine.hpp / kane_engine.cpp).
+// The factory of the Kane engine (the class: kane_engine.hpp; its passes, one file each:
+// README.md).
 #include "formulations/kane/kane.hpp"
 
 #include "formulations/kane/kane_engine.hpp"

@@ -1,160 +1,11 @@
-// Kane's method for a tree of rigid and flexible (modal) bodies (engine "kane").
+// Kane's method for a tree of rigid and flexible (modal) bodies (engine "kane"): the engine class,
+// its model tables (Node, FlexModel: built once by the constructor, model_building.cpp) and its
+// workspace (NodeWork, FlexWork, ArticulatedWork: overwritten by every rhs()).
 //
-// Notation (Drake's monogram notation, core/system.hpp): N the inertial frame, B a body, Bo its
-// centre of mass (CM), P and C a joint's parent and child, J the joint point, Ok the "reference
-// point" of tree node k (its joint point J; for the base its CM).  w_NB_N is the angular velocity
-// of B in N with N components; a trailing _N means N components, _B body components.  Every
-// vector in the workspace has N components; positions are measured from the base CM B0o, so the
-// dynamics never sees the (possibly large) inertial position of the base (a prescribed base:
-// from No, see "Prescribed revolute joints" below).
-//
-// Tree nodes.  Node k is System::joints[k] together with its child body (exactly one joint per
-// body), in the System's topological order: node 0 is the base (free, or a prescribed revolute
-// joint to N), every node's parent node has a smaller index.
-//
-// State vector x = [ positions (n_q) | generalised speeds u (n_u) ]:
-//   positions  base: p_NoBo_N (3), q_NB (4, w x y z);  revolute: angle (1);
-//              spherical: q_J (4, w x y z; R_J = R(q_J), core/system.hpp);  fixed: none;
-//              then, for a flexible child body, its modal coordinates eta (n).
-//   speeds     base: u_1..3 = w_NB_B (base-frame components, Eq. (37)), u_4..6 = v_NBo_N (base CM
-//              velocity, N components, Eq. (38));  revolute: the joint rate;
-//              spherical: w_PC_C (relative angular velocity of the child-side joint frame,
-//              components in that frame);  fixed: none;  then a flexible child's eta' (n).
-// Quaternions are normalised where they are read; their kinematical equations
-// q' = 1/2 q (x) (0, w) keep |q| constant, and after_step() renormalises only a visible drift.
-//
-// Kane's method (Kane, Likins & Levinson 1983 [KLL], pp. 87-90 for partial velocities and
-// Ch. 4 for generalised forces, as the reference paper cites them; reference paper Eqs. (34)-(38)):
-//   the velocity of every body's CM and its angular velocity are linear in u,
-//     v_Bo = sum_r V_r^Bo u_r,   w_B = sum_r W_r^B u_r          (partial velocities V, W),
-//   and for speed r of node k the partial angular velocity W_r is the same for every body of the
-//   subtree S(k) below joint k (zero elsewhere), with V_r^Bo = W_r x (p_Bo - p_Ok) for a rotational
-//   speed and V_r^Bo = n_i for the base's translational speeds u_4..6.
-//   Kane's equations F_r + F_r* = 0 (Eq. 34) with
-//     F_r  = sum_B V_r^Bo . R_B + W_r^B . T_B                                          (Eq. 35)
-//     F_r* = sum_B V_r^Bo . (-m_B a_Bo) + W_r^B . (-I_B alpha_B - w_B x I_B w_B)        (Eq. 36)
-//   Writing a_Bo = sum_s V_s^Bo u_s' + a_t,  alpha_B = sum_s W_s^B u_s' + alpha_t (the remainder
-//   terms a_t, alpha_t are the accelerations at u' = 0) gives  M(q) u' = f(t, q, u)  with
-//     M_rs = sum_B m_B V_r^Bo . V_s^Bo + W_r^B . I_B W_s^B                 (mass matrix)
-//     f_r  = F_r + sum_B V_r^Bo . (-m_B a_t) + W_r^B . (-I_B alpha_t - w_B x I_B w_B).
-//   Both sums over bodies are taken per subtree (the composite-body grouping of Featherstone 2008,
-//   Sec. 6.2, applied to Kane's sums), so the cost is O(n_bodies * depth) instead of
-//   O(n_bodies * n_u^2):
-//     f_r = W_r . M_k for rotational speeds, where M_k is the moment about Ok of the subtree's
-//           "residual" loads (-m a_t at each CM; T - I alpha_t - w x I w on each body), and
-//           f = F_0 (their resultant) for the base's translational speeds;
-//     M_rs = W_s . (h_r + (p_Ok - p_Oa) x p_r) for speed s of an ancestor node a, where p_r and
-//           h_r (about Ok) are the linear and angular momentum of S(k) moving with the partial
-//           motion of speed r: p_r = W_r x s_k, h_r = J_k W_r (s_k, J_k: first moment and inertia
-//           of S(k) about Ok).
-//   Joint constraint forces and torques are non-contributing (KLL Ch. 4); a hinge's spring,
-//   damper and motor torque acts on the child and reacts on the parent, so it contributes only to
-//   its own joint's speeds: f_r += tau (revolute), f_r += tau_C,i (spherical, child-frame
-//   components, since W_r = c_i for speed w_PC_C,i).
-//   M is symmetric positive definite.  It is solved with the square-root-free Cholesky
-//   factorisation M = L^T D L taken in reverse order, which keeps the tree's branch-induced
-//   sparsity (M_rs = 0 unless one of r, s is an ancestor speed of the other) with no fill-in
-//   ([Feath] Sec. 6.5, Tables 6.3-6.4).  Eigen's LLT gives the same solution (tests/kane) but
-//   costs more for these small matrices.
-//
-// Flexible bodies (reference paper Eqs. (3)-(6), (39)-(40); docs/flexible-bodies.md pins the
-// model).  A flexible body's modal coordinates eta are further positions and its modal rates eta'
-// further generalised speeds of its tree node: node k's block is [joint coordinates | eta_C] and
-// [joint speeds | eta_C'] (C the node's child body).  Node i of C (a mass point) sits at
-// r_i = p_i + Phi_i eta from Co (the body-frame origin, the undeformed CM); a joint at node j
-// has its point at r_j and its frame turned by E_j = exp([psi_j x]), psi_j = Psi_j eta.
-//   Kinematics (docs "Joints at nodes"): with Jp, Jc the parent- and child-side joint frames,
-//     R_NJp = R_NP E_Pj,  R_NJc = R_NJp R_PJ0 R_J,  R_NC = R_NJc E_Cj^T,
-//     p_Ok = p_Po + R_NP r_Pj,  p_Co = p_Ok - R_NC r_Cj,
-//     w_Jp = w_P + R_NP Jl(psi_Pj) Psi_Pj eta_P',  w_Jc = w_Jp + (joint rate),
-//     w_C = w_Jc - R_NC Jl(psi_Cj) Psi_Cj eta_C'
-//   (R = exp([psi x]) has R' R^T = [(Jl(psi) psi') x], Jl the left Jacobian; Barfoot, State
-//   Estimation for Robotics, 2017, Sec. 7.1.5; for R^T the angular velocity is -R^T Jl psi').
-//   Partial velocities.  Every speed r of node k moves the subtree S(k) with a rigid "twist"
-//   (W_r, V_r) about Ok: V = V_r + W_r x (p - p_Ok) for every point of S(k), W_r for every frame
-//   in it ([KLL] Sec. 2.14 for rigid bodies).  Joint speeds: V_r = 0 (base translations: W_r = 0,
-//   V_r = n_r).  A modal speed eta_C,l' of a child attached at node j of C (the joint point is
-//   held, so the body frame moves): W_l = -R_NC Jl(psi_Cj) Psi_Cj,l, V_l = -R_NC Phi_Cj,l
-//   (Wm_N, Vm_N).  A modal speed also has an elastic part (paper Eq. (40); Kane, Ryan &
-//   Banerjee 1987, the modal partial velocities of a beam on a moving base): node i of C moves
-//   with R_NC Phi_i,l (C's node inertias J_i do not turn), and the subtree S(c) of every child c
-//   attached at node j' of C moves rigidly with the node frame: twist
-//   (R_NC Jl(psi_j') Psi_j',l, R_NC Phi_j',l) about Oc (Wp_N, Vp_N, stored on c).
-//   Generalised inertia forces F_r* = -sum_i V_r^i . m_i a_i - sum_B W_r^B . (J_B alpha_B +
-//   w_B x J_B w_B) (paper Eq. (36) with C's node masses as the particles) and active forces
-//   (Eq. (35)) are then grouped as in the rigid case: the twist part of speed r works on the
-//   subtree sums (s_k, J_k, F_k, M_k, which now hold C's deformed mass distribution and its
-//   residual loads), the elastic part on C's nodes and on the attached children's sums.
-//   The sums over C's nodes never run in rhs(): they are the modal integrals of FlexModel
-//   (body frame, built once), so the cost per flexible body is O(n^2) in its mode count n and
-//   independent of its number of nodes:
-//     S = sum m_i Phi_i,  Hs = sum m_i [p_i x] Phi_i,  G_k = sum m_i p_i Phi_ik^T,
-//     Q_kl = sum m_i Phi_ik Phi_il^T,  C_kl = sum m_i Phi_ik x Phi_il,  Mm = sum m_i Phi_i^T Phi_i,
-//   from which at a state (FlexWork)  c = sum m_i r_i = c0 + S eta,  I = I0 + tr(dS) 1 - dS with
-//   dS = sum m_i r_i r_i^T - sum m_i p_i p_i^T = sum_k eta_k (G_k + N_k),  N_k = sum m_i Phi_ik
-//   r_i^T = G_k^T + sum_l eta_l Q_kl,  A_k = sum m_i r_i x Phi_ik = Hs_k + sum_l eta_l C_lk,
-//   L = sum m_i r_i (Phi_i eta')^T = sum_k eta_k' N_k^T.
-//   Hinge loads: a hinge's torque acts on Jc and reacts on Jp; their relative angular velocity
-//   is the joint rate alone (R_NJc = R_NJp R_PJ0 R_J), so the pair contributes only to the
-//   joint's own speeds, exactly as for rigid bodies, wherever the frames are attached.  (In the
-//   split of docs "Loads at joints", the node-frame torques' generalised forces on eta,
-//   (Jl Psi)^T tau_B on the parent and on the child, are each cancelled by the same torque's
-//   work through the rigid motion the modal speed gives the other side.)  External body torques
-//   act on C's frame: their work through W_l is part of the twist term.  Modal stiffness and
-//   damping add -K eta - D eta' to the modal speeds' generalised active forces.
-//   Reading chosen where docs/flexible-bodies.md leaves room: TreeAccel::a_NBo_N of a flexible
-//   body is the acceleration of its frame origin Bo (the undeformed CM), as TreeState's velocities
-//   are; body torques given in the inertial frame act on the body frame likewise.
-//
-// Prescribed revolute joints (docs/prescribed-motion.md; issue 13).  A prescribed joint has no
-// position and no speed: its angle angle0 + theta(t), rate theta'(t) and theta''(t) come from its
-// profile at the time of the call (set_time; the spin-up of [KRB] Eq. (61)).  Its partial angular
-// velocity W_r (the axis) is still formed, but u_r is a known function of time (Kane and Levinson,
-// Dynamics: Theory and Applications, 1985, Sec. 6.1, [KL85]): its W_r theta' enters the velocities
-// and W_r theta'' the remainder accelerations, and Kane's equation of that speed is not solved but
-// gives the joint torque:  tau = -(F_r + F_r*) = -W_r . M_k, M_k the moment about Ok of every
-// external and inertia force on S(k) with the full accelerations (prescribed_torque_pass).  A
-// prescribed base (joints[0], parent N) is the same joint with N as its parent (ground_, at rest);
-// the positions of such a tree are measured from No instead of the base CM, the base has no speeds
-// of its own (a flexible base keeps its modal speeds), and zero_linear_momentum does not apply.
-//
-// Geometric stiffening (docs/flexible-bodies.md "Geometric stiffening"; [KRB] Eq. (8), [Sharf]):
-// u_i = Phi_i eta + e_i w_i, w_i = 1/2 eta^T G_i eta.  Every formula above holds with r_i = p_i +
-// u_i and the shapes replaced by the partial velocities Phi~_i = d r_i / d eta = Phi_i + e_i (G_i
-// eta)^T, plus the second-order acceleration b_i = e_i eta'^T G_i eta' (d2u_i/dt2 = Phi~_i eta'' +
-// b_i) in every node's remainder acceleration.  The modal integrals then depend on eta beyond the
-// linear terms, so for such a body they are summed over its nodes at each state (FlexWork; O(nodes
-// n^2)); a joint at a node uses that node's r_i, Phi~_i and b_i.
-//
-// Two solvers for u' (KaneSolver below; both solve the same Kane's equations F_r + F_r* = 0 with
-// the same partial velocities, the same remainder accelerations and the same loads):
-//   composite  forms M and f by the composite-body sums above and solves M u' = f by the sparse
-//              L^T D L.  Every scene (flexible bodies too).  Cost: forming M is O(n_bodies * depth)
-//              and the factorisation fills the ancestor band, O(sum over speeds of depth^2); on a
-//              serial chain of N spherical joints that is O(N^3) (4.25 ms at chain80).
-//   order-N    eliminates Kane's equations along the tree, leaves first, without forming M: the
-//              articulated-body recursion (kane_order_n.cpp gives the derivation and its sources).
-//              O(n_bodies).  Rigid bodies only; a scene with any flexible body uses composite.
-//              It declines prescribed joints too (its elimination assumes a free base and a speed
-//              per revolute joint): a scene with one uses composite, and forcing order-N is
-//              refused with InputError.
-//   Automatic chooses order-N for an all-rigid scene whose deepest root-to-leaf path carries at
-//   least KaneEngine::kOrderNMinDepth = 16 generalised speeds (the base's 6 included; chain5),
-//   composite otherwise (every committed rigid scene but chain5; measured, kane_order_n.cpp).
-//
-// Bibliography
-//   [KLL]  T. R. Kane, P. W. Likins, D. A. Levinson, Spacecraft Dynamics, McGraw-Hill, 1983.
-//   [Feath] R. Featherstone, Rigid Body Dynamics Algorithms, Springer, 2008.
-//   [KRB]  T. R. Kane, R. R. Ryan, A. K. Banerjee, "Dynamics of a cantilever beam attached to a
-//          moving base", J. Guidance, Control, and Dynamics 10(2), 1987, 139-151.
-//   [Barfoot] T. D. Barfoot, State Estimation for Robotics, Cambridge, 2017, Sec. 7.1.5.
-//   [Paper] J. E. Cochran, T. S. No, N. G. Fitz-Coy, "Simulation of spacecraft attitude dynamics
-//           using TREETOPS and model-specific computer codes", 1990 (docs/references.md).
-//   [KL85] T. R. Kane, D. A. Levinson, Dynamics: Theory and Applications, McGraw-Hill, 1985.
-//   [Sharf] I. Sharf, "Geometric stiffening in multibody dynamics formulations", J. Guidance,
-//          Control, and Dynamics 18(4), 1995.
-//   [Ban93] A. K. Banerjee, "Block-diagonal equations for multibody elastodynamics with geometric
-//           stiffness and constraints", J. Guidance, Control, and Dynamics 16(6), 1993.
+// formulations/kane/README.md gives the derivation (the state layout, Kane's equations, flexible
+// bodies, prescribed joints, geometric stiffening, the two solvers, the fused rigid path), its
+// sources ([KLL], [Feath], [KRB], [Barfoot], [Paper], [KL85], [Sharf], [Ban93]: its
+// bibliography) and the file that implements each equation: one file per pass.
 #pragma once
 
 #include "core/engine.hpp"
@@ -166,7 +17,8 @@
 
 namespace crossdyn::kane {
 
-// The modal integrals of one flexible body (body frame), built once from its nodes (see above).
+// The modal integrals of one flexible body (body frame), built once from its nodes (README.md
+// "Flexible bodies"; flex_model.cpp).
 struct FlexModel {
   int n = 0;               // modes
   double mass = 0;         // sum m_i
@@ -233,7 +85,7 @@ struct Node {
   double mass = 0;
   Eigen::Matrix3d I_BBo_B = Eigen::Matrix3d::Zero();  // scaled by test_inertia_scale (rigid)
   // Facts of the system read once so that rhs() skips work that would give zeros or copies
-  // (kane_engine.cpp, position_pass and subtree_pass):
+  // (position_pass, kinematics.cpp; subtree_pass, subtree_sums.cpp):
   //   axis_index  a revolute axis_J along a coordinate axis of Jc, axis_J = axis_sign e_i (i), so
   //               that R_J turns the two other columns only; -1 for any other axis;
   //   inertia     a rigid body's central inertia isotropic (I_BBo_N = I_BBo_B in every frame,
@@ -353,7 +205,7 @@ struct ArticulatedWork {
   Eigen::Vector3d dalpha_N, da_Ok_N;    // acceleration increments of k's body frame at Ok
 };
 
-// Which solver forms u' (see "Two solvers" above).
+// Which solver forms u' (README.md, "Two solvers").
 enum class KaneSolver { Automatic, Composite, OrderN };
 const char* kane_solver_name(KaneSolver s);  // "automatic", "composite", "order-n"
 
@@ -378,7 +230,45 @@ struct BodyMotion {
   Eigen::Vector3d p_NoBo_N, w_NB_B, v_NBo_N;
 };
 
-class KaneEngine final : public Engine {
+// The engine's model: the System, the node tables and every fact derived from them, built once by
+// the constructor (model_building.cpp) and only read afterwards (docs/style.md item 1; not
+// declared const because the constructor fills it in place).
+struct KaneModel {
+  explicit KaneModel(const System& system) : system_(system), layout_(system_) {}
+  const System system_;  // the engine's own copy (loads are read from it)
+  std::vector<Node> nodes_;
+  std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
+  int n_q_ = 0, n_u_ = 0;
+  double total_mass_ = 0;
+  std::vector<std::string> labels_;
+  OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
+  int extra0_ = 0;       // first extra column
+  KaneSolver solver_ = KaneSolver::Composite;
+  int max_speed_depth_ = 0;
+  std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
+  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
+  NodeWork ground_;
+  bool has_prescribed_ = false;
+  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
+  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
+};
+
+// The engine's workspace: sized by the constructor, overwritten by every rhs() (which never
+// allocates).
+struct KaneWorkspace {
+  std::vector<NodeWork> work_;
+  std::vector<FlexWork> flex_work_;   // per flexible body (Node::flex)
+  std::vector<ArticulatedWork> art_;  // order-N workspace (sized only when solver_ == OrderN)
+  // Mass matrix (lower triangle, row major); after solve() its factors L and D.
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
+  Eigen::VectorXd f_, udot_;
+  std::vector<Eigen::Quaterniond> q_N_;    // output_row: every body's attitude
+  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
+};
+
+// The engine: its model and its workspace (private bases, so that the passes name their members
+// directly), and the passes, one file each (README.md).
+class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace {
  public:
   // Crossover of KaneSolver::Automatic, in speeds on the deepest root-to-leaf path: order-N at
   // and above it (kane_order_n.cpp gives the measurement).
@@ -460,7 +350,7 @@ class KaneEngine final : public Engine {
   void acceleration_pass(const double* udot);  // u' => alpha_N, a_N
   // rhs() of a rigid tree with a free base on the composite solver (rigid_fast_): Passes 1-3 and
   // the kinematical equations fused into one forward loop, Passes 4-6 into one backward loop,
-  // the solve writing u' into xdot (kane_engine.cpp, "Rigid trees").
+  // the solve writing u' into xdot (rigid_fast_path.cpp; README.md "Rigid trees").
   void rigid_rhs(double t, const double* x, double* xdot);
   // output_row() of such a tree (no prescribed joint): Passes 1-2, the attitudes and the sums
   // of sum_momenta() in one loop, the row written as it goes.
@@ -496,33 +386,6 @@ class KaneEngine final : public Engine {
     Eigen::Vector3d P, H;
   };
   Momenta sum_momenta(const double* u);
-
-  const System system_;  // the engine's own copy (loads are read from it)
-  std::vector<Node> nodes_;
-  std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
-  int n_q_ = 0, n_u_ = 0;
-  double total_mass_ = 0;
-  std::vector<std::string> labels_;
-  OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
-
-  // Workspace, sized in the constructor; rhs() never allocates.
-  std::vector<NodeWork> work_;
-  std::vector<FlexWork> flex_work_;  // per flexible body (Node::flex)
-  KaneSolver solver_ = KaneSolver::Composite;
-  int max_speed_depth_ = 0;
-  std::vector<ArticulatedWork> art_;  // order-N workspace (sized only when solver_ == OrderN)
-  std::vector<int> lambda_;          // parent speed of each speed ([Feath] lambda(i)), -1 for none
-  // Mass matrix (lower triangle, row major); after solve() its factors L and D.
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> M_;
-  Eigen::VectorXd f_, udot_;
-  std::vector<Eigen::Quaterniond> q_N_;  // output_row: every body's attitude
-  int extra0_ = 0;                       // first extra column
-  // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
-  NodeWork ground_;
-  bool has_prescribed_ = false;
-  bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
-  bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
-  std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
 };
 
 }  // namespace crossdyn::kane

@@ -1,12 +1,12 @@
-// The Kane engine's order-N solver (kane_engine.hpp, "Two solvers"): Kane's equations of a rigid
+// The Kane engine's order-N solver (README.md, "Two solvers"): Kane's equations of a rigid
 // tree eliminated along the tree, leaves first, without forming the mass matrix.
 //
 // Derivation (followed here; the structure is Featherstone's articulated-body algorithm, [Feath]
 // Ch. 7 (articulated-body inertia and the articulated-body algorithm), written with Kane's
 // partial velocities instead of spatial joint motion subspaces, as the order-n Kane formulations
 // do: [Ban93]; Stoneking's 42 simulator, ORDER_N option).  The passes before it are the composite
-// path's (kane_engine.cpp, passes 1-3): positions, velocities and the remainder accelerations
-// alpha_t, a_t (all u' = 0).
+// path's (passes 1-3: kinematics.cpp, accelerations.cpp): positions, velocities and the
+// remainder accelerations alpha_t, a_t (all u' = 0).
 //
 //   Increments.  alpha_B = alpha_t + sum_r W_r u_r',  a_Bo = a_t + sum_r V_r u_r' (the
 //   accelerations are linear in u', [KLL] pp. 87-90).  Every speed r of node j moves S(j) with a
@@ -22,7 +22,7 @@
 //
 //   Kane's equation of speed r of node k (Eqs. (34)-(36)): V_r^Bo = W_r x (p_Bo - p_Ok) on S(k),
 //   so F_r + F_r* = W_r . M_Ok(every load on S(k)) + tau_r = 0, where the hinge torque tau_r of
-//   joint k is the only joint load that works through r (kane_engine.hpp) and the moment sums the
+//   joint k is the only joint load that works through r (README.md) and the moment sums the
 //   residual loads (passes 3-4: -m a_t, T - I alpha_t - w x I w) and the increments' inertia
 //   forces.
 //
@@ -48,7 +48,7 @@
 //     --benchmark_min_time=0.3 --benchmark_repetitions=5   (one command line)
 // (Release, CPU ns per rhs, medians, 2026-11-26, an idle 2-core machine), composite / order-N,
 // with the speeds on the deepest path; the composite path here is the rigid free-base one
-// (kane_engine.cpp, "Rigid trees"), which moved the crossover up from chain3 (12 speeds):
+// (rigid_fast_path.cpp), which moved the crossover up from chain3 (12 speeds):
 //   spear1_case1 (7) 230 / 485;  hub_two_panels (7) 271 / 533;  dual_spin 199 / 401;
 //   basilisk_hinged_panels 258 / 519;  chain_motor 266 / 534;  chain2 (9) 258 / 441;
 //   chain3 (12) 539 / 660;  chain4 (15) 855 / 879;  chain5 (18) 1249 / 1080;  chain6 (21)
@@ -59,7 +59,7 @@
 // 1070 / 999.  So composite up to 15 speeds (chain4; every committed rigid scene but chain5),
 // order-N from 16 (chain5 has 18).
 
-// Bibliography: kane_engine.hpp ([KLL], [Feath], [Ban93]).
+// Bibliography: README.md ([KLL], [Feath], [Ban93]).
 #include "formulations/kane/kane_engine.hpp"
 
 #include "core/cancel.hpp"
@@ -110,7 +110,8 @@ void KaneEngine::articulated_pass(double t, const double* x) {
     const NodeWork& w = work_[kk];
     ArticulatedWork& a = art_[kk];
 
-    // This node's own body: rigid inertia about Ok, residual loads (passes 3-4, kane_engine.cpp).
+    // This node's own body: rigid inertia about Ok, residual loads (passes 3-4:
+    // accelerations.cpp, subtree_sums.cpp).
     const Vector3d& d = w.p_OkBo_N;
     const Vector3d s = n.mass * d;
     a.Iww_N += w.I_BBo_N - s * d.transpose();
