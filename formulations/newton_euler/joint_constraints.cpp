@@ -1,6 +1,7 @@
 #include "formulations/newton_euler/joint_constraints.hpp"
 
 #include "core/rotation.hpp"
+#include "formulations/newton_euler/joints/joint_unit.hpp"
 #include "formulations/newton_euler/so3.hpp"
 
 #include <cmath>
@@ -47,16 +48,10 @@ JointSide side(const System* system, int body, const Vector3d& r, int node) {
 
 JointModel model(const Joint& joint, const System* system) {
   JointModel m;
-  m.type = joint.type;
+  m.unit = &joint_unit(joint.type);
   m.parent = joint.parent;
   m.child = joint.child;
-  m.prescribed = joint.type == JointType::Revolute && joint.prescribed.has_value();
-  switch (joint.type) {
-    case JointType::Free: m.rows = 0; break;
-    case JointType::Spherical: m.rows = 3; break;
-    case JointType::Revolute: m.rows = joint.prescribed ? 6 : 5; break;
-    case JointType::Fixed: m.rows = 6; break;
-  }
+  m.unit->model(joint, m);  // rows, prescribed, has_angle, unwraps
   m.P = side(system, joint.parent, joint.p_PoJ_P, joint.parent_node);
   m.C = side(system, joint.child, joint.p_CoJ_C, joint.child_node);
   m.q_PJ0 = joint.q_PJ0.normalized();
@@ -92,12 +87,6 @@ JointKinematics::JointKinematics(const JointModel& m) {
 ConstraintRows::ConstraintRows(const JointModel& m)
     : Je_P(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.P.modes)),
       Je_C(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.C.modes)) {}
-
-double revolute_angle_wrapped(const JointModel& m, const Matrix3d& R_FG) {
-  // R_J = R_PJ0^T R_FG = Rot(a_C, angle), so R_J e1 = cos(angle) e1 + sin(angle) (a_C x e1).
-  const Vector3d Re1 = m.R_PJ0.transpose() * (R_FG * m.e1_C);
-  return std::atan2(m.e2_C.dot(Re1), m.e1_C.dot(Re1));
-}
 
 double unwrap_angle(double wrapped, double reference) {
   constexpr double two_pi = 2.0 * std::numbers::pi;
@@ -155,9 +144,8 @@ void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKi
   }
   out.w_FG_G = out.w_G - out.R_FG.transpose() * out.w_F;
   out.w_FG_F = out.R_FG * out.w_G - out.w_F;
-  if (m.type == JointType::Revolute) {
-    out.angle_wrapped = revolute_angle_wrapped(m, out.R_FG);
-    out.rate = m.a_P.dot(out.w_FG_F);
+  if (m.unit->relative) {  // the type's own coordinates (revolute: angle, rate)
+    m.unit->relative(m, out);
   } else {
     out.angle_wrapped = 0;
     out.rate = 0;
@@ -173,7 +161,7 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   out.g.setZero();
   out.gdot.setZero();
   out.gamma.setZero();
-  if (m.type == JointType::Free) return;
+  if (m.rows == 0) return;  // free: no rows
 
   // Rows 0-2: the joint point is the same point of both sides (system.hpp, "Joint kinematics").
   const Vector3d& w_P = P.w_NB_B;
@@ -195,46 +183,10 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   if (m.C.stiff) out.gamma.head<3>() -= C.R_NB * jk.G.a_B;
   if (m.P.stiff) out.gamma.head<3>() += P.R_NB * jk.F.a_B;
 
-  // Rotation rows in terms of w_F and w_G (the frames' rigid rows), written in the w_P and w_C
-  // columns, then mapped through the node frames below.
-  const Vector3d& w_F = jk.w_F;
-  const Vector3d& w_G = jk.w_G;
-  if (m.type == JointType::Revolute) {
-    const Vector3d u = jk.R_FG * m.a_C;            // the child's axis, in F
-    const Vector3d u_dot = jk.w_FG_F.cross(u);     // F-frame derivative of u
-    const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(w_G);
-    const Vector3d* b[2] = {&m.b1_P, &m.b2_P};
-    for (int k = 0; k < 2; ++k) {
-      const Vector3d c = u.cross(*b[k]);
-      out.g(3 + k) = b[k]->dot(u);
-      out.J_C.block<1, 3>(3 + k, 3).noalias() = c.transpose() * jk.R_FG;
-      out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
-      out.gdot(3 + k) = c.dot(jk.w_FG_F);
-      out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
-    }
-    if (m.prescribed) {  // row 5: the angle (header; the time terms are the engine's)
-      out.g(5) = jk.angle_wrapped;
-      out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
-      out.J_P.block<1, 3>(5, 3) = -m.a_P.transpose();
-      out.gdot(5) = jk.rate;
-      out.gamma(5) = -m.a_P.dot(transport_F);
-    }
-  } else if (m.type == JointType::Fixed) {
-    const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_FG;
-    const double s = q_e.w() < 0 ? -1.0 : 1.0;
-    const Vector3d& w = jk.w_FG_G;
-    const Matrix3d E = s * (q_e.w() * Matrix3d::Identity() + skew(q_e.vec()));
-    const double qw_dot = -0.5 * q_e.vec().dot(w);
-    const Vector3d qv_dot = 0.5 * (q_e.w() * w + q_e.vec().cross(w));
-    const Matrix3d E_dot = s * (qw_dot * Matrix3d::Identity() + skew(qv_dot));
-    const Matrix3d R_GF = jk.R_FG.transpose();
-    out.g.tail<3>() = 2.0 * s * q_e.vec();
-    out.J_C.block<3, 3>(3, 3) = E;
-    out.J_P.block<3, 3>(3, 3).noalias() = -E * R_GF;
-    out.gdot.tail<3>() = E * w;
-    out.gamma.tail<3>() = -(E_dot * w + E * w.cross(R_GF * w_F));
-  }
-  if (m.type == JointType::Spherical) return;
+  // Rotation rows in terms of w_F and w_G (the frames' rigid rows, the type's rotation_rows verb),
+  // written in the w_P and w_C columns, then mapped through the node frames below.
+  if (!m.unit->rotation_rows) return;  // spherical: rows 0-2 only
+  m.unit->rotation_rows(m, jk, out);
 
   // Node frames: w_F = E^T (w_B + Jl Psi eta'), d/dt w_F = E^T (alpha_B + Jl Psi eta'' + c -
   // w_rel x w_B) (header comment): rows A (w.r.t. w_F) become A E^T (w.r.t. w_B) and A E^T Jl Psi

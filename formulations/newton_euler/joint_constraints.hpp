@@ -39,10 +39,10 @@
 //   prescribed revolute (docs/prescribed-motion.md), row 5 as well: the angle itself, a rheonomic
 //   constraint (Haug 1989, Sec. 6.3: driving constraints g(q, t) = 0, whose velocity and
 //   acceleration equations carry -g_t and -g_tt):
-//     g_5 = angle_wrapped (relative kinematics only; the engine subtracts the prescribed angle),
-//     g_5' = a_P . w_FG_F  (the rate; the engine subtracts theta'(t)),
+//     g_5 = angle_wrapped (relative kinematics only; track subtracts the prescribed angle),
+//     g_5' = a_P . w_FG_F  (the rate; track subtracts theta'(t)),
 //     A_G = a_P^T R_FG, A_F = -a_P^T,
-//     gamma_5 = -a_P . R_FG (w_FG_G x w_G)  (the engine adds theta''(t)),
+//     gamma_5 = -a_P . R_FG (w_FG_G x w_G)  (track adds theta''(t)),
 //     from angle'' = a_P . (R_FG w_G' - w_F' + R_FG (w_FG_G x w_G)) (the F-frame derivative above).
 //     Its multiplier is the constraint moment on G about the axis: the joint's torque.
 //   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0):
@@ -59,6 +59,9 @@
 // s = r + Phi eta + e w(eta), s' = Phi~ eta' with Phi~ = Phi + e (G eta)^T, s'' = Phi~ eta'' + e q,
 // so rows 0-2 take Phi~ in place of Phi in their modal columns and gamma loses R e q on each side.
 // Rows beyond rows() are zero (TreeKkt pads every joint block to 6 rows).
+// Who writes what: constraint_rows() writes rows 0-2 and the node-frame chain rule, common to
+// every type; the rotation rows of each type, its angle and rate, and a prescribed joint's time
+// terms are written by the type's unit (joints/joint_unit.hpp; joints/revolute.cpp, fixed.cpp).
 #pragma once
 
 #include "core/system.hpp"
@@ -80,12 +83,16 @@ struct JointSide {
   Eigen::MatrixXd G;          // modes x modes
 };
 
+struct JointUnit;  // the joint type's verbs (joints/joint_unit.hpp)
+
 // The constant description of one joint (built once from System::joints[j]).
 struct JointModel {
-  JointType type = JointType::Revolute;
+  const JointUnit* unit = nullptr;    // chosen from Joint::type (joints/dispatch.cpp)
   int parent = -1, child = -1;
   int rows = 0;                       // 3 (spherical), 5 (revolute; 6 prescribed), 6 (fixed), 0 (free)
   bool prescribed = false;            // revolute with Joint::prescribed: row 5 is the angle
+  bool has_angle = false;             // revolute: one angle, the engine's angle_ (from angle0)
+  bool unwraps = false;               // the angle is unwrapped after every step (not prescribed)
   JointSide P, C;                     // parent side (frame F) and child side (frame G)
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
@@ -167,7 +174,8 @@ void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKi
 void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
                      const JointKinematics& jk, ConstraintRows& out);
 
-// Angle of a revolute joint's child-side frame about its axis: atan2 of the rotated e1 in (e1, e2).
+// Angle of a revolute joint's child-side frame about its axis: atan2 of the rotated e1 in (e1, e2)
+// (joints/revolute.cpp).
 double revolute_angle_wrapped(const JointModel& m, const Eigen::Matrix3d& R_FG);
 
 // The branch of `wrapped` (+ 2 pi k) nearest to `reference`.

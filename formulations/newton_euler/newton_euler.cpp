@@ -17,6 +17,7 @@
 #include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
+#include "formulations/newton_euler/joints/joint_unit.hpp"
 #include "formulations/newton_euler/modal_body.hpp"
 #include "formulations/newton_euler/tree_kkt.hpp"
 
@@ -221,10 +222,7 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   for (int j = 0; j < nj_; ++j) {
     const Joint& J = system.joints[at(j)];
     const std::string key = file + ": joints[" + std::to_string(j) + "] '" + J.name + "'";
-    if (j > 0 || J.type == JointType::Revolute) {
-      if (J.axis_P.norm() < 1e-12 && J.type == JointType::Revolute)
-        throw InputError(key + ": axis must be a non-zero vector");
-    }
+    if (const JointUnit& unit = joint_unit(J.type); unit.validate) unit.validate(J, key);
     // Node attachments: only on flexible bodies, to an existing node.
     for (const auto& [node, body, what] :
          {std::tuple{J.parent_node, J.parent, "parent_node"}, std::tuple{J.child_node, J.child, "child_node"}}) {
@@ -303,8 +301,7 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   gamma_.assign(links.size(), Vector6d::Zero());
   y_.assign(links.size(), Vector6d::Zero());
   for (int j = 0; j < nj_; ++j)
-    if (system.joints[at(j)].type == JointType::Revolute)
-      angle_ref_[at(j)] = angle_[at(j)] = system.joints[at(j)].angle0;
+    if (joints_[at(j)].has_angle) angle_ref_[at(j)] = angle_[at(j)] = system.joints[at(j)].angle0;
 }
 
 // A flexible body: consistent sizes, finite data, non-negative node masses, mass and rigid
@@ -421,10 +418,11 @@ void NewtonEulerEngine::mass_pass(double t) {
 }
 
 // Body kinematics => node frames, relative joint kinematics, continuous revolute angles,
-// constraint rows. A prescribed joint's row 5 gets its time terms here (rheonomic constraint,
-// Haug 1989, Sec. 6.3; docs/prescribed-motion.md "The motion"): g_5 = angle - (angle0 + theta(t))
-// (wrapped to (-pi, pi]), g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection
-// and Baumgarte drive the joint to the prescribed angle and rate at t.
+// constraint rows. A prescribed joint's row 5 gets its time terms here, by its unit's track verb
+// (rheonomic constraint, Haug 1989, Sec. 6.3; docs/prescribed-motion.md "The motion";
+// joints/revolute.cpp): g_5 = angle - (angle0 + theta(t)) (wrapped to (-pi, pi]),
+// g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection and Baumgarte drive the
+// joint to the prescribed angle and rate at t.
 void NewtonEulerEngine::joint_pass(double t) {
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
@@ -433,16 +431,8 @@ void NewtonEulerEngine::joint_pass(double t) {
     joint_kinematics(m, P, C, jk_[at(j)]);
     ConstraintRows& cr = cr_[at(j)];
     constraint_rows(m, P, C, jk_[at(j)], cr);
-    if (m.prescribed) {
-      const Joint& J = system_.joints[at(j)];
-      const double angle = J.angle0 + J.prescribed->angle(t);
-      angle_[at(j)] = angle;
-      cr.g(5) = unwrap_angle(jk_[at(j)].angle_wrapped - angle, 0.0);
-      cr.gdot(5) -= J.prescribed->velocity(t);
-      cr.gamma(5) += J.prescribed->accel(t);
-    } else if (m.type == JointType::Revolute) {
-      angle_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
-    }
+    if (m.unit->track)
+      m.unit->track(system_.joints[at(j)], m, t, jk_[at(j)], cr, angle_[at(j)], angle_ref_[at(j)]);
   }
 }
 
@@ -481,22 +471,7 @@ void NewtonEulerEngine::force_pass(double t) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
     Vector3d T_P;  // the torque on the child-side frame, in P body components
-    if (m.type == JointType::Revolute) {
-      const double tau = -J.stiffness * (angle_[at(j)] - J.neutral_angle) - J.damping * jk.rate +
-                         (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
-      if (tau == 0) continue;
-      T_P = tau * m.a_P;  // in F
-      if (m.P.modes > 0) T_P = jk.F.E * T_P;
-    } else if (m.type == JointType::Spherical) {
-      Vector3d tau_G = -J.damping * jk.w_FG_G;
-      if (J.stiffness != 0)
-        tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
-      if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
-      const Vector3d T_C = m.C.modes > 0 ? Vector3d(jk.G.E * tau_G) : tau_G;
-      T_P = jk.R_PC * T_C;
-    } else {
-      continue;
-    }
+    if (!m.unit->load || !m.unit->load(J, m, jk, angle_[at(j)], t, T_P)) continue;
     torque_on_frame(m.child, jk.R_PC.transpose() * T_P, jk.G.JlPsi);
     torque_on_frame(m.parent, -T_P, jk.F.JlPsi);
   }
@@ -692,14 +667,7 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     node_frame(m.C, C, G);  // depends only on the child's modal state
     Quaterniond q_J = Quaterniond::Identity();
     Vector3d w_FG_G = Vector3d::Zero();
-    if (m.type == JointType::Revolute) {
-      q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C));
-      w_FG_G = js.rate * m.a_C;
-      angle_ref_[at(j)] = js.angle;
-    } else if (m.type == JointType::Spherical) {
-      q_J = js.q_J.normalized();
-      w_FG_G = js.w_PC_C;
-    }
+    if (m.unit->pack) m.unit->pack(m, js, q_J, w_FG_G, angle_ref_[at(j)]);
     const Quaterniond q_NF = P.q_NB * F.q_E;
     C.q_NB = (q_NF * m.q_PJ0 * q_J * G.q_E.conjugate()).normalized();
     C.R_NB = C.q_NB.toRotationMatrix();
@@ -853,7 +821,7 @@ void NewtonEulerEngine::update_turn_counters(double t, const double* x) {
   body_pass(t, x);
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    if (m.type != JointType::Revolute || m.prescribed) continue;
+    if (!m.unwraps) continue;
     joint_kinematics(m, bk_[at(m.parent)], bk_[at(m.child)], jk_[at(j)]);
     angle_ref_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
   }
@@ -893,16 +861,9 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
     const JointKinematics& jk = jk_[at(j)];
     const Vector3d wdot_F = frame_angular_acceleration(m.P, jk.F, m.parent);
     const Vector3d wdot_G = frame_angular_acceleration(m.C, jk.G, m.child);
-    if (m.prescribed) {
-      a.angle_ddot[at(j)] = system_.joints[at(j)].prescribed->accel(t);
-    } else if (m.type == JointType::Revolute) {
-      // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
-      a.angle_ddot[at(j)] = m.a_P.dot(jk.R_FG * wdot_G - wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
-    } else if (m.type == JointType::Spherical) {
-      // G-frame derivative of w_FG_G = w_G - R_GF w_F, with d/dt R_GF = -[w_FG_G x] R_GF.
-      const Vector3d w_F_G = jk.R_FG.transpose() * jk.w_F;
-      a.wdot_PC_C[at(j)] = wdot_G - jk.R_FG.transpose() * wdot_F + jk.w_FG_G.cross(w_F_G);
-    }
+    if (m.unit->accelerations)
+      m.unit->accelerations(system_.joints[at(j)], m, jk, wdot_F, wdot_G, t, a.angle_ddot[at(j)],
+                            a.wdot_PC_C[at(j)]);
   }
 }
 
@@ -959,14 +920,9 @@ double NewtonEulerEngine::energy() const {
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
-    if (J.stiffness == 0) continue;
-    if (J.type == JointType::Revolute) {
-      const double d = angle_[at(j)] - J.neutral_angle;
-      e += 0.5 * J.stiffness * d * d;
-    } else if (J.type == JointType::Spherical) {
-      const Vector3d phi = rot::rotation_vector(joints_[at(j)].q_PJ0.conjugate() * jk_[at(j)].q_FG);
-      e += 0.5 * J.stiffness * phi.squaredNorm();
-    }
+    const JointModel& m = joints_[at(j)];
+    if (J.stiffness == 0 || !m.unit->potential) continue;
+    m.unit->potential(J, m, jk_[at(j)], angle_[at(j)], e);
   }
   return e;
 }
@@ -990,13 +946,10 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     if (modes(b) > 0) out.modal(b, bk_[at(b)].eta, bk_[at(b)].eta_dot);
   }
   for (int j = first_joint(); j < nj_; ++j) {
-    const JointType type = joints_[at(j)].type;
-    if (joints_[at(j)].prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
-      const PrescribedMotion& pm = *system_.joints[at(j)].prescribed;
-      out.revolute(j, system_.joints[at(j)].angle0 + pm.angle(t), pm.velocity(t));
-      out.joint_torque(j, torque(j));
-    } else if (type == JointType::Revolute) out.revolute(j, angle_[at(j)], jk_[at(j)].rate);
-    if (type == JointType::Spherical) out.spherical(j, jk_[at(j)].w_FG_G);
+    const JointModel& m = joints_[at(j)];
+    if (m.unit->output)  // the pinned joint columns (core/output_layout.hpp)
+      m.unit->output(out, j, system_.joints[at(j)], m, jk_[at(j)], angle_[at(j)],
+                     m.prescribed ? torque(j) : 0.0, t);
   }
   out.momentum(angular_momentum());
   out.energy(energy());
@@ -1021,19 +974,7 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     c += 6;
     pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
     vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
-    if (m.type == JointType::Revolute) {
-      const Vector3d u = jk.R_FG * m.a_C;
-      ang_violation = std::max(ang_violation, std::atan2(m.a_P.cross(u).norm(), m.a_P.dot(u)));
-      angvel_violation =
-          std::max(angvel_violation, (jk.w_FG_F - m.a_P.dot(jk.w_FG_F) * m.a_P).norm());
-      if (m.prescribed) {  // and the angle and rate away from the profile
-        ang_violation = std::max(ang_violation, std::abs(cr.g(5)));
-        angvel_violation = std::max(angvel_violation, std::abs(cr.gdot(5)));
-      }
-    } else if (m.type == JointType::Fixed) {
-      ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_FG));
-      angvel_violation = std::max(angvel_violation, jk.w_FG_G.norm());
-    }
+    if (m.unit->violation) m.unit->violation(m, jk, cr, ang_violation, angvel_violation);
   }
   if (prescribed_base_) {
     const ConstraintRows& cr = cr_[0];

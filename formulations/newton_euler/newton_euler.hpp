@@ -17,7 +17,8 @@
 //                  floating-frame-of-reference equations); rigid blocks diag(m I3, I_B) are constant
 //   joint_pass     => joint frames at nodes (point p_i + Phi_i eta, frame exp([Psi_i eta x])),
 //                  relative joint kinematics, constraint rows g, J, gamma with columns in the modal
-//                  rates of flexible sides (joint_constraints.hpp)
+//                  rates of flexible sides (joint_constraints.hpp); what depends on the joint
+//                  type is in the type's unit (joints/joint_unit.hpp, one file per type)
 //   force_pass     t => f_b = [F_ext (zero: no external forces in the model);
 //                              M_ext + spring/damper/motor torques - w x I w]   (Eqs. (1), (7));
 //                  flexible: the velocity terms, -K eta - D eta', the body torque (on the body

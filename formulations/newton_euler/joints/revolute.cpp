@@ -1,0 +1,150 @@
+// The revolute joint (and the prescribed revolute joint): one rotation about the axis a_P (in F) =
+// a_C (in G). Its unit (joint_unit.hpp) implements, from joint_constraints.hpp, the "revolute"
+// rows 3-4 and the "prescribed revolute" row 5 (Haug 1989, "Computer Aided Kinematics and Dynamics
+// of Mechanical Systems", Sec. 6.3: a rheonomic driving constraint), and from newton_euler.hpp the
+// joint's angle (continuous, unwrapped against the last step's), its spring, damper and motor
+// torque (core/system.hpp), its angle'' and its output columns (docs/prescribed-motion.md).
+#include "formulations/newton_euler/joints/joint_unit.hpp"
+
+#include "core/errors.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace crossdyn::newton_euler {
+
+using Eigen::Matrix3d;
+using Eigen::Quaterniond;
+using Eigen::Vector3d;
+
+double revolute_angle_wrapped(const JointModel& m, const Matrix3d& R_FG) {
+  // R_J = R_PJ0^T R_FG = Rot(a_C, angle), so R_J e1 = cos(angle) e1 + sin(angle) (a_C x e1).
+  const Vector3d Re1 = m.R_PJ0.transpose() * (R_FG * m.e1_C);
+  return std::atan2(m.e2_C.dot(Re1), m.e1_C.dot(Re1));
+}
+
+namespace {
+
+void model(const Joint& joint, JointModel& m) {
+  m.prescribed = joint.prescribed.has_value();
+  m.rows = joint.prescribed ? 6 : 5;
+  m.has_angle = true;
+  m.unwraps = !m.prescribed;
+}
+
+void validate(const Joint& joint, const std::string& key) {
+  if (joint.axis_P.norm() < 1e-12) throw InputError(key + ": axis must be a non-zero vector");
+}
+
+void relative(const JointModel& m, JointKinematics& jk) {
+  jk.angle_wrapped = revolute_angle_wrapped(m, jk.R_FG);
+  jk.rate = m.a_P.dot(jk.w_FG_F);
+}
+
+// joint_constraints.hpp, "revolute" and "prescribed revolute".
+void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRows& out) {
+  const Vector3d& w_G = jk.w_G;
+  const Vector3d u = jk.R_FG * m.a_C;            // the child's axis, in F
+  const Vector3d u_dot = jk.w_FG_F.cross(u);     // F-frame derivative of u
+  const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(w_G);
+  const Vector3d* b[2] = {&m.b1_P, &m.b2_P};
+  for (int k = 0; k < 2; ++k) {
+    const Vector3d c = u.cross(*b[k]);
+    out.g(3 + k) = b[k]->dot(u);
+    out.J_C.block<1, 3>(3 + k, 3).noalias() = c.transpose() * jk.R_FG;
+    out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
+    out.gdot(3 + k) = c.dot(jk.w_FG_F);
+    out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
+  }
+  if (m.prescribed) {  // row 5: the angle (header; the time terms are track()'s)
+    out.g(5) = jk.angle_wrapped;
+    out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
+    out.J_P.block<1, 3>(5, 3) = -m.a_P.transpose();
+    out.gdot(5) = jk.rate;
+    out.gamma(5) = -m.a_P.dot(transport_F);
+  }
+}
+
+// A prescribed joint's row 5 gets its time terms here (rheonomic constraint, Haug 1989, Sec. 6.3;
+// docs/prescribed-motion.md "The motion"): g_5 = angle - (angle0 + theta(t)) (wrapped to
+// (-pi, pi]), g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection and Baumgarte
+// drive the joint to the prescribed angle and rate at t. Otherwise the continuous angle.
+void track(const Joint& J, const JointModel& m, double t, const JointKinematics& jk,
+           ConstraintRows& cr, double& angle_out, double angle_ref) {
+  if (m.prescribed) {
+    const double angle = J.angle0 + J.prescribed->angle(t);
+    angle_out = angle;
+    cr.g(5) = unwrap_angle(jk.angle_wrapped - angle, 0.0);
+    cr.gdot(5) -= J.prescribed->velocity(t);
+    cr.gamma(5) += J.prescribed->accel(t);
+  } else {
+    angle_out = unwrap_angle(jk.angle_wrapped, angle_ref);
+  }
+}
+
+// Spring, damper and motor about the axis (core/system.hpp), on the child-side frame, in P.
+bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double angle, double t,
+          Vector3d& T_P) {
+  const double tau = -J.stiffness * (angle - J.neutral_angle) - J.damping * jk.rate +
+                     (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
+  if (tau == 0) return false;
+  T_P = tau * m.a_P;  // in F
+  if (m.P.modes > 0) T_P = jk.F.E * T_P;
+  return true;
+}
+
+void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
+          double& angle_ref) {
+  q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C));
+  w_FG_G = js.rate * m.a_C;
+  angle_ref = js.angle;
+}
+
+void accelerations(const Joint& J, const JointModel& m, const JointKinematics& jk,
+                   const Vector3d& wdot_F, const Vector3d& wdot_G, double t, double& angle_ddot,
+                   Vector3d& /*wdot_PC_C*/) {
+  if (m.prescribed) {
+    angle_ddot = J.prescribed->accel(t);
+  } else {
+    // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
+    angle_ddot = m.a_P.dot(jk.R_FG * wdot_G - wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
+  }
+}
+
+void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
+               double angle, double& e) {
+  const double d = angle - J.neutral_angle;
+  e += 0.5 * J.stiffness * d * d;
+}
+
+void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
+            double angle, double torque, double t) {
+  if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
+    const PrescribedMotion& pm = *J.prescribed;
+    out.revolute(j, J.angle0 + pm.angle(t), pm.velocity(t));
+    out.joint_torque(j, torque);
+  } else {
+    out.revolute(j, angle, jk.rate);
+  }
+}
+
+// The angle between the two copies of the axis, the forbidden relative angular velocity; a
+// prescribed joint adds its angle and rate away from the profile.
+void violation(const JointModel& m, const JointKinematics& jk, const ConstraintRows& cr,
+               double& ang_violation, double& angvel_violation) {
+  const Vector3d u = jk.R_FG * m.a_C;
+  ang_violation = std::max(ang_violation, std::atan2(m.a_P.cross(u).norm(), m.a_P.dot(u)));
+  angvel_violation = std::max(angvel_violation, (jk.w_FG_F - m.a_P.dot(jk.w_FG_F) * m.a_P).norm());
+  if (m.prescribed) {  // and the angle and rate away from the profile
+    ang_violation = std::max(ang_violation, std::abs(cr.g(5)));
+    angvel_violation = std::max(angvel_violation, std::abs(cr.gdot(5)));
+  }
+}
+
+}  // namespace
+
+const JointUnit kRevoluteJoint{"revolute", model,  validate,      relative,  rotation_rows,
+                               track,      load,   pack,          accelerations, potential,
+                               output,     violation};
+
+}  // namespace crossdyn::newton_euler

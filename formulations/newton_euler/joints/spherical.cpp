@@ -1,0 +1,60 @@
+// The spherical joint: the joint point only (joint_constraints.hpp, "spherical: rows 0-2 only", no
+// rotation rows). Its unit (joint_unit.hpp) implements, from newton_euler.hpp and core/system.hpp,
+// the relative attitude q_J and angular velocity w_PC_C (= w_FG_G) of the state and outputs, the
+// spring (about the rotation vector of q_PJ0^* q_FG), damper and motor torque, and wdot_PC_C.
+#include "formulations/newton_euler/joints/joint_unit.hpp"
+
+#include "core/rotation.hpp"
+
+namespace crossdyn::newton_euler {
+
+using Eigen::Quaterniond;
+using Eigen::Vector3d;
+
+namespace {
+
+void model(const Joint& /*joint*/, JointModel& m) { m.rows = 3; }
+
+// Spring, damper and motor in G (core/system.hpp), on the child-side frame, in P.
+bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double /*angle*/,
+          double t, Vector3d& T_P) {
+  Vector3d tau_G = -J.damping * jk.w_FG_G;
+  if (J.stiffness != 0) tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
+  if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
+  const Vector3d T_C = m.C.modes > 0 ? Vector3d(jk.G.E * tau_G) : tau_G;
+  T_P = jk.R_PC * T_C;
+  return true;
+}
+
+void pack(const JointModel& /*m*/, const TreeState::JointState& js, Quaterniond& q_J,
+          Vector3d& w_FG_G, double& /*angle_ref*/) {
+  q_J = js.q_J.normalized();
+  w_FG_G = js.w_PC_C;
+}
+
+void accelerations(const Joint& /*J*/, const JointModel& /*m*/, const JointKinematics& jk,
+                   const Vector3d& wdot_F, const Vector3d& wdot_G, double /*t*/,
+                   double& /*angle_ddot*/, Vector3d& wdot_PC_C) {
+  // G-frame derivative of w_FG_G = w_G - R_GF w_F, with d/dt R_GF = -[w_FG_G x] R_GF.
+  const Vector3d w_F_G = jk.R_FG.transpose() * jk.w_F;
+  wdot_PC_C = wdot_G - jk.R_FG.transpose() * wdot_F + jk.w_FG_G.cross(w_F_G);
+}
+
+void potential(const Joint& J, const JointModel& m, const JointKinematics& jk, double /*angle*/,
+               double& e) {
+  const Vector3d phi = rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
+  e += 0.5 * J.stiffness * phi.squaredNorm();
+}
+
+void output(RowWriter& out, int j, const Joint& /*J*/, const JointModel& /*m*/,
+            const JointKinematics& jk, double /*angle*/, double /*torque*/, double /*t*/) {
+  out.spherical(j, jk.w_FG_G);
+}
+
+}  // namespace
+
+const JointUnit kSphericalJoint{"spherical", model,   nullptr,       nullptr,   nullptr,
+                                nullptr,     load,    pack,          accelerations, potential,
+                                output,      nullptr};
+
+}  // namespace crossdyn::newton_euler
