@@ -16,10 +16,13 @@ void q_rates(const Node&, const double*, const double*, double*) {}
 void pack(const Node&, const TreeState&, const TreeState::JointState&, double*, double*) {}
 void accel(const Node&, const NodeWork&, const Eigen::VectorXd&, TreeAccel&) {}
 
+double spring_energy(const Node&, double, double, const double*) { return 0.0; }
+void output(const Node&, const NodeWork&, double, const double*, const double*, RowWriter&) {}
+
 }  // namespace
 
 const JointUnit& fixed_joint_unit() {
-  static const JointUnit unit{sizes, -1, labels, q_rates, pack, accel};
+  static const JointUnit unit{sizes, -1, labels, q_rates, pack, accel, spring_energy, output};
   return unit;
 }
 

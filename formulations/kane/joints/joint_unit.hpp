@@ -6,6 +6,7 @@
 #pragma once
 
 #include "core/engine.hpp"
+#include "core/output_layout.hpp"
 
 #include <Eigen/Core>
 
@@ -35,6 +36,13 @@ struct JointUnit {
                double* u);
   // The joint's accelerations in TreeAccel from u' (KaneEngine::accelerations).
   void (*accel)(const Node& n, const NodeWork& w, const Eigen::VectorXd& udot, TreeAccel& a);
+  // The hinge spring's potential energy 1/2 k |angle - neutral|^2 at x (KaneEngine::
+  // potential_energy; zero for a joint with no free rotation).
+  double (*spring_energy)(const Node& n, double stiffness, double neutral_angle, const double* x);
+  // The joint's output columns (KaneEngine::output_row): w its node's workspace, torque a
+  // prescribed joint's torque.
+  void (*output)(const Node& n, const NodeWork& w, double torque, const double* x,
+                 const double* u, RowWriter& out);
 };
 
 const JointUnit& free_joint_unit();

@@ -34,10 +34,25 @@ void accel(const Node& n, const NodeWork& w, const Eigen::VectorXd& udot, TreeAc
   a.angle_ddot[static_cast<std::size_t>(n.joint)] = n.prescribed ? w.pres_accel : udot(n.u0);
 }
 
+double spring_energy(const Node& n, double stiffness, double neutral_angle, const double* x) {
+  const double d = x[n.q0] - neutral_angle;
+  return 0.5 * stiffness * d * d;
+}
+
+void output(const Node& n, const NodeWork& w, double torque, const double* x, const double* u,
+            RowWriter& out) {
+  if (n.prescribed) {
+    out.revolute(n.joint, w.pres_angle, w.pres_rate);
+    out.joint_torque(n.joint, torque);
+  } else {
+    out.revolute(n.joint, x[n.q0], u[n.u0]);
+  }
+}
+
 }  // namespace
 
 const JointUnit& revolute_joint_unit() {
-  static const JointUnit unit{sizes, -1, labels, q_rates, pack, accel};
+  static const JointUnit unit{sizes, -1, labels, q_rates, pack, accel, spring_energy, output};
   return unit;
 }
 

@@ -43,10 +43,22 @@ void accel(const Node& n, const NodeWork& /*w*/, const Eigen::VectorXd& udot, Tr
   a.wdot_PC_C[static_cast<std::size_t>(n.joint)] = udot.segment<3>(n.u0);
 }
 
+// 1/2 k |theta|^2 with theta the rotation vector of q_J (normalised where read).
+double spring_energy(const Node& n, double stiffness, double /*neutral_angle*/, const double* x) {
+  const Eigen::Quaterniond q =
+      Eigen::Quaterniond(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]).normalized();
+  return 0.5 * stiffness * rot::rotation_vector(q).squaredNorm();
+}
+
+void output(const Node& n, const NodeWork&, double, const double*, const double* u,
+            RowWriter& out) {
+  out.spherical(n.joint, Eigen::Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
+}
+
 }  // namespace
 
 const JointUnit& spherical_joint_unit() {
-  static const JointUnit unit{sizes, 0, labels, q_rates, pack, accel};
+  static const JointUnit unit{sizes, 0, labels, q_rates, pack, accel, spring_energy, output};
   return unit;
 }
 
