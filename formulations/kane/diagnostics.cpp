@@ -76,12 +76,7 @@ double KaneEngine::potential_energy(const double* x) const {
     if (!n.hinge_load) continue;
     const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
     if (J.stiffness == 0) continue;
-    if (n.type == JointType::Revolute) {
-      const double d = x[n.q0] - J.neutral_angle;
-      V += 0.5 * J.stiffness * d * d;
-    } else if (n.type == JointType::Spherical) {
-      V += 0.5 * J.stiffness * rot::rotation_vector(read_quat(x, n.q0)).squaredNorm();
-    }
+    V += n.unit->spring_energy(n, J.stiffness, J.neutral_angle, x);
   }
   // Strain energy 1/2 eta^T K eta (docs/flexible-bodies.md "Energy").
   for (const Node& n : nodes_) {
@@ -311,15 +306,8 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     out.body(static_cast<int>(b), work_[k].w_NB_B, q_N[k]);
   }
   for (const Node& n : nodes_) {
-    if (n.type == JointType::Revolute && n.prescribed) {
-      const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
-      out.revolute(n.joint, w.pres_angle, w.pres_rate);
-      out.joint_torque(n.joint, prescribed_torque_[static_cast<std::size_t>(n.joint)]);
-    } else if (n.type == JointType::Revolute) {
-      out.revolute(n.joint, x[n.q0], u[n.u0]);
-    }
-    if (n.type == JointType::Spherical)
-      out.spherical(n.joint, Vector3d(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]));
+    n.unit->output(n, work_[static_cast<std::size_t>(n.joint)],
+                   prescribed_torque_[static_cast<std::size_t>(n.joint)], x, u, out);
     if (n.nm > 0)
       out.modal(n.body, Eigen::Map<const Eigen::VectorXd>(x + n.q0 + n.nqj, n.nm),
                 Eigen::Map<const Eigen::VectorXd>(u + n.u0 + n.nuj, n.nm));

@@ -62,28 +62,7 @@ void KaneEngine::rhs(double t, const double* x, double* xdot) {
   dynamics(t, x);
   const double* u = x + n_q_;
   for (const Node& n : nodes_) {
-    switch (n.type) {
-      case JointType::Free: {
-        // p_NoBo_N' = v_NBo_N;  q_NB' = 1/2 q_NB (x) (0, w_NB_B)  (KLL Sec. 1.13).
-        for (int i = 0; i < 3; ++i) xdot[n.q0 + i] = u[n.u0 + 3 + i];
-        const Quaterniond q(x[n.q0 + 3], x[n.q0 + 4], x[n.q0 + 5], x[n.q0 + 6]);
-        const Eigen::Vector4d qd = rot::quat_rate_body(q, Eigen::Map<const Vector3d>(u + n.u0));
-        for (int i = 0; i < 4; ++i) xdot[n.q0 + 3 + i] = qd(i);
-        break;
-      }
-      case JointType::Revolute:
-        if (!n.prescribed) xdot[n.q0] = u[n.u0];
-        break;
-      case JointType::Spherical: {
-        // q_J' = 1/2 q_J (x) (0, w_PC_C): R_PC = R_PJ0 R(q_J) with R_PJ0 constant.
-        const Quaterniond q(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]);
-        const Eigen::Vector4d qd = rot::quat_rate_body(q, Eigen::Map<const Vector3d>(u + n.u0));
-        for (int i = 0; i < 4; ++i) xdot[n.q0 + i] = qd(i);
-        break;
-      }
-      case JointType::Fixed:
-        break;
-    }
+    n.unit->q_rates(n, x, u, xdot);
     // eta' is the modal speed itself.
     for (int l = 0; l < n.nm; ++l) xdot[n.q0 + n.nqj + l] = u[n.u0 + n.nuj + l];
   }
@@ -96,10 +75,8 @@ bool KaneEngine::after_step(double /*t*/, double* x) {
   constexpr double kDrift = 1e-9;
   bool changed = false;
   for (const Node& n : nodes_) {
-    int i = -1;
-    if (n.type == JointType::Free) i = n.q0 + 3;
-    if (n.type == JointType::Spherical) i = n.q0;
-    if (i < 0) continue;
+    if (n.unit->quat_offset < 0) continue;
+    const int i = n.q0 + n.unit->quat_offset;
     Eigen::Map<Eigen::Vector4d> q(x + i);
     const double norm = q.norm();
     if (std::abs(norm - 1.0) > kDrift && norm > 0) {
@@ -122,35 +99,7 @@ void KaneEngine::pack(const TreeState& s, double* x) {
   double* u = x + n_q_;
   for (const Node& n : nodes_) {
     const TreeState::JointState& js = s.joints[static_cast<std::size_t>(n.joint)];
-    switch (n.type) {
-      case JointType::Free: {
-        const Quaterniond q = s.q_NB.normalized();
-        for (int i = 0; i < 3; ++i) x[n.q0 + i] = s.p_NoBo_N(i);
-        x[n.q0 + 3] = q.w();
-        x[n.q0 + 4] = q.x();
-        x[n.q0 + 5] = q.y();
-        x[n.q0 + 6] = q.z();
-        for (int i = 0; i < 3; ++i) u[n.u0 + i] = s.w_NB_B(i);
-        for (int i = 0; i < 3; ++i) u[n.u0 + 3 + i] = s.v_NBo_N(i);
-        break;
-      }
-      case JointType::Revolute:  // a prescribed joint: nothing (its profile gives it at any t)
-        if (n.prescribed) break;
-        x[n.q0] = js.angle;
-        u[n.u0] = js.rate;
-        break;
-      case JointType::Spherical: {
-        const Quaterniond q = js.q_J.normalized();
-        x[n.q0] = q.w();
-        x[n.q0 + 1] = q.x();
-        x[n.q0 + 2] = q.y();
-        x[n.q0 + 3] = q.z();
-        for (int i = 0; i < 3; ++i) u[n.u0 + i] = js.w_PC_C(i);
-        break;
-      }
-      case JointType::Fixed:
-        break;
-    }
+    n.unit->pack(n, s, js, x, u);
     if (n.nm > 0) {
       const std::size_t b = static_cast<std::size_t>(n.body);
       if (s.eta.size() <= b || s.eta_rate.size() <= b || s.eta[b].size() != n.nm ||
@@ -194,10 +143,7 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
     // For a flexible body: its frame; a_NBo_N is the acceleration of the frame origin Bo.
     a.wdot_NB_B[static_cast<std::size_t>(n.body)] = w.R_NB.transpose() * w.alpha_N;
     a.a_NBo_N[static_cast<std::size_t>(n.body)] = w.a_N;
-    if (n.type == JointType::Revolute)
-      a.angle_ddot[static_cast<std::size_t>(n.joint)] = n.prescribed ? w.pres_accel : udot_(n.u0);
-    if (n.type == JointType::Spherical)
-      a.wdot_PC_C[static_cast<std::size_t>(n.joint)] = udot_.segment<3>(n.u0);
+    n.unit->accel(n, w, udot_, a);
   }
 }
 

@@ -17,6 +17,8 @@
 
 namespace crossdyn::kane {
 
+struct JointUnit;  // joints/joint_unit.hpp
+
 // The modal integrals of one flexible body (body frame), built once from its nodes (README.md
 // "Flexible bodies"; flex_model.cpp).
 struct FlexModel {
@@ -60,6 +62,7 @@ struct NodeRotation {
 // Immutable description of one tree node (joint k and its child body), built once.
 struct Node {
   JointType type = JointType::Fixed;
+  const JointUnit* unit = nullptr;  // the joint type's unit (joints/joint_unit.hpp), chosen once
   int joint = -1;           // System::joints index (== node index)
   int body = -1;            // System::bodies index of the child
   int parent = -1;          // parent node index, -1 for the base

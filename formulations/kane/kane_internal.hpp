@@ -9,6 +9,7 @@
 #pragma once
 
 #include "formulations/kane/kane_engine.hpp"
+#include "formulations/kane/joints/joint_unit.hpp"
 
 #include <string>
 

@@ -138,24 +138,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     if (n.parent_attach)
       nodes_[static_cast<std::size_t>(n.parent)].attached_children.push_back(static_cast<int>(k));
 
-    switch (J.type) {
-      case JointType::Free:
-        n.nqj = 7;
-        n.nuj = 6;
-        break;
-      case JointType::Revolute:
-        n.nqj = n.prescribed ? 0 : 1;
-        n.nuj = n.prescribed ? 0 : 1;
-        break;
-      case JointType::Spherical:
-        n.nqj = 4;
-        n.nuj = 3;
-        break;
-      case JointType::Fixed:
-        n.nqj = 0;
-        n.nuj = 0;
-        break;
-    }
+    n.unit = &joint_unit(J.type);
+    n.unit->sizes(n.prescribed, n.nqj, n.nuj);
     n.nm = n.flex >= 0 ? flex_[static_cast<std::size_t>(n.flex)].n : 0;
     n.q0 = nq;
     n.u0 = nu;
@@ -188,30 +172,11 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
     const std::string& b = body.name;
     const std::string& j = system_.joints[static_cast<std::size_t>(n.joint)].name;
-    auto put = [this](int i, const std::string& s) { labels_[static_cast<std::size_t>(i)] = s; };
-    switch (n.type) {
-      case JointType::Free:
-        for (int i = 0; i < 3; ++i) put(n.q0 + i, b + "." + "xyz"[i]);
-        for (int i = 0; i < 4; ++i) put(n.q0 + 3 + i, b + ".q" + "wxyz"[i]);
-        for (int i = 0; i < 3; ++i) put(n_q_ + n.u0 + i, b + ".w" + "xyz"[i]);
-        for (int i = 0; i < 3; ++i) put(n_q_ + n.u0 + 3 + i, b + ".v" + "xyz"[i]);
-        break;
-      case JointType::Revolute:
-        if (n.prescribed) break;
-        put(n.q0, j + ".angle");
-        put(n_q_ + n.u0, j + ".rate");
-        break;
-      case JointType::Spherical:
-        for (int i = 0; i < 4; ++i) put(n.q0 + i, j + ".q" + "wxyz"[i]);
-        for (int i = 0; i < 3; ++i) put(n_q_ + n.u0 + i, j + ".w" + "xyz"[i]);
-        break;
-      case JointType::Fixed:
-        break;
-    }
+    n.unit->labels(n, n_q_, b, j, labels_);
     for (int l = 0; l < n.nm; ++l) {
       const std::string mode = b + "." + body.flex->mode_names[static_cast<std::size_t>(l)];
-      put(n.q0 + n.nqj + l, mode);
-      put(n_q_ + n.u0 + n.nuj + l, mode + "_rate");
+      labels_[static_cast<std::size_t>(n.q0 + n.nqj + l)] = mode;
+      labels_[static_cast<std::size_t>(n_q_ + n.u0 + n.nuj + l)] = mode + "_rate";
     }
   }
 
