@@ -13,6 +13,8 @@
 
 namespace crossdyn::lagrange {
 
+struct JointUnit;  // joints/joint_unit.hpp
+
 struct LagrangeEngine::Model {
   struct BodyM {
     std::string name;
@@ -27,6 +29,7 @@ struct LagrangeEngine::Model {
   struct JointM {
     std::string name;
     JointType type = JointType::Revolute;
+    const JointUnit* unit = nullptr;  // its joint type's unit (joints/joint_unit.hpp)
     int parent = -1, child = -1;
     int i0 = 0;          // first index of this joint's block in q* and in pi'
     int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
