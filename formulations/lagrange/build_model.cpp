@@ -64,6 +64,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.i0 = i0;
     // A prescribed revolute joint keeps its coordinate in q* (Joint::dof() is 0: not in the state).
     jm.dof = unit.dof;
+    jm.translations = unit.translations;
     if (unit.prescribable && J.prescribed) {
       jm.prescribed = true;
       jm.motion = *J.prescribed;

@@ -35,6 +35,7 @@ struct LagrangeEngine::Model {
     int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
     int size = 0;        // block size: dof, then the child's modal coordinates
     int euler_set = -1;  // index of its Euler-angle set (free, spherical), else -1
+    int translations = 0;  // its first coordinates that translate the child in N (free 3, else 0)
     Eigen::Vector3d p_PoJ_P, p_CoJ_C;
     Eigen::Matrix3d R_PJ0;
     Eigen::Quaterniond q_PJ0;

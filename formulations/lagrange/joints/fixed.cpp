@@ -21,8 +21,8 @@ void accelerations(TreeAccel&, std::size_t, const Eigen::VectorXd&, int) {}
 
 }  // namespace
 
-// dof, euler_offset, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kFixedJoint{0, -1, true, false, false,
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
+extern const JointUnit kFixedJoint{0, -1, 0, true, false, false,
     labels, labels, euler_set, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange

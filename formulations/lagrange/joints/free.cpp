@@ -39,8 +39,8 @@ void accelerations(TreeAccel&, std::size_t, const Eigen::VectorXd&, int) {}
 
 }  // namespace
 
-// dof, euler_offset, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kFreeJoint{6, 3, false, false, true,
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
+extern const JointUnit kFreeJoint{6, 3, 3, false, false, true,
     coordinate_labels, rate_labels, euler_set, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange

@@ -25,6 +25,7 @@ using EulerQ = std::function<Eigen::Quaterniond(const double* angles)>;
 struct JointUnit {
   int dof;                 // coordinates in q* (and quasi-velocities in pi'), before the modes
   int euler_offset;        // index of its Euler set's first angle in its block, -1: none
+  int translations;        // its first coordinates that translate the child along N's axes
   bool at_nodes;           // may attach at a node of a flexible body (all but the free joint)
   bool prescribable;       // may be prescribed (docs/prescribed-motion.md)
   bool absolute_attitude;  // attitude() is the child's R_NB itself (free), else R_J

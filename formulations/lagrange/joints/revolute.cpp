@@ -36,8 +36,8 @@ void accelerations(TreeAccel& a, std::size_t j, const Eigen::VectorXd& udot, int
 
 }  // namespace
 
-// dof, euler_offset, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kRevoluteJoint{1, -1, true, true, false,
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
+extern const JointUnit kRevoluteJoint{1, -1, 0, true, true, false,
     coordinate_labels, rate_labels, euler_set, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange

@@ -39,8 +39,8 @@ void accelerations(TreeAccel& a, std::size_t j, const Eigen::VectorXd& udot, int
 
 }  // namespace
 
-// dof, euler_offset, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kSphericalJoint{3, 0, true, false, false,
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
+extern const JointUnit kSphericalJoint{3, 0, 0, true, false, false,
     coordinate_labels, rate_labels, euler_set, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange
