@@ -13,6 +13,7 @@
 #include "formulations/lagrange/autodiff.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
 #include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/joints/joint_unit.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/messages.hpp"
 #include "formulations/lagrange/model.hpp"
@@ -56,12 +57,15 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     Model::JointM jm;
     jm.name = J.name;
     jm.type = J.type;
+    const JointUnit& unit = joint_unit(J.type);
+    jm.unit = &unit;
     jm.parent = J.parent;
     jm.child = J.child;
     jm.i0 = i0;
     // A prescribed revolute joint keeps its coordinate in q* (Joint::dof() is 0: not in the state).
-    jm.dof = J.type == JointType::Revolute ? 1 : J.dof();
-    if (J.type == JointType::Revolute && J.prescribed) {
+    jm.dof = unit.dof;
+    jm.translations = unit.translations;
+    if (unit.prescribable && J.prescribed) {
       jm.prescribed = true;
       jm.motion = *J.prescribed;
       jm.angle0 = J.angle0;
@@ -79,7 +83,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.C0 = jm.R_PJ0;
     jm.C1 = jm.R_PJ0 * K;
     jm.C2 = jm.R_PJ0 * K * K;
-    if (J.type != JointType::Free && J.parent_node >= 0) {
+    if (unit.at_nodes && J.parent_node >= 0) {
       const FlexNode& nd =
           system.bodies[static_cast<std::size_t>(J.parent)].flex->nodes[static_cast<std::size_t>(
               J.parent_node)];
@@ -94,7 +98,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
         jm.Gs_P = 0.5 * (nd.G + nd.G.transpose());
       }
     }
-    if (J.type != JointType::Free && J.child_node >= 0) {
+    if (unit.at_nodes && J.child_node >= 0) {
       const FlexNode& nd =
           system.bodies[static_cast<std::size_t>(J.child)].flex->nodes[static_cast<std::size_t>(
               J.child_node)];
@@ -115,31 +119,15 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.motor_revolute = J.motor_revolute;
     jm.motor_spherical = J.motor_spherical;
     const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
-    if (J.type == JointType::Free || J.type == JointType::Spherical) {
+    if (unit.euler_offset >= 0) {
       jm.euler_set = static_cast<int>(m->euler_sets.size());
       Model::EulerSetM es;
-      es.i0 = J.type == JointType::Free ? i0 + 3 : i0;
-      es.owner = J.type == JointType::Free ? child : J.name;
-      es.what = J.type == JointType::Free ? "attitude of body '" + child + "'"
-                                          : "relative attitude of spherical joint '" + J.name +
-                                                "' (body '" + child + "')";
+      es.i0 = i0 + unit.euler_offset;
+      unit.euler_set(J.name, child, es);
       m->euler_sets.push_back(es);
     }
     // State labels: q* block (joint coordinates, then the child's modal coordinates).
-    switch (J.type) {
-      case JointType::Free:
-        for (const char* s : {".x", ".y", ".z", ".euler1", ".euler2", ".euler3"})
-          m->labels.push_back(child + s);
-        break;
-      case JointType::Revolute:
-        m->labels.push_back(J.name + ".angle");
-        break;
-      case JointType::Spherical:
-        for (const char* s : {".euler1", ".euler2", ".euler3"}) m->labels.push_back(J.name + s);
-        break;
-      case JointType::Fixed:
-        break;
-    }
+    unit.coordinate_labels(J.name, child, m->labels);
     if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
       for (const std::string& mode : f->mode_names) m->labels.push_back(child + "." + mode);
     i0 += jm.size;
@@ -179,22 +167,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     }
     std::sort(m->support[b].begin(), m->support[b].end());
   }
-  for (const Joint& J : system.joints) {
+  for (std::size_t j = 0; j < nj; ++j) {
+    const Joint& J = system.joints[j];
     const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
-    switch (J.type) {
-      case JointType::Free:
-        for (const char* s : {".vx", ".vy", ".vz", ".wx", ".wy", ".wz"})
-          m->labels.push_back(child + s);
-        break;
-      case JointType::Revolute:
-        m->labels.push_back(J.name + ".rate");
-        break;
-      case JointType::Spherical:
-        for (const char* s : {".wx", ".wy", ".wz"}) m->labels.push_back(J.name + s);
-        break;
-      case JointType::Fixed:
-        break;
-    }
+    m->joints[j].unit->rate_labels(J.name, child, m->labels);
     if (const auto& f = system.bodies[static_cast<std::size_t>(J.child)].flex)
       for (const std::string& mode : f->mode_names)
         m->labels.push_back(child + "." + mode + "_rate");

@@ -193,7 +193,7 @@ void mass_pass(const Model& m, Workspace& w, const double* x) {
     cancel::poll();
     const Model::JointM& Ji =
         m.joints[static_cast<std::size_t>(m.coordinate_joint[static_cast<std::size_t>(i)])];
-    if (Ji.type == JointType::Free && i - Ji.i0 < 3) {
+    if (i - Ji.i0 < Ji.translations) {
       // A base translation seed v_NBo_N = e_a moves every body with w = 0 and v_NBo_N = e_a
       // (twist_pass with this seed gives exactly these values: every other term is a product
       // with a zero twist or a zero rate), so its columns are filled without the pass:

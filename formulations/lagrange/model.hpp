@@ -13,6 +13,8 @@
 
 namespace crossdyn::lagrange {
 
+struct JointUnit;  // joints/joint_unit.hpp
+
 struct LagrangeEngine::Model {
   struct BodyM {
     std::string name;
@@ -27,11 +29,13 @@ struct LagrangeEngine::Model {
   struct JointM {
     std::string name;
     JointType type = JointType::Revolute;
+    const JointUnit* unit = nullptr;  // its joint type's unit (joints/joint_unit.hpp)
     int parent = -1, child = -1;
     int i0 = 0;          // first index of this joint's block in q* and in pi'
     int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
     int size = 0;        // block size: dof, then the child's modal coordinates
     int euler_set = -1;  // index of its Euler-angle set (free, spherical), else -1
+    int translations = 0;  // its first coordinates that translate the child in N (free 3, else 0)
     Eigen::Vector3d p_PoJ_P, p_CoJ_C;
     Eigen::Matrix3d R_PJ0;
     Eigen::Quaterniond q_PJ0;

@@ -9,6 +9,7 @@
 #include "formulations/lagrange/energy.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
 #include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/joints/joint_unit.hpp"
 #include "formulations/lagrange/kinematics.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/model.hpp"
@@ -129,13 +130,11 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
           a[0], a[1], a[2]);
       return Eigen::Quaterniond(e(0), e(1), e(2), e(3));
     };
-    if (J.type == JointType::Free) {
-      w.q_NB[c] = euler_q(qj + 3);
+    const Eigen::Quaterniond q_J = J.unit->attitude(J, qj, euler_q);
+    if (J.unit->absolute_attitude) {
+      w.q_NB[c] = q_J;
       continue;
     }
-    Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();
-    if (J.type == JointType::Revolute) q_J = Eigen::AngleAxisd(qj[0], J.axis_J);
-    if (J.type == JointType::Spherical) q_J = euler_q(qj);
     Eigen::Quaterniond q = J.parent >= 0 ? w.q_NB[static_cast<std::size_t>(J.parent)]
                                          : Eigen::Quaterniond::Identity();  // a prescribed base
     if (J.parent_node >= 0) q = q * node_q(J.Psi_P, J.parent_e0);
@@ -149,9 +148,7 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
     out.body(static_cast<int>(b), w.k0.w_NB_B[b], w.q_NB[b]);
   for (std::size_t j = 0; j < m.joints.size(); ++j) {
     const Model::JointM& J = m.joints[j];
-    if (J.type == JointType::Revolute) out.revolute(static_cast<int>(j), x[J.i0], u[J.i0]);
-    if (J.type == JointType::Spherical)
-      out.spherical(static_cast<int>(j), Eigen::Vector3d(u[J.i0], u[J.i0 + 1], u[J.i0 + 2]));
+    J.unit->columns(out, static_cast<int>(j), x + J.i0, u + J.i0);
   }
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
     const Model::BodyM& B = m.bodies[b];
@@ -192,8 +189,7 @@ void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
   }
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];
-    if (J.type == JointType::Revolute) a.angle_ddot[j] = w.udot(J.i0);
-    if (J.type == JointType::Spherical) a.wdot_PC_C[j] = w.udot.segment<3>(J.i0);
+    J.unit->accelerations(a, j, w.udot, J.i0);
   }
 }
 

@@ -6,6 +6,7 @@
 
 #include "core/errors.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
+#include "formulations/lagrange/joints/joint_unit.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/model.hpp"
 #include "formulations/lagrange/workspace.hpp"
@@ -73,26 +74,7 @@ void LagrangeEngine::pack(const TreeState& s, double* x) {
     const TreeState::JointState& js = s.joints[j];
     double* qj = q + J.i0;
     double* uj = u + J.i0;
-    switch (J.type) {
-      case JointType::Free:
-        for (int i = 0; i < 3; ++i) {
-          qj[i] = s.p_NoBo_N(i);
-          uj[i] = s.v_NBo_N(i);
-          uj[3 + i] = s.w_NB_B(i);
-        }
-        set_angles(J.euler_set, s.q_NB, qj + 3);
-        break;
-      case JointType::Revolute:
-        qj[0] = J.prescribed ? J.angle0 + J.motion.angle(0.0) : js.angle;  // pack() is at t = 0
-        uj[0] = J.prescribed ? J.motion.velocity(0.0) : js.rate;
-        break;
-      case JointType::Spherical:
-        set_angles(J.euler_set, js.q_J, qj);
-        for (int i = 0; i < 3; ++i) uj[i] = js.w_PC_C(i);
-        break;
-      case JointType::Fixed:
-        break;
-    }
+    J.unit->pack(J, s, js, qj, uj, set_angles);
   }
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
     const Model::BodyM& B = m.bodies[b];

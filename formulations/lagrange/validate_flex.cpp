@@ -6,6 +6,7 @@
 
 #include "core/errors.hpp"
 #include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/joints/joint_unit.hpp"
 #include "formulations/lagrange/messages.hpp"
 #include "formulations/lagrange/model.hpp"
 
@@ -75,12 +76,13 @@ void validate_flex(const System& system, const std::string& where) {
                          " is not the undeformed position " + format_vector(nd.p_BoNi_B) +
                          " of node '" + nd.name + "' of body '" + B.name + "'");
     };
-    if (J.type == JointType::Free && J.child_node >= 0)
+    const JointUnit& unit = joint_unit(J.type);
+    if (!unit.at_nodes && J.child_node >= 0)
       throw InputError(where + joint +
                        "the free joint cannot attach at a node: a flexible base moves with its "
                        "body frame");
     check_side(J.parent, J.parent_node, J.p_PoJ_P, "parent", "parent_point");
-    if (J.type != JointType::Free) check_side(J.child, J.child_node, J.p_CoJ_C, "child", "child_point");
+    if (unit.at_nodes) check_side(J.child, J.child_node, J.p_CoJ_C, "child", "child_point");
   }
 }
 

@@ -1,0 +1,24 @@
+// The one dispatch on JointType of the Lagrange engine: a joint's unit (joint_unit.hpp), chosen
+// once per joint when the model is built (build_model.cpp).
+#include "formulations/lagrange/joints/joint_unit.hpp"
+
+namespace crossdyn::lagrange {
+
+// Defined in joints/<type>.cpp.
+extern const JointUnit kFreeJoint, kRevoluteJoint, kSphericalJoint, kFixedJoint;
+
+const JointUnit& joint_unit(JointType type) {
+  switch (type) {
+    case JointType::Free:
+      return kFreeJoint;
+    case JointType::Revolute:
+      return kRevoluteJoint;
+    case JointType::Spherical:
+      return kSphericalJoint;
+    case JointType::Fixed:
+      break;
+  }
+  return kFixedJoint;
+}
+
+}  // namespace crossdyn::lagrange
