@@ -36,7 +36,8 @@ struct TreeState {
   Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();
   Eigen::Vector3d w_NB_B = Eigen::Vector3d::Zero();
   struct JointState {
-    double angle = 0, rate = 0;                                // revolute
+    double angle = 0, rate = 0;    // revolute (rad, rad/s), prismatic (m, m/s), universal axis 1
+    double angle2 = 0, rate2 = 0;  // universal axis 2
     Eigen::Quaterniond q_J = Eigen::Quaterniond::Identity();   // spherical (R_J of system.hpp)
     Eigen::Vector3d w_PC_C = Eigen::Vector3d::Zero();          // spherical
   };
@@ -59,8 +60,10 @@ struct TreeState {
 struct TreeAccel {
   std::vector<Eigen::Vector3d> wdot_NB_B;  // per body: d/dt of w_NB_B components (rad/s^2)
   std::vector<Eigen::Vector3d> a_NBo_N;    // per body: CM acceleration in N (m/s^2)
-  std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (else 0;
-                                           // a prescribed joint's theta''(t))
+  std::vector<double> angle_ddot;          // per joint: revolute angle acceleration (prismatic:
+                                           // position, m/s^2; universal: the first angle's; else
+                                           // 0; a prescribed joint's theta''(t))
+  std::vector<double> angle2_ddot;         // per joint: universal second angle's (else 0)
   std::vector<Eigen::Vector3d> wdot_PC_C;  // per joint: spherical d/dt of w_PC_C components
   std::vector<Eigen::VectorXd> eta_ddot;   // per body: modal accelerations (size 0: rigid)
 };

@@ -30,6 +30,17 @@ OutputLayout::OutputLayout(const System& s)
       push({J.name + ".angle", ColumnKind::RevoluteAngle, J.child, ji, 0, "rad"});
       push({J.name + ".rate", ColumnKind::RevoluteRate, J.child, ji, 0, "rad/s"});
       if (J.prescribed) push({J.name + ".torque", ColumnKind::JointTorque, J.child, ji, 0, "N m"});
+    } else if (J.type == JointType::Prismatic) {
+      joint_[j] = static_cast<int>(columns_.size());
+      push({J.name + ".position", ColumnKind::PrismaticPosition, J.child, ji, 0, "m"});
+      push({J.name + ".rate", ColumnKind::PrismaticRate, J.child, ji, 0, "m/s"});
+      if (J.prescribed) push({J.name + ".force", ColumnKind::JointTorque, J.child, ji, 0, "N"});
+    } else if (J.type == JointType::Universal) {
+      joint_[j] = static_cast<int>(columns_.size());
+      for (int i = 0; i < 2; ++i)
+        push({J.name + ".angle" + "12"[i], ColumnKind::UniversalAngle, J.child, ji, i, "rad"});
+      for (int i = 0; i < 2; ++i)
+        push({J.name + ".rate" + "12"[i], ColumnKind::UniversalRate, J.child, ji, i, "rad/s"});
     } else if (J.type == JointType::Spherical) {
       joint_[j] = static_cast<int>(columns_.size());
       for (int i = 0; i < 3; ++i)
@@ -85,6 +96,20 @@ void RowWriter::joint_torque(int joint, double torque) {
 void RowWriter::spherical(int joint, const Eigen::Vector3d& w_PC_C) {
   double* r = row_ + layout_.joint_first(joint);
   for (int i = 0; i < 3; ++i) r[i] = w_PC_C(i);
+}
+
+void RowWriter::prismatic(int joint, double position, double rate) {
+  double* r = row_ + layout_.joint_first(joint);
+  r[0] = position;
+  r[1] = rate;
+}
+
+void RowWriter::universal(int joint, double angle1, double angle2, double rate1, double rate2) {
+  double* r = row_ + layout_.joint_first(joint);
+  r[0] = angle1;
+  r[1] = angle2;
+  r[2] = rate1;
+  r[3] = rate2;
 }
 
 void RowWriter::modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,

@@ -9,6 +9,10 @@
 //                                   prescribed revolute: then <joint>.torque (N m), the torque
 //                                   about the axis the joint applies to its child
 //                                 spherical: <joint>.wx .wy .wz  w_PC_C, rad/s
+//                                 prismatic: <joint>.position (m) <joint>.rate (m/s)
+//                                   prescribed prismatic: then <joint>.force (N), the force
+//                                   along the axis the joint applies to its child
+//                                 universal: <joint>.angle1 .angle2 (rad) .rate1 .rate2 (rad/s)
 //   per flexible body             <body>.<mode> for every mode, then <body>.<mode>_rate
 //   H                             |angular momentum about the system CM|, kg m^2/s
 //   E                             kinetic + elastic + spring energy, J
@@ -34,8 +38,12 @@ enum class ColumnKind {
   BodyQ,           // <body>.qw/qx/qy/qz    component 0..3
   RevoluteAngle,   // <joint>.angle
   RevoluteRate,    // <joint>.rate
-  JointTorque,     // <joint>.torque       (prescribed revolute joints)
+  JointTorque,     // <joint>.torque       (prescribed revolute joints; .force, prismatic)
   SphericalW,      // <joint>.wx/wy/wz      component 0..2
+  PrismaticPosition,  // <joint>.position
+  PrismaticRate,      // <joint>.rate      (m/s)
+  UniversalAngle,     // <joint>.angle1/angle2   component 0..1
+  UniversalRate,      // <joint>.rate1/rate2     component 0..1
   Modal,           // <body>.<mode>         component = mode index
   ModalRate,       // <body>.<mode>_rate    component = mode index
   MomentumH,       // H
@@ -94,9 +102,12 @@ class RowWriter {
   // same attitude, and one sign makes engines' columns directly comparable).
   void body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterniond& q_NB);
   void revolute(int joint, double angle, double rate);
-  // A prescribed revolute joint's torque about its axis on the child (N m).
+  // A prescribed revolute joint's torque about its axis on the child (N m); a prescribed
+  // prismatic joint's force along its axis on the child (N).
   void joint_torque(int joint, double torque);
   void spherical(int joint, const Eigen::Vector3d& w_PC_C);
+  void prismatic(int joint, double position, double rate);
+  void universal(int joint, double angle1, double angle2, double rate1, double rate2);
   // A flexible body's modal coordinates and their rates (sizes: the body's mode count).
   void modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,
              const Eigen::Ref<const Eigen::VectorXd>& eta_rate);

@@ -9,22 +9,27 @@
 namespace crossdyn {
 
 // Kane, Ryan and Banerjee 1987, Eq. (61) (see system.hpp).
+// The profiles of system.hpp (PrescribedMotion): spin-up (Kane, Ryan and Banerjee 1987, Eq. (60))
+// and deploy (the cycloidal rest-to-rest law).
 double PrescribedMotion::angle(double t) const {
   const double T = ramp_time;
-  if (t > T) return rate * (t - T / 2);
   const double c = T / (2 * std::numbers::pi);
+  if (profile == Profile::Deploy) return t >= T ? travel : travel * (t / T - std::sin(t / c) * c / T);
+  if (t > T) return rate * (t - T / 2);
   return (rate / T) * (t * t / 2 + c * c * (std::cos(t / c) - 1));
 }
 double PrescribedMotion::velocity(double t) const {
   const double T = ramp_time;
-  if (t > T) return rate;
   const double c = T / (2 * std::numbers::pi);
+  if (profile == Profile::Deploy) return t >= T ? 0 : (travel / T) * (1 - std::cos(t / c));
+  if (t > T) return rate;
   return (rate / T) * (t - c * std::sin(t / c));
 }
 double PrescribedMotion::accel(double t) const {
   const double T = ramp_time;
-  if (t > T) return 0;
   const double c = T / (2 * std::numbers::pi);
+  if (profile == Profile::Deploy) return t >= T ? 0 : (travel / (T * c)) * std::sin(t / c);
+  if (t > T) return 0;
   return (rate / T) * (1 - std::cos(t / c));
 }
 
@@ -35,6 +40,7 @@ std::vector<double> System::breakpoints() const {
   for (const Joint& j : joints) {
     add(j.motor_revolute.times);
     add(j.motor_spherical.times);
+    add(j.motor_universal.times);
     if (j.prescribed) add(j.prescribed->breakpoints());
   }
   std::sort(t.begin(), t.end());
@@ -67,6 +73,7 @@ TreeState TreeState::initial(const System& system) {
         s.w_NB_B = J.w_NB_B0;
         break;
       case JointType::Revolute:
+      case JointType::Prismatic:
         s.joints[j].angle = J.angle0;
         s.joints[j].rate = J.prescribed ? J.prescribed->velocity(0) : J.rate0;
         if (j == 0) s.place_prescribed_base(J, J.angle0, s.joints[j].rate);
@@ -74,6 +81,12 @@ TreeState TreeState::initial(const System& system) {
       case JointType::Spherical:
         s.joints[j].q_J = J.q_J0.normalized();
         s.joints[j].w_PC_C = J.w_PC_C0;
+        break;
+      case JointType::Universal:
+        s.joints[j].angle = J.angle0;
+        s.joints[j].rate = J.rate0;
+        s.joints[j].angle2 = J.angle2_0;
+        s.joints[j].rate2 = J.rate2_0;
         break;
       case JointType::Fixed: break;
     }

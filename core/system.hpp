@@ -14,8 +14,14 @@
 //     revolute   R_J = Rot(axis_J, angle), axis_J = R_PJ0^T axis_P (the axis is given in P);
 //     spherical  R_J = R(q_J), q_J the joint quaternion (identity at zero);
 //     fixed      R_J = identity;
+//     prismatic  R_J = identity; the child's joint point slides along axis_P by `position` s:
+//                p_NoPo_N + R_NP (p_PoJ_P + s axis_P) = p_NoCo_N + R_NC p_CoJ_C;
+//     universal  (two-axis gimbal) R_PC = Rot(axis_P, angle1) Rot(axis2_P, angle2) R_PJ0: the first
+//                axis is fixed in P, the second turns with the first angle (both given in P at
+//                zero angles; never parallel, so the joint has no configuration singularity);
 //     free       the base: parent is N, R_NB = R(q_NB), no offset.
-//   The joint point J coincides in both bodies: p_NoPo_N + R_NP p_PoJ_P = p_NoCo_N + R_NC p_CoJ_C.
+//   The joint point J coincides in both bodies: p_NoPo_N + R_NP p_PoJ_P = p_NoCo_N + R_NC p_CoJ_C
+//   (prismatic: J displaced by s axis_P in P, above).
 //   At a node of a flexible body (Joint::parent_node, child_node; FlexBody below) the point moves
 //   with the node and the joint frame turns with the node's slope:
 //     R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T,
@@ -26,6 +32,13 @@
 // Loads, all acting on the child with the reaction on the parent:
 //   revolute   tau = -stiffness (angle - neutral_angle) - damping rate + motor(t), about the axis;
 //              potential energy V = stiffness (angle - neutral_angle)^2 / 2.
+//   prismatic  F = -stiffness (position - neutral_angle) - damping rate + motor(t), a force along the
+//              axis (N; stiffness N/m, neutral_angle the spring's rest position in m, damping N s/m);
+//              V = stiffness (position - neutral_angle)^2 / 2.
+//   universal  per axis k = 1, 2: tau_k = -stiffness_k (angle_k - neutral_k) - damping_k rate_k +
+//              motor_k(t), about axis k (axis 1: stiffness, neutral_angle, damping; axis 2:
+//              stiffness2, neutral_angle2, damping2; motor_universal holds [motor_1, motor_2]);
+//              V = sum_k stiffness_k (angle_k - neutral_k)^2 / 2.
 //   spherical  tau_C = -stiffness phi - damping w_PC_C + motor(t) (components in the child frame),
 //              where phi is the rotation vector of q_J (log map); V = stiffness |phi|^2 / 2.
 //              (phi is an eigenvector of the rotation-vector Jacobian, so -stiffness phi is exactly
@@ -35,7 +48,8 @@
 // Prescribed motion (docs/prescribed-motion.md; issue 13): a revolute joint with `prescribed` set
 // is not a degree of freedom: its angle is angle0 + theta(t), a given smooth function of time
 // (PrescribedMotion below), and every engine reports the torque about the axis that the joint
-// must apply to the child to make it so (output column <joint>.torque; springs, dampers and
+// must apply to the child to make it so (output column <joint>.torque; a prescribed prismatic
+// joint likewise: position angle0 + theta(t) in m, and <joint>.force, N; springs, dampers and
 // motors are not allowed on a prescribed joint, so it is the whole joint torque). The base
 // joint (joints[0]) is either the free joint or such a prescribed revolute joint whose parent is
 // N (Joint::parent = -1): the base then turns about an axis fixed in N through a point fixed in N
@@ -78,10 +92,16 @@ struct PiecewiseConstant {
 //   t >  T:  theta = Omega_s (t - T / 2)
 // so theta' = (Omega_s / T) (t - (T / (2 pi)) sin(2 pi t / T)) and
 // theta'' = (Omega_s / T) (1 - cos(2 pi t / T)) up to T, then Omega_s and 0.
+//   spin-up  theta = (rate/T) (t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)) up to T, then rate (t - T/2)
+//            (Kane, Ryan and Banerjee 1987, Eq. (60)): from rest to a constant rate.
+//   deploy   theta = travel (t/T - sin(2 pi t/T) / (2 pi)) up to T, then travel: from rest to rest
+//            through `travel` (a cycloidal motion law; rate and acceleration zero at both ends).
+// Units are the joint's: rad for a revolute joint, m for a prismatic one.
 struct PrescribedMotion {
-  enum class Profile { SpinUp };
+  enum class Profile { SpinUp, Deploy };
   Profile profile = Profile::SpinUp;
-  double rate = 0;        // Omega_s, rad/s
+  double rate = 0;        // spin-up: Omega_s, rad/s (prismatic: m/s)
+  double travel = 0;      // deploy: the distance travelled, rad (prismatic: m)
   double ramp_time = 1;   // T, s, > 0
 
   double angle(double t) const;     // theta(t), rad (0 at t = 0)
@@ -166,7 +186,7 @@ struct Body {
   PiecewiseConstant<3> torque;  // N m
 };
 
-enum class JointType { Free, Revolute, Spherical, Fixed };
+enum class JointType { Free, Revolute, Spherical, Fixed, Prismatic, Universal };
 
 struct Joint {
   std::string name;
@@ -175,7 +195,10 @@ struct Joint {
   int child = -1;               // body index
   Eigen::Vector3d p_PoJ_P = Eigen::Vector3d::Zero();  // parent_point
   Eigen::Vector3d p_CoJ_C = Eigen::Vector3d::Zero();  // child_point
-  Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute axis, unit, in the parent frame
+  Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute or prismatic axis, universal
+                                                       // first axis: unit, in the parent frame
+  Eigen::Vector3d axis2_P = Eigen::Vector3d::UnitY();  // universal second axis: unit, in the
+                                                       // parent frame at zero angles
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();  // fixed orientation offset
   // Attachment to a node of a flexible parent or child (FlexBody::nodes index; -1: rigid). When
   // set, p_PoJ_P (p_CoJ_C) is that node's undeformed position, the joint point moves with the
@@ -183,19 +206,25 @@ struct Joint {
   int parent_node = -1;
   int child_node = -1;
 
-  // Hinge spring, damper and motor (revolute: scalar about the axis; spherical: see header).
-  double stiffness = 0;         // N m / rad
-  double neutral_angle = 0;     // rad, revolute spring's unstretched angle
-  double damping = 0;           // N m s / rad
-  PiecewiseConstant<1> motor_revolute;   // N m
+  // Hinge spring, damper and motor (revolute: scalar about the axis; spherical: see header;
+  // prismatic: along the axis, in N/m, m, N s/m and N; universal: the first axis here, the second
+  // in the *2 fields).
+  double stiffness = 0;         // N m / rad (prismatic N / m)
+  double neutral_angle = 0;     // rad, revolute spring's unstretched angle (prismatic: m)
+  double damping = 0;           // N m s / rad (prismatic N s / m)
+  PiecewiseConstant<1> motor_revolute;   // N m (prismatic: the force along the axis, N)
   PiecewiseConstant<3> motor_spherical;  // N m, child frame
+  double stiffness2 = 0, neutral_angle2 = 0, damping2 = 0;  // universal second axis
+  PiecewiseConstant<2> motor_universal;  // N m, [about axis 1, about axis 2]
 
-  // Revolute only: the angle is prescribed, angle0 + prescribed->angle(t) (see the header);
-  // then rate0 is prescribed->velocity(0) and the joint has no degree of freedom (dof() 0).
+  // Revolute or prismatic only: the angle (position) is prescribed, angle0 + prescribed->angle(t)
+  // (see the header); then rate0 is prescribed->velocity(0) and the joint has no degree of freedom
+  // (dof() 0).
   std::optional<PrescribedMotion> prescribed;
 
   // Initial conditions.
-  double angle0 = 0, rate0 = 0;                                  // revolute, rad, rad/s
+  double angle0 = 0, rate0 = 0;  // revolute rad, rad/s; prismatic m, m/s; universal first axis
+  double angle2_0 = 0, rate2_0 = 0;                              // universal second axis
   Eigen::Quaterniond q_J0 = Eigen::Quaterniond::Identity();      // spherical joint attitude
   Eigen::Vector3d w_PC_C0 = Eigen::Vector3d::Zero();             // spherical, rad/s
   // Free joint (base) initial state.
@@ -204,14 +233,16 @@ struct Joint {
   Eigen::Vector3d w_NB_B0 = Eigen::Vector3d::Zero();             // rad/s
   Eigen::Vector3d v_NBo_N0 = Eigen::Vector3d::Zero();            // m/s (see zero_linear_momentum)
 
-  // Number of generalised speeds this joint contributes (free 6, revolute 1 (0 when
-  // prescribed), spherical 3, fixed 0).
+  // Number of generalised speeds this joint contributes (free 6, revolute and prismatic 1 (0 when
+  // prescribed), spherical 3, fixed 0, universal 2).
   int dof() const {
     switch (type) {
       case JointType::Free: return 6;
-      case JointType::Revolute: return prescribed ? 0 : 1;
+      case JointType::Revolute:
+      case JointType::Prismatic: return prescribed ? 0 : 1;
       case JointType::Spherical: return 3;
       case JointType::Fixed: return 0;
+      case JointType::Universal: return 2;
     }
     return 0;
   }

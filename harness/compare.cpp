@@ -53,6 +53,16 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       case ColumnKind::RevoluteRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
       case ColumnKind::JointTorque: q.push_back({c.name, "torque", "", {c.name}, false}); break;
       case ColumnKind::SphericalW: q.push_back({c.name, "rate", joint + ".w", {c.name}, false}); break;
+      case ColumnKind::PrismaticPosition:
+        q.push_back({c.name, "position", "", {c.name}, false});
+        break;
+      case ColumnKind::PrismaticRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
+      case ColumnKind::UniversalAngle:
+        q.push_back({c.name, "angle", joint + ".angle", {c.name}, false});
+        break;
+      case ColumnKind::UniversalRate:
+        q.push_back({c.name, "rate", joint + ".rate", {c.name}, false});
+        break;
       case ColumnKind::Modal:
       case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
       case ColumnKind::MomentumH: q.push_back({"H", "H", "", {"H"}, false}); break;

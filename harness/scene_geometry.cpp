@@ -58,7 +58,7 @@ EquivalentBox equivalent_box(const Body& body) {
   return box;
 }
 
-Matrix3d joint_rotation(const Joint& joint, double angle, const Quaterniond& q_J) {
+Matrix3d joint_rotation(const Joint& joint, double angle, const Quaterniond& q_J, double angle2) {
   const Matrix3d R_PJ0 = joint.q_PJ0.normalized().toRotationMatrix();
   switch (joint.type) {
     case JointType::Free: return Matrix3d::Identity();
@@ -66,7 +66,12 @@ Matrix3d joint_rotation(const Joint& joint, double angle, const Quaterniond& q_J
       // R_PC = R_PJ0 Rot(axis_J, angle), axis_J = R_PJ0^T axis_P (core/system.hpp).
       return R_PJ0 * Eigen::AngleAxisd(angle, R_PJ0.transpose() * joint.axis_P.normalized()).toRotationMatrix();
     case JointType::Spherical: return R_PJ0 * q_J.normalized().toRotationMatrix();
-    case JointType::Fixed: return R_PJ0;
+    case JointType::Fixed:
+    case JointType::Prismatic: return R_PJ0;
+    case JointType::Universal:
+      // R_PC = Rot(axis_P, angle1) Rot(axis2_P, angle2) R_PJ0 (core/system.hpp).
+      return Eigen::AngleAxisd(angle, joint.axis_P.normalized()).toRotationMatrix() *
+             Eigen::AngleAxisd(angle2, joint.axis2_P.normalized()).toRotationMatrix() * R_PJ0;
   }
   return Matrix3d::Identity();
 }
@@ -169,7 +174,7 @@ Configuration initial_configuration(const System& system) {
       p_base = s0.p_NoBo_N;
     } else {
       // R_NC = R_NP R_PC (parents come first in tree order).
-      R_NB[J.child] = R_NB[J.parent] * joint_rotation(J, J.angle0, J.q_J0);
+      R_NB[J.child] = R_NB[J.parent] * joint_rotation(J, J.angle0, J.q_J0, J.angle2_0);
     }
   }
   return place_bodies(system, R_NB, p_base, 0.0);

@@ -81,7 +81,8 @@ using ModalCoordinates = std::vector<Eigen::VectorXd>;
 
 // R_PC of a joint at its coordinates (free joint: identity; the base attitude is not a joint
 // rotation here).
-Eigen::Matrix3d joint_rotation(const Joint& joint, double angle, const Eigen::Quaterniond& q_J);
+Eigen::Matrix3d joint_rotation(const Joint& joint, double angle, const Eigen::Quaterniond& q_J,
+                               double angle2 = 0);
 
 // The revolute axis as fixed in the child frame: R_PC^T axis_P = R_PJ0^T axis_P at every angle.
 Eigen::Vector3d revolute_axis_in_child(const Joint& joint);

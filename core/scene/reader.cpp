@@ -537,6 +537,22 @@ void read_initial(const Reader& r, const MapView& m, const std::string& type, Ra
       if (auto x = ic.get("angle")) J.angle0 = r.number(*x);
       if (auto x = ic.get("rate")) J.rate0 = r.number(*x);
       break;
+    case JointType::Prismatic:
+      if (auto x = ic.get("position")) J.angle0 = r.number(*x);
+      if (auto x = ic.get("rate")) J.rate0 = r.number(*x);
+      break;
+    case JointType::Universal:
+      if (auto x = ic.get("angle")) {
+        const Eigen::Vector2d a = r.pair(*x);
+        J.angle0 = a[0];
+        J.angle2_0 = a[1];
+      }
+      if (auto x = ic.get("rate")) {
+        const Eigen::Vector2d w = r.pair(*x);
+        J.rate0 = w[0];
+        J.rate2_0 = w[1];
+      }
+      break;
     case JointType::Spherical:
       if (auto x = ic.get("attitude")) J.q_J0 = r.attitude(*x);
       if (auto x = ic.get("angular_velocity")) J.w_PC_C0 = r.vector(*x);

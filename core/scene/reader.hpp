@@ -221,6 +221,7 @@ class Reader {
   bool boolean(const Field& f) const;                 // Bool
   double number(const Field& f) const;                // Number, Quantity
   Eigen::Vector3d vector(const Field& f) const;       // Vector
+  Eigen::Vector2d pair(const Field& f) const;         // Pair
   Eigen::Vector3d direction(const Field& f) const;    // Direction
   Eigen::Quaterniond attitude(const Field& f) const;  // Attitude
   Eigen::Matrix3d inertia(const Field& f) const;      // Inertia

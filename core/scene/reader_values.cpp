@@ -102,6 +102,7 @@ std::string unit_after_list_message(const UnitAfterList& u, const Key* row) {
         return "'[' begins a list in YAML, which ends at ']': put the whole value in quotes, "
                "\"" + list + " " + u.unit + "\"";
       case Type::Vector:
+      case Type::Pair:
       case Type::Inertia:
         break;
     }
@@ -522,6 +523,15 @@ Eigen::Vector3d Reader::vector(const Field& f) const {
   return {x[0], x[1], x[2]};
 }
 
+Eigen::Vector2d Reader::pair(const Field& f) const {
+  const Dimension d = f.key->dimension;
+  const std::string what =
+      f.key->noun.empty() ? "a pair of " + units::dimension_name(d) + " values (axis 1, axis 2)"
+                          : std::string(f.key->noun);
+  const auto x = numbers(f.val, d, 2, what);
+  return {x[0], x[1]};
+}
+
 // A direction: non-zero, normalised (kept as written when already unit to 8 eps).
 Eigen::Vector3d Reader::direction(const Field& f) const {
   const auto x = numbers(f.val, Dimension::None, 3, std::string(f.key->noun));
@@ -680,6 +690,8 @@ PiecewiseConstant<D> Reader::profile(const Field& f, unsigned joints) const {
     Eigen::Matrix<double, D, 1> value;
     if constexpr (D == 1)
       value[0] = number(m.at("value"));
+    else if constexpr (D == 2)
+      value = pair(m.at("value"));
     else
       value = vector(m.at("value"));
     p.times.push_back(t);
@@ -690,6 +702,7 @@ PiecewiseConstant<D> Reader::profile(const Field& f, unsigned joints) const {
 }
 
 template PiecewiseConstant<1> Reader::profile<1>(const Field&, unsigned) const;
+template PiecewiseConstant<2> Reader::profile<2>(const Field&, unsigned) const;
 template PiecewiseConstant<3> Reader::profile<3>(const Field&, unsigned) const;
 
 }  // namespace crossdyn::scene

@@ -35,6 +35,7 @@ enum class Type {
   Number,     // a pure number (no unit)
   Quantity,   // a number of Key::dimension: SI, or "<number> <unit>"
   Vector,     // 3 numbers of Key::dimension, or {value: [x, y, z], unit: u}
+  Pair,       // 2 numbers of Key::dimension (a universal joint's two axes), or {value: [a, b], unit: u}
   Direction,  // a non-zero 3-vector, normalised by the reader
   Attitude,   // quaternion [w, x, y, z] | {axis: [x, y, z], angle: a} | 3x3 rotation matrix (rows)
   Inertia,    // [Ixx, Iyy, Izz] | [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] | 3x3; optionally {value, unit}

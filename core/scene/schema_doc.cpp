@@ -41,6 +41,8 @@ std::string type_text(const Key& k) {
       return "quantity";
     case Type::Vector:
       return "3-vector";
+    case Type::Pair:
+      return "pair";
     case Type::Direction:
       return "direction";
     case Type::Attitude:

@@ -141,6 +141,20 @@ void write_initial(Out& o, const System& s, const Joint& j, unsigned bit) {
       if (!j.prescribed) o.number("joints[].initial.rate", j.rate0, bit);
       y << YAML::EndMap;
       break;
+    case JointType::Prismatic:
+      o.key("joints[].initial", bit) << YAML::Flow << YAML::BeginMap;
+      o.number("joints[].initial.position", j.angle0, bit);
+      if (!j.prescribed) o.number("joints[].initial.rate", j.rate0, bit);
+      y << YAML::EndMap;
+      break;
+    case JointType::Universal:
+      o.key("joints[].initial", bit) << YAML::BeginMap;
+      o.key("joints[].initial.angle", bit);
+      o.flow(Eigen::Vector2d(j.angle0, j.angle2_0));
+      o.key("joints[].initial.rate", bit);
+      o.flow(Eigen::Vector2d(j.rate0, j.rate2_0));
+      y << YAML::EndMap;
+      break;
     case JointType::Spherical:
       o.key("joints[].initial", bit) << YAML::BeginMap;
       o.key("joints[].initial.attitude", bit);

@@ -24,18 +24,13 @@ using namespace crossdyn::test::ne;
 
 namespace {
 
-// Constraint rows per joint, from the joint types alone (joint_constraints.hpp: point coincidence
-// 3, revolute +2, prescribed revolute +1 more, fixed +3; the free base none).
+// Constraint rows per joint, from the joint types alone: a joint between bodies removes the six
+// relative motions less its own degrees of freedom (joint_constraints.hpp: spherical 3, revolute
+// 5, prescribed revolute 6, fixed 6); the free base none.
 int expected_constraint_rows(const System& s) {
   int rows = 0;
-  for (const Joint& j : s.joints) {
-    switch (j.type) {
-      case JointType::Free: break;
-      case JointType::Spherical: rows += 3; break;
-      case JointType::Revolute: rows += j.prescribed ? 6 : 5; break;
-      case JointType::Fixed: rows += 6; break;
-    }
-  }
+  for (const Joint& j : s.joints)
+    if (j.type != JointType::Free) rows += 6 - j.dof();
   return rows;
 }
 

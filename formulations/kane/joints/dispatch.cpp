@@ -1,6 +1,8 @@
 // The one dispatch on JointType of the kane engine's joint units (joint_unit.hpp).
 #include "formulations/kane/joints/joint_unit.hpp"
 
+#include "core/errors.hpp"
+
 namespace crossdyn::kane {
 
 const JointUnit& joint_unit(JointType type) {
@@ -11,6 +13,9 @@ const JointUnit& joint_unit(JointType type) {
       return revolute_joint_unit();
     case JointType::Spherical:
       return spherical_joint_unit();
+    case JointType::Prismatic:
+    case JointType::Universal:
+      throw InputError("kane: prismatic and universal joints are not implemented yet");
     case JointType::Fixed:
       break;
   }

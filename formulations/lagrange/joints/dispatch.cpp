@@ -2,6 +2,8 @@
 // once per joint when the model is built (build_model.cpp).
 #include "formulations/lagrange/joints/joint_unit.hpp"
 
+#include "core/errors.hpp"
+
 namespace crossdyn::lagrange {
 
 // Defined in joints/<type>.cpp.
@@ -15,6 +17,9 @@ const JointUnit& joint_unit(JointType type) {
       return kRevoluteJoint;
     case JointType::Spherical:
       return kSphericalJoint;
+    case JointType::Prismatic:
+    case JointType::Universal:
+      throw InputError("lagrange: prismatic and universal joints are not implemented yet");
     case JointType::Fixed:
       break;
   }
