@@ -101,8 +101,8 @@ struct PrescribedMotion {
   enum class Profile { SpinUp, Deploy };
   Profile profile = Profile::SpinUp;
   double rate = 0;        // spin-up: Omega_s, rad/s (prismatic: m/s)
-  double travel = 0;      // deploy: the distance travelled, rad (prismatic: m)
   double ramp_time = 1;   // T, s, > 0
+  double travel = 0;      // deploy: the distance travelled, rad (prismatic: m)
 
   double angle(double t) const;     // theta(t), rad (0 at t = 0)
   double velocity(double t) const;  // theta'(t), rad/s
