@@ -12,7 +12,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;  // rad per degree
 // 1 rpm = 2 pi rad / 60 s, 1 min = 60 s, 1 mN = 1e-3 N. Per degree is per pi/180 rad:
 // 1 N m/deg = 180/pi N m/rad. The first unit of a dimension is its SI unit.
 constexpr double kPerDeg = 180.0 / std::numbers::pi;  // (per degree) / (per radian)
-constexpr std::array<Unit, 38> kUnits{{
+constexpr std::array<Unit, 48> kUnits{{
     {"rad", Dimension::Angle, 1.0},
     {"deg", Dimension::Angle, kDeg},
     {"rad/s", Dimension::AngularRate, 1.0},
@@ -39,8 +39,18 @@ constexpr std::array<Unit, 38> kUnits{{
     {"mN m s/rad", Dimension::Damping, 1e-3},
     {"mN m s/deg", Dimension::Damping, 1e-3 * kPerDeg},
     {"m/s", Dimension::Velocity, 1.0},
+    {"cm/s", Dimension::Velocity, 1e-2},
+    {"mm/s", Dimension::Velocity, 1e-3},
     {"rad/s^2", Dimension::AngularAcceleration, 1.0},
     {"deg/s^2", Dimension::AngularAcceleration, kDeg},
+    {"N", Dimension::Force, 1.0},
+    {"mN", Dimension::Force, 1e-3},
+    {"kN", Dimension::Force, 1e3},
+    {"N/m", Dimension::LinearStiffness, 1.0},
+    {"N/mm", Dimension::LinearStiffness, 1e3},
+    {"kN/m", Dimension::LinearStiffness, 1e3},
+    {"N s/m", Dimension::LinearDamping, 1.0},
+    {"Ns/m", Dimension::LinearDamping, 1.0},
     // Accepted alternative spellings (same factors).
     {"Nm", Dimension::Torque, 1.0},
     {"mNm", Dimension::Torque, 1e-3},
@@ -119,6 +129,12 @@ std::string dimension_name(Dimension d) {
       return "a velocity";
     case Dimension::AngularAcceleration:
       return "an angular acceleration";
+    case Dimension::Force:
+      return "a force";
+    case Dimension::LinearStiffness:
+      return "a linear stiffness";
+    case Dimension::LinearDamping:
+      return "a linear damping";
   }
   return "?";
 }

@@ -27,6 +27,9 @@ enum class Dimension {
   Damping,      // N m s/rad
   Velocity,     // m/s
   AngularAcceleration,  // rad/s^2 (no key takes one yet: known so that a wrong use is named)
+  Force,            // N (a prismatic joint's motor)
+  LinearStiffness,  // N/m (a prismatic joint's spring)
+  LinearDamping,    // N s/m (a prismatic joint's damper)
 };
 
 // Every dimension with a unit, in the order the documentation lists them.
@@ -34,6 +37,7 @@ inline constexpr Dimension kDimensions[] = {
     Dimension::Angle,   Dimension::AngularRate, Dimension::Length,  Dimension::Mass,
     Dimension::Time,    Dimension::Inertia,     Dimension::Torque,  Dimension::Stiffness,
     Dimension::Damping, Dimension::Velocity,    Dimension::AngularAcceleration,
+    Dimension::Force,   Dimension::LinearStiffness, Dimension::LinearDamping,
 };
 
 struct Unit {

@@ -31,6 +31,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <numbers>
 #include <fstream>
 #include <sstream>
 #include <unordered_map>
@@ -445,6 +446,9 @@ struct RawJoint {
   std::optional<Val> velocity_val;  // the free joint's initial velocity, if given
 };
 
+// A universal joint's two axes: at least this far from parallel (rad; 1 deg).
+constexpr double kMinGimbalAxesAngle = std::numbers::pi / 180;
+
 JointType type_of(const std::string& word) {
   for (const JointTypeInfo& t : joint_types())
     if (t.name == word) return t.type;
@@ -454,67 +458,115 @@ JointType type_of(const std::string& word) {
 // Why a key does not apply to a joint type, where it helps to say.
 std::string why_not(JointType type, const std::string& key) {
   if (key == "parent" && type == JointType::Free) return "its parent is the inertial frame N";
+  if ((key == "parent_node" || key == "child_node") &&
+      (type == JointType::Prismatic || type == JointType::Universal))
+    return "prismatic and universal joints cannot be attached at a flexible body's node yet; "
+           "attach the joint at a point (`" + key.substr(0, key.find('_')) + "_point`)";
   if (key == "initial" && type == JointType::Fixed)
     return "a fixed joint has no degrees of freedom, so no initial conditions";
   return "";
 }
 
-// Spring, damper and motor (revolute and spherical joints), each read on its own.
+// Spring, damper and motor (revolute, spherical, prismatic and universal joints), each read on
+// its own. A universal joint's values are pairs, [axis, axis2].
 void read_loads(const Reader& r, const MapView& m, const std::string& type, Joint& J) {
   const unsigned bit = joint_type(J.type).bit;
+  const bool prismatic = J.type == JointType::Prismatic, universal = J.type == JointType::Universal;
+  auto non_negative = [&r](const Field& f, double v, const std::string& what,
+                           const std::string& unit) {
+    if (v < 0) r.fail(f.val, "negative " + what + " " + shortest(v) + " " + unit);
+  };
   if (auto f = m.get("spring"))
     r.attempt([&] {
       const MapView sp(r, f->val, "joints[].spring", bit, type);
       const Field k = sp.at("stiffness");
+      if (universal) {
+        const Eigen::Vector2d k2 = r.pair(k);
+        for (int i = 0; i < 2; ++i) non_negative(k, k2[i], "stiffness", "N m/rad");
+        J.stiffness = k2[0];
+        J.stiffness2 = k2[1];
+        if (auto a = sp.get("neutral_angle")) {
+          const Eigen::Vector2d a2 = r.pair(*a);
+          J.neutral_angle = a2[0];
+          J.neutral_angle2 = a2[1];
+        }
+        return;
+      }
       J.stiffness = r.number(k);
-      if (J.stiffness < 0)
-        r.fail(k.val, "negative stiffness " + shortest(J.stiffness) + " N m/rad");
-      if (auto a = sp.get("neutral_angle")) J.neutral_angle = r.number(*a);
+      non_negative(k, J.stiffness, "stiffness", prismatic ? "N/m" : "N m/rad");
+      if (auto a = sp.get(prismatic ? "neutral_position" : "neutral_angle"))
+        J.neutral_angle = r.number(*a);
     });
   if (auto f = m.get("damper"))
     r.attempt([&] {
       const MapView dm(r, f->val, "joints[].damper", bit, type);
       const Field c = dm.at("damping");
+      if (universal) {
+        const Eigen::Vector2d c2 = r.pair(c);
+        for (int i = 0; i < 2; ++i) non_negative(c, c2[i], "damping", "N m s/rad");
+        J.damping = c2[0];
+        J.damping2 = c2[1];
+        return;
+      }
       J.damping = r.number(c);
-      if (J.damping < 0) r.fail(c.val, "negative damping " + shortest(J.damping) + " N m s/rad");
+      non_negative(c, J.damping, "damping", prismatic ? "N s/m" : "N m s/rad");
     });
   if (auto f = m.get("motor"))
     r.attempt([&] {
       const MapView mo(r, f->val, "joints[].motor", bit, type);
-      if (J.type == JointType::Revolute)
+      if (J.type == JointType::Revolute || prismatic)
         J.motor_revolute = r.profile<1>(mo.at("profile"), bit);
+      else if (universal)
+        J.motor_universal = r.profile<2>(mo.at("profile"), bit);
       else
         J.motor_spherical = r.profile<3>(mo.at("profile"), bit);
     });
 }
 
-// A prescribed revolute joint (docs/prescribed-motion.md): the profile, and no loads of its own
-// (its torque is whatever the motion takes) and no initial rate (the profile gives it).
+// A prescribed revolute or prismatic joint (docs/prescribed-motion.md): the profile, and no loads
+// of its own (its torque or force is whatever the motion takes) and no initial rate (the profile
+// gives it).
 void read_prescribed(const Reader& r, const MapView& m, const Field& f, const std::string& type,
                      Joint& J) {
+  const bool prismatic = J.type == JointType::Prismatic;
   const MapView pm(r, f.val, "joints[].prescribed", joint_type(J.type).bit, type);
   PrescribedMotion p;
-  (void)r.word(pm.at("profile"));  // "spin-up", the one profile (checked against the schema)
-  p.profile = PrescribedMotion::Profile::SpinUp;
-  const Field rate = pm.at("rate");
-  p.rate = r.number(rate);
-  if (!std::isfinite(p.rate) || std::abs(p.rate) > 1e4)
-    r.fail(rate.val, "the prescribed rate must be finite and at most 1e4 rad/s in size, found " +
-                         shortest(p.rate) + " rad/s");
+  const Field profile = pm.at("profile");
+  const bool deploy = r.word(profile) == "deploy";
+  p.profile = deploy ? PrescribedMotion::Profile::Deploy : PrescribedMotion::Profile::SpinUp;
+  // Each profile takes its own value: spin-up a rate, deploy a travel.
+  const char* needs = deploy ? "travel" : "rate";
+  const char* other = deploy ? "rate" : "travel";
+  if (auto wrong = pm.get(other))
+    r.fail(wrong->val, std::string("the ") + (deploy ? "deploy" : "spin-up") + " profile takes `" +
+                           needs + "`, not `" + other + "`");
+  const auto given = pm.get(needs);
+  if (!given)
+    pm.missing(needs, std::string("missing required key '") + needs + "' in a prescribed " +
+                          (deploy ? "deploy" : "spin-up") + " motion");
+  const double v = r.number(*given);
+  const double limit = deploy && prismatic ? 1e6 : 1e4;
+  const std::string unit = deploy ? (prismatic ? "m" : "rad") : (prismatic ? "m/s" : "rad/s");
+  if (!std::isfinite(v) || std::abs(v) > limit)
+    r.fail(given->val, std::string("the prescribed ") + needs + " must be finite and at most " +
+                           (limit > 1e5 ? "1e6 " : "1e4 ") + unit + " in size, found " +
+                           shortest(v) + " " + unit);
+  (deploy ? p.travel : p.rate) = v;
   const Field ramp = pm.at("ramp_time");
   p.ramp_time = r.number(ramp);
   if (!std::isfinite(p.ramp_time) || p.ramp_time <= 0 || p.ramp_time > 1e9)
     r.fail(ramp.val, "the ramp time must be positive and at most 1e9 s, found " +
                          shortest(p.ramp_time) + " s");
-  for (const char* load : {"spring", "damper", "motor"})
-    if (auto l = m.get(load))
-      r.fail(l->val, std::string("a prescribed joint takes no ") + load +
-                         ": its motion is given, and its torque (output <joint>.torque) is what "
-                         "that motion takes");
+  const std::string load = prismatic ? "force (output <joint>.force)" : "torque (output <joint>.torque)";
+  for (const char* l : {"spring", "damper", "motor"})
+    if (auto given_load = m.get(l))
+      r.fail(given_load->val, std::string("a prescribed joint takes no ") + l +
+                                  ": its motion is given, and its " + load +
+                                  " is what that motion takes");
   if (auto ic = m.get("initial"))
     if (auto rt = MapView(r, ic->val, "joints[].initial", joint_type(J.type).bit, type).get("rate"))
-      r.fail(rt->val, "a prescribed joint's rate is its profile's (0 at t = 0 for spin-up); "
-                      "remove initial.rate");
+      r.fail(rt->val, "a prescribed joint's rate is its profile's (0 at t = 0 for spin-up and "
+                      "deploy); remove initial.rate");
   J.prescribed = p;
 }
 
@@ -619,7 +671,8 @@ void read_joint(const Reader& r, const Val& item, const System& s, const BodyInd
   raw.type_val = type.val;
   raw.child_val = m.at("child").val;
   const bool child = r.attempt([&] { j.child = bodies.find(r, m.at("child")); });
-  const auto prescribed = j.type == JointType::Revolute ? m.get("prescribed") : std::nullopt;
+  const bool axial = j.type == JointType::Revolute || j.type == JointType::Prismatic;
+  const auto prescribed = axial ? m.get("prescribed") : std::nullopt;
   if (j.type != JointType::Free) {
     r.attempt([&] {
       if (const auto parent = m.get("parent")) {
@@ -629,7 +682,7 @@ void read_joint(const Reader& r, const Val& item, const System& s, const BodyInd
       } else {
         // Only a prescribed revolute joint may leave out its parent: it then holds the base and
         // turns it about an axis fixed in N (docs/prescribed-motion.md).
-        if (!prescribed)
+        if (!prescribed || j.type != JointType::Revolute)
           m.missing("parent", "missing required key 'parent' in a joint (only a revolute joint "
                               "with a `prescribed` motion may leave it out, to turn the base "
                               "about an axis fixed in N)");
@@ -646,10 +699,22 @@ void read_joint(const Reader& r, const Val& item, const System& s, const BodyInd
       if (auto f = m.get("offset")) j.q_PJ0 = r.attitude(*f);
     });
   }
-  if (j.type == JointType::Revolute) r.attempt([&] { j.axis_P = r.direction(m.at("axis")); });
+  if (axial || j.type == JointType::Universal)
+    r.attempt([&] { j.axis_P = r.direction(m.at("axis")); });
+  if (j.type == JointType::Universal)
+    r.attempt([&] {
+      const Field a2 = m.at("axis2");
+      j.axis2_P = r.direction(a2);
+      // The two axes at least 1 deg apart: aligned axes leave one direction of the gimbal
+      // without a joint speed and make the other two speeds one.
+      const double between = std::atan2(j.axis_P.cross(j.axis2_P).norm(), j.axis_P.dot(j.axis2_P));
+      if (between < kMinGimbalAxesAngle || between > std::numbers::pi - kMinGimbalAxesAngle)
+        r.fail(a2.val, "axis2 is " + shortest(std::round(between * 180e3 / std::numbers::pi) / 1e3) +
+                           " deg from axis: a universal joint's two axes must be at least 1 deg "
+                           "apart (perpendicular is usual)");
+    });
   if (prescribed) r.attempt([&] { read_prescribed(r, m, *prescribed, type_word, j); });
-  if (j.type == JointType::Revolute || j.type == JointType::Spherical)
-    read_loads(r, m, type_word, j);
+  if (j.type != JointType::Free && j.type != JointType::Fixed) read_loads(r, m, type_word, j);
   r.attempt([&] { read_initial(r, m, type_word, raw); });
 }
 

@@ -168,7 +168,7 @@ constexpr std::array kKeys = std::to_array<Key>({
         "child body."},
 {.path = "joints[].name", .type = Name, .required = true, .noun = "joint name",
  .doc = "The joint's name, unique among joints and bodies; output columns are `<name>.angle` etc."},
-{.path = "joints[].type", .type = Word, .required = true, .words = "free|revolute|spherical|fixed",
+{.path = "joints[].type", .type = Word, .required = true, .words = "free|revolute|spherical|fixed|prismatic|universal",
  .noun = "joint type",
  .doc = "The joint type (table \"Joint types\" below)."},
 {.path = "joints[].parent", .type = Name, .joints = kJointed,
@@ -188,51 +188,99 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "The same point J from the child's CM, in the child frame: p_CoJ_C. It usually points back "
         "towards the parent: a boom whose CM is 2 m out along its +x has `[-2, 0, 0]`. Required "
         "unless `child_node` is given (then not allowed)."},
-{.path = "joints[].parent_node", .type = Name, .joints = kJointed, .noun = "node name",
+{.path = "joints[].parent_node", .type = Name, .joints = kRevolute | kSpherical | kFixed, .noun = "node name",
  .doc = "A node of a flexible parent: the joint point is the node's undeformed position (so "
         "`parent_point` is not given), and the point and the joint frame move with the node's "
         "displacement and slope (docs/flexible-bodies.md \"Joints at nodes\")."},
-{.path = "joints[].child_node", .type = Name, .joints = kJointed, .noun = "node name",
+{.path = "joints[].child_node", .type = Name, .joints = kRevolute | kSpherical | kFixed, .noun = "node name",
  .doc = "The same for a flexible child (instead of `child_point`)."},
 {.path = "joints[].axis", .type = Direction, .required = true, .joints = kRevolute,
  .noun = "an axis",
  .doc = "The hinge axis in the PARENT frame (normalised by the reader); the angle is positive by "
         "the right-hand rule about it. R_PC = Rot(axis, angle) R_offset."},
+{.path = "joints[].axis", .type = Direction, .required = true, .joints = kPrismatic,
+ .noun = "an axis",
+ .doc = "The sliding axis in the PARENT frame (normalised by the reader): the child's joint point "
+        "is `position` along it from the parent's joint point; R_PC = R_offset."},
+{.path = "joints[].axis", .type = Direction, .required = true, .joints = kUniversal,
+ .noun = "an axis",
+ .doc = "The first (outer) gimbal axis, fixed in the PARENT frame (normalised by the reader). "
+        "R_PC = Rot(axis, angle1) Rot(axis2, angle2) R_offset."},
+{.path = "joints[].axis2", .type = Direction, .required = true, .joints = kUniversal,
+ .noun = "an axis",
+ .doc = "The second (inner) gimbal axis, in the PARENT frame at zero angles; it turns with the "
+        "first angle. Not parallel to `axis` (at least 1 deg apart; perpendicular is usual)."},
 {.path = "joints[].offset", .type = Attitude, .default_value = "identity", .joints = kJointed,
  .doc = "The child frame's attitude in the parent frame at joint coordinate zero, R_PJ0 (v_P = "
         "R_PJ0 v_C): a quaternion, an axis-angle, or a rotation matrix whose columns are the "
         "child's axes in the parent frame."},
-{.path = "joints[].prescribed", .type = Map, .joints = kRevolute, .noun = "a prescribed motion",
- .doc = "The joint's angle is prescribed: initial.angle + theta(t) (docs/prescribed-motion.md); the "
-        "joint is then no degree of freedom, the output gains `<joint>.torque` (the torque it takes), "
-        "and `spring`, `damper`, `motor` and `initial.rate` are not allowed."},
-{.path = "joints[].prescribed.profile", .type = Word, .required = true, .joints = kRevolute,
- .words = "spin-up", .noun = "a motion profile",
+{.path = "joints[].prescribed", .type = Map, .joints = kAxial, .noun = "a prescribed motion",
+ .doc = "The joint's angle (prismatic: position) is prescribed: its initial value + theta(t) "
+        "(docs/prescribed-motion.md); the joint is then no degree of freedom, the output gains "
+        "`<joint>.torque` (prismatic: `<joint>.force`), what the motion takes, and `spring`, "
+        "`damper`, `motor` and `initial.rate` are not allowed."},
+{.path = "joints[].prescribed.profile", .type = Word, .required = true, .joints = kAxial,
+ .words = "spin-up|deploy", .noun = "a motion profile",
  .doc = "`spin-up`: Kane, Ryan and Banerjee's (1987) smooth spin-up from rest to `rate` over "
         "`ramp_time`, theta = (rate/T) (t^2/2 + (T/2 pi)^2 (cos(2 pi t/T) - 1)) up to T, then "
-        "constant rate."},
+        "constant rate. `deploy`: from rest to rest through `travel` over `ramp_time`, theta = "
+        "travel (t/T - sin(2 pi t/T)/(2 pi)) up to T, then travel (a telescoping boom's "
+        "extension, a panel's deployment)."},
 {.path = "joints[].prescribed.rate", .type = Quantity, .dimension = Dimension::AngularRate,
- .required = true, .joints = kRevolute,
- .doc = "The final rate Omega_s, finite, |rate| at most 1e4 rad/s."},
+ .joints = kRevolute,
+ .doc = "`spin-up` only, and required there: the final rate Omega_s, finite, |rate| at most 1e4 "
+        "rad/s."},
+{.path = "joints[].prescribed.rate", .type = Quantity, .dimension = Dimension::Velocity,
+ .joints = kPrismatic,
+ .doc = "`spin-up` only, and required there: the final extension rate, finite, at most 1e4 m/s "
+        "in size."},
+{.path = "joints[].prescribed.travel", .type = Quantity, .dimension = Dimension::Angle,
+ .joints = kRevolute,
+ .doc = "`deploy` only, and required there: the angle turned, finite, at most 1e4 rad in size."},
+{.path = "joints[].prescribed.travel", .type = Quantity, .dimension = Dimension::Length,
+ .joints = kPrismatic,
+ .doc = "`deploy` only, and required there: the distance extended (negative: retracted), "
+        "finite, at most 1e6 m in size."},
 {.path = "joints[].prescribed.ramp_time", .type = Quantity, .dimension = Dimension::Time,
- .required = true, .joints = kRevolute,
- .doc = "The spin-up time T, > 0."},
+ .required = true, .joints = kAxial,
+ .doc = "The spin-up or deployment time T, > 0."},
 {.path = "joints[].spring", .type = Map, .joints = kMoving, .noun = "a {type} joint's spring",
- .doc = "A torsional spring: revolute tau = -stiffness (angle - neutral_angle); spherical tau_C = "
-        "-stiffness phi, phi the joint's rotation vector."},
+ .doc = "A spring: revolute tau = -stiffness (angle - neutral_angle); spherical tau_C = "
+        "-stiffness phi, phi the joint's rotation vector; prismatic F = -stiffness (position - "
+        "neutral_position) along the axis; universal one torsional spring per axis."},
 {.path = "joints[].spring.stiffness", .type = Quantity, .dimension = Dimension::Stiffness,
- .required = true, .joints = kMoving,
+ .required = true, .joints = kRevolute | kSpherical,
  .doc = "Spring stiffness, >= 0."},
+{.path = "joints[].spring.stiffness", .type = Quantity, .dimension = Dimension::LinearStiffness,
+ .required = true, .joints = kPrismatic,
+ .doc = "Spring stiffness along the axis, >= 0."},
+{.path = "joints[].spring.stiffness", .type = Pair, .dimension = Dimension::Stiffness,
+ .required = true, .joints = kUniversal, .noun = "a pair of stiffnesses",
+ .doc = "[about axis, about axis2], each >= 0."},
 {.path = "joints[].spring.neutral_angle", .type = Quantity, .dimension = Dimension::Angle,
  .default_value = "0", .joints = kRevolute,
  .doc = "The angle at which the spring is unstretched."},
+{.path = "joints[].spring.neutral_angle", .type = Pair, .dimension = Dimension::Angle,
+ .default_value = "[0, 0]", .joints = kUniversal, .noun = "a pair of angles",
+ .doc = "[angle1, angle2] at which the springs are unstretched."},
+{.path = "joints[].spring.neutral_position", .type = Quantity, .dimension = Dimension::Length,
+ .default_value = "0", .joints = kPrismatic,
+ .doc = "The position at which the spring is unstretched."},
 {.path = "joints[].damper", .type = Map, .joints = kMoving, .noun = "a damper",
- .doc = "A viscous damper: tau = -damping rate (spherical: -damping w_PC_C)."},
+ .doc = "A viscous damper: tau = -damping rate (spherical: -damping w_PC_C; prismatic: a force "
+        "-damping rate along the axis; universal: per axis)."},
 {.path = "joints[].damper.damping", .type = Quantity, .dimension = Dimension::Damping,
- .required = true, .joints = kMoving,
+ .required = true, .joints = kRevolute | kSpherical,
  .doc = "Damping coefficient, >= 0."},
+{.path = "joints[].damper.damping", .type = Quantity, .dimension = Dimension::LinearDamping,
+ .required = true, .joints = kPrismatic,
+ .doc = "Damping coefficient along the axis, >= 0."},
+{.path = "joints[].damper.damping", .type = Pair, .dimension = Dimension::Damping,
+ .required = true, .joints = kUniversal, .noun = "a pair of damping coefficients",
+ .doc = "[about axis, about axis2], each >= 0."},
 {.path = "joints[].motor", .type = Map, .joints = kMoving, .noun = "a motor",
- .doc = "A motor torque on the child (reaction on the parent), piecewise constant in time."},
+ .doc = "A motor torque (prismatic: force) on the child (reaction on the parent), piecewise "
+        "constant in time."},
 {.path = "joints[].motor.profile", .type = List, .required = true, .joints = kMoving,
  .noun = "a profile: a list of {t: time, value: ...}",
  .doc = "The torque from each time on; zero before the first time; times >= 0, strictly "
@@ -248,6 +296,12 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "joints[].motor.profile[].value", .type = Vector, .dimension = Dimension::Torque,
  .required = true, .joints = kSpherical,
  .doc = "The torque on the child from t on, child-frame components."},
+{.path = "joints[].motor.profile[].value", .type = Quantity, .dimension = Dimension::Force,
+ .required = true, .joints = kPrismatic,
+ .doc = "The force along the axis from t on."},
+{.path = "joints[].motor.profile[].value", .type = Pair, .dimension = Dimension::Torque,
+ .required = true, .joints = kUniversal, .noun = "a pair of torques",
+ .doc = "[about axis, about axis2] from t on."},
 {.path = "joints[].initial", .type = Map, .default_value = "all zero", .joints = kFree | kMoving,
  .noun = "the initial conditions of a {type} joint",
  .doc = "The joint's coordinates and rates at t = 0 (a fixed joint has none)."},
@@ -270,12 +324,24 @@ constexpr std::array kKeys = std::to_array<Key>({
  .default_value = "[0, 0, 0]", .joints = kFree, .noun = "a velocity",
  .doc = "The base CM's velocity in N, v_NBo_N; only with `zero_linear_momentum: false` (else it is "
         "computed)."},
+{.path = "joints[].initial.position", .type = Quantity, .dimension = Dimension::Length,
+ .default_value = "0", .joints = kPrismatic,
+ .doc = "The slider's position along the axis (0: the joint points coincide)."},
 {.path = "joints[].initial.angle", .type = Quantity, .dimension = Dimension::Angle,
  .default_value = "0", .joints = kRevolute,
  .doc = "The hinge angle."},
+{.path = "joints[].initial.angle", .type = Pair, .dimension = Dimension::Angle,
+ .default_value = "[0, 0]", .joints = kUniversal, .noun = "a pair of angles",
+ .doc = "[angle1, angle2], the gimbal angles."},
 {.path = "joints[].initial.rate", .type = Quantity, .dimension = Dimension::AngularRate,
  .default_value = "0", .joints = kRevolute,
  .doc = "The hinge rate."},
+{.path = "joints[].initial.rate", .type = Quantity, .dimension = Dimension::Velocity,
+ .default_value = "0", .joints = kPrismatic,
+ .doc = "The slider's rate along the axis."},
+{.path = "joints[].initial.rate", .type = Pair, .dimension = Dimension::AngularRate,
+ .default_value = "[0, 0]", .joints = kUniversal, .noun = "a pair of rates",
+ .doc = "[rate1, rate2], the gimbal angles' rates."},
 
 // ----- run ------------------------------------------------------------------------------------
 {.path = "run.duration", .type = Quantity, .dimension = Dimension::Time, .required = true,
@@ -343,6 +409,10 @@ constexpr std::array kJointTypes = std::to_array<JointTypeInfo>({
     {"spherical", JointType::Spherical, kSpherical, 3,
      "Three rotational degrees of freedom: R_PC = R_offset R(q_J)."},
     {"fixed", JointType::Fixed, kFixed, 0, "No relative motion: R_PC = R_offset."},
+    {"prismatic", JointType::Prismatic, kPrismatic, 1,
+     "One position along `axis` (parent frame): the child slides, R_PC = R_offset."},
+    {"universal", JointType::Universal, kUniversal, 2,
+     "A two-axis gimbal: R_PC = Rot(axis, angle1) Rot(axis2, angle2) R_offset, no body between."},
 });
 
 // "joints[].initial.angle" => parent "joints[].initial", name "angle". The parent of a list item

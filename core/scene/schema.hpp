@@ -49,9 +49,12 @@ enum JointSet : unsigned {
   kRevolute = 1u << 1,
   kSpherical = 1u << 2,
   kFixed = 1u << 3,
-  kJointed = kRevolute | kSpherical | kFixed,  // every type with a parent body
-  kMoving = kRevolute | kSpherical,            // every type with a joint coordinate in a parent
-  kAnyJoint = kFree | kRevolute | kSpherical | kFixed,
+  kPrismatic = 1u << 4,
+  kUniversal = 1u << 5,
+  kJointed = kRevolute | kSpherical | kFixed | kPrismatic | kUniversal,  // every type with a parent
+  kMoving = kRevolute | kSpherical | kPrismatic | kUniversal,  // every type with a joint coordinate
+  kAxial = kRevolute | kPrismatic,                              // one coordinate along or about an axis
+  kAnyJoint = kFree | kJointed,
 };
 
 struct Key {

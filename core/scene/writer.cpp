@@ -201,36 +201,63 @@ void write_joint(Out& o, const System& s, const Joint& j) {
       o.quaternion(j.q_PJ0);
     }
   }
-  if (j.type == JointType::Revolute) {
+  const bool universal = j.type == JointType::Universal, prismatic = j.type == JointType::Prismatic;
+  const bool axial = j.type == JointType::Revolute || prismatic;
+  if (axial || universal) {
     o.key("joints[].axis", bit);
     o.flow(j.axis_P);
-    if (j.prescribed) {
-      o.key("joints[].prescribed", bit) << YAML::Flow << YAML::BeginMap;
-      o.key("joints[].prescribed.profile", bit) << "spin-up";
-      o.number("joints[].prescribed.rate", j.prescribed->rate, bit);
-      o.number("joints[].prescribed.ramp_time", j.prescribed->ramp_time, bit);
-      y << YAML::EndMap;
-    }
   }
-  if (j.type == JointType::Revolute || j.type == JointType::Spherical) {
-    if (j.stiffness != 0 || (j.type == JointType::Revolute && j.neutral_angle != 0)) {
+  if (universal) {
+    o.key("joints[].axis2", bit);
+    o.flow(j.axis2_P);
+  }
+  if (axial && j.prescribed) {
+    const bool deploy = j.prescribed->profile == PrescribedMotion::Profile::Deploy;
+    o.key("joints[].prescribed", bit) << YAML::Flow << YAML::BeginMap;
+    o.key("joints[].prescribed.profile", bit) << (deploy ? "deploy" : "spin-up");
+    if (deploy)
+      o.number("joints[].prescribed.travel", j.prescribed->travel, bit);
+    else
+      o.number("joints[].prescribed.rate", j.prescribed->rate, bit);
+    o.number("joints[].prescribed.ramp_time", j.prescribed->ramp_time, bit);
+    y << YAML::EndMap;
+  }
+  if (j.type != JointType::Free && j.type != JointType::Fixed) {
+    const bool neutral = axial ? j.neutral_angle != 0 : universal && (j.neutral_angle != 0 || j.neutral_angle2 != 0);
+    if (j.stiffness != 0 || j.stiffness2 != 0 || neutral) {
       o.key("joints[].spring", bit) << YAML::Flow << YAML::BeginMap;
-      o.number("joints[].spring.stiffness", j.stiffness, bit);
-      if (j.type == JointType::Revolute)
-        o.number("joints[].spring.neutral_angle", j.neutral_angle, bit);
+      if (universal) {
+        o.key("joints[].spring.stiffness", bit);
+        o.flow(Eigen::Vector2d(j.stiffness, j.stiffness2));
+        o.key("joints[].spring.neutral_angle", bit);
+        o.flow(Eigen::Vector2d(j.neutral_angle, j.neutral_angle2));
+      } else {
+        o.number("joints[].spring.stiffness", j.stiffness, bit);
+        if (axial)
+          o.number(prismatic ? "joints[].spring.neutral_position" : "joints[].spring.neutral_angle",
+                   j.neutral_angle, bit);
+      }
       y << YAML::EndMap;
     }
-    if (j.damping != 0) {
+    if (j.damping != 0 || j.damping2 != 0) {
       o.key("joints[].damper", bit) << YAML::Flow << YAML::BeginMap;
-      o.number("joints[].damper.damping", j.damping, bit);
+      if (universal) {
+        o.key("joints[].damper.damping", bit);
+        o.flow(Eigen::Vector2d(j.damping, j.damping2));
+      } else {
+        o.number("joints[].damper.damping", j.damping, bit);
+      }
       y << YAML::EndMap;
     }
-    const bool motor =
-        j.type == JointType::Revolute ? !j.motor_revolute.empty() : !j.motor_spherical.empty();
+    const bool motor = axial       ? !j.motor_revolute.empty()
+                       : universal ? !j.motor_universal.empty()
+                                   : !j.motor_spherical.empty();
     if (motor) {
       o.key("joints[].motor", bit) << YAML::BeginMap;
-      if (j.type == JointType::Revolute)
+      if (axial)
         o.profile("joints[].motor.profile", j.motor_revolute, bit);
+      else if (universal)
+        o.profile("joints[].motor.profile", j.motor_universal, bit);
       else
         o.profile("joints[].motor.profile", j.motor_spherical, bit);
       y << YAML::EndMap;

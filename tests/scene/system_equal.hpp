@@ -24,6 +24,9 @@ inline std::string system_difference(const System& a, const System& b) {
   auto pc1 = [](const PiecewiseConstant<1>& x, const PiecewiseConstant<1>& y) {
     return x.times == y.times && x.values == y.values;
   };
+  auto pc2 = [](const PiecewiseConstant<2>& x, const PiecewiseConstant<2>& y) {
+    return x.times == y.times && x.values == y.values;
+  };
   auto pc3 = [](const PiecewiseConstant<3>& x, const PiecewiseConstant<3>& y) {
     return x.times == y.times && x.values == y.values;
   };
@@ -82,15 +85,23 @@ inline std::string system_difference(const System& a, const System& b) {
       eq(p + "parent_node", x.parent_node == y.parent_node);
       eq(p + "child_node", x.child_node == y.child_node);
       eq(p + "axis_P", x.axis_P == y.axis_P);
+      eq(p + "axis2_P", x.axis2_P == y.axis2_P);
       eq(p + "q_PJ0", q_eq(x.q_PJ0, y.q_PJ0));
       eq(p + "stiffness", x.stiffness == y.stiffness);
       eq(p + "neutral_angle", x.neutral_angle == y.neutral_angle);
       eq(p + "damping", x.damping == y.damping);
       eq(p + "motor_revolute", pc1(x.motor_revolute, y.motor_revolute));
       eq(p + "motor_spherical", pc3(x.motor_spherical, y.motor_spherical));
+      eq(p + "stiffness2", x.stiffness2 == y.stiffness2);
+      eq(p + "neutral_angle2", x.neutral_angle2 == y.neutral_angle2);
+      eq(p + "damping2", x.damping2 == y.damping2);
+      eq(p + "motor_universal", pc2(x.motor_universal, y.motor_universal));
+      eq(p + "angle2_0", x.angle2_0 == y.angle2_0);
+      eq(p + "rate2_0", x.rate2_0 == y.rate2_0);
       eq(p + "prescribed", x.prescribed.has_value() == y.prescribed.has_value() &&
                                (!x.prescribed || (x.prescribed->profile == y.prescribed->profile &&
                                                   x.prescribed->rate == y.prescribed->rate &&
+                                                  x.prescribed->travel == y.prescribed->travel &&
                                                   x.prescribed->ramp_time == y.prescribed->ramp_time)));
       eq(p + "angle0", x.angle0 == y.angle0);
       eq(p + "rate0", x.rate0 == y.rate0);

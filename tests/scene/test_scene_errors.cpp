@@ -796,3 +796,86 @@ TEST_CASE("errors: what depends on an error is not reported with it") {
     CHECK(lines[0].find("bodies[0].mass: mass must be positive") != std::string::npos);
   }
 }
+
+// Prismatic and universal joints (issue 25): one case per class of mistake, each at its key.
+TEST_CASE("errors: prismatic and universal joints name the key and what is wrong") {
+  const std::string hinge =
+      "    type: revolute\n    parent: hub\n    child: arm\n    parent_point: [1, 0, 0]\n"
+      "    child_point: [-1, 0, 0]\n    axis: [0, 0, 1]\n    initial: {angle: 0, rate: 0.1}\n";
+  const std::string slider =
+      "    type: prismatic\n    parent: hub\n    child: arm\n    parent_point: [1, 0, 0]\n"
+      "    child_point: [-1, 0, 0]\n    axis: [1, 0, 0]\n";
+  const std::string gimbal =
+      "    type: universal\n    parent: hub\n    child: arm\n    parent_point: [1, 0, 0]\n"
+      "    child_point: [-1, 0, 0]\n    axis: [1, 0, 0]\n    axis2: [0, 1, 0]\n";
+  const std::string with_slider = edit(hinge, slider), with_gimbal = edit(hinge, gimbal);
+  {
+    const System s = read_scene_text(with_slider + "", "bad.yaml");
+    CHECK(s.joints[1].type == JointType::Prismatic);
+    CHECK(s.joints[1].dof() == 1);
+    const System g = read_scene_text(with_gimbal, "bad.yaml");
+    CHECK(g.joints[1].type == JointType::Universal);
+    CHECK(g.joints[1].dof() == 2);
+  }
+  auto add = [](const std::string& base, const std::string& line) {
+    return base.substr(0, base.find("run:")) + line + "\n" + base.substr(base.find("run:"));
+  };
+  auto expect_added = [&](const std::string& base, const std::string& line, const std::string& key,
+                          const std::string& phrase) {
+    const std::string text = add(base, line);
+    expect_error(text, line_of(text, line), key, phrase);
+  };
+  // Units of the joint's own kind: a prismatic spring in N/m, not N m/rad.
+  expect_added(with_slider, "    spring: {stiffness: 2 N m/rad}", "stiffness", "N/m");
+  expect_added(with_slider, "    spring: {stiffness: -2}", "stiffness", "negative stiffness");
+  expect_added(with_slider, "    damper: {damping: 1 N m s/rad}", "damping", "N s/m");
+  expect_added(with_slider, "    initial: {position: 10 deg}", "position", "length");
+  expect_added(with_slider, "    spring: {stiffness: 1, neutral_angle: 0.1}", "neutral_angle",
+               "neutral_position");
+  expect_added(with_slider, "    axis2: [0, 1, 0]", "axis2", "prismatic");
+  // A universal joint's values are pairs; its axes are not parallel.
+  expect_added(with_gimbal, "    spring: {stiffness: 2}", "stiffness", "2 numbers");
+  expect_added(with_gimbal, "    damper: {damping: [1, 2, 3]}", "damping", "found 3 elements");
+  expect_added(with_gimbal, "    spring: {stiffness: [1, -1]}", "stiffness", "negative stiffness");
+  expect_added(with_gimbal, "    motor: {profile: [{t: 0, value: 1}]}", "value", "2 numbers");
+  expect_added(with_gimbal, "    prescribed: {profile: deploy, travel: 1, ramp_time: 1}",
+               "prescribed", "universal");
+  {
+    const std::string text = edit("axis2: [0, 1, 0]", "axis2: [1, 0.001, 0]", with_gimbal);
+    expect_error(text, line_of(text, "axis2: [1, 0.001"), "axis2", "at least 1 deg apart");
+    const std::string missing = edit("    axis2: [0, 1, 0]\n", "", with_gimbal);
+    expect_error(missing, line_of(missing, "  - name: hinge"), "axis2", "missing required key");
+  }
+  // Not at a node yet: said at the key, with the way out.
+  expect_added(with_slider, "    child_node: tip", "child_node", "child_point");
+  // Prescribed profiles: each takes its own value, in the joint's units.
+  expect_added(with_slider, "    prescribed: {profile: deploy, ramp_time: 5 s}", "travel",
+               "missing required key 'travel'");
+  expect_added(with_slider, "    prescribed: {profile: deploy, rate: 1 m/s, ramp_time: 5 s}",
+               "rate", "takes `travel`");
+  expect_added(with_slider, "    prescribed: {profile: spin-up, travel: 1 m, ramp_time: 5 s}",
+               "travel", "takes `rate`");
+  expect_added(with_slider, "    prescribed: {profile: deploy, travel: 90 deg, ramp_time: 5 s}",
+               "travel", "length");
+  expect_added(with_slider, "    prescribed: {profile: deploy, travel: 2e7 m, ramp_time: 5 s}",
+               "travel", "at most 1e6 m");
+  {
+    const std::string text = add(with_slider, "    prescribed: {profile: deploy, travel: 1 m, "
+                                              "ramp_time: 5 s}\n    motor: {profile: [{t: 0, value: 1}]}");
+    expect_error(text, line_of(text, "    motor:"), "motor", "force (output <joint>.force)");
+  }
+  // A prismatic joint cannot hold the base (only a prescribed revolute joint may leave out its
+  // parent).
+  {
+    const std::string text =
+        edit("    parent: hub\n", "", add(with_slider, "    prescribed: {profile: deploy, "
+                                                     "travel: 1 m, ramp_time: 5 s}"));
+    expect_error(text, line_of(text, "  - name: hinge"), "parent", "missing required key 'parent'");
+  }
+  // A deploy profile on a revolute joint is an angle.
+  {
+    const std::string text = add(kBase, "    prescribed: {profile: deploy, travel: 2 m, ramp_time: 5 s}");
+    const std::string no_rate = edit("    initial: {angle: 0, rate: 0.1}\n", "", text);
+    expect_error(no_rate, line_of(no_rate, "travel: 2 m"), "travel", "angle");
+  }
+}

@@ -44,6 +44,11 @@ bodies:
   - name: cap
     mass: 0.1 kg
     inertia: [0.01, 0.01, 0.01]
+  - {name: slider, mass: 0.5 kg, inertia: [0.01, 0.02, 0.02]}
+  - {name: pusher, mass: 0.5 kg, inertia: [0.01, 0.02, 0.02]}
+  - {name: ram, mass: 0.5 kg, inertia: [0.01, 0.02, 0.02]}
+  - {name: camera, mass: 0.5 kg, inertia: [0.01, 0.02, 0.03]}
+  - {name: flap, mass: 0.5 kg, inertia: [0.01, 0.02, 0.02]}
   - name: boom
     mass: 2 kg
     flexible:
@@ -114,6 +119,56 @@ joints:
     parent_point: [0.1, 0, 0]
     child_point: [0, 0, 0]
     offset: [1, 0, 0, 0]
+  - name: slide
+    type: prismatic
+    parent: hub
+    child: slider
+    parent_point: [0, 1, 0]
+    child_point: [0, -10 cm, 0]
+    axis: [0, 1, 0]
+    offset: {axis: [0, 1, 0], angle: 15 deg}
+    spring: {stiffness: 30 N/m, neutral_position: 5 cm}
+    damper: {damping: 0.5 N s/m}
+    motor: {profile: [{t: 0, value: 2 N}, {t: 3 s, value: 0}]}
+    initial: {position: 2 cm, rate: 1 cm/s}
+  - name: push
+    type: prismatic
+    parent: hub
+    child: pusher
+    parent_point: [0, -1, 0]
+    child_point: [0, 0.1, 0]
+    axis: [0, -1, 0]
+    prescribed: {profile: spin-up, rate: 1 cm/s, ramp_time: 2 s}
+  - name: drive
+    type: prismatic
+    parent: hub
+    child: ram
+    parent_point: [0, 0, -1]
+    child_point: [0, 0, 0.1]
+    axis: [0, 0, -1]
+    prescribed: {profile: deploy, travel: 50 cm, ramp_time: 5 s}
+    initial: {position: 1 cm}
+  - name: gimbal
+    type: universal
+    parent: hub
+    child: camera
+    parent_point: [-1, 0, 0]
+    child_point: [0.1, 0, 0]
+    axis: [0, 0, 1]
+    axis2: [0, 1, 0]
+    offset: {axis: [1, 0, 0], angle: 5 deg}
+    spring: {stiffness: [1, 2 N m/rad], neutral_angle: {value: [1, -2], unit: deg}}
+    damper: {damping: [0.1, 0.2]}
+    motor: {profile: [{t: 0, value: [0.1, 0]}, {t: 1 s, value: {value: [0, 5], unit: mN m}}]}
+    initial: {angle: [5 deg, 0], rate: {value: [1, 2], unit: deg/s}}
+  - name: unfold
+    type: revolute
+    parent: arm
+    child: flap
+    parent_point: [0, 0.2, 0]
+    child_point: [0, -0.1, 0]
+    axis: [1, 0, 0]
+    prescribed: {profile: deploy, travel: 90 deg, ramp_time: 4 s}
   - name: boom_root
     type: fixed
     parent: hub
@@ -209,8 +264,8 @@ TEST_CASE("schema: every row is well formed") {
         k.type == Type::Name)
       CHECK(!k.noun.empty());
     CHECK((k.type == Type::Word) == !k.words.empty());
-    const bool dimensional =
-        k.type == Type::Quantity || k.type == Type::Vector || k.type == Type::Inertia;
+    const bool dimensional = k.type == Type::Quantity || k.type == Type::Vector ||
+                             k.type == Type::Pair || k.type == Type::Inertia;
     CHECK(dimensional == (k.dimension != units::Dimension::None));
     // Rows outside joints[] apply to every joint type; rows of one path do not overlap.
     if (!k.path.starts_with("joints[]")) CHECK(k.joints == scene::kAnyJoint);
@@ -236,13 +291,19 @@ TEST_CASE("schema: joint types and integrators agree with the rest of the code")
     j.type = t.type;
     CHECK(t.dof == j.dof());
   }
-  CHECK(scene::joint_types().size() == 4);
+  CHECK(scene::joint_types().size() == 6);
   CHECK(scene::words(*scene::find("run.integrator")) == integrator_names());
   CHECK(scene::find("run.integrator")->default_value == RunSpec{}.integrator);
   CHECK(scene::joint_keys(JointType::Free) ==
         std::vector<std::string>{"name", "type", "child", "initial"});
   CHECK(scene::initial_keys(JointType::Revolute) == std::vector<std::string>{"angle", "rate"});
   CHECK(scene::initial_keys(JointType::Fixed).empty());
+  CHECK(scene::initial_keys(JointType::Prismatic) == std::vector<std::string>{"position", "rate"});
+  CHECK(scene::initial_keys(JointType::Universal) == std::vector<std::string>{"angle", "rate"});
+  CHECK(scene::joint_keys(JointType::Universal) ==
+        std::vector<std::string>{"name", "type", "parent", "child", "parent_point", "child_point",
+                                 "axis", "axis2", "offset", "spring", "damper", "motor",
+                                 "initial"});
 }
 
 TEST_CASE("schema: the reader accepts every key of the schema, and the writer writes each one "
