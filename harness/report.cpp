@@ -101,12 +101,31 @@ json system_json(const System& s) {
         j["initial"] = {{"angle_rad", J.angle0}, {"rate_rad_s", J.rate0}};
       } else if (J.type == JointType::Spherical) {
         j["initial"] = {{"q_J", quat(J.q_J0)}, {"w_PC_C_rad_s", vec(J.w_PC_C0)}};
+      } else if (J.type == JointType::Prismatic) {
+        j["axis"] = vec(J.axis_P);
+        j["initial"] = {{"position_m", J.angle0}, {"rate_m_s", J.rate0}};
+      } else if (J.type == JointType::Universal) {
+        j["axes"] = {vec(J.axis_P), vec(J.axis2_P)};
+        j["initial"] = {{"angles_rad", {J.angle0, J.angle2_0}}, {"rates_rad_s", {J.rate0, J.rate2_0}}};
       }
+      if (J.type == JointType::Prismatic) {
+        if (J.stiffness != 0) j["stiffness_N_m"] = J.stiffness;
+        if (J.neutral_angle != 0) j["neutral_position_m"] = J.neutral_angle;
+        if (J.damping != 0) j["damping_N_s_m"] = J.damping;
+        if (!J.motor_revolute.empty()) j["motor_N"] = schedule(J.motor_revolute);
+      } else if (J.type == JointType::Universal) {
+        if (J.stiffness != 0 || J.stiffness2 != 0) j["stiffness_N_m_rad"] = {J.stiffness, J.stiffness2};
+        if (J.neutral_angle != 0 || J.neutral_angle2 != 0)
+          j["neutral_angle_rad"] = {J.neutral_angle, J.neutral_angle2};
+        if (J.damping != 0 || J.damping2 != 0) j["damping_N_m_s_rad"] = {J.damping, J.damping2};
+        if (!J.motor_universal.empty()) j["motor_N_m"] = schedule(J.motor_universal);
+      } else {
       if (J.stiffness != 0) j["stiffness_N_m_rad"] = J.stiffness;
       if (J.neutral_angle != 0) j["neutral_angle_rad"] = J.neutral_angle;
       if (J.damping != 0) j["damping_N_m_s_rad"] = J.damping;
       if (!J.motor_revolute.empty()) j["motor_N_m"] = schedule(J.motor_revolute);
       if (!J.motor_spherical.empty()) j["motor_N_m"] = schedule(J.motor_spherical);
+      }
     }
     joints.push_back(j);
   }

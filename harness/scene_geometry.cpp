@@ -103,7 +103,8 @@ NodeMotion node_motion(const Body& body, int node, const ModalCoordinates& eta, 
 }  // namespace
 
 Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_NB,
-                           const Vector3d& p_NoBo_N_base, double t, const ModalCoordinates& eta) {
+                           const Vector3d& p_NoBo_N_base, double t, const ModalCoordinates& eta,
+                           const std::vector<double>& slide_m) {
   Configuration c;
   c.t = t;
   c.bodies.resize(system.bodies.size());
@@ -135,7 +136,10 @@ Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_
     const BodyPose& P = c.bodies[J.parent];
     const NodeMotion mp = node_motion(system.bodies[J.parent], J.parent_node, eta, J.parent);
     const NodeMotion mc = node_motion(system.bodies[J.child], J.child_node, eta, J.child);
-    out.p_NoJ_N_parent = P.p_NoBo_N + P.R_NB * (J.p_PoJ_P + mp.u);
+    // A prismatic joint's point on the parent side slides along the axis with the child (core/
+    // system.hpp): p_PoJ_P + s axis_P.
+    const double s_m = J.type == JointType::Prismatic && j < slide_m.size() ? slide_m[j] : 0.0;
+    out.p_NoJ_N_parent = P.p_NoBo_N + P.R_NB * (J.p_PoJ_P + mp.u + s_m * J.axis_P.normalized());
     // p_NoCo_N = p_NoPo_N + R_NP (p_PoJ_P + u_P) - R_NC (p_CoJ_C + u_C)
     C.p_NoBo_N = out.p_NoJ_N_parent - C.R_NB * (J.p_CoJ_C + mc.u);
     out.p_NoJ_N_child = C.p_NoBo_N + C.R_NB * (J.p_CoJ_C + mc.u);
@@ -168,6 +172,8 @@ Configuration initial_configuration(const System& system) {
   std::vector<Matrix3d> R_NB(system.bodies.size(), Matrix3d::Identity());
   Vector3d p_base = Vector3d::Zero();
   const TreeState s0 = TreeState::initial(system);  // a prescribed base's pose at t = 0
+  std::vector<double> slide_m(system.joints.size(), 0.0);
+  for (std::size_t j = 0; j < system.joints.size(); ++j) slide_m[j] = s0.joints[j].angle;
   for (const Joint& J : system.joints) {
     if (J.type == JointType::Free || J.parent < 0) {
       R_NB[J.child] = s0.q_NB.normalized().toRotationMatrix();
@@ -177,7 +183,7 @@ Configuration initial_configuration(const System& system) {
       R_NB[J.child] = R_NB[J.parent] * joint_rotation(J, J.angle0, J.q_J0, J.angle2_0);
     }
   }
-  return place_bodies(system, R_NB, p_base, 0.0);
+  return place_bodies(system, R_NB, p_base, 0.0, {}, slide_m);
 }
 
 void center_at_origin(Configuration& c) {
@@ -217,7 +223,11 @@ Configuration configuration_from_row(const System& system, const std::vector<std
     eta[b].resize(B.flex->modes());
     for (int k = 0; k < B.flex->modes(); ++k) eta[b](k) = row[column(B.name + "." + B.flex->mode_names[static_cast<std::size_t>(k)])];
   }
-  Configuration c = place_bodies(system, R_NB, Vector3d::Zero(), row[column("t")], eta);
+  std::vector<double> slide_m(system.joints.size(), 0.0);
+  for (std::size_t j = 0; j < system.joints.size(); ++j)
+    if (system.joints[j].type == JointType::Prismatic)
+      slide_m[j] = row[column(system.joints[j].name + ".position")];
+  Configuration c = place_bodies(system, R_NB, Vector3d::Zero(), row[column("t")], eta, slide_m);
   center_at_origin(c);
   return c;
 }
@@ -345,6 +355,16 @@ std::string geometry_json(const System& system, const Configuration& initial,
       j["axis_C"] = vec(revolute_axis_in_child(J));
       j["initial_angle_rad"] = J.angle0;
       j["initial_rate_rad_s"] = J.rate0;
+    }
+    if (J.type == JointType::Prismatic) {
+      j["slide_axis_P"] = vec(J.axis_P.normalized());
+      j["initial_position_m"] = J.angle0;
+      j["initial_rate_m_s"] = J.rate0;
+    }
+    if (J.type == JointType::Universal) {
+      j["gimbal_axes_P"] = {vec(J.axis_P.normalized()), vec(J.axis2_P.normalized())};
+      j["initial_angles_rad"] = {J.angle0, J.angle2_0};
+      j["initial_rates_rad_s"] = {J.rate0, J.rate2_0};
     }
     if (J.type == JointType::Free) j["initial_w_NB_B_rad_s"] = vec(J.w_NB_B0);
     joints.push_back(j);

@@ -89,10 +89,12 @@ Eigen::Vector3d revolute_axis_in_child(const Joint& joint);
 
 // Places every body from its attitude (R_NB per body, System::bodies order) by walking the joints
 // from the base, whose CM is put at p_NoBo_N_base; fills the joint poses, the flexible nodes and
-// the system CM. `eta`: the flexible bodies' modal coordinates (empty: undeformed).
+// the system CM. `eta`: the flexible bodies' modal coordinates (empty: undeformed). `slide_m`: per
+// joint (System::joints order) a prismatic joint's position, m (empty: every slider at 0).
 Configuration place_bodies(const System& system, const std::vector<Eigen::Matrix3d>& R_NB,
                            const Eigen::Vector3d& p_NoBo_N_base, double t = 0,
-                           const ModalCoordinates& eta = {});
+                           const ModalCoordinates& eta = {},
+                           const std::vector<double>& slide_m = {});
 
 // The configuration at t = 0 from the scene's initial conditions (base at its given position).
 Configuration initial_configuration(const System& system);

@@ -30,6 +30,9 @@ std::string warn_gfmt(double v, int digits) {
   return b;
 }
 
+// A universal joint's axes closer than this to parallel draw the `gimbal-axes` warning (rad).
+constexpr double kGimbalAxesWarnRad = 10 * std::numbers::pi / 180;
+
 SceneWarning geometry_warning(const System& s, const std::string& code, const std::string& subject,
                               const std::string& message) {
   SceneWarning w;
@@ -165,6 +168,21 @@ std::vector<SceneWarning> configuration_warnings(const System& s, const geometry
                 " towards N " + warn_direction_name(*da) + ", " + bb.name + " towards N " +
                 warn_direction_name(*db0) + ")"));
     }
+
+  // A universal joint whose axes are close to parallel (the reader refuses less than 1 deg): its
+  // two speeds turn the child about nearly the same line, and the direction across both is
+  // stiff to reach; usually axes meant perpendicular.
+  for (const Joint& J : s.joints) {
+    if (J.type != JointType::Universal) continue;
+    const Vector3d a = J.axis_P.normalized(), b = J.axis2_P.normalized();
+    const double between = std::atan2(a.cross(b).norm(), std::abs(a.dot(b)));
+    if (between < kGimbalAxesWarnRad)
+      out.push_back(geometry_warning(
+          s, "gimbal-axes", J.name,
+          J.name + ": the universal joint's axes are " +
+              std::to_string(static_cast<int>(std::lround(between * 180 / std::numbers::pi))) +
+              " deg from parallel; a two-axis gimbal's axes are usually perpendicular"));
+  }
   return out;
 }
 

@@ -1396,7 +1396,7 @@ StabilityMap stability_frame_from_field(const PartField& j) {
   m.file = j.at("file").str();
   const PartField k = j.at("knob");
   const int kind = k.at("kind").i32();
-  if (kind < 0 || kind > static_cast<int>(Knob::Kind::Links)) k.at("kind").fail("is not a knob kind");
+  if (kind < 0 || kind > static_cast<int>(Knob::Kind::PrescribedTravel)) k.at("kind").fail("is not a knob kind");
   m.knob.kind = static_cast<Knob::Kind>(kind);
   m.knob.spec = k.at("spec").str();
   m.knob.index = k.at("index").i32();

@@ -104,9 +104,13 @@ Classified classify(const CellFacts& f, const ClassLimits& lim) {
 std::vector<std::string> available_knobs(const System& s) {
   std::vector<std::string> k;
   for (const Joint& j : s.joints) {
-    if (j.type == JointType::Revolute && j.prescribed) k.push_back(j.name + ".prescribed_rate");
-    else if (j.type == JointType::Revolute) k.push_back(j.name + ".rate");
-    if ((j.type == JointType::Revolute || j.type == JointType::Spherical) && !j.prescribed)
+    const bool axial = j.type == JointType::Revolute || j.type == JointType::Prismatic;
+    if (axial && j.prescribed)
+      k.push_back(j.name + (j.prescribed->profile == PrescribedMotion::Profile::Deploy
+                                ? ".prescribed_travel"
+                                : ".prescribed_rate"));
+    else if (axial) k.push_back(j.name + ".rate");
+    if ((axial || j.type == JointType::Spherical) && !j.prescribed)
       k.push_back(j.name + ".stiffness");
     if (j.type == JointType::Free)
       for (const char* c : {".wx", ".wy", ".wz"}) k.push_back(j.name + c);
@@ -151,23 +155,31 @@ Knob parse_knob(const System& s, const std::string& spec) {
   if (joint >= 0) {
     const Joint& J = s.joints[static_cast<std::size_t>(joint)];
     k.index = joint;
-    if (what == "stiffness" && (J.type == JointType::Revolute || J.type == JointType::Spherical) &&
-        !J.prescribed) {
+    const bool prismatic = J.type == JointType::Prismatic;
+    const bool axial = J.type == JointType::Revolute || prismatic;
+    const bool deploy = J.prescribed && J.prescribed->profile == PrescribedMotion::Profile::Deploy;
+    if (what == "stiffness" && (axial || J.type == JointType::Spherical) && !J.prescribed) {
       k.kind = Knob::Kind::JointStiffness;
-      k.unit = "N m/rad";
+      k.unit = prismatic ? "N/m" : "N m/rad";
       k.description = "the spring stiffness of joint '" + name + "'";
       return k;
     }
-    if (what == "rate" && J.type == JointType::Revolute && !J.prescribed) {
+    if (what == "rate" && axial && !J.prescribed) {
       k.kind = Knob::Kind::JointRate;
-      k.unit = "rad/s";
+      k.unit = prismatic ? "m/s" : "rad/s";
       k.description = "the initial rate of joint '" + name + "'";
       return k;
     }
-    if (what == "prescribed_rate" && J.prescribed) {
+    if (what == "prescribed_rate" && J.prescribed && !deploy) {
       k.kind = Knob::Kind::PrescribedRate;
-      k.unit = "rad/s";
+      k.unit = prismatic ? "m/s" : "rad/s";
       k.description = "the final prescribed rate of joint '" + name + "'";
+      return k;
+    }
+    if (what == "prescribed_travel" && deploy) {
+      k.kind = Knob::Kind::PrescribedTravel;
+      k.unit = prismatic ? "m" : "rad";
+      k.description = "the prescribed deployment travel of joint '" + name + "'";
       return k;
     }
     if ((what == "wx" || what == "wy" || what == "wz") && J.type == JointType::Free) {
@@ -221,12 +233,16 @@ System apply_knob(const System& s, const Knob& k, double v) {
       c.joints[static_cast<std::size_t>(k.index)].stiffness = v;
       break;
     case Knob::Kind::JointRate:
-      if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
+      if (std::abs(v) > 1e4) bad("at most 1e4 " + k.unit);
       c.joints[static_cast<std::size_t>(k.index)].rate0 = v;
       break;
     case Knob::Kind::PrescribedRate:
-      if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");
+      if (std::abs(v) > 1e4) bad("at most 1e4 " + k.unit);
       c.joints[static_cast<std::size_t>(k.index)].prescribed->rate = v;
+      break;
+    case Knob::Kind::PrescribedTravel:
+      if (std::abs(v) > (k.unit == "m" ? 1e6 : 1e4)) bad(k.unit == "m" ? "at most 1e6 m" : "at most 1e4 rad");
+      c.joints[static_cast<std::size_t>(k.index)].prescribed->travel = v;
       break;
     case Knob::Kind::BaseRate:
       if (std::abs(v) > 1e4) bad("at most 1e4 rad/s");

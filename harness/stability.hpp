@@ -138,9 +138,12 @@ struct Classified {
 Classified classify(const CellFacts& facts, const ClassLimits& limits);
 
 // The swept scene parameter (`--vary`):
-//   <joint>.stiffness         a revolute or spherical joint's spring stiffness, N m/rad
-//   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s
-//   <joint>.prescribed_rate   a prescribed joint's final rate Omega_s, rad/s
+//   <joint>.stiffness         a revolute, spherical or prismatic joint's spring stiffness, N m/rad
+//                             (prismatic N/m)
+//   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s; a
+//                             prismatic joint's, m/s
+//   <joint>.prescribed_rate   a prescribed spin-up's final rate Omega_s, rad/s (prismatic m/s)
+//   <joint>.prescribed_travel a prescribed deployment's travel, rad (prismatic m)
 //   <joint>.wx, .wy, .wz      a free joint's initial angular velocity component w_NB_B, rad/s
 //                             (how close a tumbling base passes to an Euler-angle lock)
 //   <body>.modal_stiffness    a flexible body's modal stiffness K, scaled by the value
@@ -151,7 +154,7 @@ Classified classify(const CellFacts& facts, const ClassLimits& limits);
 //   links                     the number of links of chainN (the scene must be a chainN)
 struct Knob {
   enum class Kind { JointStiffness, JointRate, PrescribedRate, BaseRate, ModalStiffness, ModalDamping,
-                    Duration, Links };
+                    Duration, Links, PrescribedTravel };  // (part files store the number: append)
   Kind kind = Kind::Duration;
   std::string spec;         // as given: "hinge.stiffness"
   int index = -1;           // the joint or body

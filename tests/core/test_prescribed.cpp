@@ -39,6 +39,34 @@ TEST_CASE("spin-up profile: velocity and acceleration are the angle's derivative
   CHECK(p.breakpoints() == std::vector<double>{15.0});
 }
 
+TEST_CASE("deploy profile: rest to rest through the travel, derivatives consistent, C^2 across T") {
+  PrescribedMotion p;
+  p.profile = PrescribedMotion::Profile::Deploy;
+  p.travel = 1.5;
+  p.ramp_time = 20;
+  p.rate = 99;  // not used by deploy
+  const double h = 1e-4;
+  for (double t : {0.3, 2.0, 7.5, 10.0, 13.0, 19.9, 20.1, 35.0}) {
+    INFO("t = " << t);
+    CHECK(std::abs((p.angle(t + h) - p.angle(t - h)) / (2 * h) - p.velocity(t)) <= 1e-8);
+    CHECK(std::abs((p.velocity(t + h) - p.velocity(t - h)) / (2 * h) - p.accel(t)) <= 1e-8);
+  }
+  // From rest at 0 to rest at travel at T, on both sides of T; the largest rate 2 travel / T at
+  // T/2, and the motion's mean rate travel / T.
+  const double T = p.ramp_time, e = 1e-9;
+  CHECK(p.angle(0) == 0);
+  CHECK(p.velocity(0) == 0);
+  CHECK(p.accel(0) == 0);
+  CHECK(std::abs(p.angle(T) - 1.5) <= 1e-15);
+  CHECK(std::abs(p.angle(T - e) - 1.5) <= 1e-12);
+  CHECK(std::abs(p.velocity(T - e)) <= 1e-10);
+  CHECK(std::abs(p.accel(T - e)) <= 1e-9);
+  CHECK(p.velocity(T + 1) == 0);
+  CHECK(std::abs(p.velocity(T / 2) - 2 * 1.5 / 20) <= 1e-15);
+  CHECK(std::abs(p.angle(T / 2) - 0.75) <= 1e-15);
+  CHECK(p.breakpoints() == std::vector<double>{20.0});
+}
+
 TEST_CASE("a prescribed joint has no degree of freedom, its time T is a breakpoint, its torque a column") {
   System s;
   s.bodies.resize(2);
