@@ -27,20 +27,20 @@ OutputLayout::OutputLayout(const System& s)
     const Joint& J = s.joints[j];
     if (J.type == JointType::Revolute) {
       joint_[j] = static_cast<int>(columns_.size());
-      push({J.name + ".angle", ColumnKind::RevoluteAngle, J.child, ji, 0, "rad"});
-      push({J.name + ".rate", ColumnKind::RevoluteRate, J.child, ji, 0, "rad/s"});
+      push({J.name + ".angle", ColumnKind::JointCoordinate, J.child, ji, 0, "rad"});
+      push({J.name + ".rate", ColumnKind::JointRate, J.child, ji, 0, "rad/s"});
       if (J.prescribed) push({J.name + ".torque", ColumnKind::JointTorque, J.child, ji, 0, "N m"});
     } else if (J.type == JointType::Prismatic) {
       joint_[j] = static_cast<int>(columns_.size());
-      push({J.name + ".position", ColumnKind::PrismaticPosition, J.child, ji, 0, "m"});
-      push({J.name + ".rate", ColumnKind::PrismaticRate, J.child, ji, 0, "m/s"});
+      push({J.name + ".position", ColumnKind::JointCoordinate, J.child, ji, 0, "m"});
+      push({J.name + ".rate", ColumnKind::JointRate, J.child, ji, 0, "m/s"});
       if (J.prescribed) push({J.name + ".force", ColumnKind::JointTorque, J.child, ji, 0, "N"});
     } else if (J.type == JointType::Universal) {
       joint_[j] = static_cast<int>(columns_.size());
       for (int i = 0; i < 2; ++i)
-        push({J.name + ".angle" + "12"[i], ColumnKind::UniversalAngle, J.child, ji, i, "rad"});
+        push({J.name + ".angle" + "12"[i], ColumnKind::JointCoordinate, J.child, ji, i, "rad"});
       for (int i = 0; i < 2; ++i)
-        push({J.name + ".rate" + "12"[i], ColumnKind::UniversalRate, J.child, ji, i, "rad/s"});
+        push({J.name + ".rate" + "12"[i], ColumnKind::JointRate, J.child, ji, i, "rad/s"});
     } else if (J.type == JointType::Spherical) {
       joint_[j] = static_cast<int>(columns_.size());
       for (int i = 0; i < 3; ++i)

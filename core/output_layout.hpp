@@ -36,14 +36,14 @@ enum class ColumnKind {
   Time,            // t
   BodyW,           // <body>.wx/wy/wz       component 0..2
   BodyQ,           // <body>.qw/qx/qy/qz    component 0..3
-  RevoluteAngle,   // <joint>.angle
-  RevoluteRate,    // <joint>.rate
+  // A joint coordinate and its rate, whatever the joint type: the unit says what it is ("rad" an
+  // angle, "m" a length; "rad/s", "m/s"), component the coordinate's index in its joint
+  // (revolute .angle/.rate 0; prismatic .position/.rate 0; universal .angle1/.rate1 0, .angle2/
+  // .rate2 1). The harness groups and scales columns by kind and unit, never by joint type.
+  JointCoordinate,
+  JointRate,
   JointTorque,     // <joint>.torque       (prescribed revolute joints; .force, prismatic)
   SphericalW,      // <joint>.wx/wy/wz      component 0..2
-  PrismaticPosition,  // <joint>.position
-  PrismaticRate,      // <joint>.rate      (m/s)
-  UniversalAngle,     // <joint>.angle1/angle2   component 0..1
-  UniversalRate,      // <joint>.rate1/rate2     component 0..1
   Modal,           // <body>.<mode>         component = mode index
   ModalRate,       // <body>.<mode>_rate    component = mode index
   MomentumH,       // H
@@ -55,7 +55,7 @@ struct Column {
   std::string name;
   ColumnKind kind = ColumnKind::Extra;
   int body = -1;       // System::bodies index (BodyW, BodyQ, Modal, ModalRate)
-  int joint = -1;      // System::joints index (RevoluteAngle, RevoluteRate, SphericalW)
+  int joint = -1;      // System::joints index (JointCoordinate, JointRate, JointTorque, SphericalW)
   int component = -1;  // see ColumnKind
   std::string unit;    // SI unit of the values ("rad/s", "" for pure numbers)
 };

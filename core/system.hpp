@@ -36,9 +36,14 @@
 //              axis (N; stiffness N/m, neutral_angle the spring's rest position in m, damping N s/m);
 //              V = stiffness (position - neutral_angle)^2 / 2.
 //   universal  per axis k = 1, 2: tau_k = -stiffness_k (angle_k - neutral_k) - damping_k rate_k +
-//              motor_k(t), about axis k (axis 1: stiffness, neutral_angle, damping; axis 2:
-//              stiffness2, neutral_angle2, damping2; motor_universal holds [motor_1, motor_2]);
-//              V = sum_k stiffness_k (angle_k - neutral_k)^2 / 2.
+//              motor_k(t), the generalised force of angle k (axis 1: stiffness, neutral_angle,
+//              damping; axis 2: stiffness2, neutral_angle2, damping2; motor_universal holds
+//              [motor_1, motor_2]); V = sum_k stiffness_k (angle_k - neutral_k)^2 / 2, so that
+//              tau_k = -dV/dangle_k for the spring. The torque on the child is the T in the plane
+//              of the two current axes a_1, a_2 with T . a_k = tau_k: for perpendicular axes
+//              T = tau_1 a_1 + tau_2 a_2, the torque about each axis; for oblique ones the dual
+//              basis of (a_1, a_2) (with tau_k as torques about the axes the spring's energy
+//              would not balance).
 //   spherical  tau_C = -stiffness phi - damping w_PC_C + motor(t) (components in the child frame),
 //              where phi is the rotation vector of q_J (log map); V = stiffness |phi|^2 / 2.
 //              (phi is an eigenvector of the rotation-vector Jacobian, so -stiffness phi is exactly

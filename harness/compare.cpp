@@ -39,6 +39,12 @@ struct Quantity {
 std::vector<Quantity> pinned_quantities(const System& s) {
   const OutputLayout layout(s);
   std::vector<Quantity> q;
+  // Does the column's joint have more than one coordinate column of this kind?
+  auto multi = [&layout](const Column& c) {
+    int n = 0;
+    for (const Column& d : layout.columns()) n += d.kind == c.kind && d.joint == c.joint;
+    return n > 1;
+  };
   for (const Column& c : layout.columns()) {
     const std::string body = c.body >= 0 ? s.bodies[static_cast<std::size_t>(c.body)].name : "";
     const std::string joint = c.joint >= 0 ? s.joints[static_cast<std::size_t>(c.joint)].name : "";
@@ -49,20 +55,18 @@ std::vector<Quantity> pinned_quantities(const System& s) {
           q.push_back({body + ".attitude", "attitude", "",
                        {body + ".qw", body + ".qx", body + ".qy", body + ".qz"}, true});
         break;
-      case ColumnKind::RevoluteAngle: q.push_back({c.name, "angle", "", {c.name}, false}); break;
-      case ColumnKind::RevoluteRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
+      // Joint coordinates by their unit: angles ("angle") and lengths ("position"); a joint with
+      // more than one coordinate (a universal joint) also answers to "<joint>.angle" and
+      // "<joint>.rate" for all of them.
+      case ColumnKind::JointCoordinate:
+        q.push_back({c.name, c.unit == "m" ? "position" : "angle",
+                     multi(c) ? joint + (c.unit == "m" ? ".position" : ".angle") : "", {c.name}, false});
+        break;
+      case ColumnKind::JointRate:
+        q.push_back({c.name, "rate", multi(c) ? joint + ".rate" : "", {c.name}, false});
+        break;
       case ColumnKind::JointTorque: q.push_back({c.name, "torque", "", {c.name}, false}); break;
       case ColumnKind::SphericalW: q.push_back({c.name, "rate", joint + ".w", {c.name}, false}); break;
-      case ColumnKind::PrismaticPosition:
-        q.push_back({c.name, "position", "", {c.name}, false});
-        break;
-      case ColumnKind::PrismaticRate: q.push_back({c.name, "rate", "", {c.name}, false}); break;
-      case ColumnKind::UniversalAngle:
-        q.push_back({c.name, "angle", joint + ".angle", {c.name}, false});
-        break;
-      case ColumnKind::UniversalRate:
-        q.push_back({c.name, "rate", joint + ".rate", {c.name}, false});
-        break;
       case ColumnKind::Modal:
       case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
       case ColumnKind::MomentumH: q.push_back({"H", "H", "", {"H"}, false}); break;

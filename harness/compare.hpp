@@ -24,8 +24,9 @@
 //
 // Tolerances come from the scene's compare block. The key looked up for a quantity, first match
 // wins: the quantity itself ("main.wx", "main.attitude", "H.drift"), then its vector ("main.w",
-// "hinge1.w" for a spherical joint's wx/wy/wz), then its group ("w", "rate", "angle", "attitude",
-// "modal", "H", "E"), then the scene's default (System::compare.default_tolerance). Drift checks
+// "hinge1.w" for a spherical joint's wx/wy/wz; "gimbal.angle", "gimbal.rate" for a universal
+// joint's two), then its group ("w", "rate", "angle", "position" (a prismatic joint's), "torque",
+// "attitude", "modal", "H", "E"), then the scene's default (System::compare.default_tolerance). Drift checks
 // look up "H.drift" / "E.drift" only and default to atol = rtol = 1e-9. Exclusions match the same
 // keys and carry their reason into every table.
 //
@@ -108,7 +109,8 @@ const char* to_string(CheckStatus s);
 
 struct Check {
   std::string quantity;   // "main.wx", "main.attitude", "H", "H.drift", "run", "t"
-  std::string group;      // "w", "attitude", "angle", "rate", "modal", "H", "E", "extra",
+  std::string group;      // "w", "attitude", "angle", "position", "rate", "torque", "modal", "H",
+                          // "E", "extra",
                           // "H.drift", "E.drift", "run", "t"
   std::string a, b;       // engine labels: a compared with the reference b; b empty for one engine
   std::string tolerance_key;  // scene key the tolerance came from, or "default"

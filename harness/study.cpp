@@ -219,15 +219,13 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
                      static_cast<int>(c + 3)};
         q.attitude = true;
         break;
-      case ColumnKind::RevoluteAngle:
-      case ColumnKind::UniversalAngle: break;
-      case ColumnKind::RevoluteRate:
-      case ColumnKind::UniversalRate:
+      // Angles: their travel (below). Lengths and speeds have their own scales: a slider's
+      // position against its own largest value, the rates of lengths (m/s) together.
+      case ColumnKind::JointCoordinate:
+        if (col.unit == "m") group[c] = "position:" + std::to_string(col.joint);
+        break;
+      case ColumnKind::JointRate: group[c] = col.unit == "m/s" ? "length_rate" : "rate"; break;
       case ColumnKind::SphericalW: group[c] = "rate"; break;
-      // Lengths and speeds have their own scales: a boom's position against its own largest
-      // value, the prismatic rates (m/s) together.
-      case ColumnKind::PrismaticPosition: group[c] = "position:" + std::to_string(col.joint); break;
-      case ColumnKind::PrismaticRate: group[c] = "prismatic_rate"; break;
       case ColumnKind::JointTorque: group[c] = "torque"; break;
       case ColumnKind::Modal: group[c] = "modal:" + std::to_string(col.body); break;
       case ColumnKind::ModalRate: group[c] = "modal_rate:" + std::to_string(col.body); break;
@@ -295,8 +293,7 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
   for (Quantity& q : quantities_) {
     const Column& col = cols[static_cast<std::size_t>(q.columns[0])];
     double travel = 0;
-    if ((col.kind == ColumnKind::RevoluteAngle || col.kind == ColumnKind::UniversalAngle) &&
-        reference.rows() > 0) {
+    if (col.kind == ColumnKind::JointCoordinate && col.unit == "rad" && reference.rows() > 0) {
       const double a0 = reference.row(0)[q.columns[0]];
       for (std::size_t k = 0; k < reference.rows(); ++k)
         travel = std::max(travel, std::abs(reference.row(k)[q.columns[0]] - a0));

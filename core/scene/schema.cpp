@@ -366,7 +366,8 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "compare.tolerances.<quantity>", .type = Map, .default_value = "atol 1e-8, rtol 1e-8",
  .noun = "a tolerance",
  .doc = "`default`: the tolerance of every quantity not named; any other key names a quantity (a "
-        "column such as `main.wx`, or a class: `attitude`, `H`, `E`, `H.drift`, `E.drift`) and "
+        "column such as `main.wx`, a joint's columns such as `gimbal.angle`, or a class: `angle`, "
+        "`position`, `rate`, `torque`, `w`, `attitude`, `modal`, `H`, `E`, `H.drift`, `E.drift`) and "
         "takes what it does not give from `default`."},
 {.path = "compare.tolerances.<quantity>.atol", .type = Number, .default_value = "from default",
  .doc = "Absolute tolerance, >= 0."},

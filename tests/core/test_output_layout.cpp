@@ -65,7 +65,7 @@ TEST_CASE("the pinned columns: t, bodies (w then q), revolute and spherical join
   CHECK(c[static_cast<std::size_t>(layout.body_w(1)) + 1].body == 1);
   CHECK(c[static_cast<std::size_t>(layout.body_w(1)) + 1].unit == "rad/s");
   CHECK(c[static_cast<std::size_t>(layout.body_q(2))].name == "ball.qw");
-  CHECK(c[static_cast<std::size_t>(layout.joint_first(1))].kind == ColumnKind::RevoluteAngle);
+  CHECK(c[static_cast<std::size_t>(layout.joint_first(1))].kind == ColumnKind::JointCoordinate);
   CHECK(c[static_cast<std::size_t>(layout.joint_first(2)) + 2].name == "ballj.wz");
   CHECK(c[static_cast<std::size_t>(layout.joint_first(2)) + 2].joint == 2);
   CHECK(layout.joint_first(3) == -1);  // a fixed joint has no columns
