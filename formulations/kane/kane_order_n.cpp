@@ -36,7 +36,9 @@
 //     Ia_c = I^A_c - U_c D_c^-1 U_c^T,  Za_c = Z_c - U_c D_c^-1 g_c
 //   and moved to Ok (moment + e x force, e = p_Oc - p_Ok; inertia X^T Ia X) they add to k's own:
 //     Iww += Iww' - Iwv' E + E Iwv'^T - E Ivv' E,  Iwv += Iwv' + E Ivv',  Ivv += Ivv',  E = [e x]
-//   (the transfer of [KLL] Sec. 3.4 for an articulated inertia).  A fixed joint passes I^A and Z
+//   (the transfer of [KLL] Sec. 3.4 for an articulated inertia).  A joint speed with a partial
+//   velocity at Ok (prismatic: S_c = (0, V_c)) enters S_c the same way, and the increment
+//   dA_c = X_c dA_k + S_c u_c' then has da_c += V_c u_c'.  A fixed joint passes I^A and Z
 //   unchanged.  Base (free joint, S_0 invertible, no hinge): S_0^T (Z_0 - I^A_0 dA_0) = 0 gives
 //   I^A_0 dA_0 = Z_0, a 6 x 6 solve; then w_NB_B' = R_NB^T dalpha_0, v_NBo_N' = da_0 (the base's
 //   remainder accelerations are zero).  Forward, base first: the u_c' above, then dA_c.
@@ -61,6 +63,7 @@
 
 // Bibliography: README.md ([KLL], [Feath], [Ban93]).
 #include "formulations/kane/kane_engine.hpp"
+#include "formulations/kane/joints/joint_unit.hpp"
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
@@ -166,6 +169,42 @@ void KaneEngine::articulated_pass(double t, const double* x) {
       Ivv.noalias() -= K_F * a.U_F_N.transpose();
       Z_M.noalias() -= K_M * a.g;
       Z_F.noalias() -= K_F * a.g;
+    } else if (n.nuj > 0) {
+      // Every other joint (its unit's W_N, V_N: prismatic, universal), S = (W, V) with m = nuj
+      // columns: U = I^A S, D = S^T U, g = tau + S^T Z (README.md "Joint units"); the unused
+      // columns of U, D^-1 and g stay zero, so the 3 x 3 products below are the m-column ones.
+      const int m = n.nuj;
+      const Matrix3d& W = w.W_N;
+      const Matrix3d& V = w.V_N;
+      for (int c = 0; c < m; ++c) {
+        a.U_M_N.col(c).noalias() = a.Iww_N * W.col(c);
+        a.U_F_N.col(c).noalias() = a.Iwv_N.transpose() * W.col(c);
+        if (n.slides) {
+          a.U_M_N.col(c).noalias() += a.Iwv_N * V.col(c);
+          a.U_F_N.col(c).noalias() += a.Ivv_N * V.col(c);
+        }
+      }
+      Matrix3d D = Matrix3d::Identity();
+      for (int i = 0; i < m; ++i) {
+        for (int c = 0; c < m; ++c)
+          D(i, c) = W.col(i).dot(a.U_M_N.col(c)) + V.col(i).dot(a.U_F_N.col(c));
+        a.g(i) = W.col(i).dot(a.Z_M_N) + V.col(i).dot(a.Z_F_N);
+      }
+      if (n.hinge_load) n.unit->hinge(n, system_.joints[kk], t, x, x + n_q_, a.g.data());
+      // D padded with the identity beyond m: its inverse is D_m^-1 padded likewise; then zero the
+      // padding so that U D^-1 keeps m columns.
+      if (!symmetric_inverse(D, a.D_inv))
+        throw RunFailure("kane", t, "articulated inertia",
+                         "not positive definite at joint '" + system_.joints[kk].name + "'");
+      for (int i = m; i < 3; ++i) a.D_inv(i, i) = 0;
+      Matrix3d K_M, K_F;
+      K_M.noalias() = a.U_M_N * a.D_inv;
+      K_F.noalias() = a.U_F_N * a.D_inv;
+      Iww.noalias() -= K_M * a.U_M_N.transpose();
+      Iwv.noalias() -= K_M * a.U_F_N.transpose();
+      Ivv.noalias() -= K_F * a.U_F_N.transpose();
+      Z_M.noalias() -= K_M * a.g;
+      Z_F.noalias() -= K_F * a.g;
     }
 
     // Moved to the parent's reference point Op and added to its sums.
@@ -227,6 +266,16 @@ void KaneEngine::articulated_solve(double t) {
       const Vector3d ud = a.D_inv * r;
       udot_.segment<3>(n.u0) = ud;
       a.dalpha_N.noalias() += w.W_N * ud;
+    } else if (n.nuj > 0) {  // u' = D^-1 (g - U^T dA), then dA += S u'
+      Vector3d r = a.g;
+      r.noalias() -= a.U_M_N.transpose() * a.dalpha_N;
+      r.noalias() -= a.U_F_N.transpose() * a.da_Ok_N;
+      const Vector3d ud = a.D_inv * r;
+      for (int i = 0; i < n.nuj; ++i) {
+        udot_(n.u0 + i) = ud(i);
+        a.dalpha_N += w.W_N.col(i) * ud(i);
+        if (n.slides) a.da_Ok_N += w.V_N.col(i) * ud(i);
+      }
     }
   }
 }

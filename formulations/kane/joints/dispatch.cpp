@@ -14,8 +14,9 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Spherical:
       return spherical_joint_unit();
     case JointType::Prismatic:
+      return prismatic_joint_unit();
     case JointType::Universal:
-      throw InputError("kane: prismatic and universal joints are not implemented yet");
+      throw InputError("kane: universal joints are not implemented yet");
     case JointType::Fixed:
       break;
   }
