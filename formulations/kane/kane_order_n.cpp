@@ -97,6 +97,54 @@ bool symmetric_inverse(const Matrix3d& D, Matrix3d& D_inv) {
   return true;
 }
 
+// Joint k's elimination for a joint the pass does not inline (prismatic, universal: its unit's
+// W_N, V_N; README.md "Joint units"): S = (W, V) with m = nuj columns, U = I^A S, D = S^T U,
+// g = tau + S^T Z; the unused columns of U, D^-1 and g stay zero.  Then I^A - U D^-1 U^T and
+// Z - U D^-1 g into Iww ... Z_F.  Out of line, so that articulated_pass's own branches compile
+// as they did without it.
+[[gnu::noinline]] void eliminate_unit_joint(const Node& n, const NodeWork& w, const Joint& J,
+                                            double t, const double* x, const double* u,
+                                            ArticulatedWork& a, Matrix3d& Iww, Matrix3d& Iwv,
+                                            Matrix3d& Ivv, Vector3d& Z_M, Vector3d& Z_F) {
+  const int m = n.nuj;
+  const Matrix3d& W = w.W_N;
+  const Matrix3d& V = w.V_N;
+  for (int c = 0; c < m; ++c) {
+    a.U_M_N.col(c).noalias() = a.Iww_N * W.col(c);
+    a.U_F_N.col(c).noalias() = a.Iwv_N.transpose() * W.col(c);
+    if (n.slides) {
+      a.U_M_N.col(c).noalias() += a.Iwv_N * V.col(c);
+      a.U_F_N.col(c).noalias() += a.Ivv_N * V.col(c);
+    }
+  }
+  Matrix3d D = Matrix3d::Identity();
+  for (int i = 0; i < m; ++i) {
+    for (int c = 0; c < m; ++c)
+      D(i, c) = W.col(i).dot(a.U_M_N.col(c)) + V.col(i).dot(a.U_F_N.col(c));
+    a.g(i) = W.col(i).dot(a.Z_M_N) + V.col(i).dot(a.Z_F_N);
+  }
+  if (n.hinge_load) n.unit->hinge(n, J, t, x, u, a.g.data());
+  // D padded with the identity beyond m: its inverse is D_m^-1 padded likewise (then zeroed).
+  if (!symmetric_inverse(D, a.D_inv))
+    throw RunFailure("kane", t, "articulated inertia",
+                     "not positive definite at joint '" + J.name + "'");
+  for (int i = m; i < 3; ++i) a.D_inv(i, i) = 0;
+  // Rank-m updates, column by column (K = U D^-1).
+  for (int c = 0; c < m; ++c) {
+    Vector3d K_M = Vector3d::Zero(), K_F = Vector3d::Zero();
+    for (int j = 0; j < m; ++j) {
+      K_M += a.U_M_N.col(j) * a.D_inv(j, c);
+      K_F += a.U_F_N.col(j) * a.D_inv(j, c);
+    }
+    const Vector3d U_M = a.U_M_N.col(c), U_F = a.U_F_N.col(c);
+    Iww.noalias() -= K_M * U_M.transpose();
+    Iwv.noalias() -= K_M * U_F.transpose();
+    Ivv.noalias() -= K_F * U_F.transpose();
+    Z_M -= K_M * a.g(c);
+    Z_F -= K_F * a.g(c);
+  }
+}
+
 }  // namespace
 
 // q, u, alpha_t, a_t, loads => per node I^A (about Ok), Z, and for joints U, D^-1, g.
@@ -169,42 +217,8 @@ void KaneEngine::articulated_pass(double t, const double* x) {
       Ivv.noalias() -= K_F * a.U_F_N.transpose();
       Z_M.noalias() -= K_M * a.g;
       Z_F.noalias() -= K_F * a.g;
-    } else if (n.nuj > 0) {
-      // Every other joint (its unit's W_N, V_N: prismatic, universal), S = (W, V) with m = nuj
-      // columns: U = I^A S, D = S^T U, g = tau + S^T Z (README.md "Joint units"); the unused
-      // columns of U, D^-1 and g stay zero, so the 3 x 3 products below are the m-column ones.
-      const int m = n.nuj;
-      const Matrix3d& W = w.W_N;
-      const Matrix3d& V = w.V_N;
-      for (int c = 0; c < m; ++c) {
-        a.U_M_N.col(c).noalias() = a.Iww_N * W.col(c);
-        a.U_F_N.col(c).noalias() = a.Iwv_N.transpose() * W.col(c);
-        if (n.slides) {
-          a.U_M_N.col(c).noalias() += a.Iwv_N * V.col(c);
-          a.U_F_N.col(c).noalias() += a.Ivv_N * V.col(c);
-        }
-      }
-      Matrix3d D = Matrix3d::Identity();
-      for (int i = 0; i < m; ++i) {
-        for (int c = 0; c < m; ++c)
-          D(i, c) = W.col(i).dot(a.U_M_N.col(c)) + V.col(i).dot(a.U_F_N.col(c));
-        a.g(i) = W.col(i).dot(a.Z_M_N) + V.col(i).dot(a.Z_F_N);
-      }
-      if (n.hinge_load) n.unit->hinge(n, system_.joints[kk], t, x, x + n_q_, a.g.data());
-      // D padded with the identity beyond m: its inverse is D_m^-1 padded likewise; then zero the
-      // padding so that U D^-1 keeps m columns.
-      if (!symmetric_inverse(D, a.D_inv))
-        throw RunFailure("kane", t, "articulated inertia",
-                         "not positive definite at joint '" + system_.joints[kk].name + "'");
-      for (int i = m; i < 3; ++i) a.D_inv(i, i) = 0;
-      Matrix3d K_M, K_F;
-      K_M.noalias() = a.U_M_N * a.D_inv;
-      K_F.noalias() = a.U_F_N * a.D_inv;
-      Iww.noalias() -= K_M * a.U_M_N.transpose();
-      Iwv.noalias() -= K_M * a.U_F_N.transpose();
-      Ivv.noalias() -= K_F * a.U_F_N.transpose();
-      Z_M.noalias() -= K_M * a.g;
-      Z_F.noalias() -= K_F * a.g;
+    } else if (n.nuj > 0) {  // every other joint, by its unit's W_N and V_N
+      eliminate_unit_joint(n, w, system_.joints[kk], t, x, x + n_q_, a, Iww, Iwv, Ivv, Z_M, Z_F);
     }
 
     // Moved to the parent's reference point Op and added to its sums.
@@ -267,14 +281,18 @@ void KaneEngine::articulated_solve(double t) {
       udot_.segment<3>(n.u0) = ud;
       a.dalpha_N.noalias() += w.W_N * ud;
     } else if (n.nuj > 0) {  // u' = D^-1 (g - U^T dA), then dA += S u'
-      Vector3d r = a.g;
-      r.noalias() -= a.U_M_N.transpose() * a.dalpha_N;
-      r.noalias() -= a.U_F_N.transpose() * a.da_Ok_N;
-      const Vector3d ud = a.D_inv * r;
-      for (int i = 0; i < n.nuj; ++i) {
-        udot_(n.u0 + i) = ud(i);
-        a.dalpha_N += w.W_N.col(i) * ud(i);
-        if (n.slides) a.da_Ok_N += w.V_N.col(i) * ud(i);
+      const int m = n.nuj;
+      double r[3];
+      for (int i = 0; i < m; ++i)
+        r[i] = a.g(i) - a.U_M_N.col(i).dot(a.dalpha_N) - a.U_F_N.col(i).dot(a.da_Ok_N);
+      for (int i = 0; i < m; ++i) {
+        double ud = 0;
+        for (int j = 0; j < m; ++j) ud += a.D_inv(i, j) * r[j];
+        udot_(n.u0 + i) = ud;
+      }
+      for (int i = 0; i < m; ++i) {
+        a.dalpha_N += w.W_N.col(i) * udot_(n.u0 + i);
+        if (n.slides) a.da_Ok_N += w.V_N.col(i) * udot_(n.u0 + i);
       }
     }
   }

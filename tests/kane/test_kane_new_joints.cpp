@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include "formulations/kane/kane_engine.hpp"
+#include "tests/kane/kane_flex_systems.hpp"
 #include "tests/kane/kane_systems.hpp"
 #include "tests/support/close.hpp"
 
@@ -474,6 +475,51 @@ TEST_CASE("kane new joints: the order-N solver and the composite solver give the
     INFO("max |xdot_composite - xdot_order_n| = " << diff << " (scale " << scale << ")");
     CHECK(diff <= 1e-12 * scale);
   }
+}
+
+TEST_CASE("kane new joints: flexible bodies on a slider and a gimbal (at their frames) keep H and E") {
+  // A flexible hub (free) -- prismatic -- a flexible boom -- universal -- a rigid tip; the joints
+  // at the flexible bodies' frames (node -1), springs and K only (energy conserving).
+  std::mt19937 g(21);
+  System s;
+  s.name = "flex_slider_gimbal";
+  s.bodies.push_back(random_flex_body("hub", 5, 2, g, 1.0, 0.3, 0.3, 60.0));
+  s.bodies.push_back(random_flex_body("boom", 4, 3, g, 0.5, 0.3, 0.3, 40.0));
+  s.bodies.push_back(rigid_body("tip", 1.5, turned_inertia(0.05, 0.08, 0.1, quat_from_axis(1.0, {2, 1, 0}))));
+  s.joints.push_back(free_joint("base", 0, Vector3d(0.2, -0.1, 0.8)));
+  Joint rail = joint("rail", JointType::Prismatic, 0, 1, {0.8, 0.2, -0.1}, {-0.3, 0.1, 0.05});
+  rail.axis_P = Vector3d(1, 0.3, -0.2);
+  rail.stiffness = 25;
+  rail.angle0 = 0.2;
+  rail.rate0 = 0.5;
+  s.joints.push_back(rail);
+  Joint cardan = joint("cardan", JointType::Universal, 1, 2, {0.4, -0.1, 0.2}, {-0.2, 0.0, 0.1});
+  cardan.axis_P = Vector3d(0, 1, 0);
+  cardan.axis2_P = Vector3d(1, 0, 0.2);
+  cardan.stiffness = 3;
+  cardan.stiffness2 = 2;
+  cardan.angle0 = 0.5;
+  cardan.rate2_0 = 0.7;
+  s.joints.push_back(cardan);
+  kane::KaneEngine e(s, {});
+  std::vector<double> x = packed(e, flex_state(s, 0.05, 0.3));
+  const std::vector<std::string>& names = e.columns();
+  std::vector<double> row(names.size());
+  const auto iE = std::find(names.begin(), names.end(), "E") - names.begin();
+  auto energy = [&](double t, const std::vector<double>& xx) {
+    e.output_row(t, xx.data(), row.data());
+    return row[static_cast<std::size_t>(iE)];
+  };
+  const double E0 = energy(0, x);
+  const Vector3d H0 = e.angular_momentum_N(x.data());
+  double dE = 0, dH = 0;
+  rk4(e, x, 0.0, 5e-4, 4000, [&](double t, const std::vector<double>& xx) {
+    dE = std::max(dE, std::abs(energy(t, xx) - E0));
+    dH = std::max(dH, (e.angular_momentum_N(xx.data()) - H0).norm());
+  });
+  INFO("|E - E0| / E0 = " << dE / E0 << ", |H - H0| / |H0| = " << dH / H0.norm());
+  CHECK(dE <= 1e-9 * E0);
+  CHECK(dH <= 1e-9 * H0.norm());
 }
 
 TEST_CASE("kane new joints: refused where the engine does not take them") {
