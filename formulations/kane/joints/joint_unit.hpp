@@ -97,6 +97,13 @@ void scalar_joint_pack(const Node& n, const TreeState& s, const TreeState::Joint
 void scalar_joint_accel(const Node& n, const NodeWork& w, const Eigen::VectorXd& udot,
                         TreeAccel& a);
 double scalar_joint_spring_energy(const Node& n, const Joint& J, const double* x);
+// Labels "<joint><position>" and "<joint>.rate"; output columns through `write` (RowWriter::
+// revolute or prismatic), and a prescribed joint's load.
+void scalar_joint_labels(const Node& n, int n_q, const std::string& joint, const char* position,
+                         std::vector<std::string>& out);
+void scalar_joint_output(const Node& n, const NodeWork& w, double load, const double* x,
+                         const double* u, void (RowWriter::*write)(int, double, double),
+                         RowWriter& out);
 
 const JointUnit& free_joint_unit();
 const JointUnit& revolute_joint_unit();

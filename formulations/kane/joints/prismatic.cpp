@@ -20,19 +20,12 @@ namespace {
 
 void labels(const Node& n, int n_q, const std::string& /*b*/, const std::string& j,
             std::vector<std::string>& out) {
-  if (n.prescribed) return;
-  out[static_cast<std::size_t>(n.q0)] = j + ".position";
-  out[static_cast<std::size_t>(n_q + n.u0)] = j + ".rate";
+  scalar_joint_labels(n, n_q, j, ".position", out);
 }
 
 void output(const Node& n, const NodeWork& w, double force, const double* x, const double* u,
             RowWriter& out) {
-  if (n.prescribed) {
-    out.prismatic(n.joint, w.pres_angle, w.pres_rate);
-    out.joint_torque(n.joint, force);
-  } else {
-    out.prismatic(n.joint, x[n.q0], u[n.u0]);
-  }
+  scalar_joint_output(n, w, force, x, u, &RowWriter::prismatic, out);
 }
 
 void build(const Joint& J, Node& n, const std::string& jname) {

@@ -37,23 +37,35 @@ double scalar_joint_spring_energy(const Node& n, const Joint& J, const double* x
   return 0.5 * J.stiffness * d * d;
 }
 
+void scalar_joint_labels(const Node& n, int n_q, const std::string& j, const char* position,
+                         std::vector<std::string>& out) {
+  if (n.prescribed) return;
+  out[static_cast<std::size_t>(n.q0)] = j + position;
+  out[static_cast<std::size_t>(n_q + n.u0)] = j + ".rate";
+}
+
+// A prescribed joint writes its profile's position and rate, then its load (torque or force).
+void scalar_joint_output(const Node& n, const NodeWork& w, double load, const double* x,
+                         const double* u, void (RowWriter::*write)(int, double, double),
+                         RowWriter& out) {
+  if (n.prescribed) {
+    (out.*write)(n.joint, w.pres_angle, w.pres_rate);
+    out.joint_torque(n.joint, load);
+  } else {
+    (out.*write)(n.joint, x[n.q0], u[n.u0]);
+  }
+}
+
 namespace {
 
 void labels(const Node& n, int n_q, const std::string& /*b*/, const std::string& j,
             std::vector<std::string>& out) {
-  if (n.prescribed) return;
-  out[static_cast<std::size_t>(n.q0)] = j + ".angle";
-  out[static_cast<std::size_t>(n_q + n.u0)] = j + ".rate";
+  scalar_joint_labels(n, n_q, j, ".angle", out);
 }
 
 void output(const Node& n, const NodeWork& w, double torque, const double* x, const double* u,
             RowWriter& out) {
-  if (n.prescribed) {
-    out.revolute(n.joint, w.pres_angle, w.pres_rate);
-    out.joint_torque(n.joint, torque);
-  } else {
-    out.revolute(n.joint, x[n.q0], u[n.u0]);
-  }
+  scalar_joint_output(n, w, torque, x, u, &RowWriter::revolute, out);
 }
 
 // The axis (unit, and along a coordinate axis of Jc when it is one: Node::axis_index) and the
