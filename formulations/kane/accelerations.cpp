@@ -14,6 +14,9 @@ namespace crossdyn::kane {
 //     (d/dt (R_NP Jl Psi eta') with R_NP' = [w_P x] R_NP);
 //   alpha_Jc = alpha_Jp + w_Jp x w_PC + sum W_r u_r'  (W_r fixed in Jp (revolute axis) or in Jc
 //     (spherical); either way d/dt(W_r) u_r sums to w_Jp x w_PC);
+//     A universal joint's second axis turns with the first angle: + a1' a2' W_1 x W_2
+//     (alpha_PC_t_N, joints/universal.cpp).  A sliding joint (prismatic) moves Ok in Jp:
+//     a_Ok += 2 w_Jp x v_PC + sum V_r u_r' (V_r fixed in Jp; [KL85] Sec. 2.8);
 //   alpha_C = alpha_Jc + w_C x w_m - R_NC (d/dt Jl) psi_Cj' + Wm eta_C''
 //     (w_m = -R_NC Jl Psi eta' with R_NC' = [w_C x] R_NC);
 //   a_Co = a_Ok + alpha_C x p_OkCo + w_C x (w_C x p_OkCo) + 2 w_C x v_m + Vm eta_C''.
@@ -59,6 +62,14 @@ void KaneEngine::propagate_accelerations(const double* udot, bool full) {
       }
     }
     alpha_C += w.w_NJp_N.cross(w.w_PC_N);
+    if (n.axis_rates) alpha_C += w.alpha_PC_t_N;  // the universal joint's a1' a2' W_1 x W_2
+    if (n.slides) {
+      // Ok moves in Jp with v_PC = sum V_r u_r, V_r fixed in Jp: 2 w_Jp x v_PC + sum V_r u_r'.
+      a_Ok += 2.0 * w.w_NJp_N.cross(w.v_PC_N);
+      if (n.prescribed) a_Ok += w.V_N.col(0) * w.pres_accel;
+      if (full)
+        for (int i = 0; i < n.nuj; ++i) a_Ok += w.V_N.col(i) * udot[n.u0 + i];
+    }
     // A prescribed joint's W_r theta''(t) is known: part of the remainder (and of the full)
     // acceleration, the "u_r' known function of time" of Kane and Levinson 1985, Sec. 6.1.
     if (n.prescribed) alpha_C += w.W_N.col(0) * w.pres_accel;

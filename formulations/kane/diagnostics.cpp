@@ -75,8 +75,8 @@ double KaneEngine::potential_energy(const double* x) const {
   for (const Node& n : nodes_) {
     if (!n.hinge_load) continue;
     const Joint& J = system_.joints[static_cast<std::size_t>(n.joint)];
-    if (J.stiffness == 0) continue;
-    V += n.unit->spring_energy(n, J.stiffness, J.neutral_angle, x);
+    if (J.stiffness == 0 && J.stiffness2 == 0) continue;
+    V += n.unit->spring_energy(n, J, x);
   }
   // Strain energy 1/2 eta^T K eta (docs/flexible-bodies.md "Energy").
   for (const Node& n : nodes_) {
@@ -287,6 +287,7 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
       q_J = q.normalized();
     }
+    if (n.unit->joint_quat) q_J = n.unit->joint_quat(n, x);  // the other joints' units
     // A prescribed base's parent is N (parent -1): its joint frame starts from the identity.
     Quaterniond q_NJp = n.parent >= 0 ? q_N[static_cast<std::size_t>(n.parent)] : Quaterniond::Identity();
     if (n.parent_attach) q_NJp = q_NJp * rot::from_rotation_vector(work_[k].rot_P.psi);

@@ -10,7 +10,8 @@ namespace crossdyn::kane {
 
 // ------------------------------------------------------------------------------------------------
 // Pass 6. subtree sums, hinge loads, modal stiffness and damping => f = F_r + F_r*|_{u'=0}.
-//   Twist part of speed r: W_r . M_k + V_r . F_k.  Base: f(w) = R_NB^T M_0 (W_r = b_r),
+//   Twist part of speed r: W_r . M_k + V_r . F_k (joint speeds: V_r = 0 but for a sliding joint,
+//   prismatic, where W_r = 0 and V_r = axis_N, so f_r = axis_N . F_k + F).  Base: f(w) = R_NB^T M_0 (W_r = b_r),
 //   f(v) = F_0 (V_r = n_r).  Joint speeds: f_r = W_r . M_k plus the hinge's own spring, damper
 //   and motor (the only speeds its action-reaction pair works on, README.md).
 //   Modal speed l of C, elastic part (paper Eq. (40), [KRB]):
@@ -56,7 +57,15 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
         f_.segment<3>(n.u0).noalias() =
             w.W_N.transpose() * w.M_sub_N + hinge_torque_spherical(n, t, x);
         break;
-      default:
+      case JointType::Free:  // above
+        break;
+      default:  // every other joint: f_r = W_r . M_k + V_r . F_k + its unit's hinge forces
+        for (int i = 0; i < n.nuj; ++i) {
+          f_(n.u0 + i) = w.W_N.col(i).dot(w.M_sub_N);
+          if (n.slides) f_(n.u0 + i) += w.V_N.col(i).dot(w.F_sub_N);
+        }
+        if (n.nuj > 0 && n.hinge_load)
+          n.unit->hinge(n, system_.joints[k], t, x, x + n_q_, f_.data() + n.u0);
         break;
     }
     if (n.nm == 0) continue;
@@ -90,14 +99,17 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
 // Sec. 6.1), F_r + F_r* + tau = 0, where the speed's partial velocities move the subtree S(k)
 // rigidly about Ok with W_r = the axis, so F_r + F_r* = W_r . M_k, the moment about Ok of every
 // external and inertia force on S(k) with the full accelerations (hinge torques below k and the
-// elastic forces are internal to S(k) and cancel):  tau = -W_r . M_k.
+// elastic forces are internal to S(k) and cancel):  tau = -W_r . M_k.  A prescribed prismatic
+// joint likewise: V_r = axis_N, W_r = 0, so its force along the axis is -V_r . F_k.
 void KaneEngine::prescribed_torque_pass(double t) {
   acceleration_pass(udot_.data());
   subtree_pass(t, /*full=*/true);
   for (const Node& n : nodes_)
     if (n.prescribed) {
       const NodeWork& w = work_[static_cast<std::size_t>(n.joint)];
-      prescribed_torque_[static_cast<std::size_t>(n.joint)] = -w.W_N.col(0).dot(w.M_sub_N);
+      double& tau = prescribed_torque_[static_cast<std::size_t>(n.joint)];
+      tau = -w.W_N.col(0).dot(w.M_sub_N);
+      if (n.slides) tau -= w.V_N.col(0).dot(w.F_sub_N);  // prismatic: the force along the axis
     }
 }
 

@@ -134,6 +134,7 @@ void KaneEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.wdot_NB_B.assign(nb, Vector3d::Zero());
   a.a_NBo_N.assign(nb, Vector3d::Zero());
   a.angle_ddot.assign(nj, 0.0);
+  a.angle2_ddot.assign(nj, 0.0);
   a.wdot_PC_C.assign(nj, Vector3d::Zero());
   a.eta_ddot.assign(nb, Eigen::VectorXd());
   for (const Node& n : nodes_) {

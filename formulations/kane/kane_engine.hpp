@@ -72,8 +72,8 @@ struct Node {
   int nm = 0;               // modal coordinates of a flexible child: eta at x[q0 + nqj],
                             // eta' at u[u0 + nuj]
   int flex = -1;            // the child's FlexModel (flex_ index), -1 for a rigid body
-  // Prescribed revolute joint (docs/prescribed-motion.md): no position, no speed (nqj = nuj =
-  // 0); angle0 + theta(t), theta'(t), theta''(t) from `motion`.  For the base (parent -1) the
+  // Prescribed revolute or prismatic joint (docs/prescribed-motion.md): no position, no speed
+  // (nqj = nuj = 0); angle0 + theta(t), theta'(t), theta''(t) from `motion` (prismatic: m).  For the base (parent -1) the
   // parent frame is N: p_PoJ_P = p_NoJ_N, axis_P = axis_N, R_PJ0 = R_NJ0.
   bool prescribed = false;
   PrescribedMotion motion;
@@ -83,8 +83,15 @@ struct Node {
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Vector3d p_PoJ_P = Eigen::Vector3d::Zero();
   Eigen::Vector3d p_CoJ_C = Eigen::Vector3d::Zero();
-  Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute axis in P (unit)
+  Eigen::Vector3d axis_P = Eigen::Vector3d::UnitZ();  // revolute, prismatic, universal first
+                                                       // axis in P (unit)
   Eigen::Vector3d axis_J = Eigen::Vector3d::UnitZ();  // the same axis in C (= R_PJ0^T axis_P)
+  Eigen::Vector3d axis2_J = Eigen::Vector3d::UnitY();  // universal second axis at zero angles,
+                                                        // in J0 (= R_PJ0^T axis2_P; unit)
+  // Set by the joint's unit (joints/joint_unit.hpp): some joint speed has a partial velocity at Ok
+  // (V_N column; prismatic), some partial angular velocity turns with the joint's own coordinates
+  // (universal: its second axis turns with the first angle).
+  bool slides = false, axis_rates = false;
   double mass = 0;
   Eigen::Matrix3d I_BBo_B = Eigen::Matrix3d::Zero();  // scaled by test_inertia_scale (rigid)
   // Facts of the system read once so that rhs() skips work that would give zeros or copies
@@ -134,6 +141,7 @@ struct NodeWork {
   Eigen::Matrix3d R_NB;       // attitude of the node's body
   Eigen::Matrix3d I_BBo_N;    // its inertia about Bo, N axes (flexible: deformed, node sums)
   Eigen::Matrix3d W_N;        // partial angular velocities of the joint's speeds (columns)
+  Eigen::Matrix3d V_N;        // their partial velocities at Ok (columns; Node::slides only)
   double sin_half = 0, cos_half = 1;  // revolute: sine and cosine of half the joint angle
   // Prescribed joint at the time of the last set_time(): angle, rate theta', acceleration theta''.
   double pres_angle = 0, pres_rate = 0, pres_accel = 0;
@@ -145,6 +153,8 @@ struct NodeWork {
   Eigen::Vector3d w_NB_B;            // w_NB_N in body components (sum_momenta only)
   Eigen::Vector3d w_PC_N;            // relative angular velocity of the joint (Jc in Jp)
   Eigen::Vector3d w_NJp_N;           // angular velocity of Jp
+  Eigen::Vector3d v_PC_N;            // velocity of Ok in Jp, sum V_r u_r (Node::slides only)
+  Eigen::Vector3d alpha_PC_t_N;      // sum (d/dt W_r) u_r - w_Jp x w_PC (Node::axis_rates only)
   Eigen::Vector3d alpha_t_N, a_t_N;  // remainder accelerations (all u' = 0)
   Eigen::Vector3d alpha_N, a_N;      // full accelerations (accelerations() only)
   // Subtree S(k) sums about Ok (backward pass).

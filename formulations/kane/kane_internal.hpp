@@ -166,8 +166,8 @@ bool ltdl_solve_base6(double* H, Eigen::Index ld, const int* lambda, int n, cons
 
 // Pass 5's helpers (mass_matrix.cpp), also called by the fused rigid path (rigid_fast_path.cpp).
 
-// One ancestor's joint-speed entries of row r (mass_matrix.cpp, Pass 5: a joint's W . h_a; a free
-// base's R^T h_a and p), returning h_a = h + (p_k - p_a) x p, the momentum moment about the
+// One ancestor's joint-speed entries of row r (mass_matrix.cpp, Pass 5: a joint's W . h_a, plus
+// V . p for a sliding joint; a free base's R^T h_a and p), returning h_a = h + (p_k - p_a) x p, the momentum moment about the
 // ancestor's point.
 inline Vector3d KaneEngine::mass_matrix_ancestor_joint(const NodeWork& w,
                                                        const Node::Ancestor& an, int r,
@@ -178,8 +178,11 @@ inline Vector3d KaneEngine::mass_matrix_ancestor_joint(const NodeWork& w,
   if (A.type == JointType::Free) {
     M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
     M_.block<1, 3>(r, A.u0 + 3) = p.transpose();
-  } else {
+  } else if (!A.slides) {
     for (int j = 0; j < A.nuj; ++j) M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a);
+  } else {  // the ancestor's speeds translate S(a) too: + V_j . p
+    for (int j = 0; j < A.nuj; ++j)
+      M_(r, A.u0 + j) = wa.W_N.col(j).dot(h_a) + wa.V_N.col(j).dot(p);
   }
   return h_a;
 }

@@ -36,7 +36,9 @@
 //     Ia_c = I^A_c - U_c D_c^-1 U_c^T,  Za_c = Z_c - U_c D_c^-1 g_c
 //   and moved to Ok (moment + e x force, e = p_Oc - p_Ok; inertia X^T Ia X) they add to k's own:
 //     Iww += Iww' - Iwv' E + E Iwv'^T - E Ivv' E,  Iwv += Iwv' + E Ivv',  Ivv += Ivv',  E = [e x]
-//   (the transfer of [KLL] Sec. 3.4 for an articulated inertia).  A fixed joint passes I^A and Z
+//   (the transfer of [KLL] Sec. 3.4 for an articulated inertia).  A joint speed with a partial
+//   velocity at Ok (prismatic: S_c = (0, V_c)) enters S_c the same way, and the increment
+//   dA_c = X_c dA_k + S_c u_c' then has da_c += V_c u_c'.  A fixed joint passes I^A and Z
 //   unchanged.  Base (free joint, S_0 invertible, no hinge): S_0^T (Z_0 - I^A_0 dA_0) = 0 gives
 //   I^A_0 dA_0 = Z_0, a 6 x 6 solve; then w_NB_B' = R_NB^T dalpha_0, v_NBo_N' = da_0 (the base's
 //   remainder accelerations are zero).  Forward, base first: the u_c' above, then dA_c.
@@ -61,6 +63,7 @@
 
 // Bibliography: README.md ([KLL], [Feath], [Ban93]).
 #include "formulations/kane/kane_engine.hpp"
+#include "formulations/kane/joints/joint_unit.hpp"
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
@@ -92,6 +95,54 @@ bool symmetric_inverse(const Matrix3d& D, Matrix3d& D_inv) {
   D_inv(1, 2) = D_inv(2, 1) = (b * c - a * e) * s;
   D_inv(2, 2) = (a * d - b * b) * s;
   return true;
+}
+
+// Joint k's elimination for a joint the pass does not inline (prismatic, universal: its unit's
+// W_N, V_N; README.md "Joint units"): S = (W, V) with m = nuj columns, U = I^A S, D = S^T U,
+// g = tau + S^T Z; the unused columns of U, D^-1 and g stay zero.  Then I^A - U D^-1 U^T and
+// Z - U D^-1 g into Iww ... Z_F.  Out of line, so that articulated_pass's own branches compile
+// as they did without it.
+[[gnu::noinline]] void eliminate_unit_joint(const Node& n, const NodeWork& w, const Joint& J,
+                                            double t, const double* x, const double* u,
+                                            ArticulatedWork& a, Matrix3d& Iww, Matrix3d& Iwv,
+                                            Matrix3d& Ivv, Vector3d& Z_M, Vector3d& Z_F) {
+  const int m = n.nuj;
+  const Matrix3d& W = w.W_N;
+  const Matrix3d& V = w.V_N;
+  for (int c = 0; c < m; ++c) {
+    a.U_M_N.col(c).noalias() = a.Iww_N * W.col(c);
+    a.U_F_N.col(c).noalias() = a.Iwv_N.transpose() * W.col(c);
+    if (n.slides) {
+      a.U_M_N.col(c).noalias() += a.Iwv_N * V.col(c);
+      a.U_F_N.col(c).noalias() += a.Ivv_N * V.col(c);
+    }
+  }
+  Matrix3d D = Matrix3d::Identity();
+  for (int i = 0; i < m; ++i) {
+    for (int c = 0; c < m; ++c)
+      D(i, c) = W.col(i).dot(a.U_M_N.col(c)) + V.col(i).dot(a.U_F_N.col(c));
+    a.g(i) = W.col(i).dot(a.Z_M_N) + V.col(i).dot(a.Z_F_N);
+  }
+  if (n.hinge_load) n.unit->hinge(n, J, t, x, u, a.g.data());
+  // D padded with the identity beyond m: its inverse is D_m^-1 padded likewise (then zeroed).
+  if (!symmetric_inverse(D, a.D_inv))
+    throw RunFailure("kane", t, "articulated inertia",
+                     "not positive definite at joint '" + J.name + "'");
+  for (int i = m; i < 3; ++i) a.D_inv(i, i) = 0;
+  // Rank-m updates, column by column (K = U D^-1).
+  for (int c = 0; c < m; ++c) {
+    Vector3d K_M = Vector3d::Zero(), K_F = Vector3d::Zero();
+    for (int j = 0; j < m; ++j) {
+      K_M += a.U_M_N.col(j) * a.D_inv(j, c);
+      K_F += a.U_F_N.col(j) * a.D_inv(j, c);
+    }
+    const Vector3d U_M = a.U_M_N.col(c), U_F = a.U_F_N.col(c);
+    Iww.noalias() -= K_M * U_M.transpose();
+    Iwv.noalias() -= K_M * U_F.transpose();
+    Ivv.noalias() -= K_F * U_F.transpose();
+    Z_M -= K_M * a.g(c);
+    Z_F -= K_F * a.g(c);
+  }
 }
 
 }  // namespace
@@ -166,6 +217,8 @@ void KaneEngine::articulated_pass(double t, const double* x) {
       Ivv.noalias() -= K_F * a.U_F_N.transpose();
       Z_M.noalias() -= K_M * a.g;
       Z_F.noalias() -= K_F * a.g;
+    } else if (n.nuj > 0) {  // every other joint, by its unit's W_N and V_N
+      eliminate_unit_joint(n, w, system_.joints[kk], t, x, x + n_q_, a, Iww, Iwv, Ivv, Z_M, Z_F);
     }
 
     // Moved to the parent's reference point Op and added to its sums.
@@ -227,6 +280,20 @@ void KaneEngine::articulated_solve(double t) {
       const Vector3d ud = a.D_inv * r;
       udot_.segment<3>(n.u0) = ud;
       a.dalpha_N.noalias() += w.W_N * ud;
+    } else if (n.nuj > 0) {  // u' = D^-1 (g - U^T dA), then dA += S u'
+      const int m = n.nuj;
+      double r[3];
+      for (int i = 0; i < m; ++i)
+        r[i] = a.g(i) - a.U_M_N.col(i).dot(a.dalpha_N) - a.U_F_N.col(i).dot(a.da_Ok_N);
+      for (int i = 0; i < m; ++i) {
+        double ud = 0;
+        for (int j = 0; j < m; ++j) ud += a.D_inv(i, j) * r[j];
+        udot_(n.u0 + i) = ud;
+      }
+      for (int i = 0; i < m; ++i) {
+        a.dalpha_N += w.W_N.col(i) * udot_(n.u0 + i);
+        if (n.slides) a.da_Ok_N += w.V_N.col(i) * udot_(n.u0 + i);
+      }
     }
   }
 }

@@ -16,6 +16,9 @@ namespace crossdyn::kane {
 //   the joint point is common to P and C: p_Ok = p_Po + R_NP r_Pj = p_Co + R_NC r_Cj, r = p + u.
 //   Parent side (w_Jp = w_P + Wp eta_P', v_Ok = v_Po + w_P x (p_Ok - p_Po) + Vp eta_P'):
 //     Wp = R_NP Jl(psi_Pj) Psi_Pj,  Vp = R_NP Phi_Pj.
+//   A prismatic joint moves the child-side point: r_Pj += s axis_P (joints/prismatic.cpp), and
+//   its speed's partial velocity V_r = R_NJp axis_P (V_N); every joint that the switch below does
+//   not inline sets R_NJc, W_N and V_N by its unit (JointUnit::position).
 //   Child side (w_C = w_Jc + Wm eta_C', v_Co = v_Ok + w_C x (p_Co - p_Ok) + Vm eta_C'):
 //     Wm = -R_NC Jl(psi_Cj) Psi_Cj,  Vm = -R_NC Phi_Cj   (README.md, partial velocities).
 
@@ -93,8 +96,8 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
           R_NJc.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
           w.W_N = R_NJc;  // W_r = j_r for u_r = w_PC,r in Jc components
           break;
-        default:
-          R_NJc = *R_NJ0;
+        default:  // every other joint by its unit (fixed, prismatic, universal; joints/)
+          n.unit->position(n, x, *R_NJp, *R_NJ0, R_NJc, w, r_Pj);
           break;
       }
       w.p_PoOk_N.noalias() = P.R_NB * r_Pj;
@@ -192,7 +195,7 @@ void KaneEngine::flex_position(const Node& n, NodeWork& w, const double* eta) {
 // Pass 2. (q, u) => w_NB_N, v_NBo_N, w_PC_N, w_NJp_N (velocities as sums of partial velocities
 // times u), the attachment terms and the flexible bodies' rate terms.
 //   w_Jp = w_P + Wp eta_P';  w_C = w_Jp + w_PC + Wm eta_C' (addition theorem, [KLL] Sec. 1.16);
-//   v_Ok = v_Po + w_P x p_PoOk + Vp eta_P';  v_Co = v_Ok + w_C x p_OkCo + Vm eta_C'
+//   v_Ok = v_Po + w_P x p_PoOk + Vp eta_P' (+ v_PC = sum V_r u_r, a sliding joint);  v_Co = v_Ok + w_C x p_OkCo + Vm eta_C'
 //   (a point fixed on, or moving in, a rigid frame, [KLL] Secs. 1.17-1.18).
 //   Node-frame rates: psi' = Psi eta', and (d/dt Jl) psi' for the remainder pass.
 
@@ -227,10 +230,11 @@ void KaneEngine::velocity_pass(const double* u) {
         case JointType::Spherical:
           w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
           break;
-        default:
-          w.w_PC_N.setZero();
+        default:  // by the joint's unit: w_PC = sum W_r u_r, v_PC = sum V_r u_r
+          n.unit->velocity(n, u, w);
           break;
       }
+      if (n.slides) v_Ok += w.v_PC_N;  // Ok moves in Jp ([KL85] Sec. 2.8)
       w.w_NB_N = w.w_NJp_N + w.w_PC_N;
       if (n.child_attach) {
         const double* eta_rate = u + n.u0 + n.nuj;

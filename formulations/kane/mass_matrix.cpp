@@ -20,6 +20,7 @@ namespace crossdyn::kane {
 //                    p_Ok) + R Phi_ir);
 //     on an attached child c's subtree:  Wp_c,s . h_c + Vp_c,s . p_c, (p_c, h_c) the momenta of
 //                    S(c) about Oc in the motion r.
+//   Joint speeds: V_r = 0 but for a sliding joint (prismatic: W_r = 0, V_r = axis_N).
 //   Base block: M(w, w) = R^T J_0 R;  M(v_i, w_j) = n_i . (b_j x s_0);  M(v, v) = m 1.
 
 // mass_matrix_ancestor_joint and subtree_inertia_times: kane_internal.hpp.
@@ -68,9 +69,17 @@ void KaneEngine::mass_matrix_pass() {
       for (int i = 0; i < n.nuj; ++i) {
         const int r = n.u0 + i;
         const Vector3d W_r = w.W_N.col(i);
-        const Vector3d p_r = W_r.cross(w.s_sub_N);
-        const Vector3d h_r = subtree_inertia_times(n, w, W_r);
-        for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
+        Vector3d p_r = W_r.cross(w.s_sub_N);
+        Vector3d h_r = subtree_inertia_times(n, w, W_r);
+        if (n.slides) {  // the twist's translation V_r at Ok: p += m V_r, h += s x V_r
+          const Vector3d V_r = w.V_N.col(i);
+          p_r += w.m_sub * V_r;
+          h_r += w.s_sub_N.cross(V_r);
+          for (int j = 0; j <= i; ++j)
+            M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r) + w.V_N.col(j).dot(p_r);
+        } else {
+          for (int j = 0; j <= i; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h_r);
+        }
         mass_matrix_ancestors(n, r, p_r, h_r);
       }
     if (n.nm == 0) continue;
@@ -113,6 +122,8 @@ void KaneEngine::mass_matrix_pass() {
         M_.block<1, 3>(r, n.u0 + 3) = p.transpose();
       } else {
         for (int j = 0; j < n.nuj; ++j) M_(r, n.u0 + j) = w.W_N.col(j).dot(h);
+        if (n.slides)
+          for (int j = 0; j < n.nuj; ++j) M_(r, n.u0 + j) += w.V_N.col(j).dot(p);
       }
       // Against the modal speeds s <= l: twist part of s, and its elastic part on C's nodes.
       for (int s = 0; s <= l; ++s) {

@@ -61,31 +61,19 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     n.p_CoJ_C = J.p_CoJ_C;
     n.body_torque = !B.torque.empty();
     n.hinge_load = J.stiffness != 0 || J.damping != 0 || !J.motor_revolute.empty() ||
-                   !J.motor_spherical.empty();
+                   !J.motor_spherical.empty() || J.stiffness2 != 0 || J.damping2 != 0 ||
+                   !J.motor_universal.empty();
     if (n.flex < 0) {
       const Matrix3d& I = n.I_BBo_B;
       if (I(1, 0) == 0 && I(2, 0) == 0 && I(2, 1) == 0)
         n.inertia = I(0, 0) == I(1, 1) && I(1, 1) == I(2, 2) ? Node::Inertia::Isotropic
                                                               : Node::Inertia::Diagonal;
     }
-    if (J.type == JointType::Revolute) {
-      if (!(J.axis_P.norm() > 0)) throw InputError(jname + ": revolute axis must be non-zero");
-      n.axis_P = J.axis_P.normalized();
-      n.axis_J = n.R_PJ0.transpose() * n.axis_P;
-      for (int i = 0; i < 3; ++i) {
-        const int j = (i + 1) % 3, l = (i + 2) % 3;
-        if (std::abs(n.axis_J(i)) == 1.0 && n.axis_J(j) == 0 && n.axis_J(l) == 0) {
-          n.axis_index = i;
-          n.axis_sign = n.axis_J(i);
-        }
-      }
-      if (J.prescribed) {  // docs/prescribed-motion.md: not a degree of freedom
-        n.prescribed = true;
-        n.motion = *J.prescribed;
-        n.angle0 = J.angle0;
-        has_prescribed_ = true;
-      }
-    }
+    // The joint type's own facts (axes, prescribed motion, Node::slides and axis_rates), set
+    // and validated by its unit (joints/).
+    n.unit = &joint_unit(J.type);
+    if (n.unit->build) n.unit->build(J, n, jname);
+    if (n.prescribed) has_prescribed_ = true;
 
     // Attachment at nodes of flexible bodies (docs/flexible-bodies.md "Joints at nodes").
     auto attach = [&](int body, int node, const Eigen::Vector3d& point, const char* side,
@@ -138,7 +126,6 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     if (n.parent_attach)
       nodes_[static_cast<std::size_t>(n.parent)].attached_children.push_back(static_cast<int>(k));
 
-    n.unit = &joint_unit(J.type);
     n.unit->sizes(n.prescribed, n.nqj, n.nuj);
     n.nm = n.flex >= 0 ? flex_[static_cast<std::size_t>(n.flex)].n : 0;
     n.q0 = nq;
@@ -194,8 +181,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     w->R_NB.setIdentity();
     w->I_BBo_N.setZero();
     w->W_N.setZero();
+    w->V_N.setZero();
     for (Vector3d* v : {&w->p_B0oBo_N, &w->p_B0oOk_N, &w->p_PoOk_N, &w->p_OkBo_N, &w->w_NB_N, &w->v_NBo_N, &w->w_NB_B,
-                        &w->w_PC_N, &w->w_NJp_N, &w->alpha_t_N, &w->a_t_N, &w->alpha_N, &w->a_N})
+                        &w->w_PC_N, &w->w_NJp_N, &w->v_PC_N, &w->alpha_PC_t_N, &w->alpha_t_N, &w->a_t_N, &w->alpha_N, &w->a_N})
       v->setZero();
   }
   for (std::size_t k = 0; k < nj; ++k) {
@@ -209,6 +197,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     else
       w.I_BBo_N.setZero();
     w.W_N.setZero();
+    w.V_N.setZero();
+    w.v_PC_N.setZero();
+    w.alpha_PC_t_N.setZero();
     w.p_B0oBo_N.setZero();
     w.p_B0oOk_N.setZero();
     w.p_PoOk_N.setZero();
@@ -304,9 +295,14 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     solver = order_n_ok && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
                                                           : KaneSolver::Composite;
   solver_ = solver;
+  // The fused rigid path has a branch for the types whose units say so (JointUnit::fused); a
+  // scene with any other joint takes the general passes.
+  bool fused = true;
+  for (const Node& n : nodes_) fused = fused && n.unit->fused;
   rigid_fast_ = solver_ == KaneSolver::Composite && rigid && !has_prescribed_ &&
-                system_.base_is_free();
-  for (const Joint& J : system_.joints) has_potential_ = has_potential_ || J.stiffness != 0;
+                system_.base_is_free() && fused;
+  for (const Joint& J : system_.joints)
+    has_potential_ = has_potential_ || J.stiffness != 0 || J.stiffness2 != 0;
   has_potential_ = has_potential_ || !flex_.empty();
   if (solver_ == KaneSolver::OrderN) {
     art_.resize(nj);

@@ -1,8 +1,6 @@
 // The one dispatch on JointType of the kane engine's joint units (joint_unit.hpp).
 #include "formulations/kane/joints/joint_unit.hpp"
 
-#include "core/errors.hpp"
-
 namespace crossdyn::kane {
 
 const JointUnit& joint_unit(JointType type) {
@@ -14,8 +12,9 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Spherical:
       return spherical_joint_unit();
     case JointType::Prismatic:
+      return prismatic_joint_unit();
     case JointType::Universal:
-      throw InputError("kane: prismatic and universal joints are not implemented yet");
+      return universal_joint_unit();
     case JointType::Fixed:
       break;
   }

@@ -47,13 +47,14 @@ void pack(const Node& n, const TreeState& s, const TreeState::JointState& /*js*/
 // The base's accelerations are the body's (wdot_NB_B, a_NBo_N), set for every node.
 void accel(const Node&, const NodeWork&, const Eigen::VectorXd&, TreeAccel&) {}
 
-double spring_energy(const Node&, double, double, const double*) { return 0.0; }
+double spring_energy(const Node&, const Joint&, const double*) { return 0.0; }
 void output(const Node&, const NodeWork&, double, const double*, const double*, RowWriter&) {}
 
 }  // namespace
 
 const JointUnit& free_joint_unit() {
-  static const JointUnit unit{sizes, 3, labels, q_rates, pack, accel, spring_energy, output};
+  static const JointUnit unit{sizes,  3,       labels,  q_rates, pack, accel, spring_energy,
+                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true};
   return unit;
 }
 

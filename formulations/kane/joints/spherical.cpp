@@ -44,10 +44,10 @@ void accel(const Node& n, const NodeWork& /*w*/, const Eigen::VectorXd& udot, Tr
 }
 
 // 1/2 k |theta|^2 with theta the rotation vector of q_J (normalised where read).
-double spring_energy(const Node& n, double stiffness, double /*neutral_angle*/, const double* x) {
+double spring_energy(const Node& n, const Joint& J, const double* x) {
   const Eigen::Quaterniond q =
       Eigen::Quaterniond(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]).normalized();
-  return 0.5 * stiffness * rot::rotation_vector(q).squaredNorm();
+  return 0.5 * J.stiffness * rot::rotation_vector(q).squaredNorm();
 }
 
 void output(const Node& n, const NodeWork&, double, const double*, const double* u,
@@ -58,7 +58,8 @@ void output(const Node& n, const NodeWork&, double, const double*, const double*
 }  // namespace
 
 const JointUnit& spherical_joint_unit() {
-  static const JointUnit unit{sizes, 0, labels, q_rates, pack, accel, spring_energy, output};
+  static const JointUnit unit{sizes,  0,       labels,  q_rates, pack, accel, spring_energy,
+                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true};
   return unit;
 }
 
