@@ -7,7 +7,7 @@
 namespace crossdyn::lagrange {
 
 // Defined in joints/<type>.cpp.
-extern const JointUnit kFreeJoint, kRevoluteJoint, kSphericalJoint, kFixedJoint;
+extern const JointUnit kFreeJoint, kRevoluteJoint, kSphericalJoint, kFixedJoint, kPrismaticJoint;
 
 const JointUnit& joint_unit(JointType type) {
   switch (type) {
@@ -18,8 +18,9 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Spherical:
       return kSphericalJoint;
     case JointType::Prismatic:
+      return kPrismaticJoint;
     case JointType::Universal:
-      throw InputError("lagrange: prismatic and universal joints are not implemented yet");
+      throw InputError("lagrange: universal joints are not implemented yet");
     case JointType::Fixed:
       break;
   }

@@ -1,0 +1,293 @@
+// Prismatic and universal joints in the Lagrange engine (core/system.hpp; README.md "Joint types",
+// "Kinematics"): a sliding spring against the two-body closed form, a prescribed slider's force
+// against the reduced mass, energy balances of prescribed motion, motors and dampers, the gimbal's
+// small-angle frequencies against the payload's inertia about each axis through the joint point,
+// conservation of H and E in 3-D motions, linear momentum under internal loads, and accelerations()
+// against rhs() and finite differences. Systems are built in code.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "core/errors.hpp"
+#include "core/integrate.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/scenes.hpp"
+
+using namespace crossdyn;
+using crossdyn::lagrange::LagrangeEngine;
+using crossdyn::test::free_joint;
+using crossdyn::test::make_body;
+
+namespace {
+
+Joint prismatic(const std::string& name, int parent, int child, const Eigen::Vector3d& p_PoJ_P,
+                const Eigen::Vector3d& p_CoJ_C, const Eigen::Vector3d& axis_P) {
+  Joint j;
+  j.name = name;
+  j.type = JointType::Prismatic;
+  j.parent = parent;
+  j.child = child;
+  j.p_PoJ_P = p_PoJ_P;
+  j.p_CoJ_C = p_CoJ_C;
+  j.axis_P = axis_P.normalized();
+  return j;
+}
+
+System two_bodies(const std::string& name, const Body& base, const Body& other,
+                  const Eigen::Vector3d& w0, const Joint& joint, double duration,
+                  double output_step) {
+  System s;
+  s.name = name;
+  s.bodies = {base, other};
+  s.joints = {free_joint(0, w0), joint};
+  s.run.duration = duration;
+  s.run.output_step = output_step;
+  return s;
+}
+
+RunResult run(const System& s, double tol = 1e-12) {
+  LagrangeEngine e(s, {});
+  IntegratorSettings settings = IntegratorSettings::from(s.run);
+  settings.method = "dop853";
+  settings.rtol = settings.atol = tol;
+  return simulate(e, s, TreeState::initial(s), settings);
+}
+
+double col(const RunResult& r, std::size_t row, const std::string& name) {
+  const int c = r.column(name);
+  REQUIRE(c >= 0);
+  return r.at(row, static_cast<std::size_t>(c));
+}
+
+// max over rows of |c(row) - c(0)| / |c(0)|, and of |c(row) - c(0)| when scale is given.
+double drift(const RunResult& r, const std::string& column, double scale = 0) {
+  const double c0 = col(r, 0, column);
+  double d = 0;
+  for (std::size_t k = 0; k < r.rows(); ++k) d = std::max(d, std::abs(col(r, k, column) - c0));
+  return d / (scale > 0 ? scale : std::abs(c0));
+}
+
+// max over rows of |c(row) - c(0)|: how much a coordinate moved.
+double excursion(const RunResult& r, const std::string& column) {
+  return drift(r, column, 1.0);
+}
+
+// Energy balance E(t) - E(0) = integral_0^t power dt, the integral by Simpson's rule on the output
+// rows (even rows). Returns {max |E - E0 - W|, max |W|}.
+template <class Power>
+std::pair<double, double> energy_balance(const RunResult& r, const Power& power) {
+  const std::size_t n = r.rows();
+  REQUIRE(n >= 3);
+  const double E0 = col(r, 0, "E");
+  double W = 0, err = 0, Wmax = 0;
+  for (std::size_t k = 2; k < n; k += 2) {
+    const double h = 0.5 * (col(r, k, "t") - col(r, k - 2, "t"));
+    W += h / 3.0 * (power(k - 2) + 4.0 * power(k - 1) + power(k));
+    err = std::max(err, std::abs(col(r, k, "E") - E0 - W));
+    Wmax = std::max(Wmax, std::abs(W));
+  }
+  return {err, Wmax};
+}
+
+// sum_b m_b a_NBo_N(b): zero when every load is internal (Newton's second law for the system).
+Eigen::Vector3d total_force(const System& s, const TreeAccel& a) {
+  Eigen::Vector3d f = Eigen::Vector3d::Zero();
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) f += s.bodies[b].mass * a.a_NBo_N[b];
+  return f;
+}
+
+// A spinning hub (free) with a slider on an axis off every principal direction, offset from the
+// hub's CM and from the slider's: a genuinely 3-D motion.
+System hub_and_slider() {
+  Body hub = make_body("hub", 100, {40, 50, 60});
+  hub.I_BBo_B(0, 1) = hub.I_BBo_B(1, 0) = 2.0;
+  Joint j = prismatic("slide", 0, 1, {0.8, 0.1, 0.2}, {-0.3, 0.0, 0.05}, {1.0, 0.2, 0.1});
+  j.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 1).normalized()));
+  j.angle0 = 0.1;
+  j.rate0 = 0.3;
+  return two_bodies("hub_slider", hub, make_body("slider", 5, {0.5, 0.6, 0.7}),
+                    {0.05, -0.03, 0.6}, j, 10.0, 0.01);
+}
+
+}  // namespace
+
+TEST_CASE("lagrange new joints: prismatic spring between two free bodies, closed form",
+          "[lagrange][prismatic]") {
+  // The axis passes through both CMs and nothing turns: the relative coordinate s oscillates with
+  // the reduced mass mu = m1 m2 / (m1 + m2), omega = sqrt(k / mu):
+  //   s(t) - neutral = (s0 - neutral) cos(omega t) + (s0' / omega) sin(omega t).
+  const double m1 = 10, m2 = 2, k = 50, neutral = 0.2, s0 = 0.3, v0 = 0.4;
+  Joint j = prismatic("slide", 0, 1, {1, 0, 0}, {-0.5, 0, 0}, {1, 0, 0});
+  j.stiffness = k;
+  j.neutral_angle = neutral;
+  j.angle0 = s0;
+  j.rate0 = v0;
+  const System s = two_bodies("slider_spring", make_body("box", m1, {1, 2, 3}),
+                              make_body("slider", m2, {0.1, 0.2, 0.3}), {0, 0, 0}, j, 3.0, 0.01);
+  const double mu = m1 * m2 / (m1 + m2), omega = std::sqrt(k / mu);
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok"));
+  REQUIRE_FALSE(r.failure);
+  double err = 0, werr = 0;
+  for (std::size_t row = 0; row < r.rows(); ++row) {
+    const double t = col(r, row, "t");
+    const double exact =
+        neutral + (s0 - neutral) * std::cos(omega * t) + v0 / omega * std::sin(omega * t);
+    err = std::max(err, std::abs(col(r, row, "slide.position") - exact));
+    for (const char* c : {"box.wx", "box.wy", "box.wz", "slider.wx", "slider.wy", "slider.wz"})
+      werr = std::max(werr, std::abs(col(r, row, c)));
+  }
+  INFO("max |s - closed form| = " << err << " m, max |w| = " << werr);
+  CHECK(err < 1e-9);
+  CHECK(werr < 1e-12);
+  // The spring energy is in E: E = mu s'^2 / 2 + k (s - neutral)^2 / 2 (CM at rest).
+  const double E0 = 0.5 * mu * v0 * v0 + 0.5 * k * (s0 - neutral) * (s0 - neutral);
+  CHECK(std::abs(col(r, 0, "E") - E0) < 1e-12 * E0);
+  CHECK(drift(r, "E") < 1e-10);
+  // accelerations() at t = 0: s'' = -k (s0 - neutral) / mu, the slider's CM accelerates by s''
+  // relative to the box's, and m1 a1 + m2 a2 = 0.
+  LagrangeEngine e(s, {});
+  REQUIRE(e.state_size() == 14);
+  std::vector<double> x(14);
+  e.pack(TreeState::initial(s), x.data());
+  TreeAccel a;
+  e.accelerations(0.0, x.data(), a);
+  const double sdd = -k * (s0 - neutral) / mu;
+  CHECK(std::abs(a.angle_ddot[1] - sdd) < 1e-12 * std::abs(sdd));
+  CHECK((a.a_NBo_N[1] - a.a_NBo_N[0] - Eigen::Vector3d(sdd, 0, 0)).norm() < 1e-12);
+  CHECK(total_force(s, a).norm() < 1e-12);
+}
+
+TEST_CASE("lagrange new joints: spinning hub with a free 3-D slider conserves H and E",
+          "[lagrange][prismatic]") {
+  System s = hub_and_slider();
+  s.joints[1].stiffness = 20;
+  s.joints[1].neutral_angle = 0.15;
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok") << ", " << r.stats.steps << " steps");
+  REQUIRE_FALSE(r.failure);
+  const double dH = drift(r, "H"), dE = drift(r, "E");
+  INFO("H drift " << dH << ", E drift " << dE << ", slide excursion "
+                  << excursion(r, "slide.position") << " m, hub wz excursion "
+                  << excursion(r, "hub.wz"));
+  CHECK(dH < 1e-9);
+  CHECK(dE < 1e-9);
+  // Not a trivial motion: the slider moves and the hub's spin exchanges with it.
+  CHECK(excursion(r, "slide.position") > 0.05);
+  CHECK(excursion(r, "hub.wz") > 1e-4);
+}
+
+TEST_CASE("lagrange new joints: prescribed prismatic force is mu s'' between two free bodies",
+          "[lagrange][prismatic][prescribed]") {
+  // Axis through both CMs, nothing turns: the force the joint applies to the slider is the
+  // reduced mass times the prescribed acceleration, F = mu s''(t).
+  const double m1 = 10, m2 = 2;
+  Joint j = prismatic("slide", 0, 1, {0, 0, 1}, {0, 0, -0.5}, {0, 0, 1});
+  PrescribedMotion p;
+  p.profile = PrescribedMotion::Profile::Deploy;
+  p.travel = 1.5;
+  p.ramp_time = 4.0;
+  j.prescribed = p;
+  j.angle0 = 0.2;
+  const System s = two_bodies("slider_prescribed", make_body("box", m1, {1, 2, 3}),
+                              make_body("slider", m2, {0.1, 0.2, 0.3}), {0, 0, 0}, j, 5.0, 0.1);
+  LagrangeEngine e(s, {});
+  REQUIRE(e.state_size() == 12);  // the prescribed slider is not in the state
+  std::vector<double> x(12);
+  e.pack(TreeState::initial(s), x.data());
+  const double mu = m1 * m2 / (m1 + m2);
+  std::vector<double> row(e.layout().size());
+  const auto force = static_cast<std::size_t>(e.layout().joint_first(1)) + 2;
+  for (double t : {0.0, 0.5, 1.3, 2.0, 3.1, 4.5}) {
+    const double F = e.prescribed_torques(t, x.data())[1];
+    INFO("t = " << t << ": F = " << F << ", mu s'' = " << mu * p.accel(t));
+    CHECK(std::abs(F - mu * p.accel(t)) < 1e-12);
+    e.output_row(t, x.data(), row.data());
+    CHECK(row[force] == F);
+    CHECK(std::abs(row[force - 2] - (0.2 + p.angle(t))) < 1e-15);
+    CHECK(row[force - 1] == p.velocity(t));
+  }
+}
+
+TEST_CASE("lagrange new joints: prescribed prismatic deploy on a spinning hub, H and work",
+          "[lagrange][prismatic][prescribed]") {
+  System s = hub_and_slider();
+  s.joints[1].rate0 = 0;
+  PrescribedMotion p;
+  p.profile = PrescribedMotion::Profile::Deploy;
+  p.travel = 2.0;
+  p.ramp_time = 8.0;
+  s.joints[1].prescribed = p;
+  s.run.output_step = 0.005;
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok") << ", " << r.stats.steps << " steps");
+  REQUIRE_FALSE(r.failure);
+  // The joint's work: E(t) - E(0) = integral F s' dt.
+  const auto [err, Wmax] = energy_balance(
+      r, [&](std::size_t k) { return col(r, k, "slide.force") * col(r, k, "slide.rate"); });
+  INFO("energy balance: max |E - E0 - W| = " << err << " J, max |W| = " << Wmax << " J");
+  CHECK(Wmax > 0.1);
+  CHECK(err < 1e-8 * Wmax);
+  bool finite = true;
+  for (std::size_t k = 0; k < r.rows(); ++k) finite = finite && std::isfinite(col(r, k, "slide.force"));
+  CHECK(finite);
+  // An internal joint on a free system: H is conserved.
+  const double dH = drift(r, "H");
+  INFO("H drift " << dH);
+  CHECK(dH < 1e-10);
+  for (std::size_t k : {std::size_t{0}, r.rows() / 3, r.rows() - 1}) {
+    const double t = col(r, k, "t");
+    CHECK(std::abs(col(r, k, "slide.position") - (0.1 + p.angle(t))) < 1e-14);
+    CHECK(col(r, k, "slide.rate") == p.velocity(t));
+  }
+}
+
+TEST_CASE("lagrange new joints: prismatic motor and damper, work and momenta",
+          "[lagrange][prismatic]") {
+  // A constant motor force F along the axis does the work F (s - s0): E - E0 = F (s - s0); it is
+  // internal (F on the slider, -F on the hub at the same point), so H is conserved and
+  // sum m a = 0.
+  System s = hub_and_slider();
+  const double F = 3.0;
+  s.joints[1].motor_revolute.times = {0.0};
+  s.joints[1].motor_revolute.values = {Eigen::Matrix<double, 1, 1>(F)};
+  s.run.duration = 4.0;
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok"));
+  REQUIRE_FALSE(r.failure);
+  double err = 0, Wmax = 0;
+  for (std::size_t k = 0; k < r.rows(); ++k) {
+    const double W = F * (col(r, k, "slide.position") - 0.1);
+    err = std::max(err, std::abs(col(r, k, "E") - col(r, 0, "E") - W));
+    Wmax = std::max(Wmax, std::abs(W));
+  }
+  INFO("max |E - E0 - F (s - s0)| = " << err << " J of " << Wmax << " J; H drift " << drift(r, "H"));
+  CHECK(Wmax > 1.0);
+  CHECK(err < 1e-9 * Wmax);
+  CHECK(drift(r, "H") < 1e-10);
+  LagrangeEngine e(s, {});
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(TreeState::initial(s), x.data());
+  TreeAccel a;
+  e.accelerations(1.0, x.data(), a);
+  CHECK(total_force(s, a).norm() < 1e-12 * F);
+  CHECK(std::abs(a.angle_ddot[1]) > 0.1);
+
+  // A damper dissipates d s'^2: E - E0 = -integral d s'^2 dt.
+  System d = hub_and_slider();
+  d.joints[1].damping = 2.0;
+  d.joints[1].stiffness = 20;
+  d.run.duration = 4.0;
+  d.run.output_step = 0.005;
+  const RunResult rd = run(d);
+  REQUIRE_FALSE(rd.failure);
+  const auto [derr, dW] = energy_balance(rd, [&](std::size_t k) {
+    const double v = col(rd, k, "slide.rate");
+    return -2.0 * v * v;
+  });
+  INFO("damper: max |E - E0 - W| = " << derr << " J of " << dW << " J");
+  CHECK(dW > 0.05);
+  CHECK(derr < 1e-8 * dW);
+  CHECK(drift(rd, "H") < 1e-10);
+}
