@@ -34,6 +34,15 @@ Joint prismatic(const std::string& name, int parent, int child, const Eigen::Vec
   return j;
 }
 
+Joint universal(const std::string& name, int parent, int child, const Eigen::Vector3d& p_PoJ_P,
+                const Eigen::Vector3d& p_CoJ_C, const Eigen::Vector3d& axis_P,
+                const Eigen::Vector3d& axis2_P) {
+  Joint j = prismatic(name, parent, child, p_PoJ_P, p_CoJ_C, axis_P);
+  j.type = JointType::Universal;
+  j.axis2_P = axis2_P.normalized();
+  return j;
+}
+
 System two_bodies(const std::string& name, const Body& base, const Body& other,
                   const Eigen::Vector3d& w0, const Joint& joint, double duration,
                   double output_step) {
@@ -108,6 +117,24 @@ System hub_and_slider() {
   j.rate0 = 0.3;
   return two_bodies("hub_slider", hub, make_body("slider", 5, {0.5, 0.6, 0.7}),
                     {0.05, -0.03, 0.6}, j, 10.0, 0.01);
+}
+
+// A spinning base with a gimbaled payload: non-perpendicular axes, an orientation offset, large
+// angles and rates.
+System gimbal_3d() {
+  Body base = make_body("base", 50, {20, 25, 30});
+  Joint j = universal("gimbal", 0, 1, {0.5, 0.3, 1.0}, {0.1, 0.0, -0.6}, {1, 0, 0.1}, {0.3, 1, 0.2});
+  j.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, -1, 2).normalized()));
+  j.angle0 = 0.8;
+  j.angle2_0 = -0.6;
+  j.rate0 = 0.5;
+  j.rate2_0 = -0.7;
+  j.stiffness = 1.5;
+  j.neutral_angle = 0.2;
+  j.stiffness2 = 0.8;
+  j.neutral_angle2 = -0.1;
+  return two_bodies("gimbal_3d", base, make_body("payload", 4, {0.3, 0.5, 0.6}),
+                    {0.3, -0.2, 0.8}, j, 10.0, 0.01);
 }
 
 }  // namespace
@@ -290,4 +317,239 @@ TEST_CASE("lagrange new joints: prismatic motor and damper, work and momenta",
   CHECK(dW > 0.05);
   CHECK(derr < 1e-8 * dW);
   CHECK(drift(rd, "H") < 1e-10);
+}
+
+TEST_CASE("lagrange new joints: universal small-angle frequencies about each axis",
+          "[lagrange][universal]") {
+  // A heavy base (mass and inertia 1e6 times the payload's) barely moves: each gimbal axis
+  // oscillates at omega_k = sqrt(k_k / I_k), I_k the payload's inertia about axis k through the
+  // joint point: I_xx + m d^2 and I_yy + m d^2 with the CM d = 0.5 m from the joint along z.
+  const double m = 3, d = 0.5, k1 = 2, k2 = 3, a0 = 1e-3;
+  const Eigen::Vector3d I(0.2, 0.3, 0.4);
+  const double I1 = I(0) + m * d * d, I2 = I(1) + m * d * d;
+  for (int axis : {1, 2}) {
+    Joint j = universal("gimbal", 0, 1, {0, 0, 1}, {0, 0, -d}, {1, 0, 0}, {0, 1, 0});
+    j.stiffness = k1;
+    j.stiffness2 = k2;
+    (axis == 1 ? j.angle0 : j.angle2_0) = a0;
+    const double omega = axis == 1 ? std::sqrt(k1 / I1) : std::sqrt(k2 / I2);
+    const double two_periods = 4.0 * std::acos(-1.0) / omega;
+    const System s = two_bodies("gimbal_small", make_body("base", 3e6, {1e6, 1.2e6, 1.4e6}),
+                                make_body("payload", m, I), {0, 0, 0}, j, two_periods, 0.01);
+    const RunResult r = run(s);
+    INFO("axis " << axis << ": " << (r.failure ? r.failure->what() : "ok"));
+    REQUIRE_FALSE(r.failure);
+    const std::string moving = axis == 1 ? "gimbal.angle1" : "gimbal.angle2";
+    const std::string still = axis == 1 ? "gimbal.angle2" : "gimbal.angle1";
+    double err = 0, other = 0;
+    for (std::size_t row = 0; row < r.rows(); ++row) {
+      const double t = col(r, row, "t");
+      err = std::max(err, std::abs(col(r, row, moving) - a0 * std::cos(omega * t)));
+      other = std::max(other, std::abs(col(r, row, still)));
+    }
+    INFO("two periods: max |a - a0 cos(omega t)| = " << err << " rad (a0 = " << a0
+                                                      << "), other axis " << other);
+    CHECK(err < 1e-4 * a0);
+    CHECK(other < 1e-3 * a0);
+  }
+}
+
+TEST_CASE("lagrange new joints: universal at large angles on a spinning base conserves H and E",
+          "[lagrange][universal]") {
+  const System s = gimbal_3d();
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok") << ", " << r.stats.steps << " steps");
+  REQUIRE_FALSE(r.failure);
+  const double dH = drift(r, "H"), dE = drift(r, "E");
+  INFO("H drift " << dH << ", E drift " << dE);
+  CHECK(dH < 1e-9);
+  CHECK(dE < 1e-9);
+  CHECK(excursion(r, "gimbal.angle1") > 0.3);
+  CHECK(excursion(r, "gimbal.angle2") > 0.3);
+}
+
+TEST_CASE("lagrange new joints: universal motors and dampers, work and momenta",
+          "[lagrange][universal]") {
+  // Perpendicular axes: the motor torques tau_1 axis_1 + tau_2 axis_2 are an internal pair (H
+  // conserved, sum m a = 0) whose generalised forces are tau_1, tau_2: E - E0 = tau_1 (a1 - a1_0)
+  // + tau_2 (a2 - a2_0) for constant motors.
+  System s = gimbal_3d();
+  Joint& j = s.joints[1];
+  j.axis2_P = Eigen::Vector3d(0, 1, 0);
+  j.axis_P = Eigen::Vector3d(1, 0, 0);
+  const double t1 = 0.2, t2 = -0.3;
+  j.motor_universal.times = {0.0};
+  j.motor_universal.values = {Eigen::Vector2d(t1, t2)};
+  s.run.duration = 5.0;
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok"));
+  REQUIRE_FALSE(r.failure);
+  double err = 0, Wmax = 0;
+  for (std::size_t k = 0; k < r.rows(); ++k) {
+    const double W =
+        t1 * (col(r, k, "gimbal.angle1") - 0.8) + t2 * (col(r, k, "gimbal.angle2") + 0.6);
+    err = std::max(err, std::abs(col(r, k, "E") - col(r, 0, "E") - W));
+    Wmax = std::max(Wmax, std::abs(W));
+  }
+  INFO("max |E - E0 - W| = " << err << " J of " << Wmax << " J; H drift " << drift(r, "H"));
+  CHECK(Wmax > 0.1);
+  CHECK(err < 1e-9 * Wmax);
+  CHECK(drift(r, "H") < 1e-10);
+  LagrangeEngine e(s, {});
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(TreeState::initial(s), x.data());
+  TreeAccel a;
+  e.accelerations(1.0, x.data(), a);
+  CHECK(total_force(s, a).norm() < 1e-12);
+
+  // Dampers on both axes dissipate d1 a1'^2 + d2 a2'^2.
+  System d = gimbal_3d();
+  d.joints[1].damping = 0.3;
+  d.joints[1].damping2 = 0.5;
+  d.run.duration = 4.0;
+  d.run.output_step = 0.005;
+  const RunResult rd = run(d);
+  REQUIRE_FALSE(rd.failure);
+  const auto [derr, dW] = energy_balance(rd, [&](std::size_t k) {
+    const double v1 = col(rd, k, "gimbal.rate1"), v2 = col(rd, k, "gimbal.rate2");
+    return -0.3 * v1 * v1 - 0.5 * v2 * v2;
+  });
+  INFO("dampers: max |E - E0 - W| = " << derr << " J of " << dW << " J");
+  CHECK(dW > 0.05);
+  CHECK(derr < 1e-8 * dW);
+  CHECK(drift(rd, "H") < 1e-10);
+}
+
+TEST_CASE("lagrange new joints: accelerations() against rhs() and finite differences",
+          "[lagrange][prismatic][universal]") {
+  // A hub with a slider, and a gimbaled payload on the slider: joint accelerations are rhs()'s
+  // pi''; body angular accelerations the central differences of the output w along the motion
+  // (RK4 steps of rhs() itself, h = 1e-4 s); sum m a = 0 (springs and motors are internal).
+  System s = hub_and_slider();
+  s.joints[1].stiffness = 20;
+  s.joints[1].motor_revolute.times = {0.0};
+  s.joints[1].motor_revolute.values = {Eigen::Matrix<double, 1, 1>(1.5)};
+  s.bodies.push_back(make_body("payload", 2, {0.2, 0.25, 0.3}));
+  Joint g = gimbal_3d().joints[1];
+  g.parent = 1;
+  g.child = 2;
+  g.motor_universal.times = {0.0};
+  g.motor_universal.values = {Eigen::Vector2d(0.1, 0.05)};
+  s.joints.push_back(g);
+  LagrangeEngine e(s, {});
+  const int ns = e.state_size(), nf = ns / 2;
+  REQUIRE(nf == 9);  // base 6, slide 1, gimbal 2
+  CHECK(e.state_label(6) == "slide.position");
+  CHECK(e.state_label(7) == "gimbal.angle1");
+  CHECK(e.state_label(nf + 8) == "gimbal.rate2");
+  std::vector<double> x(static_cast<std::size_t>(ns)), xd(x.size());
+  e.pack(TreeState::initial(s), x.data());
+  const double t = 0.5;
+  e.rhs(t, x.data(), xd.data());
+  TreeAccel a;
+  e.accelerations(t, x.data(), a);
+  CHECK(a.angle_ddot[1] == xd[static_cast<std::size_t>(nf + 6)]);
+  CHECK(a.angle_ddot[2] == xd[static_cast<std::size_t>(nf + 7)]);
+  CHECK(a.angle2_ddot[2] == xd[static_cast<std::size_t>(nf + 8)]);
+  CHECK(a.angle2_ddot[1] == 0.0);
+  CHECK(std::abs(a.angle_ddot[1]) > 1e-3);
+  CHECK(total_force(s, a).norm() < 1e-12);
+  auto rk4 = [&](double t0, std::vector<double> y, double h) {
+    std::vector<double> k1(y.size()), k2(y.size()), k3(y.size()), k4(y.size()), z(y.size());
+    auto stage = [&](const std::vector<double>& k, double c) {
+      for (std::size_t i = 0; i < y.size(); ++i) z[i] = y[i] + c * h * k[i];
+    };
+    e.rhs(t0, y.data(), k1.data());
+    stage(k1, 0.5);
+    e.rhs(t0 + 0.5 * h, z.data(), k2.data());
+    stage(k2, 0.5);
+    e.rhs(t0 + 0.5 * h, z.data(), k3.data());
+    stage(k3, 1.0);
+    e.rhs(t0 + h, z.data(), k4.data());
+    for (std::size_t i = 0; i < y.size(); ++i)
+      y[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+    return y;
+  };
+  const double h = 1e-4;
+  const std::vector<double> xp = rk4(t, x, h), xm = rk4(t, x, -h);
+  std::vector<double> rp(e.layout().size()), rm(rp.size());
+  e.output_row(t + h, xp.data(), rp.data());
+  e.output_row(t - h, xm.data(), rm.data());
+  for (int b = 0; b < 3; ++b) {
+    const auto w = static_cast<std::size_t>(e.layout().body_w(b));
+    const Eigen::Vector3d fd((rp[w] - rm[w]) / (2 * h), (rp[w + 1] - rm[w + 1]) / (2 * h),
+                             (rp[w + 2] - rm[w + 2]) / (2 * h));
+    INFO("body " << b << ": wdot " << a.wdot_NB_B[static_cast<std::size_t>(b)].transpose()
+                 << ", finite differences " << fd.transpose());
+    CHECK((a.wdot_NB_B[static_cast<std::size_t>(b)] - fd).norm() < 1e-7 * (1 + fd.norm()));
+  }
+  // Kinematics: every body's w_NB_B (twist pass) is the rate of its attitude quaternion (output,
+  // from the joints' own rotations, joints/*.cpp): w = 2 vec(q^* q') (Kane, Likins & Levinson
+  // 1983, Sec. 1.13), q' by central differences.
+  std::vector<double> r0(rp.size());
+  e.output_row(t, x.data(), r0.data());
+  for (int b = 0; b < 3; ++b) {
+    const auto w = static_cast<std::size_t>(e.layout().body_w(b));
+    auto quat = [&](const std::vector<double>& row) {
+      return Eigen::Quaterniond(row[w + 3], row[w + 4], row[w + 5], row[w + 6]);
+    };
+    const Eigen::Quaterniond q = quat(r0), qp = quat(rp), qm = quat(rm);
+    const Eigen::Quaterniond qd((qp.coeffs() - qm.coeffs()) / (2 * h));
+    const Eigen::Vector3d w_fd = 2.0 * (q.conjugate() * qd).vec();
+    const Eigen::Vector3d w_out(r0[w], r0[w + 1], r0[w + 2]);
+    INFO("body " << b << ": w " << w_out.transpose() << ", from q' " << w_fd.transpose());
+    CHECK((w_out - w_fd).norm() < 1e-7 * (1 + w_out.norm()));
+  }
+  // The joint columns' rates against the accelerations, the same way.
+  const auto js = static_cast<std::size_t>(e.layout().joint_first(1));
+  const auto jg = static_cast<std::size_t>(e.layout().joint_first(2));
+  CHECK(std::abs((rp[js + 1] - rm[js + 1]) / (2 * h) - a.angle_ddot[1]) < 1e-7);
+  CHECK(std::abs((rp[jg + 2] - rm[jg + 2]) / (2 * h) - a.angle_ddot[2]) < 1e-7);
+  CHECK(std::abs((rp[jg + 3] - rm[jg + 3]) / (2 * h) - a.angle2_ddot[2]) < 1e-7);
+}
+
+TEST_CASE("lagrange new joints: prismatic and universal joints at flexible-body nodes are refused",
+          "[lagrange][prismatic][universal]") {
+  // A flexible child at node 0 (the reader refuses it too; the engine names the joint).
+  System s = hub_and_slider();
+  FlexBody f;
+  f.mode_names = {"q1"};
+  FlexNode n0;
+  n0.name = "root";
+  n0.mass = 2.5;
+  n0.p_BoNi_B = {-0.5, 0, 0};
+  n0.Phi_B = Eigen::Matrix3Xd::Zero(3, 1);
+  n0.Psi_B = Eigen::Matrix3Xd::Zero(3, 1);
+  n0.J_Ni_B = 0.1 * Eigen::Matrix3d::Identity();
+  FlexNode n1 = n0;
+  n1.name = "tip";
+  n1.p_BoNi_B = {0.5, 0, 0};
+  n1.Phi_B(1, 0) = 1.0;
+  f.nodes = {n0, n1};
+  f.K = Eigen::MatrixXd::Identity(1, 1);
+  f.D = Eigen::MatrixXd::Zero(1, 1);
+  s.bodies[1].flex = f;
+  s.joints[1].p_CoJ_C = n0.p_BoNi_B;
+  s.joints[1].child_node = 0;
+  for (JointType type : {JointType::Prismatic, JointType::Universal}) {
+    s.joints[1].type = type;
+    try {
+      LagrangeEngine e(s, {});
+      FAIL("no InputError");
+    } catch (const InputError& err) {
+      const std::string what = err.what();
+      INFO(what);
+      CHECK(what.find("joint 'slide'") != std::string::npos);
+      CHECK(what.find("cannot attach at a node") != std::string::npos);
+    }
+  }
+  // At node -1 (the body frame) a flexible child is allowed: the slider joint runs.
+  s.joints[1].type = JointType::Prismatic;
+  s.joints[1].child_node = -1;
+  s.run.duration = 1.0;
+  const RunResult r = run(s);
+  INFO((r.failure ? r.failure->what() : "ok"));
+  REQUIRE_FALSE(r.failure);
+  CHECK(drift(r, "H") < 1e-9);
+  CHECK(drift(r, "E") < 1e-9);
 }
