@@ -12,12 +12,12 @@
 #include "core/errors.hpp"
 #include "core/integrate.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/run_checks.hpp"
 #include "tests/lagrange/scenes.hpp"
 
 using namespace crossdyn;
+using namespace crossdyn::test;  // scenes.hpp, run_checks.hpp
 using crossdyn::lagrange::LagrangeEngine;
-using crossdyn::test::free_joint;
-using crossdyn::test::make_body;
 
 namespace {
 
@@ -63,12 +63,6 @@ RunResult run(const System& s, double tol = 1e-12) {
   return simulate(e, s, TreeState::initial(s), settings);
 }
 
-double col(const RunResult& r, std::size_t row, const std::string& name) {
-  const int c = r.column(name);
-  REQUIRE(c >= 0);
-  return r.at(row, static_cast<std::size_t>(c));
-}
-
 // max over rows of |c(row) - c(0)| / |c(0)|, and of |c(row) - c(0)| when scale is given.
 double drift(const RunResult& r, const std::string& column, double scale = 0) {
   const double c0 = col(r, 0, column);
@@ -82,28 +76,36 @@ double excursion(const RunResult& r, const std::string& column) {
   return drift(r, column, 1.0);
 }
 
-// Energy balance E(t) - E(0) = integral_0^t power dt, the integral by Simpson's rule on the output
-// rows (even rows). Returns {max |E - E0 - W|, max |W|}.
-template <class Power>
-std::pair<double, double> energy_balance(const RunResult& r, const Power& power) {
-  const std::size_t n = r.rows();
-  REQUIRE(n >= 3);
-  const double E0 = col(r, 0, "E");
-  double W = 0, err = 0, Wmax = 0;
-  for (std::size_t k = 2; k < n; k += 2) {
-    const double h = 0.5 * (col(r, k, "t") - col(r, k - 2, "t"));
-    W += h / 3.0 * (power(k - 2) + 4.0 * power(k - 1) + power(k));
-    err = std::max(err, std::abs(col(r, k, "E") - E0 - W));
-    Wmax = std::max(Wmax, std::abs(W));
-  }
-  return {err, Wmax};
-}
-
 // sum_b m_b a_NBo_N(b): zero when every load is internal (Newton's second law for the system).
 Eigen::Vector3d total_force(const System& s, const TreeAccel& a) {
   Eigen::Vector3d f = Eigen::Vector3d::Zero();
   for (std::size_t b = 0; b < s.bodies.size(); ++b) f += s.bodies[b].mass * a.a_NBo_N[b];
   return f;
+}
+
+// Dampers: over 4 s, E(t) - E(0) is the integral of their power (power(r, row) < 0), and H is
+// conserved (internal loads).
+template <class Power>
+void check_dissipation(System s, const Power& power) {
+  s.run.duration = 4.0;
+  s.run.output_step = 0.005;
+  const RunResult r = run(s);
+  REQUIRE_FALSE(r.failure);
+  const auto [err, W] = energy_balance(r, [&](std::size_t k) { return power(r, k); });
+  INFO("dampers: max |E - E0 - W| = " << err << " J of " << W << " J");
+  CHECK(W > 0.05);
+  CHECK(err < 1e-8 * W);
+  CHECK(drift(r, "H") < 1e-10);
+}
+
+// accelerations() at the initial state, at time t.
+TreeAccel initial_accelerations(const System& s, double t) {
+  LagrangeEngine e(s, {});
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(TreeState::initial(s), x.data());
+  TreeAccel a;
+  e.accelerations(t, x.data(), a);
+  return a;
 }
 
 // A spinning hub (free) with a slider on an axis off every principal direction, offset from the
@@ -174,12 +176,8 @@ TEST_CASE("lagrange new joints: prismatic spring between two free bodies, closed
   CHECK(drift(r, "E") < 1e-10);
   // accelerations() at t = 0: s'' = -k (s0 - neutral) / mu, the slider's CM accelerates by s''
   // relative to the box's, and m1 a1 + m2 a2 = 0.
-  LagrangeEngine e(s, {});
-  REQUIRE(e.state_size() == 14);
-  std::vector<double> x(14);
-  e.pack(TreeState::initial(s), x.data());
-  TreeAccel a;
-  e.accelerations(0.0, x.data(), a);
+  REQUIRE(LagrangeEngine(s, {}).state_size() == 14);
+  const TreeAccel a = initial_accelerations(s, 0.0);
   const double sdd = -k * (s0 - neutral) / mu;
   CHECK(std::abs(a.angle_ddot[1] - sdd) < 1e-12 * std::abs(sdd));
   CHECK((a.a_NBo_N[1] - a.a_NBo_N[0] - Eigen::Vector3d(sdd, 0, 0)).norm() < 1e-12);
@@ -283,21 +281,13 @@ TEST_CASE("lagrange new joints: prismatic motor and damper, work and momenta",
   const RunResult r = run(s);
   INFO((r.failure ? r.failure->what() : "ok"));
   REQUIRE_FALSE(r.failure);
-  double err = 0, Wmax = 0;
-  for (std::size_t k = 0; k < r.rows(); ++k) {
-    const double W = F * (col(r, k, "slide.position") - 0.1);
-    err = std::max(err, std::abs(col(r, k, "E") - col(r, 0, "E") - W));
-    Wmax = std::max(Wmax, std::abs(W));
-  }
+  const auto [err, Wmax] =
+      work_balance(r, [&](std::size_t k) { return F * (col(r, k, "slide.position") - 0.1); });
   INFO("max |E - E0 - F (s - s0)| = " << err << " J of " << Wmax << " J; H drift " << drift(r, "H"));
   CHECK(Wmax > 1.0);
   CHECK(err < 1e-9 * Wmax);
   CHECK(drift(r, "H") < 1e-10);
-  LagrangeEngine e(s, {});
-  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
-  e.pack(TreeState::initial(s), x.data());
-  TreeAccel a;
-  e.accelerations(1.0, x.data(), a);
+  const TreeAccel a = initial_accelerations(s, 1.0);
   CHECK(total_force(s, a).norm() < 1e-12 * F);
   CHECK(std::abs(a.angle_ddot[1]) > 0.1);
 
@@ -305,18 +295,10 @@ TEST_CASE("lagrange new joints: prismatic motor and damper, work and momenta",
   System d = hub_and_slider();
   d.joints[1].damping = 2.0;
   d.joints[1].stiffness = 20;
-  d.run.duration = 4.0;
-  d.run.output_step = 0.005;
-  const RunResult rd = run(d);
-  REQUIRE_FALSE(rd.failure);
-  const auto [derr, dW] = energy_balance(rd, [&](std::size_t k) {
+  check_dissipation(d, [](const RunResult& rd, std::size_t k) {
     const double v = col(rd, k, "slide.rate");
     return -2.0 * v * v;
   });
-  INFO("damper: max |E - E0 - W| = " << derr << " J of " << dW << " J");
-  CHECK(dW > 0.05);
-  CHECK(derr < 1e-8 * dW);
-  CHECK(drift(rd, "H") < 1e-10);
 }
 
 TEST_CASE("lagrange new joints: universal small-angle frequencies about each axis",
@@ -384,40 +366,23 @@ TEST_CASE("lagrange new joints: universal motors and dampers, work and momenta",
   const RunResult r = run(s);
   INFO((r.failure ? r.failure->what() : "ok"));
   REQUIRE_FALSE(r.failure);
-  double err = 0, Wmax = 0;
-  for (std::size_t k = 0; k < r.rows(); ++k) {
-    const double W =
-        t1 * (col(r, k, "gimbal.angle1") - 0.8) + t2 * (col(r, k, "gimbal.angle2") + 0.6);
-    err = std::max(err, std::abs(col(r, k, "E") - col(r, 0, "E") - W));
-    Wmax = std::max(Wmax, std::abs(W));
-  }
+  const auto [err, Wmax] = work_balance(r, [&](std::size_t k) {
+    return t1 * (col(r, k, "gimbal.angle1") - 0.8) + t2 * (col(r, k, "gimbal.angle2") + 0.6);
+  });
   INFO("max |E - E0 - W| = " << err << " J of " << Wmax << " J; H drift " << drift(r, "H"));
   CHECK(Wmax > 0.1);
   CHECK(err < 1e-9 * Wmax);
   CHECK(drift(r, "H") < 1e-10);
-  LagrangeEngine e(s, {});
-  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
-  e.pack(TreeState::initial(s), x.data());
-  TreeAccel a;
-  e.accelerations(1.0, x.data(), a);
-  CHECK(total_force(s, a).norm() < 1e-12);
+  CHECK(total_force(s, initial_accelerations(s, 1.0)).norm() < 1e-12);
 
   // Dampers on both axes dissipate d1 a1'^2 + d2 a2'^2.
   System d = gimbal_3d();
   d.joints[1].damping = 0.3;
   d.joints[1].damping2 = 0.5;
-  d.run.duration = 4.0;
-  d.run.output_step = 0.005;
-  const RunResult rd = run(d);
-  REQUIRE_FALSE(rd.failure);
-  const auto [derr, dW] = energy_balance(rd, [&](std::size_t k) {
+  check_dissipation(d, [](const RunResult& rd, std::size_t k) {
     const double v1 = col(rd, k, "gimbal.rate1"), v2 = col(rd, k, "gimbal.rate2");
     return -0.3 * v1 * v1 - 0.5 * v2 * v2;
   });
-  INFO("dampers: max |E - E0 - W| = " << derr << " J of " << dW << " J");
-  CHECK(dW > 0.05);
-  CHECK(derr < 1e-8 * dW);
-  CHECK(drift(rd, "H") < 1e-10);
 }
 
 TEST_CASE("lagrange new joints: accelerations() against rhs() and finite differences",
