@@ -134,6 +134,12 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       }
     }
     jm.rigid_point = jm.parent_node < 0 && jm.child_node < 0 && jm.slides == 0;
+    // The twist pass turns the first of two axis rotations only on its short path (kinematics.hpp).
+    if (jm.axis_rotations > 1 && !jm.rigid_point)
+      throw InputError(where + "joints: joint '" + J.name +
+                       "': two axis rotations need a rigid joint point (no node, no slide)");
+    jm.has_spring = false;
+    for (double k : jm.stiffness) jm.has_spring = jm.has_spring || k != 0.0;
     const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
     if (unit.euler_offset >= 0) {
       jm.euler_set = static_cast<int>(m->euler_sets.size());

@@ -41,6 +41,7 @@ template <class S>
 S potential_energy_of(const Model& m, const int* chart, const S* q) {
   S V(0.0);
   for (const Model::JointM& J : m.joints) {
+    if (!J.has_spring) continue;
     const S* qj = q + J.i0;
     for (int a = 0; a < J.scalar_coordinates; ++a) {
       const double ka = J.stiffness[static_cast<std::size_t>(a)];

@@ -83,6 +83,7 @@ struct LagrangeEngine::Model {
     // a damper damping[k] and a motor motor(t)[k] per quasi-velocity k < loaded.
     int loaded = 0;
     std::array<double, 3> stiffness{}, neutral{}, damping{};
+    bool has_spring = false;  // a stiffness is not zero
     PiecewiseConstant<3> motor;
     // Prescribed revolute or prismatic joint (docs/prescribed-motion.md): the angle (position)
     // angle0 + theta(t) and its rate are not state; the coordinate stays in q* and pi' (internal
