@@ -283,11 +283,14 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
 // the tree through the joint frames (docs/flexible-bodies.md "Joints at nodes"):
 //   w_C = R_PC^T (w_P + G_P eta_P') + E_C w_rel - G_C eta_C'     (C components)
 // with w_rel the joint's relative angular velocity in child-side joint-frame components
-// (revolute: axis_J rate; spherical: w_PC_C), and the joint point has one velocity seen from both
-// bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C') in N
-// (Kane & Levinson 1985, "Dynamics: Theory and Applications", Sec. 2.7, two points fixed on a
-// rigid body, plus the nodes' elastic velocities), i.e. in C components (R_CN = R_PC^T R_PN):
+// (revolute: axis_J rate; spherical: w_PC_C; universal: Rot(n_2, a2)^T n_1 a1' + n_2 a2', the
+// first axis turned by the second rotation, second_rotation; prismatic: 0), and the joint point
+// has one velocity seen from both bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') -
+// R_NC (w_C x r_C + Phi_C eta_C') in N (Kane & Levinson 1985, "Dynamics: Theory and
+// Applications", Sec. 2.7, two points fixed on a rigid body, plus the nodes' elastic velocities),
+// i.e. in C components (R_CN = R_PC^T R_PN):
 //   v_Co_C = R_PC^T (v_Po_P + w_P x r_P + Phi_P eta_P') - (w_C x r_C + Phi_C eta_C').
+// A sliding joint point (prismatic) adds its velocity along the axis in P, axis_P s' (Sec. 2.8).
 // The base's v_NBo_B = R_NB^T v_NBo_N (its quasi-velocities are N components, Eq. 17).
 // Only the joints in `joints` (topological order) are visited: a seed's twists are zero outside the
 // subtree of its joint, whose parent twist the caller sets to zero.
