@@ -100,6 +100,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       jm.b1 = jm.D1 * jm.axis_J;
       jm.b2 = jm.D2 * jm.axis_J;
       jm.axis_last_J = jm.axis2_J;
+      // |n_2 x n_1| = sin of the angle between the axes: parallel axes make M singular.
+      if (!(jm.b1.norm() > 1e-6))
+        throw InputError(where + "joints: joint '" + J.name +
+                         "': the universal joint's two axes are parallel (or not finite)");
     }
     if (unit.slides > 0) jm.slide_P = J.axis_P.normalized();
     unit.loads(J, jm);

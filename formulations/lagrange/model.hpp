@@ -42,8 +42,8 @@ struct LagrangeEngine::Model {
     // pose and twist passes read these, not the type.
     bool absolute = false;       // the free base: R_NB from its Euler set, pi' = (v_NBo_N, w_NB_B)
     bool relative_euler = false;  // q* the Euler angles of R_J, pi' = w_PC_C (spherical)
-    int axis_rotations = 0;  // first coordinates: rotations about axes, R_J = Rot(n_1, q_1) Rot(n_2,
-                             // q_2) (revolute 1, universal 2)
+    int axis_rotations = 0;  // first coordinates: rotations about axes,
+                             // R_J = Rot(n_1, q_1) Rot(n_2, q_2) (revolute 1, universal 2)
     int slides = 0;          // next: slides of the joint point along slide_P (prismatic 1)
     int scalar_coordinates = 0;  // axis_rotations + slides: each with its own spring
     bool rigid_point = true;  // the joint point is fixed in both bodies (no node, no slide): the

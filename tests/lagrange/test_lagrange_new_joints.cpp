@@ -125,7 +125,8 @@ System hub_and_slider() {
 // angles and rates.
 System gimbal_3d() {
   Body base = make_body("base", 50, {20, 25, 30});
-  Joint j = universal("gimbal", 0, 1, {0.5, 0.3, 1.0}, {0.1, 0.0, -0.6}, {1, 0, 0.1}, {0.3, 1, 0.2});
+  Joint j =
+      universal("gimbal", 0, 1, {0.5, 0.3, 1.0}, {0.1, 0.0, -0.6}, {1, 0, 0.1}, {0.3, 1, 0.2});
   j.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, -1, 2).normalized()));
   j.angle0 = 0.8;
   j.angle2_0 = -0.6;
@@ -255,7 +256,8 @@ TEST_CASE("lagrange new joints: prescribed prismatic deploy on a spinning hub, H
   CHECK(Wmax > 0.1);
   CHECK(err < 1e-8 * Wmax);
   bool finite = true;
-  for (std::size_t k = 0; k < r.rows(); ++k) finite = finite && std::isfinite(col(r, k, "slide.force"));
+  for (std::size_t k = 0; k < r.rows(); ++k)
+    finite = finite && std::isfinite(col(r, k, "slide.force"));
   CHECK(finite);
   // An internal joint on a free system: H is conserved.
   const double dH = drift(r, "H");
@@ -283,7 +285,8 @@ TEST_CASE("lagrange new joints: prismatic motor and damper, work and momenta",
   REQUIRE_FALSE(r.failure);
   const auto [err, Wmax] =
       work_balance(r, [&](std::size_t k) { return F * (col(r, k, "slide.position") - 0.1); });
-  INFO("max |E - E0 - F (s - s0)| = " << err << " J of " << Wmax << " J; H drift " << drift(r, "H"));
+  INFO("max |E - E0 - F (s - s0)| = " << err << " J of " << Wmax
+                                       << " J; H drift " << drift(r, "H"));
   CHECK(Wmax > 1.0);
   CHECK(err < 1e-9 * Wmax);
   CHECK(drift(r, "H") < 1e-10);
@@ -473,7 +476,7 @@ TEST_CASE("lagrange new joints: accelerations() against rhs() and finite differe
   CHECK(std::abs((rp[jg + 3] - rm[jg + 3]) / (2 * h) - a.angle2_ddot[2]) < 1e-7);
 }
 
-TEST_CASE("lagrange new joints: prismatic and universal joints at flexible-body nodes are refused",
+TEST_CASE("lagrange new joints: joints at flexible-body nodes and parallel gimbal axes are refused",
           "[lagrange][prismatic][universal]") {
   // A flexible child at node 0 (the reader refuses it too; the engine names the joint).
   System s = hub_and_slider();
@@ -508,6 +511,10 @@ TEST_CASE("lagrange new joints: prismatic and universal joints at flexible-body 
       CHECK(what.find("cannot attach at a node") != std::string::npos);
     }
   }
+  // A universal joint's axes may not be parallel.
+  System g = gimbal_3d();
+  g.joints[1].axis2_P = -g.joints[1].axis_P;
+  CHECK_THROWS_AS(LagrangeEngine(g, {}), InputError);
   // At node -1 (the body frame) a flexible child is allowed: the slider joint runs.
   s.joints[1].type = JointType::Prismatic;
   s.joints[1].child_node = -1;

@@ -1,5 +1,5 @@
-// One joint type of the Lagrange engine (free, revolute, spherical, fixed, prismatic, universal): its
-// coordinates and quasi-velocities, what each coordinate does to the child (the kinematic
+// One joint type of the Lagrange engine (free, revolute, spherical, fixed, prismatic, universal):
+// its coordinates and quasi-velocities, what each coordinate does to the child (the kinematic
 // properties the passes of rhs() read from Model::JointM), its loads, their labels, its Euler-angle
 // set, its initial state, its output columns and accelerations. One unit file per type
 // (free.cpp, revolute.cpp, spherical.cpp, fixed.cpp, prismatic.cpp, universal.cpp), chosen once per
@@ -64,8 +64,9 @@ struct JointUnit {
 // Shared by the units of one scalar coordinate (revolute, prismatic; revolute.cpp): pack() of the
 // coordinate (a prescribed one from its profile at t = 0), its loads (one spring, damper and motor
 // along or about the axis) and its acceleration.
-void pack_one_coordinate(const Model::JointM& J, const TreeState& s, const TreeState::JointState& js,
-                         double* qj, double* uj, const SetAngles& set_angles);
+void pack_one_coordinate(const Model::JointM& J, const TreeState& s,
+                         const TreeState::JointState& js, double* qj, double* uj,
+                         const SetAngles& set_angles);
 void one_coordinate_loads(const Joint& joint, Model::JointM& J);
 void one_coordinate_acceleration(TreeAccel& a, std::size_t j, const Eigen::VectorXd& udot, int i0);
 // No loads (free, fixed).
