@@ -62,7 +62,8 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.parent = J.parent;
     jm.child = J.child;
     jm.i0 = i0;
-    // A prescribed revolute joint keeps its coordinate in q* (Joint::dof() is 0: not in the state).
+    // A prescribed revolute or prismatic joint keeps its coordinate in q* (Joint::dof() is 0: not
+    // in the state).
     jm.dof = unit.dof;
     jm.translations = unit.translations;
     if (unit.prescribable && J.prescribed) {
@@ -83,6 +84,29 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     jm.C0 = jm.R_PJ0;
     jm.C1 = jm.R_PJ0 * K;
     jm.C2 = jm.R_PJ0 * K * K;
+    // What its coordinates do (joint_unit.hpp; README.md "Kinematics").
+    jm.absolute = unit.absolute_attitude;
+    jm.relative_euler = unit.euler_offset >= 0 && !unit.absolute_attitude;
+    jm.axis_rotations = unit.axis_rotations;
+    jm.slides = unit.slides;
+    jm.scalar_coordinates = unit.axis_rotations + unit.slides;
+    jm.axis_last_J = jm.axis_J;
+    if (unit.axis_rotations == 2) {
+      // R_PC = Rot(axis_P, a1) Rot(axis2_P, a2) R_PJ0 = R_PJ0 Rot(axis_J, a1) Rot(axis2_J, a2),
+      // since Rot(a, t) R = R Rot(R^T a, t) (system.hpp, universal).
+      jm.axis2_J = jm.R_PJ0.transpose() * J.axis2_P.normalized();
+      jm.D1 = rot::skew(jm.axis2_J);
+      jm.D2 = jm.D1 * jm.D1;
+      jm.b1 = jm.D1 * jm.axis_J;
+      jm.b2 = jm.D2 * jm.axis_J;
+      jm.axis_last_J = jm.axis2_J;
+      // |n_2 x n_1| = sin of the angle between the axes: parallel axes make M singular.
+      if (!(jm.b1.norm() > 1e-6))
+        throw InputError(where + "joints: joint '" + J.name +
+                         "': the universal joint's two axes are parallel (or not finite)");
+    }
+    if (unit.slides > 0) jm.slide_P = J.axis_P.normalized();
+    unit.loads(J, jm);
     if (unit.at_nodes && J.parent_node >= 0) {
       const FlexNode& nd =
           system.bodies[static_cast<std::size_t>(J.parent)].flex->nodes[static_cast<std::size_t>(
@@ -113,11 +137,13 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
         jm.Gs_C = 0.5 * (nd.G + nd.G.transpose());
       }
     }
-    jm.stiffness = J.stiffness;
-    jm.neutral = J.neutral_angle;
-    jm.damping = J.damping;
-    jm.motor_revolute = J.motor_revolute;
-    jm.motor_spherical = J.motor_spherical;
+    jm.rigid_point = jm.parent_node < 0 && jm.child_node < 0 && jm.slides == 0;
+    // The twist pass turns the first of two axis rotations only on its short path (kinematics.hpp).
+    if (jm.axis_rotations > 1 && !jm.rigid_point)
+      throw InputError(where + "joints: joint '" + J.name +
+                       "': two axis rotations need a rigid joint point (no node, no slide)");
+    jm.has_spring = false;
+    for (double k : jm.stiffness) jm.has_spring = jm.has_spring || k != 0.0;
     const std::string& child = system.bodies[static_cast<std::size_t>(J.child)].name;
     if (unit.euler_offset >= 0) {
       jm.euler_set = static_cast<int>(m->euler_sets.size());

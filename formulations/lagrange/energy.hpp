@@ -33,22 +33,26 @@ S kinetic_energy_of(const Model& m, Kin<S>& k, const double* u) {
   return T;
 }
 
-// V(q*): the hinge springs (system.hpp), revolute k (angle - neutral)^2 / 2, spherical
-// k |phi|^2 / 2 with phi the rotation vector of R_J, written in the joint's Euler angles; and the
-// flexible bodies' elastic energy eta^T K eta / 2 (docs/flexible-bodies.md "Energy").
+// V(q*): the hinge springs (system.hpp), one per scalar coordinate k (revolute angle, universal
+// angles, prismatic position) stiffness_k (q_k - neutral_k)^2 / 2, spherical k |phi|^2 / 2 with
+// phi the rotation vector of R_J, written in the joint's Euler angles; and the flexible bodies'
+// elastic energy eta^T K eta / 2 (docs/flexible-bodies.md "Energy").
 template <class S>
 S potential_energy_of(const Model& m, const int* chart, const S* q) {
   S V(0.0);
   for (const Model::JointM& J : m.joints) {
-    if (J.stiffness == 0.0) continue;
+    if (!J.has_spring) continue;
     const S* qj = q + J.i0;
-    if (J.type == JointType::Revolute) {
-      const S d = qj[0] - J.neutral;
-      V += 0.5 * J.stiffness * d * d;
-    } else if (J.type == JointType::Spherical) {
+    for (int a = 0; a < J.scalar_coordinates; ++a) {
+      const double ka = J.stiffness[static_cast<std::size_t>(a)];
+      if (ka == 0.0) continue;
+      const S d = qj[a] - J.neutral[static_cast<std::size_t>(a)];
+      V += 0.5 * ka * d * d;
+    }
+    if (J.relative_euler && J.stiffness[0] != 0.0) {
       const Eigen::Matrix<S, 4, 1> qJ = euler_quaternion(
           kSequences[static_cast<std::size_t>(chart[J.euler_set])], qj[0], qj[1], qj[2]);
-      V += 0.5 * J.stiffness * rotation_angle_squared(qJ(0), qJ(1), qJ(2), qJ(3));
+      V += 0.5 * J.stiffness[0] * rotation_angle_squared(qJ(0), qJ(1), qJ(2), qJ(3));
     }
   }
   for (const Model::BodyM& B : m.bodies) {

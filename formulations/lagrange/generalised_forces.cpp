@@ -43,12 +43,15 @@ void generalised_forces(const Model& m, Workspace& w, double t) {
   // when a side is a node frame of a flexible body: the generalised force is tau on the joint's
   // rates and nothing on any eta' (the node frames' rotations cancel in the pair; the single-frame
   // forces (Jl Psi)^T tau_B of docs/flexible-bodies.md "Loads at joints" sum to zero here).
+  // A prismatic joint's force F along the axis on the child, -F on the parent at the same point:
+  // virtual power F axis . (relative velocity of the point) = F s'. A universal joint's tau_k is
+  // the generalised force of a_k (system.hpp), virtual power tau_1 a1' + tau_2 a2'. So every
+  // loaded quasi-velocity k gets -damping_k pi'_k + motor_k(t) (Model::JointM, set by the unit).
   for (const Model::JointM& J : m.joints) {
-    if (J.type == JointType::Revolute) {
-      w.N(J.i0) += -J.damping * w.u(J.i0) + J.motor_revolute.value(t)(0);
-    } else if (J.type == JointType::Spherical) {
-      w.N.segment<3>(J.i0) += -J.damping * w.u.segment<3>(J.i0) + J.motor_spherical.value(t);
-    }
+    if (J.loaded == 0) continue;
+    const Eigen::Vector3d motor = J.motor.value(t);
+    for (int a = 0; a < J.loaded; ++a)
+      w.N(J.i0 + a) += -J.damping[static_cast<std::size_t>(a)] * w.u(J.i0 + a) + motor(a);
   }
 }
 

@@ -31,7 +31,9 @@ struct Kin {
   std::vector<Vec3<S>> w_NB_B, v_NBo_B;  // per body (twist pass), body components
   // Flexible bodies (per body) and joints at nodes (per body, for the body's own joint).
   std::vector<FlexInertia<S>> fi;     // flexible body: I_w, s, H at its eta (pose pass)
-  std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position
+  std::vector<Vec3<S>> r_P, r_C;      // joint at a parent (child) node: the node's position; r_P
+                                      // also of a sliding joint point, p_PoJ_P + s axis_P
+  std::vector<Vec3<S>> axis1_C;       // two axis rotations: the first axis in child components
   std::vector<Mat3<S>> E_C;           // joint at a child node: exp([psi_C x])
   std::vector<Mat3X<S>> G_P, G_C;     // joint at a parent (child) node: Jl(psi) Psi, 3 x modes
   std::vector<Mat3X<S>> Pt_P, Pt_C;   // ... with geometric stiffening: Phi + e (G eta)^T
@@ -48,6 +50,7 @@ struct Kin {
     fi.resize(nb);
     r_P.resize(nb);
     r_C.resize(nb);
+    axis1_C.resize(nb);
     E_C.assign(nb, Mat3<S>::Identity());
     G_P.resize(nb);
     G_C.resize(nb);
@@ -153,6 +156,28 @@ void node_stiffening(const Eigen::Matrix3Xd& Phi, const Eigen::Vector3d& e,
     for (int a = 0; a < 3; ++a) Pt(a, k) = Phi(a, k) + e(a) * Ge[k];
 }
 
+// The second of two axis rotations (universal; Model::JointM): R_PC <- R_PC Rot(axis2_J, a2) with
+// Rot = I + sin(a2) D1 + (1 - cos(a2)) D2 (Rodrigues' formula, Kane, Likins & Levinson 1983,
+// Sec. 1.2), and the first axis in child components, Rot(axis2_J, a2)^T axis_J =
+// axis_J - sin(a2) b1 + (1 - cos(a2)) b2 (its rate's share of w_PC_C, twist_pass).
+template <class S>
+void second_rotation(const Model::JointM& J, const S& a2, Mat3<S>& R_PC, Vec3<S>& axis1_C) {
+  using std::cos;
+  using std::sin;
+  const S s = sin(a2), c1 = 1.0 - cos(a2);
+  Mat3<S> R2;
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col)
+      R2(r, col) = (r == col ? 1.0 : 0.0) + J.D1(r, col) * s + J.D2(r, col) * c1;
+  const Mat3<S> R1 = R_PC;
+  // R_PC = R1 R2, written out: a second call of product() stops GCC inlining it into pose_pass
+  // (0.4% more instructions on spear1_case1).
+  for (int r = 0; r < 3; ++r)
+    for (int col = 0; col < 3; ++col)
+      R_PC(r, col) = R1(r, 0) * R2(0, col) + R1(r, 1) * R2(1, col) + R1(r, 2) * R2(2, col);
+  for (int a = 0; a < 3; ++a) axis1_C(a) = J.axis_J(a) - J.b1(a) * s + J.b2(a) * c1;
+}
+
 // pose: (q*) => R_NB, R_PC, p_NoBo_N. Joint kinematics of system.hpp:
 // R_PC = exp([psi_P x]) R_PJ0 R_J exp([psi_C x])^T, R_NC = R_NP R_PC,
 // p_NoCo_N = p_NoPo_N + R_NP r_P - R_NC r_C with r_P = p_PoJ_P + u_P, r_C = p_CoJ_C + u_C
@@ -173,7 +198,7 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
     const auto c = static_cast<std::size_t>(J.child);
     const S* q = k.q.data() + J.i0;
     const Model::BodyM& C = m.bodies[c];
-    if (J.type == JointType::Free) {
+    if (J.absolute) {
       if (R_base != nullptr) {
         k.R_NB[c] = *R_base;
       } else {
@@ -185,20 +210,29 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
         flex_inertia(m.flex[static_cast<std::size_t>(C.flex)], k.q.data() + C.e0, k.fi[c]);
       continue;
     }
+    // What the joint's coordinates do (Model::JointM, set from its unit): rotations about axes
+    // (revolute, universal), the Euler angles of R_J (spherical), slides of the joint point
+    // (prismatic); none (fixed): R_PC = R_PJ0.
     Mat3<S>& R_PC = k.R_PC[c];
-    if (J.type == JointType::Revolute) {
+    if (J.axis_rotations > 0) {
       using std::cos;
       using std::sin;
       const S s = sin(q[0]), c1 = 1.0 - cos(q[0]);
       for (int r = 0; r < 3; ++r)
         for (int col = 0; col < 3; ++col)
           R_PC(r, col) = J.C0(r, col) + J.C1(r, col) * s + J.C2(r, col) * c1;
-    } else if (J.type == JointType::Spherical) {
+      if (J.axis_rotations > 1) second_rotation(J, q[1], R_PC, k.axis1_C[c]);
+    } else if (J.relative_euler) {
       const Mat3<S> R_J = euler_rotation(kSequences[static_cast<std::size_t>(chart[J.euler_set])],
                                          q[0], q[1], q[2]);
       for (int col = 0; col < 3; ++col) R_PC.col(col) = const_times(J.R_PJ0, Vec3<S>(R_J.col(col)));
     } else {
       R_PC = J.R_PJ0.cast<S>();
+    }
+    if (J.slides > 0) {
+      // A sliding joint point (prismatic; system.hpp): r_P = p_PoJ_P + s axis_P.
+      const S& sl = q[J.axis_rotations];
+      for (int a = 0; a < 3; ++a) k.r_P[c](a) = J.p_PoJ_P(a) + J.slide_P(a) * sl;
     }
     if (J.parent_node >= 0) {
       Mat3<S> E_P;
@@ -233,8 +267,9 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
     const auto P = static_cast<std::size_t>(J.parent);
     if (absolute) product(k.R_NB[P], R_PC, k.R_NB[c]);
     if constexpr (kPositions) {
-      const Vec3<S> to_joint =
-          J.parent_node >= 0 ? Vec3<S>(k.R_NB[P] * k.r_P[c]) : times_const(k.R_NB[P], J.p_PoJ_P);
+      const Vec3<S> to_joint = J.parent_node >= 0 || J.slides > 0
+                                   ? Vec3<S>(k.R_NB[P] * k.r_P[c])
+                                   : times_const(k.R_NB[P], J.p_PoJ_P);
       const Vec3<S> from_joint =
           J.child_node >= 0 ? Vec3<S>(k.R_NB[c] * k.r_C[c]) : times_const(k.R_NB[c], J.p_CoJ_C);
       k.p_NoBo_N[c] = k.p_NoBo_N[P] + to_joint - from_joint;
@@ -248,11 +283,14 @@ void pose_pass(const Model& m, const int* chart, Kin<S>& k, bool absolute,
 // the tree through the joint frames (docs/flexible-bodies.md "Joints at nodes"):
 //   w_C = R_PC^T (w_P + G_P eta_P') + E_C w_rel - G_C eta_C'     (C components)
 // with w_rel the joint's relative angular velocity in child-side joint-frame components
-// (revolute: axis_J rate; spherical: w_PC_C), and the joint point has one velocity seen from both
-// bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') - R_NC (w_C x r_C + Phi_C eta_C') in N
-// (Kane & Levinson 1985, "Dynamics: Theory and Applications", Sec. 2.7, two points fixed on a
-// rigid body, plus the nodes' elastic velocities), i.e. in C components (R_CN = R_PC^T R_PN):
+// (revolute: axis_J rate; spherical: w_PC_C; universal: Rot(n_2, a2)^T n_1 a1' + n_2 a2', the
+// first axis turned by the second rotation, second_rotation; prismatic: 0), and the joint point
+// has one velocity seen from both bodies, v_Co = v_Po + R_NP (w_P x r_P + Phi_P eta_P') -
+// R_NC (w_C x r_C + Phi_C eta_C') in N (Kane & Levinson 1985, "Dynamics: Theory and
+// Applications", Sec. 2.7, two points fixed on a rigid body, plus the nodes' elastic velocities),
+// i.e. in C components (R_CN = R_PC^T R_PN):
 //   v_Co_C = R_PC^T (v_Po_P + w_P x r_P + Phi_P eta_P') - (w_C x r_C + Phi_C eta_C').
+// A sliding joint point (prismatic) adds its velocity along the axis in P, axis_P s' (Sec. 2.8).
 // The base's v_NBo_B = R_NB^T v_NBo_N (its quasi-velocities are N components, Eq. 17).
 // Only the joints in `joints` (topological order) are visited: a seed's twists are zero outside the
 // subtree of its joint, whose parent twist the caller sets to zero.
@@ -262,7 +300,7 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     const Model::JointM& J = m.joints[static_cast<std::size_t>(j)];
     const auto c = static_cast<std::size_t>(J.child);
     const double* uj = u + J.i0;
-    if (J.type == JointType::Free) {
+    if (J.absolute) {
       const Mat3<S>& R = k.R_NB[c];
       for (int a = 0; a < 3; ++a)
         k.v_NBo_B[c](a) = R(0, a) * uj[0] + R(1, a) * uj[1] + R(2, a) * uj[2];
@@ -299,13 +337,16 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
     }
     const auto P = static_cast<std::size_t>(J.parent);
     const Mat3<S>& R_PC = k.R_PC[c];
-    if (J.parent_node < 0 && J.child_node < 0) {  // rigid attachments on both sides
+    if (J.rigid_point) {  // rigid attachments on both sides, the joint point fixed in both
       const Vec3<S>& w_P = k.w_NB_B[P];
       const Vec3<S> v_J = k.v_NBo_B[P] + cross(w_P, J.p_PoJ_P);
       Vec3<S> w = transpose_times(R_PC, w_P);
-      if (J.type == JointType::Revolute) {
-        for (int a = 0; a < 3; ++a) w(a) += J.axis_J(a) * uj[0];
-      } else if (J.type == JointType::Spherical) {
+      if (J.axis_rotations > 0) {
+        const double rate = uj[J.axis_rotations - 1];
+        for (int a = 0; a < 3; ++a) w(a) += J.axis_last_J(a) * rate;
+        if (J.axis_rotations > 1)
+          for (int a = 0; a < 3; ++a) w(a) += k.axis1_C[c](a) * uj[0];
+      } else if (J.relative_euler) {
         for (int a = 0; a < 3; ++a) w(a) += uj[a];
       }
       k.v_NBo_B[c] = transpose_times(R_PC, v_J) - cross(w, J.p_CoJ_C);
@@ -328,13 +369,22 @@ void twist_pass(const Model& m, Kin<S>& k, const double* u, const std::vector<in
             v_J(a) += J.Phi_P(a, l) * ed[l];
           w_J(a) += G(a, l) * ed[l];
         }
+    } else if (J.slides > 0) {
+      // A sliding joint point r_P = p_PoJ_P + s axis_P (pose_pass): its velocity in P is
+      // v_Po + w_P x r_P + axis_P s' (Kane & Levinson 1985, Sec. 2.8, one point moving on a
+      // rigid body).
+      v_J = k.v_NBo_B[P] + w_J.cross(k.r_P[c]);
+      const double rate = uj[J.axis_rotations];
+      for (int a = 0; a < 3; ++a) v_J(a) += J.slide_P(a) * rate;
     } else {
       v_J = k.v_NBo_B[P] + cross(w_J, J.p_PoJ_P);
     }
     Vec3<S> w = transpose_times(R_PC, w_J);
+    // (Two axis rotations, the universal joint's, only at a rigid joint point: the short path
+    // above; build_model.cpp checks it.)
     Eigen::Vector3d w_rel = Eigen::Vector3d::Zero();
-    if (J.type == JointType::Revolute) w_rel = J.axis_J * uj[0];
-    if (J.type == JointType::Spherical) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
+    if (J.axis_rotations > 0) w_rel = J.axis_last_J * uj[J.axis_rotations - 1];
+    if (J.relative_euler) w_rel = Eigen::Vector3d(uj[0], uj[1], uj[2]);
     Vec3<S> v_C;
     if (J.child_node >= 0) {
       const double* ed = u + J.child_e0;

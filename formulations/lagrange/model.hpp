@@ -5,6 +5,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 #include <string>
 #include <vector>
 
@@ -32,18 +33,40 @@ struct LagrangeEngine::Model {
     const JointUnit* unit = nullptr;  // its joint type's unit (joints/joint_unit.hpp)
     int parent = -1, child = -1;
     int i0 = 0;          // first index of this joint's block in q* and in pi'
-    int dof = 0;         // joint coordinates (free 6, revolute 1, spherical 3, fixed 0)
+    int dof = 0;         // joint coordinates (free 6, revolute, prismatic 1, universal 2,
+                         // spherical 3, fixed 0)
     int size = 0;        // block size: dof, then the child's modal coordinates
     int euler_set = -1;  // index of its Euler-angle set (free, spherical), else -1
     int translations = 0;  // its first coordinates that translate the child in N (free 3, else 0)
+    // What its coordinates do, from its unit (joints/joint_unit.hpp; README.md "Kinematics"): the
+    // pose and twist passes read these, not the type.
+    bool absolute = false;       // the free base: R_NB from its Euler set, pi' = (v_NBo_N, w_NB_B)
+    bool relative_euler = false;  // q* the Euler angles of R_J, pi' = w_PC_C (spherical)
+    int axis_rotations = 0;  // first coordinates: rotations about axes,
+                             // R_J = Rot(n_1, q_1) Rot(n_2, q_2) (revolute 1, universal 2)
+    int slides = 0;          // next: slides of the joint point along slide_P (prismatic 1)
+    int scalar_coordinates = 0;  // axis_rotations + slides: each with its own spring
+    bool rigid_point = true;  // the joint point is fixed in both bodies (no node, no slide): the
+                              // twist pass's short path
     Eigen::Vector3d p_PoJ_P, p_CoJ_C;
     Eigen::Matrix3d R_PJ0;
     Eigen::Quaterniond q_PJ0;
-    Eigen::Vector3d axis_J;  // revolute axis in the joint (child) frame: R_PJ0^T axis_P
-    // Revolute: R_PC(angle) = C0 + C1 sin(angle) + C2 (1 - cos(angle)), i.e. R_PJ0 times
-    // Rodrigues' formula I + sin [n x] + (1 - cos) [n x]^2 (Kane, Likins & Levinson 1983,
-    // Sec. 1.2).
+    Eigen::Vector3d axis_J;  // first rotation's axis in the joint frame: R_PJ0^T axis_P
+    // The first rotation: R_PJ0 Rot(axis_J, q_1) = C0 + C1 sin(q_1) + C2 (1 - cos(q_1)), i.e.
+    // R_PJ0 times Rodrigues' formula I + sin [n x] + (1 - cos) [n x]^2 (Kane, Likins & Levinson
+    // 1983, Sec. 1.2).
     Eigen::Matrix3d C0, C1, C2;
+    // The second rotation (axis_rotations 2): Rot(axis2_J, q_2) = I + sin(q_2) D1 + (1 - cos(q_2))
+    // D2, D1 = [axis2_J x], D2 = D1^2, axis2_J = R_PJ0^T axis2_P; and the first axis in child
+    // components, Rot(axis2_J, q_2)^T axis_J = axis_J - sin(q_2) b1 + (1 - cos(q_2)) b2 with
+    // b1 = D1 axis_J, b2 = D2 axis_J.
+    Eigen::Vector3d axis2_J = Eigen::Vector3d::Zero(), b1 = Eigen::Vector3d::Zero(),
+                    b2 = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d D1 = Eigen::Matrix3d::Zero(), D2 = Eigen::Matrix3d::Zero();
+    // The last rotation's axis in the child frame (axis_J, or axis2_J): its rate adds
+    // axis_last_J rate to w_PC_C.
+    Eigen::Vector3d axis_last_J = Eigen::Vector3d::Zero();
+    Eigen::Vector3d slide_P = Eigen::Vector3d::Zero();  // slides: the unit axis in P
     // Attachment at a node of a flexible parent (child): the node's shapes and slopes, and the
     // index of the parent's (child's) eta in q*. -1: a rigid attachment.
     int parent_node = -1, child_node = -1;
@@ -55,12 +78,16 @@ struct LagrangeEngine::Model {
     Eigen::Vector3d e_P = Eigen::Vector3d::Zero(), e_C = Eigen::Vector3d::Zero();
     Eigen::MatrixXd Gs_P, Gs_C;
     std::vector<int> subtree;  // this joint and every joint below it, in topological order
-    double stiffness = 0, neutral = 0, damping = 0;
-    PiecewiseConstant<1> motor_revolute;
-    PiecewiseConstant<3> motor_spherical;
-    // Prescribed revolute joint (docs/prescribed-motion.md): the angle angle0 + theta(t) and its
-    // rate are not state; the coordinate stays in q* and pi' (internal layout), filled from the
-    // profile at t (LagrangeEngine::expand).
+    // Hinge loads (system.hpp "Loads"; set by the unit's loads()): a spring per scalar coordinate
+    // k (stiffness[k], neutral[k]), or with relative_euler the rotation-vector spring stiffness[0];
+    // a damper damping[k] and a motor motor(t)[k] per quasi-velocity k < loaded.
+    int loaded = 0;
+    std::array<double, 3> stiffness{}, neutral{}, damping{};
+    bool has_spring = false;  // a stiffness is not zero
+    PiecewiseConstant<3> motor;
+    // Prescribed revolute or prismatic joint (docs/prescribed-motion.md): the angle (position)
+    // angle0 + theta(t) and its rate are not state; the coordinate stays in q* and pi' (internal
+    // layout), filled from the profile at t (LagrangeEngine::expand).
     bool prescribed = false;
     PrescribedMotion motion;
     double angle0 = 0;

@@ -171,6 +171,7 @@ void LagrangeEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.wdot_NB_B.assign(nb, Eigen::Vector3d::Zero());
   a.a_NBo_N.assign(nb, Eigen::Vector3d::Zero());
   a.angle_ddot.assign(nj, 0.0);
+  a.angle2_ddot.assign(nj, 0.0);
   a.wdot_PC_C.assign(nj, Eigen::Vector3d::Zero());
   a.eta_ddot.assign(nb, Eigen::VectorXd());
   // Body twist xi = Xi(q*) pi' => xi' = Xi pi'' + (dXi/dt) pi'.

@@ -77,10 +77,8 @@ void validate_flex(const System& system, const std::string& where) {
                          " of node '" + nd.name + "' of body '" + B.name + "'");
     };
     const JointUnit& unit = joint_unit(J.type);
-    if (!unit.at_nodes && J.child_node >= 0)
-      throw InputError(where + joint +
-                       "the free joint cannot attach at a node: a flexible base moves with its "
-                       "body frame");
+    if (!unit.at_nodes && (J.child_node >= 0 || (J.parent >= 0 && J.parent_node >= 0)))
+      throw InputError(where + joint + unit.no_nodes);
     check_side(J.parent, J.parent_node, J.p_PoJ_P, "parent", "parent_point");
     if (unit.at_nodes) check_side(J.child, J.child_node, J.p_CoJ_C, "child", "child_point");
   }

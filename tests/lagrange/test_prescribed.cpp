@@ -11,10 +11,12 @@
 #include "core/integrate.hpp"
 #include "core/scene/scene.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/run_checks.hpp"
 #include "tests/support/linalg.hpp"
 
 using namespace crossdyn;
 using crossdyn::lagrange::LagrangeEngine;
+using crossdyn::test::col;
 
 namespace {
 
@@ -104,27 +106,10 @@ RunResult run(const System& s, const TreeState& initial, double tol = 1e-12) {
   return simulate(e, s, initial, settings);
 }
 
-double col(const RunResult& r, std::size_t row, const std::string& name) {
-  const int c = r.column(name);
-  REQUIRE(c >= 0);
-  return r.at(row, static_cast<std::size_t>(c));
-}
-
-// Energy balance E(t) - E(0) = integral_0^t torque rate dt, the integral by Simpson's rule on the
-// output rows (even rows). Returns {max |E - E0 - W|, max |W|}.
+// Energy balance of a prescribed joint: E(t) - E(0) = integral_0^t torque rate dt (run_checks.hpp).
 std::pair<double, double> energy_balance(const RunResult& r, const std::string& joint) {
-  const std::size_t n = r.rows();
-  REQUIRE(n >= 3);
-  auto power = [&](std::size_t k) { return col(r, k, joint + ".torque") * col(r, k, joint + ".rate"); };
-  const double E0 = col(r, 0, "E");
-  double W = 0, err = 0, Wmax = 0;
-  for (std::size_t k = 2; k < n; k += 2) {
-    const double h = 0.5 * (col(r, k, "t") - col(r, k - 2, "t"));
-    W += h / 3.0 * (power(k - 2) + 4.0 * power(k - 1) + power(k));
-    err = std::max(err, std::abs(col(r, k, "E") - E0 - W));
-    Wmax = std::max(Wmax, std::abs(W));
-  }
-  return {err, Wmax};
+  return test::energy_balance(
+      r, [&](std::size_t k) { return col(r, k, joint + ".torque") * col(r, k, joint + ".rate"); });
 }
 
 // Tip deflection of the spin-up beam: the sum of its modal coordinates (shapes unit at the tip).

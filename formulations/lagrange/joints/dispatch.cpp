@@ -2,12 +2,11 @@
 // once per joint when the model is built (build_model.cpp).
 #include "formulations/lagrange/joints/joint_unit.hpp"
 
-#include "core/errors.hpp"
-
 namespace crossdyn::lagrange {
 
 // Defined in joints/<type>.cpp.
-extern const JointUnit kFreeJoint, kRevoluteJoint, kSphericalJoint, kFixedJoint;
+extern const JointUnit kFreeJoint, kRevoluteJoint, kSphericalJoint, kFixedJoint, kPrismaticJoint,
+    kUniversalJoint;
 
 const JointUnit& joint_unit(JointType type) {
   switch (type) {
@@ -18,8 +17,9 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Spherical:
       return kSphericalJoint;
     case JointType::Prismatic:
+      return kPrismaticJoint;
     case JointType::Universal:
-      throw InputError("lagrange: prismatic and universal joints are not implemented yet");
+      return kUniversalJoint;
     case JointType::Fixed:
       break;
   }

@@ -21,8 +21,9 @@ void accelerations(TreeAccel&, std::size_t, const Eigen::VectorXd&, int) {}
 
 }  // namespace
 
-// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kFixedJoint{0, -1, 0, true, false, false,
-    labels, labels, euler_set, pack, attitude, columns, accelerations};
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude, axis_rotations,
+// slides, no_nodes; then the functions.
+extern const JointUnit kFixedJoint{0, -1, 0, true, false, false, 0, 0, "",
+    labels, labels, euler_set, no_loads, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange

@@ -39,8 +39,10 @@ void accelerations(TreeAccel&, std::size_t, const Eigen::VectorXd&, int) {}
 
 }  // namespace
 
-// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kFreeJoint{6, 3, 3, false, false, true,
-    coordinate_labels, rate_labels, euler_set, pack, attitude, columns, accelerations};
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude, axis_rotations,
+// slides, no_nodes; then the functions.
+extern const JointUnit kFreeJoint{6, 3, 3, false, false, true, 0, 0,
+    "the free joint cannot attach at a node: a flexible base moves with its body frame",
+    coordinate_labels, rate_labels, euler_set, no_loads, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange

@@ -19,6 +19,15 @@ void euler_set(const std::string& joint, const std::string& body, Model::EulerSe
   es.what = "relative attitude of spherical joint '" + joint + "' (body '" + body + "')";
 }
 
+// system.hpp "Loads": the rotation-vector spring (energy.hpp) and tau_C = -damping w_PC_C +
+// motor(t) on the three quasi-velocities w_PC_C (virtual power tau_C . w_PC_C).
+void loads(const Joint& joint, Model::JointM& J) {
+  J.loaded = 3;
+  J.stiffness[0] = joint.stiffness;
+  J.damping = {joint.damping, joint.damping, joint.damping};
+  J.motor = joint.motor_spherical;
+}
+
 void pack(const Model::JointM& J, const TreeState&, const TreeState::JointState& js, double* qj,
           double* uj, const SetAngles& set_angles) {
   set_angles(J.euler_set, js.q_J, qj);
@@ -39,8 +48,9 @@ void accelerations(TreeAccel& a, std::size_t j, const Eigen::VectorXd& udot, int
 
 }  // namespace
 
-// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude; then the functions.
-extern const JointUnit kSphericalJoint{3, 0, 0, true, false, false,
-    coordinate_labels, rate_labels, euler_set, pack, attitude, columns, accelerations};
+// dof, euler_offset, translations, at_nodes, prescribable, absolute_attitude, axis_rotations,
+// slides, no_nodes; then the functions.
+extern const JointUnit kSphericalJoint{3, 0, 0, true, false, false, 0, 0, "",
+    coordinate_labels, rate_labels, euler_set, loads, pack, attitude, columns, accelerations};
 
 }  // namespace crossdyn::lagrange
