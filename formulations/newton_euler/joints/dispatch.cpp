@@ -11,9 +11,9 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Free: return kFreeJoint;
     case JointType::Revolute: return kRevoluteJoint;
     case JointType::Spherical: return kSphericalJoint;
-    case JointType::Prismatic:
+    case JointType::Prismatic: return kPrismaticJoint;
     case JointType::Universal:
-      throw InputError("newton-euler: prismatic and universal joints are not implemented yet");
+      throw InputError("newton-euler: universal joints are not implemented yet");
     case JointType::Fixed: return kFixedJoint;
   }
   return kFreeJoint;  // not reached: every JointType is listed above (-Wswitch)
