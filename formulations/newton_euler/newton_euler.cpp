@@ -954,7 +954,9 @@ double NewtonEulerEngine::energy() const {
 // generalised force J^T lambda it adds is the moment lambda_5 R_GF a_P on the child-side frame G
 // and -lambda_5 a_P on the parent-side frame F, so lambda_5 = -y_5 is the torque about the axis on
 // the child (docs/prescribed-motion.md "State, output, accelerations"; rows 3-4 act about
-// c_k = u x b_k, normal to the axis). Valid after dynamics().
+// c_k = u x b_k, normal to the axis). A prescribed prismatic joint's row 5 is its position along
+// the axis (joints/prismatic.cpp): J_C^T lambda_5 is the force lambda_5 R_NP a_P at the child's
+// joint point, so -y_5 is its force along the axis on the child. Valid after dynamics().
 double NewtonEulerEngine::torque(int j) const {
   if (j == 0) return -kkt_.y_root()(5);
   return -y_[at(j - 1)](5);

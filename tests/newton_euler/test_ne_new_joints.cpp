@@ -8,7 +8,7 @@
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/errors.hpp"
-#include "core/integrate.hpp"
+#include "tests/newton_euler/ne_run.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
 
 #include <catch2/catch.hpp>
@@ -21,52 +21,35 @@
 
 using namespace crossdyn;
 using namespace crossdyn::test::ne;
-using Eigen::Matrix3d;
-using Eigen::Quaterniond;
-using Eigen::Vector3d;
+using Eigen::Matrix3d, Eigen::Quaterniond, Eigen::Vector3d;
+
+// The joints below are written as designated initialisers (Joint is an aggregate); the members
+// they leave out (motors, prescribed) keep their empty defaults.
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
 
 namespace {
 
 Matrix3d diag(double a, double b, double c) { return Vector3d(a, b, c).asDiagonal(); }
 
-RunResult run(const System& s, double duration, double output_step, double tol = 1e-12) {
-  auto e = make_newton_euler_engine(s, {});
-  IntegratorSettings st;
-  st.method = "dop853";
-  st.rtol = st.atol = tol;
-  st.duration = duration;
-  st.output_step = output_step;
-  st.dt = 1e-3;
-  RunResult r = simulate(*e, s, TreeState::initial(s), st);
-  if (r.failure) FAIL(r.failure->what());
-  REQUIRE(r.rows() > 1);
-  return r;
+RunResult run(const System& s, double duration, double output_step) {
+  return run_ne(s, TreeState::initial(s), "dop853", 1e-12, duration, output_step);
 }
 
-std::vector<double> series(const RunResult& r, const std::string& c) {
-  const int i = r.column(c);
-  REQUIRE(i >= 0);
-  std::vector<double> v;
-  for (std::size_t k = 0; k < r.rows(); ++k) v.push_back(r.at(k, static_cast<std::size_t>(i)));
-  return v;
+// At rest, the base not turning, no springs on joint 1: only the motors act.
+System motors_only(System s) {
+  s.joints[0].w_NB_B0.setZero();
+  Joint& j = s.joints[1];
+  j.stiffness = j.stiffness2 = 0;
+  j.rate0 = j.rate2_0 = 0;
+  return s;
 }
 
-double max_abs_change(const std::vector<double>& v) {
-  double m = 0;
-  for (double x : v) m = std::max(m, std::abs(x - v.front()));
-  return m;
-}
-
-double max_of(const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); }
-double min_of(const std::vector<double>& v) { return *std::min_element(v.begin(), v.end()); }
-
-Joint joint(const std::string& name, JointType type, int parent, int child) {
-  Joint j;
-  j.name = name;
-  j.type = type;
-  j.parent = parent;
-  j.child = child;
-  return j;
+// Every joint closed at every row: the columns constraint.pos, .vel, .ang and .angvel below tol.
+void check_closed(const RunResult& r, double tol) {
+  for (const char* c : {"constraint.pos", "constraint.vel", "constraint.ang", "constraint.angvel"}) {
+    INFO(c);
+    CHECK(max_of(series(r, c)) < tol);
+  }
 }
 
 // A free base (hub) and a slider on a prismatic joint, with offsets, an oblique axis, an offset
@@ -82,16 +65,64 @@ System hub_slider() {
   base.w_NB_B0 = Vector3d(0.2, -0.15, 0.9);
   base.q_NB0 = Quaterniond(Eigen::AngleAxisd(0.3, Vector3d(1, -1, 2).normalized()));
   s.joints.push_back(base);
-  Joint p = joint("slide", JointType::Prismatic, 0, 1);
-  p.p_PoJ_P = Vector3d(0.8, 0.3, -0.2);
-  p.p_CoJ_C = Vector3d(-0.2, 0.1, 0.15);
-  p.axis_P = Vector3d(1, 0.3, -0.1).normalized();
-  p.q_PJ0 = Quaterniond(Eigen::AngleAxisd(0.5, Vector3d(0, 1, 1).normalized()));
-  p.stiffness = 40;
-  p.neutral_angle = 0.6;
-  p.angle0 = 0.3;
-  p.rate0 = 0.4;
-  s.joints.push_back(p);
+  s.joints.push_back(Joint{.name = "slide",
+                           .type = JointType::Prismatic,
+                           .parent = 0,
+                           .child = 1,
+                           .p_PoJ_P = Vector3d(0.8, 0.3, -0.2),
+                           .p_CoJ_C = Vector3d(-0.2, 0.1, 0.15),
+                           .axis_P = Vector3d(1, 0.3, -0.1).normalized(),
+                           .q_PJ0 = Quaterniond(Eigen::AngleAxisd(0.5, Vector3d(0, 1, 1).normalized())),
+                           .stiffness = 40,
+                           .neutral_angle = 0.6,
+                           .angle0 = 0.3,
+                           .rate0 = 0.4});
+  return s;
+}
+
+// A base and a payload on a universal joint: the payload's CM 0.5 m above the joint point along
+// the payload's z; axis 1 = x, axis 2 = y of the base (both through the joint point).
+System gimbal(double base_scale) {
+  System s;
+  s.name = "gimbal";
+  s.bodies = {make_body("base", 50 * base_scale, base_scale * diag(10, 12, 15)),
+              make_body("payload", 2, diag(0.1, 0.2, 0.3))};
+  s.joints.push_back(free_joint(0));
+  s.joints.push_back(Joint{.name = "gimbal",
+                           .type = JointType::Universal,
+                           .parent = 0,
+                           .child = 1,
+                           .p_PoJ_P = Vector3d(0, 0, 1),
+                           .p_CoJ_C = Vector3d(0, 0, -0.5),
+                           .axis_P = Vector3d::UnitX(),
+                           .axis2_P = Vector3d::UnitY()});
+  return s;
+}
+
+// The gimbal at large angles, oblique non-perpendicular axes, offsets and a spinning base.
+System spinning_gimbal() {
+  System s = gimbal(1.0);
+  Matrix3d I_pl;
+  I_pl << 0.3, 0.02, 0.01, 0.02, 0.4, -0.03, 0.01, -0.03, 0.5;
+  s.bodies[1] = make_body("payload", 3, I_pl);
+  s.joints[0].w_NB_B0 = Vector3d(0.3, -0.2, 1.0);
+  s.joints[1] = Joint{.name = "gimbal",
+                      .type = JointType::Universal,
+                      .parent = 0,
+                      .child = 1,
+                      .p_PoJ_P = Vector3d(0.5, 0.3, 1.0),
+                      .p_CoJ_C = Vector3d(0.1, -0.2, -0.6),
+                      .axis_P = Vector3d(1, 0.2, 0).normalized(),
+                      .axis2_P = Vector3d(0.1, 1, 0.3).normalized(),
+                      .q_PJ0 = Quaterniond(Eigen::AngleAxisd(0.4, Vector3d(1, 2, -1).normalized())),
+                      .stiffness = 2,
+                      .neutral_angle = 0.1,
+                      .stiffness2 = 3,
+                      .neutral_angle2 = -0.2,
+                      .angle0 = 0.8,
+                      .rate0 = 0.5,
+                      .angle2_0 = -0.6,
+                      .rate2_0 = -0.7};
   return s;
 }
 
@@ -135,12 +166,14 @@ TEST_CASE("newton-euler prismatic: a spring slider on a free base oscillates at 
   const double m1 = 10, m2 = 2, k = 50, s_n = 0.1, s0 = 0.35;
   s.bodies = {make_body("box", m1, diag(1, 2, 3)), make_body("slider", m2, diag(0.1, 0.2, 0.3))};
   s.joints.push_back(free_joint(0));
-  Joint p = joint("slide", JointType::Prismatic, 0, 1);
-  p.axis_P = Vector3d::UnitX();
-  p.stiffness = k;
-  p.neutral_angle = s_n;
-  p.angle0 = s0;
-  s.joints.push_back(p);
+  s.joints.push_back(Joint{.name = "slide",
+                           .type = JointType::Prismatic,
+                           .parent = 0,
+                           .child = 1,
+                           .axis_P = Vector3d::UnitX(),
+                           .stiffness = k,
+                           .neutral_angle = s_n,
+                           .angle0 = s0});
   const RunResult r = run(s, 5.0, 0.01);
   const double omega = std::sqrt(k / (m1 * m2 / (m1 + m2)));
   const auto t = series(r, "t"), pos = series(r, "slide.position"), rate = series(r, "slide.rate");
@@ -167,10 +200,7 @@ TEST_CASE("newton-euler prismatic: H and E are conserved with a spinning hub and
   CHECK(max_abs_change(H) <= 1e-9 * H.front());
   CHECK(max_abs_change(E) <= 1e-9 * E.front());
   CHECK(max_of(pos) - min_of(pos) > 0.2);  // the slider did move
-  CHECK(max_of(series(r, "constraint.pos")) < 1e-10);
-  CHECK(max_of(series(r, "constraint.vel")) < 1e-10);
-  CHECK(max_of(series(r, "constraint.ang")) < 1e-10);
-  CHECK(max_of(series(r, "constraint.angvel")) < 1e-10);
+  check_closed(r, 1e-10);
   // The slider's attitude is the hub's turned by the offset, at every row.
   const auto hq = series(r, "hub.qw"), sq = series(r, "slider.qw");
   const auto hx = series(r, "hub.qx"), hy = series(r, "hub.qy"), hz = series(r, "hub.qz");
@@ -214,8 +244,7 @@ TEST_CASE("newton-euler prescribed prismatic: E(t) - E(0) is the work of the joi
     CHECK(pos[k] == Approx(p.angle0 + pm.angle(t[k])).margin(1e-15));
     CHECK(v[k] == Approx(pm.velocity(t[k])).margin(1e-15));
   }
-  CHECK(max_of(series(r, "constraint.pos")) < 1e-10);
-  CHECK(max_of(series(r, "constraint.vel")) < 1e-10);
+  check_closed(r, 1e-10);
 }
 
 // A constant motor force from rest, no spring: the pair's total linear momentum stays zero and so
@@ -223,11 +252,8 @@ TEST_CASE("newton-euler prescribed prismatic: E(t) - E(0) is the work of the joi
 // kinetic energy.
 TEST_CASE("newton-euler prismatic: a motor force keeps the momenta at zero and does work F ds",
           "[newton_euler][new_joints]") {
-  System s = hub_slider();
-  s.joints[0].w_NB_B0.setZero();
+  System s = motors_only(hub_slider());
   Joint& p = s.joints[1];
-  p.stiffness = 0;
-  p.rate0 = 0;
   const double F = 5.0;
   p.motor_revolute.times = {0.0};
   p.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(F)};
@@ -273,6 +299,110 @@ TEST_CASE("newton-euler prismatic: accelerations are the time derivatives of the
                                {"hub.wz", [](const TreeAccel& a) { return a.wdot_NB_B[0].z(); }}});
 }
 
+// Small angles on a base a million times heavier than the payload: each axis is a torsion
+// pendulum of the payload's inertia about that axis through the joint point, I_k = I_kk + m d^2
+// (d = 0.5 m from the joint point to the payload's CM, normal to both axes), omega_k = sqrt(k_k / I_k).
+TEST_CASE("newton-euler universal: small-angle frequencies about each axis are sqrt(k / I)",
+          "[newton_euler][new_joints]") {
+  const double k1 = 3, k2 = 5, A = 1e-4, m = 2, d = 0.5;
+  const double I1 = 0.1 + m * d * d, I2 = 0.2 + m * d * d;
+  for (int axis = 0; axis < 2; ++axis) {
+    System s = gimbal(1e6);
+    Joint& u = s.joints[1];
+    u.stiffness = k1;
+    u.stiffness2 = k2;
+    (axis == 0 ? u.angle0 : u.angle2_0) = A;
+    const double omega = axis == 0 ? std::sqrt(k1 / I1) : std::sqrt(k2 / I2);
+    const RunResult r = run(s, 3 * 2 * std::numbers::pi / omega, 0.01);
+    const auto t = series(r, "t");
+    const auto a = series(r, axis == 0 ? "gimbal.angle1" : "gimbal.angle2");
+    const auto other = series(r, axis == 0 ? "gimbal.angle2" : "gimbal.angle1");
+    double err = 0, cross = 0;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      err = std::max(err, std::abs(a[i] - A * std::cos(omega * t[i])));
+      cross = std::max(cross, std::abs(other[i]));
+    }
+    INFO("axis " << axis + 1 << ": max |a - A cos(omega t)| " << err / A << " A, other axis "
+                 << cross / A << " A");
+    // A 0.01 % error in omega is a phase error of 2e-3 rad after three periods.
+    CHECK(err < 1e-4 * A);
+    CHECK(cross < 1e-3 * A);
+  }
+}
+
+// Large angles, oblique non-perpendicular axes, springs on both, a spinning base: H and E hold.
+TEST_CASE("newton-euler universal: H and E are conserved at large angles on a spinning base",
+          "[newton_euler][new_joints]") {
+  const System s = spinning_gimbal();
+  const RunResult r = run(s, 20.0, 0.05);
+  const auto H = series(r, "H"), E = series(r, "E");
+  const auto a1 = series(r, "gimbal.angle1"), a2 = series(r, "gimbal.angle2");
+  INFO("H change " << max_abs_change(H) / H.front() << ", E change " << max_abs_change(E) / E.front());
+  CHECK(max_abs_change(H) <= 1e-9 * H.front());
+  CHECK(max_abs_change(E) <= 1e-9 * E.front());
+  CHECK(max_of(a1) - min_of(a1) > 0.5);  // large motions on both axes
+  CHECK(max_of(a2) - min_of(a2) > 0.5);
+  check_closed(r, 1e-10);
+}
+
+// Constant motor torques on both axes from rest, no springs: H stays zero (internal torques) and
+// E is their work, tau_1 (a1 - a1(0)) + tau_2 (a2 - a2(0)).
+TEST_CASE("newton-euler universal: motor torques keep H at zero and do work tau_k da_k",
+          "[newton_euler][new_joints]") {
+  System s = motors_only(spinning_gimbal());
+  Joint& u = s.joints[1];
+  const double tau1 = 0.4, tau2 = -0.3;
+  u.motor_universal.times = {0.0};
+  u.motor_universal.values = {Eigen::Vector2d(tau1, tau2)};
+  const RunResult r = run(s, 3.0, 0.05);
+  const auto E = series(r, "E"), H = series(r, "H");
+  const auto a1 = series(r, "gimbal.angle1"), a2 = series(r, "gimbal.angle2");
+  CHECK(a1.back() - a1.front() > 0.1);  // each angle moves the way its torque turns it
+  CHECK(a2.back() - a2.front() < -0.1);
+  const double W_end = tau1 * (a1.back() - a1.front()) + tau2 * (a2.back() - a2.front());
+  for (std::size_t k = 0; k < E.size(); ++k)
+    CHECK(std::abs(E[k] - tau1 * (a1[k] - a1.front()) - tau2 * (a2[k] - a2.front())) <=
+          1e-9 * W_end);
+  const double h_scale = std::sqrt(2 * max_of(E) * 1.0);  // ~ the payload's I w, I ~ 1 kg m^2
+  INFO("max H " << max_of(H) << " kg m^2/s, scale " << h_scale);
+  CHECK(max_of(H) < 1e-10 * h_scale);
+}
+
+TEST_CASE("newton-euler universal: accelerations are the time derivatives of the rates",
+          "[newton_euler][new_joints]") {
+  System s = spinning_gimbal();
+  s.joints[1].damping = 0.3;
+  s.joints[1].motor_universal.times = {0.0};
+  s.joints[1].motor_universal.values = {Eigen::Vector2d(0.2, 0.5)};
+  check_accelerations(s, 0.0,
+                      {{"gimbal.rate1", [](const TreeAccel& a) { return a.angle_ddot[1]; }},
+                       {"gimbal.rate2", [](const TreeAccel& a) { return a.angle2_ddot[1]; }},
+                       {"base.wx", [](const TreeAccel& a) { return a.wdot_NB_B[0].x(); }}});
+}
+
+// The angles come back from the packed attitude: output angles and rates equal the TreeState's.
+TEST_CASE("newton-euler universal: pack and output agree on the angles and rates",
+          "[newton_euler][new_joints]") {
+  System s = spinning_gimbal();
+  for (const auto& [a1, a2] : {std::pair{0.8, -0.6}, std::pair{3.0, 1.2}, std::pair{-2.5, -3.0}}) {
+    s.joints[1].angle0 = a1;
+    s.joints[1].angle2_0 = a2;
+    auto e = make_newton_euler_engine(s, {});
+    std::vector<double> x(static_cast<std::size_t>(e->state_size())), row(e->columns().size());
+    e->pack(TreeState::initial(s), x.data());
+    e->output_row(0.0, x.data(), row.data());
+    auto at = [&](const char* c) { return row[static_cast<std::size_t>(column(*e, c))]; };
+    INFO("a1 " << a1 << ", a2 " << a2);
+    CHECK(at("gimbal.angle1") == Approx(a1).margin(1e-13));
+    CHECK(at("gimbal.angle2") == Approx(a2).margin(1e-13));
+    CHECK(at("gimbal.rate1") == Approx(s.joints[1].rate0).margin(1e-13));
+    CHECK(at("gimbal.rate2") == Approx(s.joints[1].rate2_0).margin(1e-13));
+    CHECK(at("constraint.ang") < 1e-14);
+    CHECK(at("constraint.angvel") < 1e-14);
+    CHECK(at("constraint.pos") < 1e-14);
+  }
+}
+
 TEST_CASE("newton-euler prismatic and universal: joints at flexible-body nodes are refused",
           "[newton_euler][new_joints]") {
   System s = flexible_tree();
@@ -285,4 +415,8 @@ TEST_CASE("newton-euler prismatic and universal: joints at flexible-body nodes a
       }
     CHECK_THROWS_AS(make_newton_euler_engine(t, {}), InputError);
   }
+  System parallel = gimbal(1.0);
+  parallel.joints[1].axis2_P = -parallel.joints[1].axis_P;
+  CHECK_THROWS_AS(make_newton_euler_engine(parallel, {}), InputError);
+  CHECK_NOTHROW(make_newton_euler_engine(gimbal(1.0), {}));
 }

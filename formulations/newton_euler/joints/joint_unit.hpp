@@ -101,6 +101,16 @@ extern const JointUnit kPrismaticJoint;
 extern const JointUnit kUniversalJoint;
 const JointUnit& joint_unit(JointType type);
 
+// Verbs shared by the units of one coordinate (revolute, prismatic), joints/revolute.cpp: the
+// spring energy stiffness (coords(0) - neutral_angle)^2 / 2 (a `potential`), and the pinned
+// columns of the coordinate and its rate written by `write` (RowWriter::revolute or ::prismatic),
+// a prescribed joint's from its profile followed by its torque (force) column.
+void one_coordinate_potential(const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                              const JointCoords& coords, double& e);
+void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
+                           const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                           const JointCoords& coords, double torque, double t);
+
 // The fixed joint's relative attitude lock (joint_constraints.hpp, "fixed") in rows row0..row0+2
 // (fixed: 3; prismatic: 2), joints/fixed.cpp. The revolute row shared with the universal joint is
 // joints/axis_row.hpp.

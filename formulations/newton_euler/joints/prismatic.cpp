@@ -130,21 +130,10 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
   s_ddot = row.J_P.row(0).dot(in.nudot_P) + row.J_C.row(0).dot(in.nudot_C) - row.gamma(0);
 }
 
-void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
-               const JointCoords& coords, double& e) {
-  const double d = coords(0) - J.neutral_angle;
-  e += 0.5 * J.stiffness * d * d;
-}
-
+// Position and rate (a prescribed joint's from its profile, then its force: row 5's multiplier).
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
             const JointCoords& coords, double force, double t) {
-  if (m.prescribed) {  // position and rate from the profile; the force from row 5's multiplier
-    const PrescribedMotion& pm = *J.prescribed;
-    out.prismatic(j, J.angle0 + pm.angle(t), pm.velocity(t));
-    out.joint_torque(j, force);
-  } else {
-    out.prismatic(j, coords(0), jk.rate);
-  }
+  one_coordinate_output(&RowWriter::prismatic, out, j, J, m, jk, coords, force, t);
 }
 
 // The separation normal to the axis and its rate (constraint.pos, .vel), the attitude away from
@@ -167,6 +156,6 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 const JointUnit kPrismaticJoint{"prismatic", model,         validate,      relative,  point_rows,
                                 rotation_rows, track,       load,          pack,      accelerations,
-                                potential,   output,        violation};
+                                one_coordinate_potential, output, violation};
 
 }  // namespace crossdyn::newton_euler

@@ -107,21 +107,9 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
   }
 }
 
-void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
-               const JointCoords& coords, double& e) {
-  const double d = coords(0) - J.neutral_angle;
-  e += 0.5 * J.stiffness * d * d;
-}
-
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
             const JointCoords& coords, double torque, double t) {
-  if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
-    const PrescribedMotion& pm = *J.prescribed;
-    out.revolute(j, J.angle0 + pm.angle(t), pm.velocity(t));
-    out.joint_torque(j, torque);
-  } else {
-    out.revolute(j, coords(0), jk.rate);
-  }
+  one_coordinate_output(&RowWriter::revolute, out, j, J, m, jk, coords, torque, t);
 }
 
 // The angle between the two copies of the axis, the forbidden relative angular velocity; a
@@ -140,8 +128,26 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 }  // namespace
 
+void one_coordinate_potential(const Joint& J, const JointModel& /*m*/,
+                              const JointKinematics& /*jk*/, const JointCoords& coords, double& e) {
+  const double d = coords(0) - J.neutral_angle;
+  e += 0.5 * J.stiffness * d * d;
+}
+
+void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
+                           const Joint& J, const JointModel& m, const JointKinematics& jk,
+                           const JointCoords& coords, double torque, double t) {
+  if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
+    const PrescribedMotion& pm = *J.prescribed;
+    (out.*write)(j, J.angle0 + pm.angle(t), pm.velocity(t));
+    out.joint_torque(j, torque);
+  } else {
+    (out.*write)(j, coords(0), jk.rate);
+  }
+}
+
 const JointUnit kRevoluteJoint{"revolute", model,     validate,      relative,  nullptr,
                                rotation_rows, track,  load,          pack,      accelerations,
-                               potential,  output,    violation};
+                               one_coordinate_potential, output, violation};
 
 }  // namespace crossdyn::newton_euler
