@@ -51,7 +51,6 @@ JointModel model(const Joint& joint, const System* system) {
   m.unit = &joint_unit(joint.type);
   m.parent = joint.parent;
   m.child = joint.child;
-  m.unit->model(joint, m);  // rows, prescribed, has_angle, unwraps
   m.P = side(system, joint.parent, joint.p_PoJ_P, joint.parent_node);
   m.C = side(system, joint.child, joint.p_CoJ_C, joint.child_node);
   m.q_PJ0 = joint.q_PJ0.normalized();
@@ -62,6 +61,7 @@ JointModel model(const Joint& joint, const System* system) {
   m.b2_P = m.a_P.cross(m.b1_P);
   m.e1_C = m.a_C.unitOrthogonal();
   m.e2_C = m.a_C.cross(m.e1_C);
+  m.unit->model(joint, m);  // rows, prescribed, has_angle, unwraps, translates, the type's constants
   return m;
 }
 
@@ -145,7 +145,7 @@ void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKi
   out.w_FG_G = out.w_G - out.R_FG.transpose() * out.w_F;
   out.w_FG_F = out.R_FG * out.w_G - out.w_F;
   if (m.unit->relative) {  // the type's own coordinates (revolute: angle, rate)
-    m.unit->relative(m, out);
+    m.unit->relative(m, P, C, out);
   } else {
     out.angle_wrapped = 0;
     out.rate = 0;
@@ -162,6 +162,11 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   out.gdot.setZero();
   out.gamma.setZero();
   if (m.rows == 0) return;  // free: no rows
+  if (m.unit->point_rows) {  // prismatic: its own translation rows, no node frames (validate)
+    m.unit->point_rows(m, P, C, jk, out);
+    if (m.unit->rotation_rows) m.unit->rotation_rows(m, jk, out);
+    return;
+  }
 
   // Rows 0-2: the joint point is the same point of both sides (system.hpp, "Joint kinematics").
   const Vector3d& w_P = P.w_NB_B;

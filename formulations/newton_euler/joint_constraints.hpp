@@ -45,12 +45,30 @@
 //     gamma_5 = -a_P . R_FG (w_FG_G x w_G)  (track adds theta''(t)),
 //     from angle'' = a_P . (R_FG w_G' - w_F' + R_FG (w_FG_G x w_G)) (the F-frame derivative above).
 //     Its multiplier is the constraint moment on G about the axis: the joint's torque.
-//   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0):
+//   fixed, rows 3-5 (relative attitude stays at the offset q_PJ0; prismatic: rows 2-4):
 //     q_e = q_PJ0^* (x) q_FG, s = sign(q_e.w);  g = 2 s vec(q_e)
 //     g' = E_q w_FG_G with E_q = s (q_e.w I + [vec(q_e) x])  (Shuster 1993 Eq. 305),
 //     w_FG_G = w_G - R_GF w_F,  A_G = E_q, A_F = -E_q R_GF
 //     gamma = -( E_q' w_FG_G + E_q (w_FG_G x R_GF w_F) )
 //   spherical: rows 0-2 only.
+//   universal (two-axis gimbal), row 3 (the rows 0-2 are the point's): the child's copy of the
+//   second axis, u = R_FG n2_G (n2_G = R_PJ0^T n2_P, constant in G: R_FG = Rot(n1, a1)
+//   Rot(n2, a2) R_PJ0 turns n2 by a1 only), keeps its angle to the first axis n1 (fixed in F):
+//     g_3 = n1 . u - n1 . n2 (its value at zero angles), g_3' = c . w_FG_F with c = u x n1
+//     (= -n, n = n1 x u: the relative angular velocity has no component along n), and A_G, A_F,
+//     gamma_3 those of a revolute row with b = n1 (joints/axis_row.hpp).
+//   prismatic (joints/prismatic.cpp): its own translation rows (point_rows), no node frames.
+//     Po, Co the body origins, s_P = p_PoJ_P, s_C = p_CoJ_C; D_F = R_NP^T (p_NoCo_N + R_NC s_C -
+//     p_NoPo_N), the child's joint point from Po (P components); d = D_F - s_P the separation of
+//     the two joint points (s axis_P on the motion). For a unit vector c fixed in P (Kane, Likins
+//     & Levinson 1983, Sec. 2.7, the point's velocity and acceleration in a moving frame):
+//       g = c . d,  g' = c . u + (w_P x c) . D_F,  u = R_NP^T (v_C - v_P) + R_PC (w_C x s_C),
+//       J_C = [ (R_NP c)^T, (s_C x R_CP c)^T ],  J_P = [ -(R_NP c)^T, (c x D_F)^T ],
+//       gamma = -( (w_P x (w_P x c)) . D_F + 2 (w_P x c) . u + c . R_PC (w_C x (w_C x s_C)) )
+//     rows 0-1: c = b1_P, b2_P (the separation normal to the axis is zero); rows 2-4: the fixed
+//     joint's attitude lock above (R_PC = R_PJ0); prescribed, row 5: c = a_P, g_5 = s (track
+//     subtracts angle0 + theta(t), g_5' and gamma_5 take -theta', +theta''); its multiplier is
+//     the constraint force along the axis on the child: the joint's force.
 //   Then, by the node-frame kinematics above (chain rule), on a flexible side:
 //     J_P[rot, w_P] = A_F E_P^T,  J_P[rot, eta_P'] = A_F E_P^T Jl_P Psi_P,
 //     gamma -= A_F E_P^T (c_P - w_rel_P x w_P)        (and the same for C with A_G);
@@ -60,8 +78,9 @@
 // so rows 0-2 take Phi~ in place of Phi in their modal columns and gamma loses R e q on each side.
 // Rows beyond rows() are zero (TreeKkt pads every joint block to 6 rows).
 // Who writes what: constraint_rows() writes rows 0-2 and the node-frame chain rule, common to
-// every type; the rotation rows of each type, its angle and rate, and a prescribed joint's time
-// terms are written by the type's unit (joints/joint_unit.hpp; joints/revolute.cpp, fixed.cpp).
+// every type but one with its own point rows (prismatic); the rotation rows of each type, its
+// coordinates and rates, and a prescribed joint's time terms are written by the type's unit
+// (joints/joint_unit.hpp; joints/revolute.cpp, fixed.cpp, prismatic.cpp, universal.cpp).
 #pragma once
 
 #include "core/system.hpp"
@@ -85,14 +104,20 @@ struct JointSide {
 
 struct JointUnit;  // the joint type's verbs (joints/joint_unit.hpp)
 
+// A joint's own coordinates in the engine: (angle, 0) revolute, (position s, 0) prismatic,
+// (a1, a2) universal.
+using JointCoords = Eigen::Vector2d;
+
 // The constant description of one joint (built once from System::joints[j]).
 struct JointModel {
   const JointUnit* unit = nullptr;    // chosen from Joint::type (joints/dispatch.cpp)
   int parent = -1, child = -1;
-  int rows = 0;                       // 3 (spherical), 5 (revolute; 6 prescribed), 6 (fixed), 0 (free)
-  bool prescribed = false;            // revolute with Joint::prescribed: row 5 is the angle
-  bool has_angle = false;             // revolute: one angle, the engine's angle_ (from angle0)
-  bool unwraps = false;               // the angle is unwrapped after every step (not prescribed)
+  int rows = 0;                       // 3 (spherical), 5 (revolute, prismatic; 6 prescribed),
+                                      // 4 (universal), 6 (fixed), 0 (free)
+  bool prescribed = false;            // revolute, prismatic with Joint::prescribed: row 5
+  bool has_angle = false;             // coordinates in the engine's coords_ (from angle0, angle2_0)
+  bool unwraps = false;               // angles unwrapped after every step (not prescribed)
+  bool translates = false;            // its load has a force along a translation (prismatic)
   JointSide P, C;                     // parent side (frame F) and child side (frame G)
   Eigen::Quaterniond q_PJ0 = Eigen::Quaterniond::Identity();
   Eigen::Matrix3d R_PJ0 = Eigen::Matrix3d::Identity();
@@ -100,6 +125,9 @@ struct JointModel {
   Eigen::Vector3d a_C = Eigen::Vector3d::UnitZ();  // the same axis in G (= R_PJ0^T a_P, constant)
   Eigen::Vector3d b1_P, b2_P;         // unit, fixed in F, (a_P, b1_P, b2_P) right-handed
   Eigen::Vector3d e1_C, e2_C;         // unit, in G (J0) axes, (a_C, e1_C, e2_C) right-handed
+  Eigen::Vector3d a2_P = Eigen::Vector3d::UnitY();  // universal: the second axis n2 in F (zero angles)
+  Eigen::Vector3d a2_C = Eigen::Vector3d::UnitY();  // the same axis in G (R_PJ0^T a2_P, constant)
+  double a12 = 0;                     // universal: a_P . a2_P, the row's value at zero angles
 
   // Rigid attachments on both sides (the bodies' modes are not known).
   static JointModel from(const Joint& joint);
@@ -141,8 +169,14 @@ struct JointKinematics {
   Eigen::Vector3d w_G = Eigen::Vector3d::Zero();       // w_NG in G components
   Eigen::Vector3d w_FG_G = Eigen::Vector3d::Zero();    // w_G - R_GF w_F
   Eigen::Vector3d w_FG_F = Eigen::Vector3d::Zero();    // R_FG w_G - w_F
-  double angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of G about the axis
-  double rate = 0;           // revolute: a_P . w_FG_F
+  double angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of G about the axis;
+                             // prismatic: the position s; universal: a1 in (-pi, pi]
+  double rate = 0;           // revolute: a_P . w_FG_F; prismatic s'; universal a1'
+  double angle2_wrapped = 0, rate2 = 0;  // universal: a2 in (-pi, pi], a2'
+  // Prismatic: the child's joint point from Po (D_F, P components) and its velocity relative to
+  // Po's, R_NP^T (v_C - v_P) + R_PC (w_C x s_C) (u, P components).
+  Eigen::Vector3d r_PoJ_F = Eigen::Vector3d::Zero();
+  Eigen::Vector3d v_PoJ_F = Eigen::Vector3d::Zero();
 
   // Sizes the node frames' modal parts (once, outside the right-hand side).
   explicit JointKinematics(const JointModel& m);

@@ -157,8 +157,9 @@ class NewtonEulerEngine final : public Engine {
   std::vector<ModalTerms> terms_;        // per flexible body
   std::vector<JointKinematics> jk_;
   std::vector<ConstraintRows> cr_;       // per System joint (index 0, the free joint, unused)
-  std::vector<double> angle_;            // revolute: continuous angle at the current state
-  std::vector<double> angle_ref_;        // revolute: continuous angle after the last step/pack
+  std::vector<JointCoords> coords_;      // each joint's coordinates (continuous angles, a
+                                         // prismatic position) at the current state
+  std::vector<JointCoords> coords_ref_;  // the continuous angles after the last step/pack
   VectorXd f_, nu_dot_;                  // stacked per body (KKT order)
   std::vector<Vector6d> gamma_, y_;      // per KKT link (joint j is link j - 1)
   TreeKkt kkt_;
@@ -294,14 +295,16 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
     jk_.emplace_back(m);
     cr_.emplace_back(m);
   }
-  angle_.assign(at(nj_), 0.0);
-  angle_ref_.assign(at(nj_), 0.0);
+  coords_.assign(at(nj_), JointCoords::Zero());
+  coords_ref_.assign(at(nj_), JointCoords::Zero());
   f_ = VectorXd::Zero(nv_);
   nu_dot_ = VectorXd::Zero(nv_);
   gamma_.assign(links.size(), Vector6d::Zero());
   y_.assign(links.size(), Vector6d::Zero());
   for (int j = 0; j < nj_; ++j)
-    if (joints_[at(j)].has_angle) angle_ref_[at(j)] = angle_[at(j)] = system.joints[at(j)].angle0;
+    if (joints_[at(j)].has_angle)
+      coords_ref_[at(j)] = coords_[at(j)] =
+          JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 }
 
 // A flexible body: consistent sizes, finite data, non-negative node masses, mass and rigid
@@ -432,7 +435,7 @@ void NewtonEulerEngine::joint_pass(double t) {
     ConstraintRows& cr = cr_[at(j)];
     constraint_rows(m, P, C, jk_[at(j)], cr);
     if (m.unit->track)
-      m.unit->track(system_.joints[at(j)], m, t, jk_[at(j)], cr, angle_[at(j)], angle_ref_[at(j)]);
+      m.unit->track(system_.joints[at(j)], m, t, jk_[at(j)], cr, coords_[at(j)], coords_ref_[at(j)]);
   }
 }
 
@@ -471,9 +474,18 @@ void NewtonEulerEngine::force_pass(double t) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
     Vector3d T_P;  // the torque on the child-side frame, in P body components
-    if (!m.unit->load || !m.unit->load(J, m, jk, angle_[at(j)], t, T_P)) continue;
+    Vector3d F_P;  // the force on the child at its joint point, P components (m.translates)
+    if (!m.unit->load || !m.unit->load(J, m, jk, coords_[at(j)], t, T_P, F_P)) continue;
     torque_on_frame(m.child, jk.R_PC.transpose() * T_P, jk.G.JlPsi);
     torque_on_frame(m.parent, -T_P, jk.F.JlPsi);
+    if (!m.translates) continue;
+    // The force at the child's joint point, the reaction at the same point (r_PoJ_F from Po), so
+    // that the pair has no moment ([KLL83] Sec. 4.5); no work on eta (not at a node).
+    const Vector3d F_N = bk_[at(m.parent)].R_NB * F_P;
+    f_.segment<3>(nu(m.child)) += F_N;
+    f_.segment<3>(nu(m.child) + 3) += jk.G.s_B.cross(jk.R_PC.transpose() * F_P);
+    f_.segment<3>(nu(m.parent)) -= F_N;
+    f_.segment<3>(nu(m.parent) + 3) -= jk.r_PoJ_F.cross(F_P);
   }
 }
 
@@ -631,8 +643,10 @@ void NewtonEulerEngine::write_state(double* x) const {
 // Engine-neutral state => maximal coordinates, with this engine's own tree kinematics
 // (core/system.hpp "Joint kinematics"; joint_constraints.hpp for the node frames F, G):
 //   R_NG = R_NF R_PJ0 R_J, R_NC = R_NG E_C^T;  w_G = R_GF w_F + w_FG_G, w_C = E_C w_G - w_rel_C;
-//   p_C = p_P + R_NP s_P - R_NC s_C;  v_C = v_P + R_NP (w_P x s_P + s_P') - R_NC (w_C x s_C + s_C')
-// [KLL83 Sec. 2.7].
+//   p_C = p_P + R_NP (s_P + r) - R_NC s_C;
+//   v_C = v_P + R_NP (w_P x (s_P + r) + s_P' + r') - R_NC (w_C x s_C + s_C')
+// [KLL83 Sec. 2.7], r = s axis_P and r' = s' axis_P along a prismatic joint (its unit's pack; zero
+// for the others; a translating joint is not at a node, so F = P there).
 void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   if (static_cast<int>(s.joints.size()) != nj_)
     throw InputError(where(system_) + ": TreeState has " + std::to_string(s.joints.size()) +
@@ -667,7 +681,8 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     node_frame(m.C, C, G);  // depends only on the child's modal state
     Quaterniond q_J = Quaterniond::Identity();
     Vector3d w_FG_G = Vector3d::Zero();
-    if (m.unit->pack) m.unit->pack(m, js, q_J, w_FG_G, angle_ref_[at(j)]);
+    Vector3d r_F = Vector3d::Zero(), v_F = Vector3d::Zero();
+    if (m.unit->pack) m.unit->pack(m, js, q_J, w_FG_G, r_F, v_F, coords_ref_[at(j)]);
     const Quaterniond q_NF = P.q_NB * F.q_E;
     C.q_NB = (q_NF * m.q_PJ0 * q_J * G.q_E.conjugate()).normalized();
     C.R_NB = C.q_NB.toRotationMatrix();
@@ -676,13 +691,14 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     const Vector3d w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
     const Vector3d w_G = R_FG.transpose() * w_F + w_FG_G;
     C.w_NB_B = G.E * w_G - G.w_rel_B;
-    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * F.s_B - C.R_NB * G.s_B;
-    C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(F.s_B) + F.sdot_B) -
+    const Vector3d s_F = F.s_B + r_F;
+    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * s_F - C.R_NB * G.s_B;
+    C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(s_F) + F.sdot_B + v_F) -
                 C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
   }
   if (system_.zero_linear_momentum && !prescribed_base_) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
-  for (int j = 1; j < nj_; ++j) angle_[at(j)] = angle_ref_[at(j)];
+  for (int j = 1; j < nj_; ++j) coords_[at(j)] = coords_ref_[at(j)];
 }
 
 double NewtonEulerEngine::total_mass() const {
@@ -823,7 +839,9 @@ void NewtonEulerEngine::update_turn_counters(double t, const double* x) {
     const JointModel& m = joints_[at(j)];
     if (!m.unwraps) continue;
     joint_kinematics(m, bk_[at(m.parent)], bk_[at(m.child)], jk_[at(j)]);
-    angle_ref_[at(j)] = unwrap_angle(jk_[at(j)].angle_wrapped, angle_ref_[at(j)]);
+    JointCoords& ref = coords_ref_[at(j)];
+    ref(0) = unwrap_angle(jk_[at(j)].angle_wrapped, ref(0));
+    ref(1) = unwrap_angle(jk_[at(j)].angle2_wrapped, ref(1));  // universal (else 0)
   }
 }
 
@@ -848,6 +866,7 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
   a.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
   a.a_NBo_N.assign(at(nb_), Vector3d::Zero());
   a.angle_ddot.assign(at(nj_), 0.0);
+  a.angle2_ddot.assign(at(nj_), 0.0);
   a.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
   a.eta_ddot.assign(at(nb_), VectorXd());
   for (int b = 0; b < nb_; ++b) {
@@ -859,11 +878,15 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
-    const Vector3d wdot_F = frame_angular_acceleration(m.P, jk.F, m.parent);
-    const Vector3d wdot_G = frame_angular_acceleration(m.C, jk.G, m.child);
-    if (m.unit->accelerations)
-      m.unit->accelerations(system_.joints[at(j)], m, jk, wdot_F, wdot_G, t, a.angle_ddot[at(j)],
-                            a.wdot_PC_C[at(j)]);
+    if (!m.unit->accelerations) continue;
+    const JointAccelInputs in{bk_[at(m.parent)],
+                              bk_[at(m.child)],
+                              jk,
+                              frame_angular_acceleration(m.P, jk.F, m.parent),
+                              frame_angular_acceleration(m.C, jk.G, m.child),
+                              nu_dot_.segment<6>(nu(m.parent)),
+                              nu_dot_.segment<6>(nu(m.child))};
+    m.unit->accelerations(system_.joints[at(j)], m, in, t, a, j);
   }
 }
 
@@ -921,8 +944,8 @@ double NewtonEulerEngine::energy() const {
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
     const JointModel& m = joints_[at(j)];
-    if (J.stiffness == 0 || !m.unit->potential) continue;
-    m.unit->potential(J, m, jk_[at(j)], angle_[at(j)], e);
+    if ((J.stiffness == 0 && J.stiffness2 == 0) || !m.unit->potential) continue;
+    m.unit->potential(J, m, jk_[at(j)], coords_[at(j)], e);
   }
   return e;
 }
@@ -931,7 +954,9 @@ double NewtonEulerEngine::energy() const {
 // generalised force J^T lambda it adds is the moment lambda_5 R_GF a_P on the child-side frame G
 // and -lambda_5 a_P on the parent-side frame F, so lambda_5 = -y_5 is the torque about the axis on
 // the child (docs/prescribed-motion.md "State, output, accelerations"; rows 3-4 act about
-// c_k = u x b_k, normal to the axis). Valid after dynamics().
+// c_k = u x b_k, normal to the axis). A prescribed prismatic joint's row 5 is its position along
+// the axis (joints/prismatic.cpp): J_C^T lambda_5 is the force lambda_5 R_NP a_P at the child's
+// joint point, so -y_5 is its force along the axis on the child. Valid after dynamics().
 double NewtonEulerEngine::torque(int j) const {
   if (j == 0) return -kkt_.y_root()(5);
   return -y_[at(j - 1)](5);
@@ -948,7 +973,7 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     if (m.unit->output)  // the pinned joint columns (core/output_layout.hpp)
-      m.unit->output(out, j, system_.joints[at(j)], m, jk_[at(j)], angle_[at(j)],
+      m.unit->output(out, j, system_.joints[at(j)], m, jk_[at(j)], coords_[at(j)],
                      m.prescribed ? torque(j) : 0.0, t);
   }
   out.momentum(angular_momentum());
@@ -972,9 +997,12 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
     for (int i = 0; i < 3; ++i) out.extra(c + i, F_F(i));
     for (int i = 0; i < 3; ++i) out.extra(c + 3 + i, M_F(i));
     c += 6;
-    pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
-    vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
-    if (m.unit->violation) m.unit->violation(m, jk, cr, ang_violation, angvel_violation);
+    if (!m.unit->point_rows) {  // the common rows 0-2: the joint point (else the unit's)
+      pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
+      vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());
+    }
+    if (m.unit->violation)
+      m.unit->violation(m, jk, cr, pos_violation, vel_violation, ang_violation, angvel_violation);
   }
   if (prescribed_base_) {
     const ConstraintRows& cr = cr_[0];

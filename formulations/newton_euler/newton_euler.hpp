@@ -49,7 +49,9 @@
 // +theta''(t) (joint_constraints.hpp), so projection and Baumgarte drive it to the prescribed
 // angle and rate at t. Its multiplier is the constraint moment about the axis on the child: the
 // output <joint>.torque. <joint>.angle and .rate are the profile's; TreeAccel::angle_ddot is
-// theta''(t). A prescribed base (joints[0] revolute with parent N) keeps its body's numbers in the
+// theta''(t). A prescribed prismatic joint likewise (joints/prismatic.cpp): its row 5 is the
+// position minus angle0 + theta(t), its multiplier the force along the axis on the child, output
+// <joint>.force. A prescribed base (joints[0] revolute with parent N) keeps its body's numbers in the
 // state (the layout above is unchanged); its joint to N is the same rheonomic constraint with N as
 // a parent at rest, solved as root rows of the KKT system (tree_kkt.hpp) and stabilised like every
 // joint (projection moves no rigid translation then: the base is held; zero_linear_momentum does
@@ -68,12 +70,15 @@
 //     flexible parent, the node frame R_NP exp([psi_i x]), and the joint point is the deformed
 //     point p_i + u_i;
 //   constraint.pos (m) and constraint.vel (m/s): largest distance between the two copies of a
-//     joint point, and the largest relative velocity of those copies, over the joints;
+//     joint point, and the largest relative velocity of those copies, over the joints (prismatic:
+//     their separation and its rate normal to the axis, and a prescribed one's position and rate
+//     away from the profile);
 //   constraint.ang (rad), constraint.angvel (rad/s): largest attitude violation (revolute: angle
-//     between the two copies of the axis; fixed: rotation angle away from the offset) and the norm
-//     of the forbidden relative angular velocity (between the joint frames); a prescribed joint
-//     adds |angle - prescribed angle| and |rate - prescribed rate| to them, and a prescribed
-//     base its joint to N (largest row of g and g').
+//     between the two copies of the axis; fixed, prismatic: rotation angle away from the offset;
+//     universal: the change of the angle between its axes) and the norm of the forbidden relative
+//     angular velocity (between the joint frames); a prescribed revolute joint adds |angle -
+//     prescribed angle| and |rate - prescribed rate| to them, and a prescribed base its joint to N
+//     (largest row of g and g').
 //
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached

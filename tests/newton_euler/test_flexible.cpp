@@ -5,6 +5,7 @@
 
 #include "core/integrate.hpp"
 #include "core/rotation.hpp"
+#include "tests/newton_euler/ne_run.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
 
 #include <catch2/catch.hpp>
@@ -25,34 +26,8 @@ namespace {
 
 RunResult run(const System& s, const TreeState& ts, double duration, double tol,
               const EngineOptions& o = {}, double output_step = 0) {
-  auto e = make_newton_euler_engine(s, o);
-  IntegratorSettings st;
-  st.method = "rkf78";
-  st.rtol = st.atol = tol;
-  st.duration = duration;
-  st.output_step = output_step > 0 ? output_step : duration / 100;
-  st.dt = 1e-3;
-  RunResult r = simulate(*e, s, ts, st);
-  if (r.failure) FAIL(r.failure->what());
-  REQUIRE(r.rows() > 1);
-  return r;
+  return run_ne(s, ts, "rkf78", tol, duration, output_step > 0 ? output_step : duration / 100, o);
 }
-
-std::vector<double> series(const RunResult& r, const std::string& c) {
-  const int i = r.column(c);
-  REQUIRE(i >= 0);
-  std::vector<double> v;
-  for (std::size_t k = 0; k < r.rows(); ++k) v.push_back(r.at(k, static_cast<std::size_t>(i)));
-  return v;
-}
-
-double max_abs_change(const std::vector<double>& v) {
-  double m = 0;
-  for (double x : v) m = std::max(m, std::abs(x - v.front()));
-  return m;
-}
-
-double max_of(const std::vector<double>& v) { return *std::max_element(v.begin(), v.end()); }
 
 // The flexible tree from a deformed, spinning state: eta up to 0.1 m and rates up to 0.3 m/s.
 TreeState deformed_tree_state(const System& s, unsigned seed) {

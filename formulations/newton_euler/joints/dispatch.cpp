@@ -2,8 +2,6 @@
 // engine's one switch on the joint type, made once per joint when its JointModel is built.
 #include "formulations/newton_euler/joints/joint_unit.hpp"
 
-#include "core/errors.hpp"
-
 namespace crossdyn::newton_euler {
 
 const JointUnit& joint_unit(JointType type) {
@@ -11,9 +9,8 @@ const JointUnit& joint_unit(JointType type) {
     case JointType::Free: return kFreeJoint;
     case JointType::Revolute: return kRevoluteJoint;
     case JointType::Spherical: return kSphericalJoint;
-    case JointType::Prismatic:
-    case JointType::Universal:
-      throw InputError("newton-euler: prismatic and universal joints are not implemented yet");
+    case JointType::Prismatic: return kPrismaticJoint;
+    case JointType::Universal: return kUniversalJoint;
     case JointType::Fixed: return kFixedJoint;
   }
   return kFreeJoint;  // not reached: every JointType is listed above (-Wswitch)

@@ -20,6 +20,22 @@ void model(const Joint& /*joint*/, JointModel& m) { m.rows = 6; }
 
 // joint_constraints.hpp, "fixed".
 void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRows& out) {
+  lock_rotation_rows(m, jk, 3, out);
+}
+
+// The rotation angle away from the offset, and the relative angular velocity.
+void violation(const JointModel& m, const JointKinematics& jk, const ConstraintRows& /*cr*/,
+               double& /*pos_violation*/, double& /*vel_violation*/, double& ang_violation,
+               double& angvel_violation) {
+  ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_FG));
+  angvel_violation = std::max(angvel_violation, jk.w_FG_G.norm());
+}
+
+}  // namespace
+
+// joint_constraints.hpp, "fixed", in rows row0..row0+2 (joint_unit.hpp: also the prismatic joint's).
+void lock_rotation_rows(const JointModel& m, const JointKinematics& jk, int row0,
+                        ConstraintRows& out) {
   const Vector3d& w_F = jk.w_F;
   const Quaterniond q_e = m.q_PJ0.conjugate() * jk.q_FG;
   const double s = q_e.w() < 0 ? -1.0 : 1.0;
@@ -29,23 +45,14 @@ void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRow
   const Vector3d qv_dot = 0.5 * (q_e.w() * w + q_e.vec().cross(w));
   const Matrix3d E_dot = s * (qw_dot * Matrix3d::Identity() + rot::skew(qv_dot));
   const Matrix3d R_GF = jk.R_FG.transpose();
-  out.g.tail<3>() = 2.0 * s * q_e.vec();
-  out.J_C.block<3, 3>(3, 3) = E;
-  out.J_P.block<3, 3>(3, 3).noalias() = -E * R_GF;
-  out.gdot.tail<3>() = E * w;
-  out.gamma.tail<3>() = -(E_dot * w + E * w.cross(R_GF * w_F));
+  out.g.segment<3>(row0) = 2.0 * s * q_e.vec();
+  out.J_C.block<3, 3>(row0, 3) = E;
+  out.J_P.block<3, 3>(row0, 3).noalias() = -E * R_GF;
+  out.gdot.segment<3>(row0) = E * w;
+  out.gamma.segment<3>(row0) = -(E_dot * w + E * w.cross(R_GF * w_F));
 }
 
-// The rotation angle away from the offset, and the relative angular velocity.
-void violation(const JointModel& m, const JointKinematics& jk, const ConstraintRows& /*cr*/,
-               double& ang_violation, double& angvel_violation) {
-  ang_violation = std::max(ang_violation, rot::angle_between(m.q_PJ0, jk.q_FG));
-  angvel_violation = std::max(angvel_violation, jk.w_FG_G.norm());
-}
-
-}  // namespace
-
-const JointUnit kFixedJoint{"fixed", model,   nullptr, nullptr, rotation_rows, nullptr, nullptr,
-                            nullptr, nullptr, nullptr, nullptr, violation};
+const JointUnit kFixedJoint{"fixed", model,   nullptr, nullptr, nullptr, rotation_rows, nullptr,
+                            nullptr, nullptr, nullptr, nullptr, nullptr, violation};
 
 }  // namespace crossdyn::newton_euler

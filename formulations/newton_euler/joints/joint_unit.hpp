@@ -1,5 +1,6 @@
 // One joint type of the Newton-Euler engine: a JointUnit, the same verbs for every type, one file
-// per type (joints/free.cpp, revolute.cpp, spherical.cpp, fixed.cpp). The unit of a joint is
+// per type (joints/free.cpp, revolute.cpp, spherical.cpp, fixed.cpp, prismatic.cpp,
+// universal.cpp; rows shared by two types: fixed.cpp's lock_rotation_rows, joints/axis_row.hpp). The unit of a joint is
 // chosen once, from the scene's JointType, when its JointModel is built (joint_unit(), in
 // joints/dispatch.cpp: the engine's one switch on JointType); the engine and the constraint code
 // then call m.unit->verb(...) and never test the type. A verb a type does not have is nullptr
@@ -9,27 +10,39 @@
 // (state, outputs); each unit file says which of them it implements.
 //
 // Verbs, in the order the engine uses them:
-//   model            (Joint, JointModel) => rows, prescribed, has_angle, unwraps (model building)
+//   model            (Joint, JointModel) => rows, prescribed, has_angle, unwraps, translates and
+//                    the type's constants (model building, after the common fields are set)
 //   validate         (Joint, key) => throws InputError for a joint the type cannot take
-//   relative         (model, jk with R_FG, w_FG_F) => jk.angle_wrapped, jk.rate (the joint's own
-//                    relative coordinates; nullptr: both 0)
-//   rotation_rows    (model, jk) => rows 3.. of J_P, J_C (w.r.t. w_F, w_G), g, gdot, gamma; the
-//                    rows 0-2 (point coincidence) and the node-frame chain rule are common
-//                    (constraint_rows()); nullptr: no rotation rows (spherical, free)
-//   track            (joint, model, t, jk, rows) => the joint's angle at this state (unwrapped
-//                    against angle_ref) and a prescribed joint's time terms in its rows
-//   load             (joint, model, jk, angle, t) => T_P, the torque of the spring, damper and
-//                    motor on the child-side frame in P body components; false: no load
-//   pack             (model, TreeState joint) => q_J, w_FG_G and angle_ref (the engine-neutral
+//   relative         (model, P, C body states, jk with R_FG, w_FG_F) => jk.angle_wrapped, rate
+//                    (and angle2_wrapped, rate2; a translation's r_PoJ_F, v_PoJ_F): the joint's
+//                    own relative coordinates; nullptr: all 0
+//   point_rows       (model, P, C, jk) => the joint's translation rows, in place of the common
+//                    rows 0-2 (point coincidence) and of the node-frame chain rule (a unit with
+//                    point_rows refuses nodes in its validate); nullptr: the common rows
+//   rotation_rows    (model, jk) => the rotation rows of J_P, J_C (w.r.t. w_F, w_G), g, gdot,
+//                    gamma (rows 3.. after the common point rows); nullptr: none (spherical, free)
+//   track            (joint, model, t, jk, rows) => the joint's coordinates at this state
+//                    (angles unwrapped against angle_ref) and a prescribed joint's time terms
+//   load             (joint, model, jk, coordinates, t) => T_P, the torque of the spring, damper
+//                    and motor on the child-side frame in P body components, and (a unit with
+//                    JointModel::translates) F_P, the force on the child at its joint point in P
+//                    components (the reaction on the parent at the same point); false: no load
+//   pack             (model, TreeState joint) => q_J, w_FG_G, the joint point's offset r_F and its
+//                    F-frame rate v_F along a translation, and angle_ref (the engine-neutral
 //                    coordinates in maximal ones)
-//   accelerations    (joint, model, jk, d/dt w_F, d/dt w_G, t) => angle_ddot or wdot_PC_C
-//   potential        (joint, model, jk, angle) => e += the joint spring's energy (called only
-//                    for a non-zero stiffness)
-//   output           (joint, model, jk, angle, torque, t) => the pinned joint columns
-//                    (core/output_layout.hpp: angle, rate, torque; w_PC_C)
-//   violation        (model, jk, rows) => the largest angular violations (constraint.ang and
-//                    constraint.angvel, newton_euler.hpp)
-// The engine's state layout and its extra output columns do not depend on the joint type.
+//   accelerations    (joint, model, JointAccelInputs, t) => TreeAccel's angle_ddot, angle2_ddot
+//                    or wdot_PC_C of joint j
+//   potential        (joint, model, jk, coordinates) => e += the joint spring's energy (called
+//                    only for a non-zero stiffness or stiffness2)
+//   output           (joint, model, jk, coordinates, torque, t) => the pinned joint columns
+//                    (core/output_layout.hpp: angle, rate, torque; w_PC_C; position, force;
+//                    angle1, angle2, rate1, rate2)
+//   violation        (model, jk, rows) => the largest violations (constraint.pos and .vel of a
+//                    unit with point_rows, constraint.ang and constraint.angvel,
+//                    newton_euler.hpp)
+// A joint's coordinates are a JointCoords (joint_constraints.hpp): the angle (a prismatic joint's
+// position) and a universal joint's second angle. The engine's state layout and its extra output
+// columns do not depend on the joint type.
 #pragma once
 
 #include "core/engine.hpp"
@@ -43,27 +56,40 @@
 
 namespace crossdyn::newton_euler {
 
+// What a unit's accelerations verb reads, after the solve: the bodies' states and accelerations
+// (rigid columns: a_NBo_N, wdot_NB_B) and the frames' d/dt w_F, d/dt w_G (joint_constraints.hpp).
+struct JointAccelInputs {
+  const BodyKinematics& P;
+  const BodyKinematics& C;
+  const JointKinematics& jk;
+  Eigen::Vector3d wdot_F, wdot_G;
+  Vector6d nudot_P, nudot_C;
+};
+
 struct JointUnit {
   const char* name;
   void (*model)(const Joint& joint, JointModel& m);
   void (*validate)(const Joint& joint, const std::string& key);
-  void (*relative)(const JointModel& m, JointKinematics& jk);
+  void (*relative)(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
+                   JointKinematics& jk);
+  void (*point_rows)(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
+                     const JointKinematics& jk, ConstraintRows& out);
   void (*rotation_rows)(const JointModel& m, const JointKinematics& jk, ConstraintRows& out);
   void (*track)(const Joint& joint, const JointModel& m, double t, const JointKinematics& jk,
-                ConstraintRows& cr, double& angle, double angle_ref);
-  bool (*load)(const Joint& joint, const JointModel& m, const JointKinematics& jk, double angle,
-               double t, Eigen::Vector3d& T_P);
+                ConstraintRows& cr, JointCoords& coords, const JointCoords& coords_ref);
+  bool (*load)(const Joint& joint, const JointModel& m, const JointKinematics& jk,
+               const JointCoords& coords, double t, Eigen::Vector3d& T_P, Eigen::Vector3d& F_P);
   void (*pack)(const JointModel& m, const TreeState::JointState& js, Eigen::Quaterniond& q_J,
-               Eigen::Vector3d& w_FG_G, double& angle_ref);
-  void (*accelerations)(const Joint& joint, const JointModel& m, const JointKinematics& jk,
-                        const Eigen::Vector3d& wdot_F, const Eigen::Vector3d& wdot_G, double t,
-                        double& angle_ddot, Eigen::Vector3d& wdot_PC_C);
+               Eigen::Vector3d& w_FG_G, Eigen::Vector3d& r_F, Eigen::Vector3d& v_F,
+               JointCoords& coords_ref);
+  void (*accelerations)(const Joint& joint, const JointModel& m, const JointAccelInputs& in,
+                        double t, TreeAccel& a, int j);
   void (*potential)(const Joint& joint, const JointModel& m, const JointKinematics& jk,
-                    double angle, double& e);
+                    const JointCoords& coords, double& e);
   void (*output)(RowWriter& out, int j, const Joint& joint, const JointModel& m,
-                 const JointKinematics& jk, double angle, double torque, double t);
+                 const JointKinematics& jk, const JointCoords& coords, double torque, double t);
   void (*violation)(const JointModel& m, const JointKinematics& jk, const ConstraintRows& cr,
-                    double& ang, double& angvel);
+                    double& pos, double& vel, double& ang, double& angvel);
 };
 
 // The units (one file each) and the choice among them (joints/dispatch.cpp).
@@ -71,6 +97,24 @@ extern const JointUnit kFreeJoint;
 extern const JointUnit kRevoluteJoint;
 extern const JointUnit kSphericalJoint;
 extern const JointUnit kFixedJoint;
+extern const JointUnit kPrismaticJoint;
+extern const JointUnit kUniversalJoint;
 const JointUnit& joint_unit(JointType type);
+
+// Verbs shared by the units of one coordinate (revolute, prismatic), joints/revolute.cpp: the
+// spring energy stiffness (coords(0) - neutral_angle)^2 / 2 (a `potential`), and the pinned
+// columns of the coordinate and its rate written by `write` (RowWriter::revolute or ::prismatic),
+// a prescribed joint's from its profile followed by its torque (force) column.
+void one_coordinate_potential(const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                              const JointCoords& coords, double& e);
+void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
+                           const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                           const JointCoords& coords, double torque, double t);
+
+// The fixed joint's relative attitude lock (joint_constraints.hpp, "fixed") in rows row0..row0+2
+// (fixed: 3; prismatic: 2), joints/fixed.cpp. The revolute row shared with the universal joint is
+// joints/axis_row.hpp.
+void lock_rotation_rows(const JointModel& m, const JointKinematics& jk, int row0,
+                        ConstraintRows& out);
 
 }  // namespace crossdyn::newton_euler

@@ -5,6 +5,7 @@
 // joint's angle (continuous, unwrapped against the last step's), its spring, damper and motor
 // torque (core/system.hpp), its angle'' and its output columns (docs/prescribed-motion.md).
 #include "formulations/newton_euler/joints/joint_unit.hpp"
+#include "formulations/newton_euler/joints/axis_row.hpp"
 
 #include "core/errors.hpp"
 
@@ -36,7 +37,8 @@ void validate(const Joint& joint, const std::string& key) {
   if (joint.axis_P.norm() < 1e-12) throw InputError(key + ": axis must be a non-zero vector");
 }
 
-void relative(const JointModel& m, JointKinematics& jk) {
+void relative(const JointModel& m, const BodyKinematics& /*P*/, const BodyKinematics& /*C*/,
+              JointKinematics& jk) {
   jk.angle_wrapped = revolute_angle_wrapped(m, jk.R_FG);
   jk.rate = m.a_P.dot(jk.w_FG_F);
 }
@@ -47,15 +49,8 @@ void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRow
   const Vector3d u = jk.R_FG * m.a_C;            // the child's axis, in F
   const Vector3d u_dot = jk.w_FG_F.cross(u);     // F-frame derivative of u
   const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(w_G);
-  const Vector3d* b[2] = {&m.b1_P, &m.b2_P};
-  for (int k = 0; k < 2; ++k) {
-    const Vector3d c = u.cross(*b[k]);
-    out.g(3 + k) = b[k]->dot(u);
-    out.J_C.block<1, 3>(3 + k, 3).noalias() = c.transpose() * jk.R_FG;
-    out.J_P.block<1, 3>(3 + k, 3) = -c.transpose();
-    out.gdot(3 + k) = c.dot(jk.w_FG_F);
-    out.gamma(3 + k) = -(u_dot.cross(*b[k]).dot(jk.w_FG_F) + c.dot(transport_F));
-  }
+  axis_row(jk, u, u_dot, transport_F, m.b1_P, 3, out);  // joints/axis_row.hpp
+  axis_row(jk, u, u_dot, transport_F, m.b2_P, 4, out);
   if (m.prescribed) {  // row 5: the angle (header; the time terms are track()'s)
     out.g(5) = jk.angle_wrapped;
     out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
@@ -70,22 +65,22 @@ void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRow
 // (-pi, pi]), g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection and Baumgarte
 // drive the joint to the prescribed angle and rate at t. Otherwise the continuous angle.
 void track(const Joint& J, const JointModel& m, double t, const JointKinematics& jk,
-           ConstraintRows& cr, double& angle_out, double angle_ref) {
+           ConstraintRows& cr, JointCoords& coords, const JointCoords& coords_ref) {
   if (m.prescribed) {
     const double angle = J.angle0 + J.prescribed->angle(t);
-    angle_out = angle;
+    coords(0) = angle;
     cr.g(5) = unwrap_angle(jk.angle_wrapped - angle, 0.0);
     cr.gdot(5) -= J.prescribed->velocity(t);
     cr.gamma(5) += J.prescribed->accel(t);
   } else {
-    angle_out = unwrap_angle(jk.angle_wrapped, angle_ref);
+    coords(0) = unwrap_angle(jk.angle_wrapped, coords_ref(0));
   }
 }
 
 // Spring, damper and motor about the axis (core/system.hpp), on the child-side frame, in P.
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double angle, double t,
-          Vector3d& T_P) {
-  const double tau = -J.stiffness * (angle - J.neutral_angle) - J.damping * jk.rate +
+bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
+          double t, Vector3d& T_P, Vector3d& /*F_P*/) {
+  const double tau = -J.stiffness * (coords(0) - J.neutral_angle) - J.damping * jk.rate +
                      (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
   if (tau == 0) return false;
   T_P = tau * m.a_P;  // in F
@@ -94,44 +89,34 @@ bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double
 }
 
 void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
-          double& angle_ref) {
+          Vector3d& /*r_F*/, Vector3d& /*v_F*/, JointCoords& coords_ref) {
   q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C));
   w_FG_G = js.rate * m.a_C;
-  angle_ref = js.angle;
+  coords_ref(0) = js.angle;
 }
 
-void accelerations(const Joint& J, const JointModel& m, const JointKinematics& jk,
-                   const Vector3d& wdot_F, const Vector3d& wdot_G, double t, double& angle_ddot,
-                   Vector3d& /*wdot_PC_C*/) {
+void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
+                   TreeAccel& a, int j) {
   if (m.prescribed) {
-    angle_ddot = J.prescribed->accel(t);
+    a.angle_ddot[static_cast<std::size_t>(j)] = J.prescribed->accel(t);
   } else {
     // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
-    angle_ddot = m.a_P.dot(jk.R_FG * wdot_G - wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
+    const JointKinematics& jk = in.jk;
+    a.angle_ddot[static_cast<std::size_t>(j)] =
+        m.a_P.dot(jk.R_FG * in.wdot_G - in.wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
   }
-}
-
-void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
-               double angle, double& e) {
-  const double d = angle - J.neutral_angle;
-  e += 0.5 * J.stiffness * d * d;
 }
 
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
-            double angle, double torque, double t) {
-  if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
-    const PrescribedMotion& pm = *J.prescribed;
-    out.revolute(j, J.angle0 + pm.angle(t), pm.velocity(t));
-    out.joint_torque(j, torque);
-  } else {
-    out.revolute(j, angle, jk.rate);
-  }
+            const JointCoords& coords, double torque, double t) {
+  one_coordinate_output(&RowWriter::revolute, out, j, J, m, jk, coords, torque, t);
 }
 
 // The angle between the two copies of the axis, the forbidden relative angular velocity; a
 // prescribed joint adds its angle and rate away from the profile.
 void violation(const JointModel& m, const JointKinematics& jk, const ConstraintRows& cr,
-               double& ang_violation, double& angvel_violation) {
+               double& /*pos_violation*/, double& /*vel_violation*/, double& ang_violation,
+               double& angvel_violation) {
   const Vector3d u = jk.R_FG * m.a_C;
   ang_violation = std::max(ang_violation, std::atan2(m.a_P.cross(u).norm(), m.a_P.dot(u)));
   angvel_violation = std::max(angvel_violation, (jk.w_FG_F - m.a_P.dot(jk.w_FG_F) * m.a_P).norm());
@@ -143,8 +128,26 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 }  // namespace
 
-const JointUnit kRevoluteJoint{"revolute", model,  validate,      relative,  rotation_rows,
-                               track,      load,   pack,          accelerations, potential,
-                               output,     violation};
+void one_coordinate_potential(const Joint& J, const JointModel& /*m*/,
+                              const JointKinematics& /*jk*/, const JointCoords& coords, double& e) {
+  const double d = coords(0) - J.neutral_angle;
+  e += 0.5 * J.stiffness * d * d;
+}
+
+void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
+                           const Joint& J, const JointModel& m, const JointKinematics& jk,
+                           const JointCoords& coords, double torque, double t) {
+  if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
+    const PrescribedMotion& pm = *J.prescribed;
+    (out.*write)(j, J.angle0 + pm.angle(t), pm.velocity(t));
+    out.joint_torque(j, torque);
+  } else {
+    (out.*write)(j, coords(0), jk.rate);
+  }
+}
+
+const JointUnit kRevoluteJoint{"revolute", model,     validate,      relative,  nullptr,
+                               rotation_rows, track,  load,          pack,      accelerations,
+                               one_coordinate_potential, output, violation};
 
 }  // namespace crossdyn::newton_euler

@@ -16,8 +16,8 @@ namespace {
 void model(const Joint& /*joint*/, JointModel& m) { m.rows = 3; }
 
 // Spring, damper and motor in G (core/system.hpp), on the child-side frame, in P.
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double /*angle*/,
-          double t, Vector3d& T_P) {
+bool load(const Joint& J, const JointModel& m, const JointKinematics& jk,
+          const JointCoords& /*coords*/, double t, Vector3d& T_P, Vector3d& /*F_P*/) {
   Vector3d tau_G = -J.damping * jk.w_FG_G;
   if (J.stiffness != 0) tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
   if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
@@ -27,34 +27,36 @@ bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, double
 }
 
 void pack(const JointModel& /*m*/, const TreeState::JointState& js, Quaterniond& q_J,
-          Vector3d& w_FG_G, double& /*angle_ref*/) {
+          Vector3d& w_FG_G, Vector3d& /*r_F*/, Vector3d& /*v_F*/, JointCoords& /*coords_ref*/) {
   q_J = js.q_J.normalized();
   w_FG_G = js.w_PC_C;
 }
 
-void accelerations(const Joint& /*J*/, const JointModel& /*m*/, const JointKinematics& jk,
-                   const Vector3d& wdot_F, const Vector3d& wdot_G, double /*t*/,
-                   double& /*angle_ddot*/, Vector3d& wdot_PC_C) {
+void accelerations(const Joint& /*J*/, const JointModel& /*m*/, const JointAccelInputs& in,
+                   double /*t*/, TreeAccel& a, int j) {
   // G-frame derivative of w_FG_G = w_G - R_GF w_F, with d/dt R_GF = -[w_FG_G x] R_GF.
+  const JointKinematics& jk = in.jk;
   const Vector3d w_F_G = jk.R_FG.transpose() * jk.w_F;
-  wdot_PC_C = wdot_G - jk.R_FG.transpose() * wdot_F + jk.w_FG_G.cross(w_F_G);
+  a.wdot_PC_C[static_cast<std::size_t>(j)] =
+      in.wdot_G - jk.R_FG.transpose() * in.wdot_F + jk.w_FG_G.cross(w_F_G);
 }
 
-void potential(const Joint& J, const JointModel& m, const JointKinematics& jk, double /*angle*/,
-               double& e) {
+void potential(const Joint& J, const JointModel& m, const JointKinematics& jk,
+               const JointCoords& /*coords*/, double& e) {
   const Vector3d phi = rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
   e += 0.5 * J.stiffness * phi.squaredNorm();
 }
 
 void output(RowWriter& out, int j, const Joint& /*J*/, const JointModel& /*m*/,
-            const JointKinematics& jk, double /*angle*/, double /*torque*/, double /*t*/) {
+            const JointKinematics& jk, const JointCoords& /*coords*/, double /*torque*/,
+            double /*t*/) {
   out.spherical(j, jk.w_FG_G);
 }
 
 }  // namespace
 
 const JointUnit kSphericalJoint{"spherical", model,   nullptr,       nullptr,   nullptr,
-                                nullptr,     load,    pack,          accelerations, potential,
-                                output,      nullptr};
+                                nullptr,     nullptr, load,          pack,      accelerations,
+                                potential,   output,  nullptr};
 
 }  // namespace crossdyn::newton_euler
