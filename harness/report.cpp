@@ -329,8 +329,11 @@ std::string describe_failure(const Check& c) {
 }
 
 const std::vector<std::string>& group_order() {
-  static const std::vector<std::string> order{"run", "t",  "w",       "attitude", "rate",   "angle",
-                                              "modal", "torque", "H", "E", "H.drift", "E.drift", "extra"};
+  // Every group a Check can carry (compare.cpp), in table order; a group missing here would be
+  // left out of verify's table and the report (tests/harness/test_compare.cpp checks the list).
+  static const std::vector<std::string> order{"run",    "t",      "w",     "attitude", "rate",
+                                              "angle",  "position", "modal", "torque", "H",
+                                              "E",      "H.drift", "E.drift", "extra"};
   return order;
 }
 

@@ -147,11 +147,14 @@ def _joint_lines(ax, runs, joints, values_of, colours):
 
 def chart_joints(scene, runs, out_dir, sid):
     system = scene.get("system", {})
-    joints = [j for j in system.get("joints", []) if j["type"] in ("revolute", "spherical")]
+    joints = [j for j in system.get("joints", [])
+              if j["type"] in ("revolute", "spherical", "prismatic", "universal")]
     if not joints:
         return None
     revolute = [j for j in joints if j["type"] == "revolute"]
     spherical = [j for j in joints if j["type"] == "spherical"]
+    prismatic = [j for j in joints if j["type"] == "prismatic"]
+    universal = [j for j in joints if j["type"] == "universal"]
     # Spherical joints' rotation from the two bodies' attitudes (kinematics.joint_rotation_vectors).
     phis = {}
     for r in runs:
@@ -172,6 +175,10 @@ def chart_joints(scene, runs, out_dir, sid):
         panels += [("rev-angle", hinges), ("rev-rate", hinges)]
     if rotors:
         panels += [("rev-angle", rotors), ("rev-rate", rotors)]
+    if prismatic:
+        panels += [("pri-position", prismatic), ("pri-rate", prismatic)]
+    if universal:
+        panels += [("uni-angle", universal), ("uni-rate", universal)]
     if spherical:
         panels += [("sph-angle", None), ("sph-rate", None)] + [("sph-phi", j) for j in spherical]
     fig, axes = plt.subplots(len(panels), 1, figsize=(10, 2.5 * len(panels) + 1.0), sharex=True,
@@ -193,6 +200,22 @@ def chart_joints(scene, runs, out_dir, sid):
                              if r.has(j["name"] + ".rate") else None, [colour_of[j["name"]] for j in group])
                 ax.set_ylabel("%s rate (rad/s)" % what)
                 rad_axis(ax, "rad/s")
+        elif kind in ("pri-position", "pri-rate"):
+            col = ".position" if kind == "pri-position" else ".rate"
+            _joint_lines(ax, runs, joint, lambda r, j, col=col: r.col(j["name"] + col)
+                         if r.has(j["name"] + col) else None, [colour_of[j["name"]] for j in joint])
+            ax.set_ylabel("prismatic %s" % ("position (m)" if kind == "pri-position" else "rate (m/s)"))
+        elif kind in ("uni-angle", "uni-rate"):
+            # Axis 1 solid, axis 2 thin, in the joint's colour (the run's dash kept).
+            stem = ".angle" if kind == "uni-angle" else ".rate"
+            for ji, j in enumerate(joint):
+                for k, width in ((1, 2.0), (2, 1.0)):
+                    for r in runs:
+                        if r.has(j["name"] + stem + str(k)):
+                            ax.plot(r.t, r.col(j["name"] + stem + str(k)), color=colour_of[j["name"]],
+                                    linestyle=r.dash, linewidth=width, alpha=0.9)
+            ax.set_ylabel("universal %s\n(axis 1 thick, 2 thin)" % ("angles (rad)" if kind == "uni-angle" else "rates (rad/s)"))
+            rad_axis(ax, "rad" if kind == "uni-angle" else "rad/s")
         elif kind == "sph-angle":
             _joint_lines(ax, runs, spherical, lambda r, j: np.linalg.norm(phis[(r.label, j["name"])], axis=1)
                          if (r.label, j["name"]) in phis else None, sph_colours)
@@ -236,6 +259,13 @@ def chart_joints(scene, runs, out_dir, sid):
                     "relative to its parent%s. " % (
                         "; rotors (more than a full turn: %s) on their own panels, below the hinges"
                         % ", ".join(j["name"] for j in rotors) if rotors and hinges else ""))
+    if prismatic:
+        caption += ("Prismatic joints: each child's position (m) and rate (m/s) along its sliding axis, "
+                    "relative to its parent. ")
+    if universal:
+        caption += ("Universal joints (two-axis gimbals): the two gimbal angles (rad) and their rates, "
+                    "the first axis (fixed in the parent) thick, the second (turning with the first "
+                    "angle) thin. ")
     if spherical:
         caption += ("Spherical joints: the joint rotation q_J = q_offset^-1 q_NP^-1 q_NC computed from "
                     "the parent's and child's attitudes in each run, as its rotation angle |phi| and "
@@ -360,7 +390,7 @@ def chart_differences(scene, runs, out_dir, sid):
         return None
     present = {c["group"] for c in scene.get("checks", [])}
     groups = [g for g in scene.get("group_order", []) if g in present and
-              g in ("w", "attitude", "rate", "angle", "modal", "H", "E", "extra")]
+              g in ("w", "attitude", "rate", "angle", "position", "modal", "torque", "H", "E", "extra")]
     palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     colours = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
     n = len(pairs)

@@ -17,8 +17,10 @@ GROUP_HELP = {
     "t": "runs give the same output times",
     "w": "bodies' angular velocities <body>.wx/wy/wz",
     "attitude": "bodies' attitudes (rotation angle between runs)",
-    "rate": "joint rates (revolute .rate, spherical .wx/wy/wz)",
-    "angle": "revolute joint angles",
+    "rate": "joint rates (revolute and prismatic .rate, universal .rate1/.rate2, spherical .wx/wy/wz)",
+    "angle": "joint angles (revolute .angle, universal .angle1/.angle2)",
+    "position": "prismatic joint positions",
+    "torque": "the torque (force) a prescribed joint takes",
     "modal": "flexible bodies' modal coordinates",
     "H": "angular momentum magnitude H",
     "E": "energy E",
@@ -29,7 +31,9 @@ GROUP_HELP = {
 # Why a scene has no check of a kind: the feature does not exist in it.
 GROUP_ABSENT = {
     "rate": "no joints with rates",
-    "angle": "no revolute joints",
+    "angle": "no revolute or universal joints",
+    "position": "no prismatic joints",
+    "torque": "no prescribed joints",
     "modal": "no flexible bodies",
     "attitude": "no attitudes compared",
     "extra": "no extra columns asked for",
@@ -177,20 +181,28 @@ def scene_tables(system):
                 geometry += ", axis %s (parent frame)" % vec(j["axis"])
             if "orientation_offset_q" in j:
                 geometry += ", offset q %s" % vec(j["orientation_offset_q"])
+            if "axes" in j:
+                geometry += ", axes %s, %s (parent frame at zero angles)" % (vec(j["axes"][0]), vec(j["axes"][1]))
             if j["type"] == "revolute":
                 initial = "angle %s rad, rate %s rad/s" % (gfmt(ini.get("angle_rad")), gfmt(ini.get("rate_rad_s")))
+            elif j["type"] == "prismatic":
+                initial = "position %s m, rate %s m/s" % (gfmt(ini.get("position_m")), gfmt(ini.get("rate_m_s")))
+            elif j["type"] == "universal":
+                initial = "angles %s rad, rates %s rad/s" % (vec(ini.get("angles_rad", [])), vec(ini.get("rates_rad_s", [])))
             elif j["type"] == "spherical":
                 initial = "q_J %s, w_PC_C %s rad/s" % (vec(ini.get("q_J", [])), vec(ini.get("w_PC_C_rad_s", [])))
             else:
                 initial = "-"
         loads = []
         for key, label in (("stiffness_N_m_rad", "stiffness %s N m/rad"), ("damping_N_m_s_rad", "damping %s N m s/rad"),
-                           ("neutral_angle_rad", "neutral angle %s rad")):
+                           ("neutral_angle_rad", "neutral angle %s rad"), ("stiffness_N_m", "stiffness %s N/m"),
+                           ("damping_N_s_m", "damping %s N s/m"), ("neutral_position_m", "neutral position %s m")):
+            if key in j:  # a universal joint's are pairs, [axis 1, axis 2]
+                loads.append(label % (vec(j[key]) if isinstance(j[key], list) else gfmt(j[key])))
+        for key, unit in (("motor_N_m", "N m"), ("motor_N", "N")):
             if key in j:
-                loads.append(label % gfmt(j[key]))
-        if "motor_N_m" in j:
-            loads.append("motor " + ", ".join("%s N m from t = %s s" % (json.dumps(m["value"]), gfmt(m["from_t"]))
-                                              for m in j["motor_N_m"]))
+                loads.append("motor " + ", ".join("%s %s from t = %s s" % (json.dumps(m["value"]), unit, gfmt(m["from_t"]))
+                                                  for m in j[key]))
         any_loads = any_loads or bool(loads)
         joint_rows.append([j["name"], j["type"], "%s -> %s" % (j["parent"], j["child"]), geometry, initial,
                            "; ".join(loads)])

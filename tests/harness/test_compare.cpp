@@ -5,11 +5,14 @@
 
 #include "core/scene/scene.hpp"
 #include "harness/compare.hpp"
+#include "harness/report.hpp"
 #include "tests/harness/synthetic.hpp"
 #include "tests/support/close.hpp"
 #include "tests/support/paths.hpp"
 
 #include <cmath>
+#include <algorithm>
+#include <set>
 
 using crossdyn::RunFailure;
 using crossdyn::RunResult;
@@ -337,4 +340,33 @@ TEST_CASE("compare: the analytic pseudo-engine writes the pinned columns of a to
   CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 2), (I * w0).norm(), 0, 1e-14));
   CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 1), 0.5 * w0.dot(I * w0), 0, 1e-14));
   CHECK(r.at(1, 4) >= 0);  // qw, canonical sign
+}
+
+// A group missing from group_order() would leave its checks out of verify's table and the
+// report's columns: every group a comparison makes must be in it. The scenes here hold every kind
+// of pinned column (revolute, spherical, prismatic and universal joints, a prescribed joint's
+// torque and force, modes) and every drift check.
+TEST_CASE("compare: every check's group is a column of verify's table (group_order)") {
+  using namespace crossdyn;
+  using namespace crossdyn::harness;
+  const auto& order = group_order();
+  std::set<std::string> seen;
+  for (const char* scene : {"telescoping_boom", "gimbal_payload", "scan_platform", "chain5",
+                            "hub_nodal_panel", "torque_free_asymmetric"}) {
+    const System s = read_scene(crossdyn::test::scene_path(scene));
+    CompareOptions o;
+    o.analytic = true;
+    const SceneComparison c = compare_scene(s, o);
+    for (const Check& k : c.checks) {
+      INFO(scene << ": " << k.quantity << " in group '" << k.group << "'");
+      CHECK(std::find(order.begin(), order.end(), k.group) != order.end());
+      seen.insert(k.group);
+    }
+    // and each of those groups shows in the scene's summary
+    std::size_t summarised = 0;
+    for (const GroupSummary& g : summarise_groups(c)) summarised += static_cast<std::size_t>(g.checks);
+    CHECK(summarised == c.checks.size());
+  }
+  for (const char* g : {"position", "angle", "rate", "torque", "modal", "attitude", "H.drift", "E.drift"})
+    CHECK(seen.count(g) == 1);
 }
