@@ -467,6 +467,13 @@ std::string why_not(JointType type, const std::string& key) {
   return "";
 }
 
+// A universal joint's pair value, [axis 1, axis 2], into its two fields.
+void read_pair(const Reader& r, const Field& f, double& axis1, double& axis2) {
+  const Eigen::Vector2d v = r.pair(f);
+  axis1 = v[0];
+  axis2 = v[1];
+}
+
 // Spring, damper and motor (revolute, spherical, prismatic and universal joints), each read on
 // its own. A universal joint's values are pairs, [axis, axis2].
 void read_loads(const Reader& r, const MapView& m, const std::string& type, Joint& J) {
@@ -481,15 +488,9 @@ void read_loads(const Reader& r, const MapView& m, const std::string& type, Join
       const MapView sp(r, f->val, "joints[].spring", bit, type);
       const Field k = sp.at("stiffness");
       if (universal) {
-        const Eigen::Vector2d k2 = r.pair(k);
-        for (int i = 0; i < 2; ++i) non_negative(k, k2[i], "stiffness", "N m/rad");
-        J.stiffness = k2[0];
-        J.stiffness2 = k2[1];
-        if (auto a = sp.get("neutral_angle")) {
-          const Eigen::Vector2d a2 = r.pair(*a);
-          J.neutral_angle = a2[0];
-          J.neutral_angle2 = a2[1];
-        }
+        read_pair(r, k, J.stiffness, J.stiffness2);
+        for (const double x : {J.stiffness, J.stiffness2}) non_negative(k, x, "stiffness", "N m/rad");
+        if (auto a = sp.get("neutral_angle")) read_pair(r, *a, J.neutral_angle, J.neutral_angle2);
         return;
       }
       J.stiffness = r.number(k);
@@ -502,10 +503,8 @@ void read_loads(const Reader& r, const MapView& m, const std::string& type, Join
       const MapView dm(r, f->val, "joints[].damper", bit, type);
       const Field c = dm.at("damping");
       if (universal) {
-        const Eigen::Vector2d c2 = r.pair(c);
-        for (int i = 0; i < 2; ++i) non_negative(c, c2[i], "damping", "N m s/rad");
-        J.damping = c2[0];
-        J.damping2 = c2[1];
+        read_pair(r, c, J.damping, J.damping2);
+        for (const double x : {J.damping, J.damping2}) non_negative(c, x, "damping", "N m s/rad");
         return;
       }
       J.damping = r.number(c);
@@ -594,16 +593,8 @@ void read_initial(const Reader& r, const MapView& m, const std::string& type, Ra
       if (auto x = ic.get("rate")) J.rate0 = r.number(*x);
       break;
     case JointType::Universal:
-      if (auto x = ic.get("angle")) {
-        const Eigen::Vector2d a = r.pair(*x);
-        J.angle0 = a[0];
-        J.angle2_0 = a[1];
-      }
-      if (auto x = ic.get("rate")) {
-        const Eigen::Vector2d w = r.pair(*x);
-        J.rate0 = w[0];
-        J.rate2_0 = w[1];
-      }
+      if (auto x = ic.get("angle")) read_pair(r, *x, J.angle0, J.angle2_0);
+      if (auto x = ic.get("rate")) read_pair(r, *x, J.rate0, J.rate2_0);
       break;
     case JointType::Spherical:
       if (auto x = ic.get("attitude")) J.q_J0 = r.attitude(*x);

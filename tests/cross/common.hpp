@@ -41,6 +41,20 @@ inline TreeState random_state(const System& system, std::mt19937& g) {
   return s;
 }
 
+// A state consistent with the prescribed motion at time t: a prescribed joint's angle (position)
+// and rate, and a prescribed (rigidly attached) base's pose and velocity, as the profile gives
+// them at t (docs/prescribed-motion.md). Engines that keep every body's pose in their state
+// (newton-euler) take the prescribed coordinates from the TreeState; the others from the profile.
+inline void follow_profile(const System& system, TreeState& s, double t) {
+  for (std::size_t j = 0; j < system.joints.size(); ++j) {
+    const Joint& J = system.joints[j];
+    if (!J.prescribed) continue;
+    s.joints[j].angle = J.angle0 + J.prescribed->angle(t);
+    s.joints[j].rate = J.prescribed->velocity(t);
+    if (j == 0) s.place_prescribed_base(J, s.joints[j].angle, s.joints[j].rate);
+  }
+}
+
 inline RunResult run_engine(const std::string& engine, const System& system,
                             const std::string& method, double tol, double duration = -1,
                             const EngineOptions& options = {}) {

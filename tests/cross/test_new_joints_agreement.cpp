@@ -92,16 +92,6 @@ joints:
 run: {duration: 2 s, output_step: 0.05 s, integrator: rkf78, rtol: 1e-12, atol: 1e-12}
 )";
 
-// A state consistent with the prescribed motion at time t (as test_prescribed_agreement.cpp).
-void follow_profile(const System& system, TreeState& s, double t) {
-  for (std::size_t j = 0; j < system.joints.size(); ++j) {
-    const Joint& J = system.joints[j];
-    if (!J.prescribed) continue;
-    s.joints[j].angle = J.angle0 + J.prescribed->angle(t);
-    s.joints[j].rate = J.prescribed->velocity(t);
-  }
-}
-
 // random_state, plus a universal joint's second angle and rate (random_state draws the first).
 TreeState random_new_joint_state(const System& system, std::mt19937& g) {
   TreeState s = random_state(system, g);

@@ -33,20 +33,6 @@ double tip(const RunResult& r, std::size_t row) {
   return sum;
 }
 
-// A state consistent with the prescribed motion at time t: a prescribed joint's angle and rate,
-// and a prescribed (rigidly attached) base's pose and velocity, as the profile gives them at t
-// (docs/prescribed-motion.md). Engines that keep every body's pose in their state (newton-euler)
-// take the prescribed coordinates from the TreeState; the others from the profile at t.
-void follow_profile(const System& system, TreeState& s, double t) {
-  for (std::size_t j = 0; j < system.joints.size(); ++j) {
-    const Joint& J = system.joints[j];
-    if (!J.prescribed) continue;
-    s.joints[j].angle = J.angle0 + J.prescribed->angle(t);
-    s.joints[j].rate = J.prescribed->velocity(t);
-    if (j == 0) s.place_prescribed_base(J, s.joints[j].angle, s.joints[j].rate);
-  }
-}
-
 // Random modal coordinates and rates on top of random_state (which also sets joints the engines
 // ignore when prescribed: their angle and rate come from the profile at t).
 TreeState random_flex_state(const System& system, std::mt19937& g, double eta_scale) {
