@@ -110,7 +110,7 @@ std::vector<std::string> available_knobs(const System& s) {
                                 ? ".prescribed_travel"
                                 : ".prescribed_rate"));
     else if (axial) k.push_back(j.name + ".rate");
-    if ((axial || j.type == JointType::Spherical) && !j.prescribed)
+    if ((axial || j.type == JointType::Spherical || j.type == JointType::Universal) && !j.prescribed)
       k.push_back(j.name + ".stiffness");
     if (j.type == JointType::Free)
       for (const char* c : {".wx", ".wy", ".wz"}) k.push_back(j.name + c);
@@ -158,10 +158,11 @@ Knob parse_knob(const System& s, const std::string& spec) {
     const bool prismatic = J.type == JointType::Prismatic;
     const bool axial = J.type == JointType::Revolute || prismatic;
     const bool deploy = J.prescribed && J.prescribed->profile == PrescribedMotion::Profile::Deploy;
-    if (what == "stiffness" && (axial || J.type == JointType::Spherical) && !J.prescribed) {
+    const bool universal = J.type == JointType::Universal;
+    if (what == "stiffness" && (axial || J.type == JointType::Spherical || universal) && !J.prescribed) {
       k.kind = Knob::Kind::JointStiffness;
       k.unit = prismatic ? "N/m" : "N m/rad";
-      k.description = "the spring stiffness of joint '" + name + "'";
+      k.description = "the spring stiffness of joint '" + name + "'" + (universal ? " (both axes)" : "");
       return k;
     }
     if (what == "rate" && axial && !J.prescribed) {
@@ -231,6 +232,8 @@ System apply_knob(const System& s, const Knob& k, double v) {
     case Knob::Kind::JointStiffness:
       if (v < 0) bad("a stiffness must be >= 0");
       c.joints[static_cast<std::size_t>(k.index)].stiffness = v;
+      if (c.joints[static_cast<std::size_t>(k.index)].type == JointType::Universal)
+        c.joints[static_cast<std::size_t>(k.index)].stiffness2 = v;  // both axes
       break;
     case Knob::Kind::JointRate:
       if (std::abs(v) > 1e4) bad("at most 1e4 " + k.unit);

@@ -139,7 +139,7 @@ Classified classify(const CellFacts& facts, const ClassLimits& limits);
 
 // The swept scene parameter (`--vary`):
 //   <joint>.stiffness         a revolute, spherical or prismatic joint's spring stiffness, N m/rad
-//                             (prismatic N/m)
+//                             (prismatic N/m); a universal joint's, both axes at once
 //   <joint>.rate              a revolute joint's initial rate (a rotor's speed), rad/s; a
 //                             prismatic joint's, m/s
 //   <joint>.prescribed_rate   a prescribed spin-up's final rate Omega_s, rad/s (prismatic m/s)
