@@ -151,6 +151,11 @@ Configuration place_bodies(const System& system, const std::vector<Matrix3d>& R_
       out.axis_N_parent = P.R_NB * mp.turn * J.axis_P.normalized();
       out.axis_N_child = C.R_NB * mc.turn * revolute_axis_in_child(J);
     }
+    if (J.type == JointType::Prismatic) out.slide_N = P.R_NB * mp.turn * J.axis_P.normalized();
+    if (J.type == JointType::Universal) {
+      out.gimbal1_N = P.R_NB * mp.turn * J.axis_P.normalized();
+      out.gimbal2_N = C.R_NB * mc.turn * R_PJ0.transpose() * J.axis2_P.normalized();
+    }
   }
   double mass = 0;
   c.p_NoScm_N.setZero();
@@ -295,6 +300,9 @@ json configuration_json(const Configuration& c, bool centred) {
   json joints = json::array();
   for (const JointPose& j : c.joints) {
     const double cos_mismatch = j.axis_N_parent.dot(j.axis_N_child);
+    json extra = json::object();
+    if (!j.slide_N.isZero()) extra["slide_N"] = vec(j.slide_N);
+    if (!j.gimbal1_N.isZero()) extra["gimbal_axes_N"] = {vec(j.gimbal1_N), vec(j.gimbal2_N)};
     joints.push_back({{"p_NoJ_N_parent", vec(j.p_NoJ_N_parent)},
                       {"p_NoJ_N_child", vec(j.p_NoJ_N_child)},
                       {"gap_m", (j.p_NoJ_N_parent - j.p_NoJ_N_child).norm()},
@@ -305,6 +313,7 @@ json configuration_json(const Configuration& c, bool centred) {
                                                 : std::atan2(j.axis_N_parent.cross(j.axis_N_child).norm(),
                                                              cos_mismatch)},
                       {"phi_J_rad", vec(j.phi_J)}});
+    joints.back().update(extra);
   }
   return {{"t", c.t}, {"centred_at_cm", centred}, {"p_NoScm_N", vec(c.p_NoScm_N)},
           {"bodies", bodies}, {"joints", joints}};

@@ -59,6 +59,12 @@ struct JointPose {
   // bodies' attitudes are related by a rotation about the axis. Zero for other joint types.
   Eigen::Vector3d axis_N_parent = Eigen::Vector3d::Zero();
   Eigen::Vector3d axis_N_child = Eigen::Vector3d::Zero();
+  // Prismatic: the sliding axis in N (R_NP axis_P). Universal: the first axis fixed in the parent
+  // (R_NP axis_P) and the second as it has turned with the first angle (R_NC R_PJ0^T axis2_P, the
+  // same line seen from the child: Rot(axis2, angle2) leaves it unchanged). Zero otherwise.
+  Eigen::Vector3d slide_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gimbal1_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gimbal2_N = Eigen::Vector3d::Zero();
   // Rotation vector (rad) of the joint rotation R_J = R_PJ0^T R_NP^T R_NC recovered from the two
   // attitudes, in the joint frame (revolute: angle * axis_J; spherical: log of q_J).
   Eigen::Vector3d phi_J = Eigen::Vector3d::Zero();

@@ -48,6 +48,7 @@ AXIS_COLOURS = ("#e41a1c", "#1a9a1a", "#1f4fd6")  # body axes x red, y green, z 
 BODY_COLOURS = ["#9a9a9a", "#ff9f1c", "#9467bd", "#17becf", "#8c564b", "#e377c2", "#bcbd22",
                 "#6b8e23", "#4682b4", "#d2691e"]  # base grey, then the others
 AXIS_ARROW = "#5b0f8a"   # revolute axes
+SLIDE_ARROW = "#0a6b3d"  # prismatic axes
 SWING = "#111111"        # where the child's CM goes for a positive angle
 MISMATCH = "#ff0000"     # joint points or axes that should coincide but do not; scene warnings
 SYMMETRY = "#b35900"     # the mirror-axes warning: mirror-image panels that do not move as such
@@ -415,6 +416,22 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
             if js.get("axis_mismatch_rad", 0) > 1e-6:
                 painter.arrow(pc, np.asarray(js["axis_N_child"], float) * L, MISMATCH, lw=2.0)
             swing(painter, frame, joint, js, half, detail, labels)
+        elif joint["type"] == "prismatic" and "slide_N" in js:
+            # The sliding axis through the joint point, pointing the way a positive position moves
+            # the child (the point slides with it: p_PoJ_P + s axis_P).
+            a = np.asarray(js["slide_N"], float)
+            L = 0.42 * half if detail else 0.34 * half
+            painter.arrow(pp - 0.5 * a * L, 1.5 * a * L, SLIDE_ARROW, lw=2.6 if detail else 1.7, head=0.22)
+            if labels is not None:
+                labels.add(pp + a * L, "+%s" % joint["name"], colour=SLIDE_ARROW, size=8, priority=1)
+        elif joint["type"] == "universal" and "gimbal_axes_N" in js:
+            # The two gimbal axes: the first fixed in the parent (thick), the second turning with the
+            # first angle (thin).
+            L = 0.42 * half if detail else 0.34 * half
+            for k, width in ((0, 2.6), (1, 1.6)):
+                a = np.asarray(js["gimbal_axes_N"][k], float)
+                painter.arrow(pp - 0.35 * a * L, a * L, AXIS_ARROW, lw=width if detail else width * 0.65,
+                              head=0.25)
         # Both sides of the joint point: a ring (parent side) and a cross (child side) inside it (in a
         # projection along a revolute axis the axis symbol marks the point instead).
         if not symbol:
@@ -535,6 +552,10 @@ def legend_handles(geom):
     if "revolute" in types:
         h += [(Line2D([], [], color=AXIS_ARROW, lw=2.6), "revolute axis; in 2-D along the view: \u2299 towards you, \u2297 away"),
               (Line2D([], [], color=SWING, lw=1.8, linestyle=(0, (4, 2))), "child CM's path as the angle grows")]
+    if "prismatic" in types:
+        h.append((Line2D([], [], color=SLIDE_ARROW, lw=2.6), "prismatic axis: the way a positive position slides the child"))
+    if "universal" in types:
+        h.append((Line2D([], [], color=AXIS_ARROW, lw=2.6), "universal joint: first axis (thick), second (thin)"))
     if "spherical" in types:
         h.append((Line2D([], [], marker="o", color="none", markerfacecolor="0.6", markersize=11, alpha=0.5),
                   "spherical joint"))
@@ -552,7 +573,9 @@ def conventions_text():
             "centred at its CM. A joint point is drawn from both bodies: parent p_Po + R_NP parent_point, "
             "child p_Co + R_NC child_point. A revolute joint turns the child about its axis (given in "
             "the parent frame) by the right-hand rule, R_PC = R_offset Rot(axis, angle); the dashed "
-            "arc shows where the child's CM goes as the angle grows. Spherical: R_PC = R_offset R(q_J).")
+            "arc shows where the child's CM goes as the angle grows. Spherical: R_PC = R_offset R(q_J). "
+            "Prismatic: the child slides along the axis, R_PC = R_offset. Universal: R_PC = "
+            "Rot(axis, angle1) Rot(axis2, angle2) R_offset.")
 
 
 def joint_notes(geom, frame):
