@@ -28,7 +28,7 @@ void KaneEngine::propagate_accelerations(const double* udot, bool full) {
     NodeWork& w = work_[k];
     Vector3d& alpha = full ? w.alpha_N : w.alpha_t_N;
     Vector3d& acc = full ? w.a_N : w.a_t_N;
-    if (n.type == JointType::Free) {
+    if (n.shape == JointShape::Base6) {
       if (full) {
         alpha.noalias() = w.R_NB * Eigen::Map<const Vector3d>(udot + n.u0);
         acc = Eigen::Map<const Vector3d>(udot + n.u0 + 3);

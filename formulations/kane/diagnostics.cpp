@@ -110,7 +110,7 @@ std::vector<BodyMotion> KaneEngine::body_motion(const double* x) {
   velocity_pass(x + n_q_);
   std::vector<BodyMotion> m(nodes_.size());
   // A free base's position is in x; a prescribed base's tree is measured from No already.
-  const Vector3d p_NoB0o_N = nodes_[0].type == JointType::Free
+  const Vector3d p_NoB0o_N = nodes_[0].shape == JointShape::Base6
                                  ? Vector3d(Eigen::Map<const Vector3d>(x + nodes_[0].q0))
                                  : Vector3d::Zero();
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
@@ -195,7 +195,7 @@ std::vector<JointFrames> KaneEngine::joint_frames(const double* x) {
     f.p_NoJ_N_child = c.p_NoBo_N + c.R_NB * r;
     if (J.parent < 0) {  // N: the free joint's "point" is the child's; a prescribed base's is fixed
       f.R_NJp.setIdentity();
-      f.p_NoJ_N_parent = J.type == JointType::Free ? f.p_NoJ_N_child : J.p_PoJ_P;
+      f.p_NoJ_N_parent = nodes_[k].shape == JointShape::Base6 ? f.p_NoJ_N_child : J.p_PoJ_P;
       continue;
     }
     const BodyMotion& p = bm[static_cast<std::size_t>(J.parent)];
@@ -270,19 +270,19 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
   double quat_err = 0;
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
-    if (n.type == JointType::Free) {
+    if (n.shape == JointShape::Base6) {
       const Quaterniond q(x[n.q0 + 3], x[n.q0 + 4], x[n.q0 + 5], x[n.q0 + 6]);
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
       q_N[k] = q.normalized();
       continue;
     }
     Quaterniond q_J = Quaterniond::Identity();
-    if (n.type == JointType::Revolute) {  // (cos a/2, sin a/2 k), half angle from position_pass
+    if (n.shape == JointShape::Axis1) {  // (cos a/2, sin a/2 k), half angle from position_pass
       const NodeWork& w = work_[k];
       q_J = Quaterniond(w.cos_half, w.sin_half * n.axis_J.x(), w.sin_half * n.axis_J.y(),
                         w.sin_half * n.axis_J.z());
     }
-    if (n.type == JointType::Spherical) {
+    if (n.shape == JointShape::Rotation3) {
       const Quaterniond q(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]);
       quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
       q_J = q.normalized();

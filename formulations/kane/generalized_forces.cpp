@@ -42,22 +42,22 @@ Vector3d KaneEngine::hinge_torque_spherical(const Node& n, double t, const doubl
 
 void KaneEngine::generalized_force_pass(double t, const double* x) {
   const NodeWork& base = work_[0];
-  if (nodes_[0].type == JointType::Free) {
+  if (nodes_[0].shape == JointShape::Base6) {
     f_.segment<3>(nodes_[0].u0).noalias() = base.R_NB.transpose() * base.M_sub_N;
     f_.segment<3>(nodes_[0].u0 + 3) = base.F_sub_N;
   }
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     const NodeWork& w = work_[k];
-    switch (n.type) {
-      case JointType::Revolute:
+    switch (n.shape) {
+      case JointShape::Axis1:
         if (!n.prescribed) f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
         break;
-      case JointType::Spherical:
+      case JointShape::Rotation3:
         f_.segment<3>(n.u0).noalias() =
             w.W_N.transpose() * w.M_sub_N + hinge_torque_spherical(n, t, x);
         break;
-      case JointType::Free:  // above
+      case JointShape::Base6:  // above
         break;
       default:  // every other joint: f_r = W_r . M_k + V_r . F_k + its unit's hinge forces
         for (int i = 0; i < n.nuj; ++i) {

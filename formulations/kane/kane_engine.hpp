@@ -12,6 +12,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -59,9 +60,23 @@ struct NodeRotation {
   Eigen::Vector3d Jl_dot_times(const Eigen::Vector3d& psi_rate) const;
 };
 
+// The shape of a joint's own speeds, declared by its unit (JointUnit::shape) and kept as
+// Node::shape: what the passes switch on (never on JointType, which only joints/dispatch.cpp
+// reads), so that a new joint type whose speeds have an existing shape needs no edit in the
+// passes (README.md "Joint units").  The passes inline the first three; the others (and None)
+// take the unit's verbs (JointUnit::position, velocity, hinge) with Node::slides, axis_rates.
+enum class JointShape : std::uint8_t {
+  Base6,      // six base speeds w_NB_B, v_NBo_N of a free base, Bo = Ok (free)
+  Axis1,      // one rotation about an axis fixed in Jp and Jc, Node::axis_P (revolute)
+  Rotation3,  // three rotations w_PC_C, Jc components, position q_J (spherical)
+  None,       // no speed (fixed)
+  Slide1,     // one slide along an axis fixed in Jp (prismatic)
+  Gimbal2,    // two rotations, the second axis turning with the first (universal)
+};
+
 // Immutable description of one tree node (joint k and its child body), built once.
 struct Node {
-  JointType type = JointType::Fixed;
+  JointShape shape = JointShape::None;  // its unit's JointUnit::shape
   const JointUnit* unit = nullptr;  // the joint type's unit (joints/joint_unit.hpp), chosen once
   int joint = -1;           // System::joints index (== node index)
   int body = -1;            // System::bodies index of the child

@@ -175,7 +175,7 @@ inline Vector3d KaneEngine::mass_matrix_ancestor_joint(const NodeWork& w,
   const Node& A = nodes_[static_cast<std::size_t>(an.node)];
   const NodeWork& wa = work_[static_cast<std::size_t>(an.node)];
   const Vector3d h_a = h + (w.p_B0oOk_N - wa.p_B0oOk_N).cross(p);
-  if (A.type == JointType::Free) {
+  if (A.shape == JointShape::Base6) {
     M_.block<1, 3>(r, A.u0).noalias() = (wa.R_NB.transpose() * h_a).transpose();
     M_.block<1, 3>(r, A.u0 + 3) = p.transpose();
   } else if (!A.slides) {

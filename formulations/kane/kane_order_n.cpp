@@ -179,7 +179,7 @@ void KaneEngine::articulated_pass(double t, const double* x) {
     // Joint k's equations, solved for u_k' in terms of the parent's increments: Ia, Za.
     Matrix3d Iww = a.Iww_N, Iwv = a.Iwv_N, Ivv = a.Ivv_N;
     Vector3d Z_M = a.Z_M_N, Z_F = a.Z_F_N;
-    if (n.type == JointType::Revolute) {
+    if (n.shape == JointShape::Axis1) {
       const Vector3d h = w.W_N.col(0);
       const Vector3d U_M = a.Iww_N * h, U_F = a.Iwv_N.transpose() * h;
       const double D = h.dot(U_M);
@@ -197,7 +197,7 @@ void KaneEngine::articulated_pass(double t, const double* x) {
       Ivv.noalias() -= K_F * U_F.transpose();
       Z_M -= K_M * a.g(0);
       Z_F -= K_F * a.g(0);
-    } else if (n.type == JointType::Spherical) {
+    } else if (n.shape == JointShape::Rotation3) {
       const Matrix3d& W = w.W_N;
       a.U_M_N.noalias() = a.Iww_N * W;
       a.U_F_N.noalias() = a.Iwv_N.transpose() * W;
@@ -268,12 +268,12 @@ void KaneEngine::articulated_solve(double t) {
     const Vector3d e = w.p_B0oOk_N - work_[static_cast<std::size_t>(n.parent)].p_B0oOk_N;
     a.dalpha_N = P.dalpha_N;
     a.da_Ok_N = P.da_Ok_N + P.dalpha_N.cross(e);
-    if (n.type == JointType::Revolute) {
+    if (n.shape == JointShape::Axis1) {
       const double ud = a.D_inv(0, 0) * (a.g(0) - a.U_M_N.col(0).dot(a.dalpha_N) -
                                          a.U_F_N.col(0).dot(a.da_Ok_N));
       udot_(n.u0) = ud;
       a.dalpha_N += w.W_N.col(0) * ud;
-    } else if (n.type == JointType::Spherical) {
+    } else if (n.shape == JointShape::Rotation3) {
       Vector3d r = a.g;
       r.noalias() -= a.U_M_N.transpose() * a.dalpha_N;
       r.noalias() -= a.U_F_N.transpose() * a.da_Ok_N;

@@ -17,8 +17,9 @@ namespace crossdyn::kane {
 //   Parent side (w_Jp = w_P + Wp eta_P', v_Ok = v_Po + w_P x (p_Ok - p_Po) + Vp eta_P'):
 //     Wp = R_NP Jl(psi_Pj) Psi_Pj,  Vp = R_NP Phi_Pj.
 //   A prismatic joint moves the child-side point: r_Pj += s axis_P (joints/prismatic.cpp), and
-//   its speed's partial velocity V_r = R_NJp axis_P (V_N); every joint that the switch below does
-//   not inline sets R_NJc, W_N and V_N by its unit (JointUnit::position).
+//   its speed's partial velocity V_r = R_NJp axis_P (V_N); every joint whose speeds' shape the
+//   switch below does not inline (Node::shape, declared by its unit; kane_engine.hpp) sets R_NJc,
+//   W_N and V_N by its unit (JointUnit::position).
 //   Child side (w_C = w_Jc + Wm eta_C', v_Co = v_Ok + w_C x (p_Co - p_Ok) + Vm eta_C'):
 //     Wm = -R_NC Jl(psi_Cj) Psi_Cj,  Vm = -R_NC Phi_Cj   (README.md, partial velocities).
 
@@ -26,7 +27,7 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
-    if (n.type == JointType::Free) {
+    if (n.shape == JointShape::Base6) {
       // W_r = b_r for u_r = w_NB_B,r (r = 1..3): the passes read R_NB itself (W_N is not formed);
       // Bo = Ok = B0o, so p_B0oBo_N, p_B0oOk_N, p_PoOk_N and p_OkBo_N stay zero (constructor).
       w.R_NB = read_quat(x, n.q0 + 3).toRotationMatrix();
@@ -66,8 +67,8 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
       }
       Matrix3d R_NJc_node;
       Matrix3d& R_NJc = n.child_attach ? R_NJc_node : w.R_NB;
-      switch (n.type) {
-        case JointType::Revolute:
+      switch (n.shape) {
+        case JointShape::Axis1:
         {
           const double half = 0.5 * (n.prescribed ? w.pres_angle : x[n.q0]);
           const double sh = std::sin(half), ch = std::cos(half);  // one sincos
@@ -92,11 +93,11 @@ void KaneEngine::position_pass(const double* x, bool rigid_inertia) {
           }
         }
           break;
-        case JointType::Spherical:
+        case JointShape::Rotation3:
           R_NJc.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
           w.W_N = R_NJc;  // W_r = j_r for u_r = w_PC,r in Jc components
           break;
-        default:  // every other joint by its unit (fixed, prismatic, universal; joints/)
+        default:  // every other shape by its unit (fixed, prismatic, universal; joints/)
           n.unit->position(n, x, *R_NJp, *R_NJ0, R_NJc, w, r_Pj);
           break;
       }
@@ -203,7 +204,7 @@ void KaneEngine::velocity_pass(const double* u) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
-    if (n.type == JointType::Free) {
+    if (n.shape == JointShape::Base6) {
       const Eigen::Map<const Vector3d> w_NB_B(u + n.u0), v_NBo_N(u + n.u0 + 3);
       w.w_NB_N.noalias() = w.R_NB * w_NB_B;
       w.v_NBo_N = v_NBo_N;
@@ -223,11 +224,11 @@ void KaneEngine::velocity_pass(const double* u) {
         w.w_NJp_N += w.w_att_N;
         v_Ok += w.v_att_N;
       }
-      switch (n.type) {
-        case JointType::Revolute:  // a prescribed joint: its rate theta'(t)
+      switch (n.shape) {
+        case JointShape::Axis1:  // a prescribed joint: its rate theta'(t)
           w.w_PC_N = w.W_N.col(0) * (n.prescribed ? w.pres_rate : u[n.u0]);
           break;
-        case JointType::Spherical:
+        case JointShape::Rotation3:
           w.w_PC_N.noalias() = w.W_N * Eigen::Map<const Vector3d>(u + n.u0);
           break;
         default:  // by the joint's unit: w_PC = sum W_r u_r, v_PC = sum V_r u_r

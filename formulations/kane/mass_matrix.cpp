@@ -47,7 +47,7 @@ void KaneEngine::mass_matrix_ancestors(const Node& n, int r, const Vector3d& p, 
 }
 
 void KaneEngine::mass_matrix_pass() {
-  if (nodes_[0].type == JointType::Free) {
+  if (nodes_[0].shape == JointShape::Base6) {
     // Lower triangle only (what solve() reads): M(w_i, w_j) = b_i . J_0 b_j with b_j = R_NB e_j,
     // M(v_i, w_j) = n_i . (b_j x s_0), i.e. column j is R_NB e_j x s_0.
     const NodeWork& base = work_[0];
@@ -117,7 +117,7 @@ void KaneEngine::mass_matrix_pass() {
       const int r = n.u0 + n.nuj + l;
       const Vector3d p = fw.pm_N.col(l), h = fw.hm_N.col(l);
       // Against the joint's own speeds (pure twists).
-      if (n.type == JointType::Free) {
+      if (n.shape == JointShape::Base6) {
         M_.block<1, 3>(r, n.u0).noalias() = (w.R_NB.transpose() * h).transpose();
         M_.block<1, 3>(r, n.u0 + 3) = p.transpose();
       } else {

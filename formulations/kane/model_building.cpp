@@ -43,7 +43,6 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     const Joint& J = system_.joints[k];
     Node& n = nodes_[k];
     const std::string jname = file + ": joint '" + J.name + "'";
-    n.type = J.type;
     n.joint = static_cast<int>(k);
     n.body = J.child;
     if (k > 0) n.parent = node_of_body[static_cast<std::size_t>(J.parent)];
@@ -69,9 +68,11 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
         n.inertia = I(0, 0) == I(1, 1) && I(1, 1) == I(2, 2) ? Node::Inertia::Isotropic
                                                               : Node::Inertia::Diagonal;
     }
-    // The joint type's own facts (axes, prescribed motion, Node::slides and axis_rates), set
-    // and validated by its unit (joints/).
+    // The joint type's own facts (the shape of its speeds, axes, prescribed motion, Node::slides
+    // and axis_rates), set and validated by its unit (joints/): the passes read these, never the
+    // type.
     n.unit = &joint_unit(J.type);
+    n.shape = n.unit->shape;
     if (n.unit->build) n.unit->build(J, n, jname);
     if (n.prescribed) has_prescribed_ = true;
 
@@ -119,7 +120,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     }
     n.child_attach = attach(J.child, J.child_node, J.p_CoJ_C, "child", n.Phi_Cj, n.Psi_Cj,
                             n.stiff_C, n.e_Cj, n.G_Cj);
-    if (k == 0 && J.type == JointType::Free && J.child_node >= 0)
+    if (k == 0 && n.shape == JointShape::Base6 && J.child_node >= 0)
       throw InputError(jname +
                        ": the free joint moves the base's body frame; child_node must "
                        "not be set");
@@ -150,7 +151,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   }
   for (Node& n : nodes_) {
     n.leaf_rigid = n.sums_start && n.flex < 0 && n.parent >= 0 && !n.parent_attach;
-    n.parent_free_base = n.parent >= 0 && nodes_[static_cast<std::size_t>(n.parent)].type == JointType::Free;
+    n.parent_free_base =
+        n.parent >= 0 && nodes_[static_cast<std::size_t>(n.parent)].shape == JointShape::Base6;
   }
 
   // State labels.

@@ -62,8 +62,8 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
       R_NJ0_offset.noalias() = P.R_NB * n.R_PJ0;
       R_NJ0 = &R_NJ0_offset;
     }
-    switch (n.type) {
-      case JointType::Revolute: {
+    switch (n.shape) {
+      case JointShape::Axis1: {
         const double half = 0.5 * x[n.q0];
         const double sh = std::sin(half), ch = std::cos(half);  // one libm sincos call
         w.sin_half = sh;
@@ -84,7 +84,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
         xdot[n.q0] = u[n.u0];
         break;
       }
-      case JointType::Spherical: {
+      case JointShape::Rotation3: {
         w.R_NB.noalias() = *R_NJ0 * read_quat(x, n.q0).toRotationMatrix();
         w.W_N = w.R_NB;  // W_r = j_r for u_r = w_PC,r in Jc components
         const Eigen::Map<const Vector3d> w_PC_C(u + n.u0);
@@ -153,11 +153,11 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
       for (const Node::Ancestor& an : n.speed_ancestors)
         mass_matrix_ancestor_joint(w, an, r, p_r, h_r);
     }
-    switch (n.type) {
-      case JointType::Revolute:
+    switch (n.shape) {
+      case JointShape::Axis1:
         f_(n.u0) = w.W_N.col(0).dot(w.M_sub_N) + hinge_torque_revolute(n, t, x);
         break;
-      case JointType::Spherical:
+      case JointShape::Rotation3:
         f_.segment<3>(n.u0).noalias() =
             w.W_N.transpose() * w.M_sub_N + hinge_torque_spherical(n, t, x);
         break;
@@ -261,7 +261,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
   for (std::size_t k = 0; k < nodes_.size(); ++k) {
     const Node& n = nodes_[k];
     NodeWork& w = work_[k];
-    if (n.type == JointType::Free) {
+    if (n.shape == JointShape::Base6) {
       const Quaterniond q(x[n.q0 + 3], x[n.q0 + 4], x[n.q0 + 5], x[n.q0 + 6]);
       const double norm = q.norm();
       quat_err = std::abs(norm - 1.0);
@@ -281,8 +281,8 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
       Quaterniond q_J = Quaterniond::Identity();
       bool q_done = false;
       Vector3d w_PC_N = Vector3d::Zero();
-      switch (n.type) {
-        case JointType::Revolute: {
+      switch (n.shape) {
+        case JointShape::Axis1: {
           const double half = 0.5 * x[n.q0];
           const double sh = std::sin(half), ch = std::cos(half);
           if (n.axis_index >= 0) {  // as in Pass 1
@@ -310,7 +310,7 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
           out.revolute(n.joint, x[n.q0], u[n.u0]);
           break;
         }
-        case JointType::Spherical: {
+        case JointShape::Rotation3: {
           const Quaterniond q(x[n.q0], x[n.q0 + 1], x[n.q0 + 2], x[n.q0 + 3]);
           quat_err = std::max(quat_err, std::abs(q.norm() - 1.0));
           q_J = q.normalized();

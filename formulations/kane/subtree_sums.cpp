@@ -37,7 +37,7 @@ void KaneEngine::subtree_pass(double t, bool full) {
     const Vector3d& alpha_t = full ? w.alpha_N : w.alpha_t_N;
     put(start, w.m_sub, n.mass);
     Vector3d R_B, T_B;
-    if (n.flex < 0 && n.type == JointType::Free) {
+    if (n.flex < 0 && n.shape == JointShape::Base6) {
       // A rigid free base: Bo = Ok (d = 0), and its remainder accelerations are zero.
       if (start) w.s_sub_N.setZero();
       put(start, w.J_sub_N, w.I_BBo_N);

@@ -591,9 +591,9 @@ TEST_CASE(
     for (const kane::Node& n : e.nodes()) {
       const Joint& J = s.joints[static_cast<std::size_t>(n.joint)];
       const double* u = x.data() + e.position_size() + n.u0;
-      if (n.type == JointType::Revolute)
+      if (J.type == JointType::Revolute)
         power += (J.motor_revolute.value(t)(0) - J.damping * u[0]) * u[0];
-      if (n.type == JointType::Spherical) {
+      if (J.type == JointType::Spherical) {
         const Vector3d w(u[0], u[1], u[2]);
         power += (J.motor_spherical.value(t) - J.damping * w).dot(w);
       }

@@ -53,8 +53,9 @@ void output(const Node&, const NodeWork&, double, const double*, const double*, 
 }  // namespace
 
 const JointUnit& free_joint_unit() {
-  static const JointUnit unit{sizes,  3,       labels,  q_rates, pack, accel, spring_energy,
-                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true};
+  static const JointUnit unit{sizes,  3,       labels,  q_rates, pack,    accel,   spring_energy,
+                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true,
+                              JointShape::Base6};
   return unit;
 }
 

@@ -2,11 +2,14 @@
 // engine does differently for each joint type, in one file per type (free.cpp, revolute.cpp,
 // spherical.cpp, fixed.cpp, prismatic.cpp, universal.cpp), chosen once per node by
 // joint_unit(JointType) (dispatch.cpp) when the model is built (model_building.cpp) and kept
-// as Node::unit.  README.md "Joint units" lists the verbs and how to add a joint type.
+// as Node::unit, with its shape as Node::shape.  dispatch.cpp alone switches on JointType: the
+// passes read the node's facts the unit sets (Node::shape, slides, axis_rates, the axes) and
+// call its verbs.  README.md "Joint units" lists the verbs and how to add a type.
 #pragma once
 
 #include "core/engine.hpp"
 #include "core/output_layout.hpp"
+#include "formulations/kane/kane_engine.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -15,9 +18,6 @@
 #include <vector>
 
 namespace crossdyn::kane {
-
-struct Node;
-struct NodeWork;
 
 // What every joint speed is to the passes (README.md "Joint units"): speed r of node k moves the
 // subtree S(k) with a rigid twist about Ok (the child-side joint point), its partial angular
@@ -57,9 +57,9 @@ struct JointUnit {
   // its facts in the node (axes, prescribed motion, Node::slides, Node::axis_rates).
   void (*build)(const Joint& J, Node& n, const std::string& jname);
   // Pass 1 (kinematics.cpp, position_pass), for the joints whose kinematics the passes do not
-  // inline (all but revolute and spherical, which are null here): R_NJc from the child-side joint
-  // frame at zero coordinates R_NJ0 = R_NJp R_PJ0; the speeds' W_N and V_N columns; r_Pj (the
-  // joint point from Po, parent frame) moved by the joint's own translation.
+  // inline (every shape but Base6, Axis1 and Rotation3, whose units leave it null): R_NJc from
+  // the child-side joint frame at zero coordinates R_NJ0 = R_NJp R_PJ0; the speeds' W_N and V_N
+  // columns; r_Pj (the joint point from Po, parent frame) moved by the joint's own translation.
   void (*position)(const Node& n, const double* x, const Eigen::Matrix3d& R_NJp,
                    const Eigen::Matrix3d& R_NJ0, Eigen::Matrix3d& R_NJc, NodeWork& w,
                    Eigen::Vector3d& r_Pj);
@@ -71,11 +71,15 @@ struct JointUnit {
   void (*hinge)(const Node& n, const Joint& J, double t, const double* x, const double* u,
                 double* f);
   // q_J of R_J for output_row's attitudes (q_NC = q_NJp q_PJ0 q_J); null: the identity (or
-  // inlined, revolute and spherical).
+  // inlined: shapes Axis1 and Rotation3).
   Eigen::Quaterniond (*joint_quat)(const Node& n, const double* x);
   // The fused rigid path (rigid_fast_path.cpp) has this type's branch; a scene with a joint
   // whose unit says false takes the general passes (dynamics(), output_row()).
   bool fused;
+  // The shape of the joint's speeds (kane_engine.hpp), copied to Node::shape when the model is
+  // built: the passes switch on it (the inlined cases Base6, Axis1, Rotation3; any other shape
+  // by the verbs above).
+  JointShape shape;
 };
 
 // The generalised active force of a scalar hinge: -k (q - neutral) - c q' + motor (a revolute
