@@ -17,6 +17,7 @@
 #include <exception>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -444,6 +445,43 @@ RunResult analytic_run(const System& system, const std::vector<double>& times) {
   return r;
 }
 
+namespace {
+
+// The closest approach of each universal joint's boresight to its outer axis in a run, as notes
+// for those within kKeyholeNoteRad (see compare_runs).
+constexpr double kKeyholeNoteRad = 10 * std::numbers::pi / 180;
+std::vector<std::string> keyhole_notes(const System& system, const RunResult& run) {
+  std::vector<std::string> notes;
+  for (const Joint& J : system.joints) {
+    if (J.type != JointType::Universal) continue;
+    const int a2 = run.column(J.name + ".angle2");
+    const int t = run.column("t");
+    if (a2 < 0 || t < 0) continue;
+    const double sin_alpha = J.axis_P.normalized().cross(J.axis2_P.normalized()).norm();
+    double closest = std::numbers::pi / 2, at = 0, angle2 = 0;
+    run.for_each_row([&](const double* row) {
+      const double c = std::acos(std::min(1.0, std::abs(std::sin(row[a2])) * sin_alpha));
+      if (c < closest) {
+        closest = c;
+        at = row[t];
+        angle2 = row[a2];
+      }
+    });
+    if (closest > kKeyholeNoteRad) continue;
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "%s: the gimbal's boresight (axis x axis2, the direction both axes leave free) came "
+                  "within %.3g deg of its outer axis at t = %.6g s (angle2 %.4g deg): near there the "
+                  "outer axis no longer turns it (a two-axis gimbal's keyhole); the dynamics have no "
+                  "singularity there",
+                  J.name.c_str(), closest * 180 / std::numbers::pi, at, angle2 * 180 / std::numbers::pi);
+    notes.emplace_back(buf);
+  }
+  return notes;
+}
+
+}  // namespace
+
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) {
   SceneComparison out;
   out.scene = system.name;
@@ -582,6 +620,15 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   out.checks.insert(out.checks.end(), checks.begin(), checks.end());
   if (!no_E.empty()) out.notes.push_back("E drift not checked: not conserved: " + no_E);
   if (!no_H.empty()) out.notes.push_back("H drift not checked: not conserved: " + no_H);
+
+  // A universal joint's keyhole (a finding, not a failure): its boresight b, the direction both
+  // axes leave free (axis x axis2 at zero angles, turned by angle2 about axis2), makes with the
+  // outer axis the angle acos(|sin(angle2)| sin(alpha)), alpha the angle between the axes. At zero
+  // the outer axis no longer turns the boresight: a pointing loop needs unbounded outer rates
+  // there, the two-axis gimbal's lock. The dynamics have no singularity (the rates always span
+  // the joint's motion), so the engines run through it; the note says how close the run came.
+  if (!ok.empty())
+    for (const std::string& note : keyhole_notes(system, ok.front()->result)) out.notes.push_back(note);
 
   // Scene keys that match nothing are almost always typos: say so.
   for (const auto& [key, tol] : system.compare.tolerances)
