@@ -297,10 +297,10 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     solver = order_n_ok && max_speed_depth_ >= kOrderNMinDepth ? KaneSolver::OrderN
                                                           : KaneSolver::Composite;
   solver_ = solver;
-  // The fused rigid path has a branch for the types whose units say so (JointUnit::fused); a
+  // The fused rigid path has a branch for some shapes of speeds (fused_shape, joint_unit.hpp); a
   // scene with any other joint takes the general passes.
   bool fused = true;
-  for (const Node& n : nodes_) fused = fused && n.unit->fused;
+  for (const Node& n : nodes_) fused = fused && fused_shape(n.shape);
   rigid_fast_ = solver_ == KaneSolver::Composite && rigid && !has_prescribed_ &&
                 system_.base_is_free() && fused;
   for (const Joint& J : system_.joints)

@@ -55,6 +55,21 @@ inline void follow_profile(const System& system, TreeState& s, double t) {
   }
 }
 
+// One engine at (t, s): its engine-neutral accelerations and its output row.
+struct EngineAt {
+  TreeAccel accel;
+  std::vector<double> row;
+};
+inline EngineAt evaluate(Engine& e, const TreeState& s, double t) {
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(s, x.data());
+  EngineAt at;
+  e.accelerations(t, x.data(), at.accel);
+  at.row.resize(e.layout().size());
+  e.output_row(t, x.data(), at.row.data());
+  return at;
+}
+
 inline RunResult run_engine(const std::string& engine, const System& system,
                             const std::string& method, double tol, double duration = -1,
                             const EngineOptions& options = {}) {

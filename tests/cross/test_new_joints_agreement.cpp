@@ -129,20 +129,14 @@ TEST_CASE("prismatic and universal joints: at random states every engine's accel
       TreeState s = random_new_joint_state(system, g);
       const double t = 0.13 * k;
       follow_profile(system, s, t);
-      std::vector<double> xk(static_cast<std::size_t>(kane->state_size()));
-      kane->pack(s, xk.data());
-      TreeAccel ak;
-      kane->accelerations(t, xk.data(), ak);
-      std::vector<double> rk(kane->layout().size());
-      kane->output_row(t, xk.data(), rk.data());
+      const EngineAt at_kane = evaluate(*kane, s, t);
+      const TreeAccel& ak = at_kane.accel;
+      const std::vector<double>& rk = at_kane.row;
       for (const std::string& other : kOthers) {
         auto e = make_engine(other, system);
-        std::vector<double> xo(static_cast<std::size_t>(e->state_size()));
-        e->pack(s, xo.data());
-        TreeAccel ao;
-        e->accelerations(t, xo.data(), ao);
-        std::vector<double> ro(e->layout().size());
-        e->output_row(t, xo.data(), ro.data());
+        const EngineAt at_other = evaluate(*e, s, t);
+        const TreeAccel& ao = at_other.accel;
+        const std::vector<double>& ro = at_other.row;
         auto note = [&](double d, const std::string& what) {
           if (d > worst) {
             worst = d;

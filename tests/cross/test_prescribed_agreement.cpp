@@ -67,20 +67,14 @@ TEST_CASE("prescribed joints and geometric stiffening: at random states the engi
       TreeState s = random_flex_state(system, g, 0.3);
       const double t = 0.37 * k;  // through the ramp and past it on scan_platform (T = 5 s)
       follow_profile(system, s, t);
-      std::vector<double> xk(static_cast<std::size_t>(kane->state_size()));
-      kane->pack(s, xk.data());
-      TreeAccel ak;
-      kane->accelerations(t, xk.data(), ak);
-      std::vector<double> rk(kane->layout().size());
-      kane->output_row(t, xk.data(), rk.data());
+      const EngineAt at_kane = evaluate(*kane, s, t);
+      const TreeAccel& ak = at_kane.accel;
+      const std::vector<double>& rk = at_kane.row;
       for (const std::string other : {"lagrange", "newton-euler"}) {
         auto e = make_engine(other, system);
-        std::vector<double> xo(static_cast<std::size_t>(e->state_size()));
-        e->pack(s, xo.data());
-        TreeAccel ao;
-        e->accelerations(t, xo.data(), ao);
-        std::vector<double> ro(e->layout().size());
-        e->output_row(t, xo.data(), ro.data());
+        const EngineAt at_other = evaluate(*e, s, t);
+        const TreeAccel& ao = at_other.accel;
+        const std::vector<double>& ro = at_other.row;
         for (std::size_t b = 0; b < ak.eta_ddot.size(); ++b)
           for (Eigen::Index i = 0; i < ak.eta_ddot[b].size(); ++i)
             worst_eta = std::max(worst_eta, std::abs(ao.eta_ddot[b](i) - ak.eta_ddot[b](i)) /

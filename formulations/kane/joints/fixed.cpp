@@ -30,8 +30,7 @@ void velocity(const Node&, const double*, NodeWork& w) { w.w_PC_N.setZero(); }
 
 const JointUnit& fixed_joint_unit() {
   static const JointUnit unit{sizes,  -1,      labels,   q_rates,  pack,    accel,   spring_energy,
-                              output, nullptr, position, velocity, nullptr, nullptr, true,
-                              JointShape::None};
+                              output, nullptr, position, velocity, nullptr, nullptr, JointShape::None};
   return unit;
 }
 

@@ -54,8 +54,7 @@ void output(const Node&, const NodeWork&, double, const double*, const double*, 
 
 const JointUnit& free_joint_unit() {
   static const JointUnit unit{sizes,  3,       labels,  q_rates, pack,    accel,   spring_energy,
-                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true,
-                              JointShape::Base6};
+                              output, nullptr, nullptr, nullptr, nullptr, nullptr, JointShape::Base6};
   return unit;
 }
 

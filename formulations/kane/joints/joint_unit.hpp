@@ -73,14 +73,20 @@ struct JointUnit {
   // q_J of R_J for output_row's attitudes (q_NC = q_NJp q_PJ0 q_J); null: the identity (or
   // inlined: shapes Axis1 and Rotation3).
   Eigen::Quaterniond (*joint_quat)(const Node& n, const double* x);
-  // The fused rigid path (rigid_fast_path.cpp) has this type's branch; a scene with a joint
-  // whose unit says false takes the general passes (dynamics(), output_row()).
-  bool fused;
   // The shape of the joint's speeds (kane_engine.hpp), copied to Node::shape when the model is
   // built: the passes switch on it (the inlined cases Base6, Axis1, Rotation3; any other shape
   // by the verbs above).
   JointShape shape;
 };
+
+// The fused rigid path (rigid_fast_path.cpp) has a branch for these shapes only (the inlined
+// free base, hinge and ball, and no speed); a scene with a joint of any other shape takes the
+// general passes (dynamics(), output_row()). Derived from the shape, so a new joint type cannot
+// claim the fused path without a branch there.
+constexpr bool fused_shape(JointShape s) {
+  return s == JointShape::Base6 || s == JointShape::Axis1 || s == JointShape::Rotation3 ||
+         s == JointShape::None;
+}
 
 // The generalised active force of a scalar hinge: -k (q - neutral) - c q' + motor (a revolute
 // torque, a prismatic force along the axis, one universal axis's torque).

@@ -71,7 +71,7 @@ const JointUnit& prismatic_joint_unit() {
   static const JointUnit unit{scalar_joint_sizes, -1,     labels,  scalar_joint_q_rates,
                               scalar_joint_pack,  scalar_joint_accel, scalar_joint_spring_energy,
                               output,             build,  position, velocity, hinge, nullptr,
-                              false, JointShape::Slide1};
+                              JointShape::Slide1};
   return unit;
 }
 

@@ -94,7 +94,7 @@ const JointUnit& revolute_joint_unit() {
   static const JointUnit unit{scalar_joint_sizes, -1,     labels,  scalar_joint_q_rates,
                               scalar_joint_pack,  scalar_joint_accel, scalar_joint_spring_energy,
                               output,             build,  nullptr, nullptr, nullptr, nullptr,
-                              true,               JointShape::Axis1};
+                              JointShape::Axis1};
   return unit;
 }
 

@@ -59,8 +59,7 @@ void output(const Node& n, const NodeWork&, double, const double*, const double*
 
 const JointUnit& spherical_joint_unit() {
   static const JointUnit unit{sizes,  0,       labels,  q_rates, pack,    accel,   spring_energy,
-                              output, nullptr, nullptr, nullptr, nullptr, nullptr, true,
-                              JointShape::Rotation3};
+                              output, nullptr, nullptr, nullptr, nullptr, nullptr, JointShape::Rotation3};
   return unit;
 }
 

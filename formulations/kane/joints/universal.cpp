@@ -115,8 +115,7 @@ Eigen::Quaterniond joint_quat(const Node& n, const double* x) {
 
 const JointUnit& universal_joint_unit() {
   static const JointUnit unit{sizes,  -1,    labels,   q_rates,  pack,  accel,      spring_energy,
-                              output, build, position, velocity, hinge, joint_quat, false,
-                              JointShape::Gimbal2};
+                              output, build, position, velocity, hinge, joint_quat, JointShape::Gimbal2};
   return unit;
 }
 
