@@ -238,6 +238,14 @@ struct Joint {
   Eigen::Vector3d w_NB_B0 = Eigen::Vector3d::Zero();             // rad/s
   Eigen::Vector3d v_NBo_N0 = Eigen::Vector3d::Zero();            // m/s (see zero_linear_momentum)
 
+  // Whether the joint has a damper or a motor on any of its coordinates, whatever its type (the
+  // one place that knows which fields each type's loads use: the harness asks here).
+  bool has_damper() const { return damping != 0 || damping2 != 0; }
+  bool has_motor() const {
+    return !motor_revolute.empty() || !motor_spherical.empty() || !motor_universal.empty();
+  }
+  bool has_spring() const { return stiffness != 0 || stiffness2 != 0; }
+
   // Number of generalised speeds this joint contributes (free 6, revolute and prismatic 1 (0 when
   // prescribed), spherical 3, fixed 0, universal 2).
   int dof() const {

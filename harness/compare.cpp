@@ -343,7 +343,7 @@ bool finish_time_check(Check& c, const EngineRun& A, const EngineRun& B, bool st
 // dissipate energy; the reason names which one the scene has.
 bool has_joint_dampers(const System& s) {
   for (const Joint& j : s.joints)
-    if (j.damping != 0) return true;
+    if (j.has_damper()) return true;
   return false;
 }
 bool has_modal_damping(const System& s) {
@@ -353,7 +353,7 @@ bool has_modal_damping(const System& s) {
 }
 bool has_motors(const System& s) {
   for (const Joint& j : s.joints)
-    if (!j.motor_revolute.empty() || !j.motor_spherical.empty()) return true;
+    if (j.has_motor()) return true;
   return false;
 }
 bool has_external_torques(const System& s) {

@@ -225,6 +225,36 @@ TEST_CASE("compare: E drift is not checked when the scene has motors or dampers"
   CHECK(crossdyn::harness::momentum_not_conserved_reason(s).empty());
 }
 
+// Every joint type's dampers and motors count (a universal joint keeps its second axis's damper
+// and its motors in fields of its own): a gimbal with only a motor is not an E drift failure.
+TEST_CASE("compare: dampers and motors of every joint type make E not conserved") {
+  using crossdyn::harness::energy_not_conserved_reason;
+  System s = two_body_system();
+  s.joints[1].type = crossdyn::JointType::Universal;
+  CHECK(energy_not_conserved_reason(s).empty());
+  s.joints[1].damping2 = 0.1;
+  CHECK(energy_not_conserved_reason(s) == "scene has joint dampers");
+  s.joints[1].damping2 = 0;
+  s.joints[1].motor_universal.times = {0.0};
+  s.joints[1].motor_universal.values = {Eigen::Vector2d(0.05, 0.02)};
+  CHECK(energy_not_conserved_reason(s) == "scene has motors");
+  // Through the program on such a scene: passes, E drift excluded with the reason.
+  const System g = crossdyn::read_scene_text(R"(name: gmotor
+bodies:
+  - {name: hub, mass: 120 kg, inertia: [40, 55, 60]}
+  - {name: eye, mass: 2 kg, inertia: [0.03, 0.05, 0.04]}
+joints:
+  - {name: base, type: free, child: hub}
+  - {name: gimbal, type: universal, parent: hub, child: eye, parent_point: [0, -0.6, 0.3],
+     child_point: [0, 0.1, 0], axis: [0, 1, 0], axis2: [0, 0, 1],
+     motor: {profile: [{t: 0, value: [0.05, 0.02]}]}}
+run: {duration: 2 s, output_step: 0.05 s}
+)", "gmotor.yaml");
+  const SceneComparison c = crossdyn::harness::compare_scene(g, crossdyn::harness::CompareOptions{});
+  CHECK(c.passed());
+  CHECK(find_checks(c, "E.drift", "kane")[0].status == CheckStatus::Excluded);
+}
+
 TEST_CASE("compare: the E drift exclusion names joint dampers and modal damping apart") {
   using crossdyn::harness::energy_not_conserved_reason;
   // scenarios/hub_nodal_panel.yaml: 0.5 % modal damping and no joint damper.
