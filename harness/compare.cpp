@@ -72,6 +72,17 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
       case ColumnKind::MomentumH: q.push_back({"H", "H", "", {"H"}, false}); break;
       case ColumnKind::EnergyE: q.push_back({"E", "E", "", {"E"}, false}); break;
+      // Issue 26's columns: positions with the joints' (m), the momentum vector and the external
+      // moment with H, the power with E, the joints' forces and moments as loads.
+      case ColumnKind::BodyPosition:
+        q.push_back({c.name, "position", body + ".position", {c.name}, false});
+        break;
+      case ColumnKind::SystemCM: q.push_back({c.name, "position", "CM", {c.name}, false}); break;
+      case ColumnKind::MomentumVector: q.push_back({c.name, "H", "", {c.name}, false}); break;
+      case ColumnKind::ExternalMoment: q.push_back({c.name, "H", "M", {c.name}, false}); break;
+      case ColumnKind::Power: q.push_back({"P", "E", "", {"P"}, false}); break;
+      case ColumnKind::JointForce: q.push_back({c.name, "load", joint + ".F", {c.name}, false}); break;
+      case ColumnKind::JointMoment: q.push_back({c.name, "load", joint + ".M", {c.name}, false}); break;
       case ColumnKind::Time:
       case ColumnKind::Extra: break;
     }
@@ -435,8 +446,15 @@ RunResult analytic_run(const System& system, const std::vector<double>& times) {
     const analytic::TorqueFreeState x = reference.at(t);
     const Eigen::Quaterniond q = rot::canonical(x.q_NB);
     const Eigen::Vector3d H_B = body.I_BBo_B * x.w_NB_B;
+    const Eigen::Vector3d H_N = x.q_NB * H_B;
+    // The CM moves uniformly: p_NoBo_N(t) = p_NoBo_N(0) + v t (v zero when the scene zeroes the
+    // linear momentum); no loads, so P and M are zero.
+    const Eigen::Vector3d v = system.zero_linear_momentum ? Eigen::Vector3d::Zero() : s0.v_NBo_N;
+    const Eigen::Vector3d p = s0.p_NoBo_N + v * t;
     const double row[] = {t, x.w_NB_B.x(), x.w_NB_B.y(), x.w_NB_B.z(), q.w(), q.x(), q.y(), q.z(),
-                          H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation};
+                          H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation,
+                          p.x(), p.y(), p.z(), p.x(), p.y(), p.z(), H_N.x(), H_N.y(), H_N.z(),
+                          0, 0, 0, 0};
     if (r.columns.size() != std::size(row))
       throw std::logic_error("analytic_run: the pinned columns of a single body changed");
     rows.append(row);
