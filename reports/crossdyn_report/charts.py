@@ -21,11 +21,16 @@ GROUP_TITLES = {
     "attitude": "attitudes",
     "rate": "joint rates",
     "angle": "joint angles",
+    "position": "positions",
+    "torque": "drive torques",
     "modal": "modal coordinates",
-    "H": "angular momentum H",
-    "E": "energy E",
+    "load": "joint loads",
+    "H": "angular momentum H (and M)",
+    "E": "energy E (and P)",
     "H.drift": "drift of H",
     "E.drift": "drift of E",
+    "H.balance": "balance of H",
+    "E.balance": "balance of E",
     "extra": "extra columns",
 }
 JOINT_COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
@@ -390,7 +395,7 @@ def chart_differences(scene, runs, out_dir, sid):
         return None
     present = {c["group"] for c in scene.get("checks", [])}
     groups = [g for g in scene.get("group_order", []) if g in present and
-              g in ("w", "attitude", "rate", "angle", "position", "modal", "torque", "H", "E", "extra")]
+              g in ("w", "attitude", "rate", "angle", "position", "modal", "torque", "load", "H", "E", "extra")]
     palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     colours = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
     n = len(pairs)
@@ -450,43 +455,134 @@ def chart_differences(scene, runs, out_dir, sid):
                   "for the whole run. Exact agreement is drawn at 1e-17.")
 
 
+def balance_integral(t, rate):
+    """The integral of rate from t[0] on the output times, each interval by the quadratic through
+    it and the row before (the first by the quadratic of the first three rows): the rule of the
+    harness's balance check (harness/compare.cpp, quadratic_last / quadratic_first)."""
+    t = np.asarray(t, dtype=float)
+    f = np.asarray(rate, dtype=float)
+    w = np.zeros_like(f)
+    for k in range(1, len(t)):
+        b = t[k] - t[k - 1]
+        if k >= 2:
+            a = t[k - 1] - t[k - 2]
+            q = (-b ** 3 / (6 * a * (a + b)) * f[k - 2] + (b * b / (6 * a) + b / 2) * f[k - 1]
+                 + (b * b / 3 + a * b / 2) / (a + b) * f[k])
+        else:
+            q = b / 2 * (f[0] + f[1])
+        w[k] = w[k - 1] + q
+    if len(t) >= 3:  # the first interval by the quadratic of the first three rows
+        a, b = t[1] - t[0], t[2] - t[1]
+        first = ((a * a / 3 + a * b / 2) / (a + b) * f[0] + (a * a / (6 * b) + a / 2) * f[1]
+                 - a ** 3 / (6 * b * (a + b)) * f[2])
+        w[1:] += first - (a / 2 * (f[0] + f[1]))
+    return w
+
+
 def chart_drift(scene, runs, out_dir, sid):
     engines = [r for r in runs if r.info.get("engine") != "analytic" and r.has("H")]
     if not engines:
         return None
-    checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", []) if c["group"].endswith(".drift")}
+    checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", [])
+              if c["group"].endswith(".drift") or c["group"].endswith(".balance")}
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
     reasons = {"H": scene.get("momentum_not_conserved", ""), "E": scene.get("energy_not_conserved", "")}
     for ax, x in zip(axes, ("H", "E")):
+        balanced = bool(reasons[x])
+        names = (["E"], ["P"]) if x == "E" else (["Hx", "Hy", "Hz"], ["Mx", "My", "Mz"])
         relative = True
         for r in engines:
-            if not r.has(x):
-                continue
-            v = r.col(x)
-            x0 = v[0]
-            relative = relative and abs(x0) > 0
-            d = np.abs(v - x0) / (abs(x0) if abs(x0) > 0 else 1.0)
+            if balanced:
+                if not all(r.has(n) for n in names[0] + names[1]):
+                    continue
+                X = np.stack([r.col(n) for n in names[0]], axis=1)
+                W = np.stack([balance_integral(r.t, r.col(n)) for n in names[1]], axis=1)
+                dev = np.linalg.norm(X - X[0] - W, axis=1)
+                x0 = max(np.max(np.linalg.norm(X, axis=1)), 0.0)
+                c = checks.get((x + ".balance", r.label))
+            else:
+                if not r.has(x):
+                    continue
+                v = r.col(x)
+                x0 = abs(v[0])
+                dev = np.abs(v - v[0])
+                c = checks.get((x + ".drift", r.label))
+            scale = c["scale"] if balanced and c and c.get("scale") else x0
+            relative = relative and scale > 0
+            d = dev / (scale if scale > 0 else 1.0)
             ax.semilogy(r.t, np.maximum(d, TINY), label=r.label, **{k: s for k, s in r.style.items() if k != "alpha"})
-            c = checks.get((x + ".drift", r.label))
             if c and c["status"] in ("PASS", "FAIL") and c["bound"]:
-                ax.axhline(c["bound"] / (abs(x0) if abs(x0) > 0 else 1.0), color=r.style["color"],
+                ax.axhline(c["bound"] / (scale if scale > 0 else 1.0), color=r.style["color"],
                            linestyle="--", linewidth=0.9, alpha=0.7)
         unit = "" if relative else (" (kg m^2/s)" if x == "H" else " (J)")
-        ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
-        title = "drift of %s from its initial value" % x
-        if reasons[x]:
-            title += "\n(not checked: not conserved, %s)" % reasons[x]
+        if balanced:
+            what = "|E(t) - E(0) - W(t)|" if x == "E" else "|H(t) - H(0) - integral of M|"
+            ax.set_ylabel(what + (" / scale" if relative else unit))
+            title = ("balance of %s: it is not conserved (%s); its change against the integral of "
+                     "each engine's own %s" % (x, reasons[x].replace("scene has ", ""),
+                                               "power P" if x == "E" else "external moment M"))
+        else:
+            ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
+            title = "drift of %s from its initial value" % x
         ax.set_title(title, fontsize="medium")
         ax.grid(True, which="both", alpha=0.3)
     outside_legend(fig, axes[0], title="engine")
     axes[-1].set_xlabel("time t (s)")
-    fig.suptitle("Conservation: drift of H and E of each engine (log scale)\n"
-                 "dashed lines: the drift tolerance atol + rtol |X(0)| of each engine's check")
+    fig.suptitle("Conservation and balance of H and E of each engine (log scale)\n"
+                 "dashed lines: each engine's check bound (drift: atol + rtol |X(0)|; balance: see the pass rule)")
     name = finish(fig, "%s-drift.png" % sid, out_dir)
-    return name, ("Relative drift |X(t) - X(0)| / |X(0)| of the angular momentum magnitude H and "
-                  "the energy E of each engine (absolute drift where X(0) = 0). In a scene without "
-                  "external torques H is conserved; without dampers, motors or external torques E "
-                  "is too, so the drift measures integration and formulation error.")
+    return name, ("Where the scene conserves them: the relative drift |X(t) - X(0)| / |X(0)| of the "
+                  "angular momentum H and the energy E of each engine. Where it does not (dampers, "
+                  "motors, prescribed joints, external torques): the balance X(t) - X(0) - W(t), W "
+                  "the integral of the engine's own power P (for E) or external moment M about the "
+                  "system CM (for H, as a vector), relative to the check's scale. Either measures "
+                  "integration and formulation error; a load whose power is wrong in one engine's "
+                  "equations of motion shows as that engine's balance growing.")
+
+
+def chart_loads(scene, runs, out_dir, sid):
+    """One panel per joint (at most 8, the most loaded first): the magnitude of the force and of the
+    moment about the joint point that the parent exerts on the child, every engine overlaid."""
+    engines = [r for r in runs if r.info.get("engine") != "analytic"]
+    joints = []
+    for r in engines[:1]:
+        for c in r.columns:
+            if c.endswith(".Fx"):
+                joints.append(c[:-3])
+    if not joints or not engines:
+        return None
+
+    def magnitude(r, j, q):
+        return np.sqrt(sum(r.col("%s.%s%s" % (j, q, a)) ** 2 for a in "xyz"))
+
+    def peak(j):
+        r = engines[0]
+        return float(np.max(magnitude(r, j, "M"))) + float(np.max(magnitude(r, j, "F")))
+    shown = sorted(joints, key=peak, reverse=True)[:8]
+    shown.sort(key=joints.index)
+    fig, axes = plt.subplots(len(shown), 2, figsize=(10, 1.9 * len(shown) + 1.2), sharex=True, squeeze=False)
+    for row, j in zip(axes, shown):
+        for ax, q, unit in ((row[0], "F", "N"), (row[1], "M", "N m")):
+            for r in engines:
+                if all(r.has("%s.%s%s" % (j, q, a)) for a in "xyz"):
+                    ax.plot(r.t, magnitude(r, j, q), label=r.label, **r.style)
+            ax.set_ylabel("|%s| (%s)" % (q, unit))
+            ax.set_title("%s: %s" % (j, "force on the child" if q == "F" else "moment about the joint point"),
+                         fontsize="small")
+            ax.grid(True, alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time t (s)")
+    outside_legend(fig, axes[0][1], title="engine")
+    more = "" if len(shown) == len(joints) else " (the %d most loaded of %d joints)" % (len(shown), len(joints))
+    fig.suptitle("Joint loads from every engine%s\nthe parent on the child, through the joint" % more)
+    name = finish(fig, "%s-loads.png" % sid, out_dir)
+    return name, ("Each joint's load as each engine computes it its own way (newton-euler from its "
+                  "constraint multipliers, kane and lagrange from their own accelerations): the "
+                  "force F and the moment M about the joint point that the parent exerts on the "
+                  "child (constraint reaction plus the joint's spring, damper, motor or drive; "
+                  "components in the child's frame in the CSV columns <joint>.Fx ... .Mz). "
+                  "Overlaid lines that coincide are the three engines agreeing; the harness "
+                  "compares every component (group 'load').")
 
 
 def chart_converge(scene, out_dir, sid):
@@ -676,6 +772,7 @@ def chart_conditioning(scaling, out_dir):
                   "of that kind (exact agreement drawn at 1e-17): the digits actually lost.")
 
 
-CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_differences, chart_drift]
+CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_loads, chart_differences,
+          chart_drift]
 
 __all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]
