@@ -322,6 +322,48 @@ TEST_CASE("newton-euler loads: the joint loads close every body's Newton-Euler e
                                                                       << " (relative to the load scale)");
 }
 
+// ne_systems.hpp's trees with every joint type at nodes of flexible parents and children (a
+// revolute joint at a flexible child's node, a spherical one too), given dampers, motors and
+// modal damping here, so that the joints' own loads act on node frames: the closure, and P and M
+// against dE/dt and dH/dt.
+System loaded(System s) {
+  for (std::size_t j = 1; j < s.joints.size(); ++j) {
+    Joint& J = s.joints[j];
+    J.damping = 0.7 + 0.1 * static_cast<double>(j);
+    if (J.type == JointType::Revolute) {
+      J.motor_revolute.times = {0.0};
+      J.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(1.5 - static_cast<double>(j))};
+    } else if (J.type == JointType::Spherical) {
+      J.motor_spherical.times = {0.0};
+      J.motor_spherical.values = {Vector3d(0.3, -0.8, 1.1)};
+    }
+  }
+  for (Body& b : s.bodies)
+    if (b.flex) b.flex->D = 0.05 * Eigen::MatrixXd::Identity(b.flex->modes(), b.flex->modes());
+  s.bodies[0].torque.times = {0.0};
+  s.bodies[0].torque.values = {Vector3d(2.0, -1.0, 0.5)};
+  s.bodies[0].torque_frame = Body::Frame::Inertial;
+  return s;
+}
+
+TEST_CASE("newton-euler loads: closure, P and M on code-built trees with loads at nodes",
+          "[newton_euler][loads]") {
+  std::mt19937 rng(17);
+  for (const System& s : {loaded(flexible_tree()), loaded(mixed_tree()), loaded(flexible_chain(4)),
+                          flexible_tree()}) {
+    for (int trial = 0; trial < 3; ++trial) {
+      INFO("system " << s.name << " trial " << trial);
+      Eval v = evaluate(s, random_scene_state(s, rng, 0.3, 0.05, 0.3), 0.3);
+      closure(s, v);
+      const std::vector<double> d = flow_rate(v, {"E", "Hx", "Hy", "Hz"});
+      const double P = v.col("P"), E = v.col("E");
+      const Vector3d M = v.vec("Mx", "My", "Mz"), H = v.vec("Hx", "Hy", "Hz");
+      CHECK(std::abs(d[0] - P) <= 1e-6 * (std::abs(P) + std::abs(damper_power(s, v)) + 1e-4 * std::abs(E)));
+      CHECK((Vector3d(d[1], d[2], d[3]) - M).norm() <= 1e-6 * (M.norm() + 1e-4 * H.norm()));
+    }
+  }
+}
+
 // The closure holds under Baumgarte stabilisation at a state whose velocities violate the
 // constraints: its terms -alpha g' change the accelerations and the multipliers together, and
 // the loads are the multipliers' reading at that state. (The positions stay on the manifold, so
@@ -363,8 +405,11 @@ TEST_CASE("newton-euler loads: a joint's load along its own axis is the joint's 
   std::mt19937 rng(3);
   int revolute = 0, prismatic = 0, universal = 0;
   double worst = 0;
-  for (const std::string& path : committed_scenes()) {
-    const System s = read_scene(path);
+  std::vector<System> systems;
+  for (const std::string& path : committed_scenes()) systems.push_back(read_scene(path));
+  systems.push_back(loaded(flexible_tree()));  // revolute joints at a parent's and a child's node
+  systems.push_back(loaded(flexible_chain(4)));
+  for (const System& s : systems) {
     const double t = eval_time(s.name);
     for (int trial = 0; trial < 2; ++trial) {
       Eval v = evaluate(s, random_scene_state(s, rng, t, 0.05, 0.2), t);
@@ -381,7 +426,7 @@ TEST_CASE("newton-euler loads: a joint's load along its own axis is the joint's 
         const Vector3d F_C = v.vec(J.name + ".Fx", J.name + ".Fy", J.name + ".Fz");
         const Vector3d M_C = v.vec(J.name + ".Mx", J.name + ".My", J.name + ".Mz");
         const double scale = 1 + M_C.norm() + F_C.norm();
-        INFO("scene " << stem(path) << " joint " << J.name);
+        INFO("scene " << s.name << " joint " << J.name);
         if (J.type == JointType::Universal) {
           const Eigen::Vector2d motor = J.motor_universal.empty() ? Eigen::Vector2d::Zero() : J.motor_universal.value(t);
           const double tau1 = -J.stiffness * (v.col(J.name + ".angle1") - J.neutral_angle) -

@@ -26,7 +26,10 @@
 //   load             (joint, model, jk, coordinates, t) => T_P, the torque of the spring, damper
 //                    and motor on the child-side frame in P body components, and (a unit with
 //                    JointModel::translates) F_P, the force on the child at its joint point in P
-//                    components (the reaction on the parent at the same point); false: no load
+//                    components (the reaction on the parent at the same point); false: no load.
+//                    The damper is JointModel::damping, damping2 (EngineOptions::
+//                    test_damper_scale's); the engine applies the load in force_pass() and adds
+//                    it to the joint's output load (<joint>.Fx .. .Mz, joint_load())
 //   pack             (model, TreeState joint) => q_J, w_FG_G, the joint point's offset r_F and its
 //                    F-frame rate v_F along a translation, and angle_ref (the engine-neutral
 //                    coordinates in maximal ones)
