@@ -142,8 +142,6 @@ class RowWriter {
              const Eigen::Ref<const Eigen::VectorXd>& eta_rate);
   // The angular momentum about the system CM, N components: writes Hx, Hy, Hz and H = |H_N|.
   void momentum(const Eigen::Vector3d& H_Scm_N);
-  // Transitional (issue 26, removed once every engine writes the vector): H alone.
-  void momentum(double H) { row_[layout_.H()] = H; }
   void energy(double E) { row_[layout_.E()] = E; }
   // Body b's frame origin p_NoBo_N (its CM; a flexible body's undeformed CM), m.
   void body_position(int b, const Eigen::Vector3d& p_NoBo_N);

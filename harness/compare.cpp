@@ -34,12 +34,19 @@ struct Quantity {
   std::string vector_key;  // "main.w" for main.wx; "" when none
   std::vector<std::string> columns;
   bool attitude = false;
+  // A vector's component is scaled by the vector: max_t |(x, y, z)| of these columns of b, not
+  // max_t |b| of its own column (H's components: a torque-free body's H along y, 200 kg m^2/s,
+  // with 1 along x, would hold Hx to 1e-8 of 1 where its attitude is held to 1e-8 rad).
+  std::vector<std::string> scale_columns = {};
 };
 
 // The quantities every engine must output for this scene, in table order: the pinned columns of
 // the output layout (core/output_layout.hpp), a body's four quaternion columns as one attitude.
 std::vector<Quantity> pinned_quantities(const System& s) {
   const OutputLayout layout(s);
+  auto xyz = [](const std::string& prefix) {
+    return std::vector<std::string>{prefix + "x", prefix + "y", prefix + "z"};
+  };
   std::vector<Quantity> q;
   // Does the column's joint have more than one coordinate column of this kind?
   auto multi = [&layout](const Column& c) {
@@ -76,14 +83,18 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       // Issue 26's columns: positions with the joints' (m), the momentum vector and the external
       // moment with H, the power with E, the joints' forces and moments as loads.
       case ColumnKind::BodyPosition:
-        q.push_back({c.name, "position", body + ".position", {c.name}, false});
+        q.push_back({c.name, "position", body + ".position", {c.name}, false, xyz(body + ".")});
         break;
-      case ColumnKind::SystemCM: q.push_back({c.name, "position", "CM", {c.name}, false}); break;
-      case ColumnKind::MomentumVector: q.push_back({c.name, "H", "", {c.name}, false}); break;
-      case ColumnKind::ExternalMoment: q.push_back({c.name, "H", "M", {c.name}, false}); break;
+      case ColumnKind::SystemCM: q.push_back({c.name, "position", "CM", {c.name}, false, xyz("CM")}); break;
+      case ColumnKind::MomentumVector: q.push_back({c.name, "H", "", {c.name}, false, xyz("H")}); break;
+      case ColumnKind::ExternalMoment: q.push_back({c.name, "H", "M", {c.name}, false, xyz("M")}); break;
       case ColumnKind::Power: q.push_back({"P", "E", "", {"P"}, false}); break;
-      case ColumnKind::JointForce: q.push_back({c.name, "load", joint + ".F", {c.name}, false}); break;
-      case ColumnKind::JointMoment: q.push_back({c.name, "load", joint + ".M", {c.name}, false}); break;
+      case ColumnKind::JointForce:
+        q.push_back({c.name, "load", joint + ".F", {c.name}, false, xyz(joint + ".F")});
+        break;
+      case ColumnKind::JointMoment:
+        q.push_back({c.name, "load", joint + ".M", {c.name}, false, xyz(joint + ".M")});
+        break;
       case ColumnKind::Time:
       case ColumnKind::Extra: break;
     }
@@ -144,17 +155,137 @@ void finish(Check& c) {
 // does not grow with the number of rows. Pass 1 finds the largest error, its time and the scale;
 // pass 2 (only for checks that failed) finds the first time the error exceeded the bound, which
 // needs the bound and therefore the whole of pass 1.
-// The integral over [t1, t2] of the quadratic through (t0, f0), (t1, f1), (t2, f2) (t0 < t1 < t2),
-// and over [t0, t1] of the same quadratic: Lagrange's basis integrated, for unequal spacings
-// a = t1 - t0, b = t2 - t1 (equal ones give h/12 (-f0 + 8 f1 + 5 f2), Adams-Moulton's 3-step
-// weights, and h/12 (5 f0 + 8 f1 - f2)).
-double quadratic_last(double a, double b, double f0, double f1, double f2) {
-  return -b * b * b / (6 * a * (a + b)) * f0 + (b * b / (6 * a) + b / 2) * f1 +
-         (b * b / 3 + a * b / 2) / (a + b) * f2;
-}
-double quadratic_first(double a, double b, double f0, double f1, double f2) {
-  return quadratic_last(b, a, f2, f1, f0);
-}
+// The integral from the first output time of a rate sampled at the output times (a balance's W,
+// issue 26), its pieces separated by the scene's breakpoints (System::breakpoints(): a motor or
+// torque switching between two output times, where the rate jumps). Within a piece each interval
+// is integrated by the polynomial through the piece's last (up to) three samples: the quadratic
+// through the interval and the sample before it (the piece's first interval, once its third sample
+// arrives, by the quadratic of its first three), third order in the output step. Across a
+// breakpoint tb in (t_prev, t]: [t_prev, tb] by the left piece's polynomial carried to tb, [tb, t]
+// by the right piece's, provisional (its value at t) until the right piece has two and then three
+// samples, then corrected. estimate() sums what each rule differs from the next lower one
+// (quadratic against trapezoid, each correction): an estimate of the error of W, which the balance
+// check adds to its bound.
+class PiecewiseQuadrature {
+ public:
+  void reset(std::size_t components, const std::vector<double>* breakpoints) {
+    n_ = components;
+    breaks_ = breakpoints;
+    next_break_ = 0;
+    piece_.clear();
+    pending_ = false;
+    W_ = {};
+    estimate_ = 0;
+  }
+  const std::array<double, 3>& integral() const { return W_; }
+  double estimate() const { return estimate_; }
+
+  void add(double t, const std::array<double, 3>& f) {
+    if (piece_.empty()) {
+      piece_.push_back({t, f});
+      skip_breaks_to(t);
+      count_ = 1;
+      return;
+    }
+    const double t_prev = piece_.back().t;
+    double b_first = 0, b_last = 0;
+    bool jump = false;
+    while (breaks_ && next_break_ < breaks_->size() && (*breaks_)[next_break_] <= t) {
+      const double b = (*breaks_)[next_break_++];
+      if (b <= t_prev) continue;
+      if (!jump) b_first = b;
+      b_last = b;
+      jump = true;
+    }
+    if (jump) {
+      // The left piece to the first breakpoint (its polynomial against the one of one degree less).
+      for (std::size_t i = 0; i < n_; ++i) {
+        const double left = integrate(piece_, i, t_prev, b_first, piece_.size());
+        W_[i] += left;
+        if (piece_.size() >= 2)
+          estimate_ += std::abs(left - integrate(piece_, i, t_prev, b_first, piece_.size() - 1));
+        // Between two breakpoints in one interval nothing is sampled: its size is the estimate.
+        W_[i] += f[i] * (b_last - b_first);
+        estimate_ += (std::abs(f[i]) + std::abs(piece_.back().f[i])) * (b_last - b_first);
+        provisional_[i] = f[i] * (t - b_last);  // the right piece, until it has more samples
+        W_[i] += provisional_[i];
+      }
+      pending_ = true;
+      tb_ = b_last;
+      piece_.assign(1, {t, f});
+      count_ = 1;
+      return;
+    }
+    piece_.push_back({t, f});
+    if (piece_.size() > 3) piece_.erase(piece_.begin());
+    ++count_;
+    const std::size_t m = piece_.size();
+    const double a = m >= 3 ? piece_[1].t - piece_[0].t : 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      const double trapezoid = (t - t_prev) / 2 * (piece_[m - 2].f[i] + f[i]);
+      if (m == 2) {
+        W_[i] += trapezoid;
+        first_trapezoid_[i] = trapezoid;
+      } else {
+        const double q = integrate(piece_, i, t_prev, t, 3);
+        W_[i] += q;
+        estimate_ += std::abs(q - trapezoid);
+        if (count_ == 3) {  // the piece's first interval, by its first three samples
+          const double first = integrate(piece_, i, piece_[0].t, piece_[0].t + a, 3);
+          W_[i] += first - first_trapezoid_[i];
+          estimate_ += std::abs(first - first_trapezoid_[i]);
+        }
+      }
+      if (pending_ && count_ <= 3) {  // the right piece of the last breakpoint, corrected
+        const double better = integrate(piece_, i, tb_, piece_[count_ == 3 ? 0 : m - 2].t, std::min<std::size_t>(m, 3));
+        W_[i] += better - provisional_[i];
+        estimate_ += std::abs(better - provisional_[i]);
+        provisional_[i] = better;
+      }
+    }
+    if (count_ >= 3) pending_ = false;
+  }
+
+ private:
+  struct Sample {
+    double t;
+    std::array<double, 3> f;
+  };
+  // The integral over [u, v] of component i of the polynomial through the first `degree + 1`
+  // (1 to 3) of the last samples of p (Newton's form about p's first sample used).
+  static double integrate(const std::vector<Sample>& p, std::size_t i, double u, double v, std::size_t points) {
+    const std::size_t first = p.size() - points;
+    const Sample& s0 = p[first];
+    const double U = u - s0.t, V = v - s0.t;
+    double r = s0.f[i] * (V - U);
+    if (points >= 2) {
+      const Sample& s1 = p[first + 1];
+      const double h1 = s1.t - s0.t;
+      const double d1 = (s1.f[i] - s0.f[i]) / h1;
+      r += d1 * (V * V - U * U) / 2;
+      if (points >= 3) {
+        const Sample& s2 = p[first + 2];
+        const double d12 = (s2.f[i] - s1.f[i]) / (s2.t - s1.t);
+        const double d2 = (d12 - d1) / (s2.t - s0.t);
+        r += d2 * ((V * V * V - U * U * U) / 3 - h1 * (V * V - U * U) / 2);
+      }
+    }
+    return r;
+  }
+  void skip_breaks_to(double t) {
+    while (breaks_ && next_break_ < breaks_->size() && (*breaks_)[next_break_] <= t) ++next_break_;
+  }
+
+  std::size_t n_ = 1;
+  const std::vector<double>* breaks_ = nullptr;
+  std::size_t next_break_ = 0;
+  std::vector<Sample> piece_;  // the current piece's last (up to) three samples
+  int count_ = 0;              // samples in the current piece so far
+  bool pending_ = false;       // the right piece of breakpoint tb_ is still provisional
+  double tb_ = 0;
+  std::array<double, 3> W_{}, provisional_{}, first_trapezoid_{};
+  double estimate_ = 0;
+};
 
 struct Accumulator {
   enum class Kind { Pair, Drift, Time, Balance };
@@ -162,6 +293,7 @@ struct Accumulator {
   Check* check = nullptr;
   std::size_t a = 0, b = 0;   // runs (indices into the lockstep rows); b unused for Drift
   std::vector<int> ca, cb;    // the quantity's columns in a and b
+  std::vector<int> cs;        // Pair: the columns of b whose norm is the scale (else cb[0]'s)
   int ta = -1, tb = -1;       // time column of a (and b for Time)
   bool attitude = false;
   std::size_t n = 0;          // rows compared: min of the two runs' rows
@@ -169,14 +301,13 @@ struct Accumulator {
   double x0 = 0;              // Drift: the value at row 0
   bool stopped = false;       // a NaN error was found: error and time stay as they are
   bool found = false;         // pass 2: first_exceeded is set
-  // Balance: X (ca: E, or Hx Hy Hz) against the integral of its rate (cb, in run a: P, or Mx My
-  // Mz) from 0, X(t) - X(0) - W(t). W is integrated on the output times, each interval by the
-  // quadratic through it and the row before (the first by the quadratic of the first three rows):
-  // third order in the output step. estimate sums |quadratic - trapezoid| over the intervals, a
-  // bound on that quadrature's error where the rate is smooth and its size where the rate jumps
-  // (a motor switching between output times); it is added to the check's bound (finish_balance).
-  std::array<double, 3> X0{}, W{}, f1{}, f2{};  // f1, f2: the rate one and two rows back
-  double t1 = 0, t2 = 0, estimate = 0, rate_integral = 0;
+  // Balance: X (ca: E, or Hx Hy Hz) against the integral W of its rate (cb, in run a: P, or Mx
+  // My Mz) from the first output time, X(t) - X(0) - W(t); W by PiecewiseQuadrature over the
+  // scene's breakpoints, whose error estimate is added to the check's bound.
+  std::array<double, 3> X0{};
+  double rate_integral = 0, t_last = 0;
+  const std::vector<double>* breakpoints = nullptr;
+  PiecewiseQuadrature quadrature;
 
   // Error at one row (pass 1 also widens the scale).
   double error(const double* A, const double* B, std::size_t k, bool widen_scale) {
@@ -188,7 +319,15 @@ struct Accumulator {
           return rot::angle_between(qa.normalized(), qb.normalized());
         }
         const double va = A[ca[0]], vb = B[cb[0]];
-        if (widen_scale) check->scale = std::max(check->scale, std::abs(vb));
+        if (widen_scale) {
+          double v = std::abs(vb);
+          if (!cs.empty()) {
+            double n2 = 0;
+            for (int c : cs) n2 += B[c] * B[c];
+            v = std::sqrt(n2);
+          }
+          check->scale = std::max(check->scale, v);
+        }
         if (!std::isfinite(va) || !std::isfinite(vb)) return kNaN;
         return std::abs(va - vb);
       }
@@ -210,40 +349,23 @@ struct Accumulator {
     const std::size_t n = ca.size();
     const double t = A[ta];
     std::array<double, 3> f{};
-    for (std::size_t i = 0; i < n; ++i) f[i] = A[cb[i]];
+    double rate_norm = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      f[i] = A[cb[i]];
+      rate_norm += f[i] * f[i];
+    }
     if (k == 0) {
       for (std::size_t i = 0; i < n; ++i) X0[i] = A[ca[i]];
-      W = {};
-      estimate = rate_integral = 0;
+      quadrature.reset(n, breakpoints);
+      rate_integral = 0;
     } else {
-      const double b = t - t1;
-      double rate_norm = 0;
-      for (std::size_t i = 0; i < n; ++i) {
-        const double trapezoid = b / 2 * (f1[i] + f[i]);
-        double q = trapezoid;
-        if (k >= 2) {
-          const double a = t1 - t2;
-          q = quadratic_last(a, b, f2[i], f1[i], f[i]);
-          if (k == 2) {  // the first interval, taken by the trapezoid at row 1: now its quadratic
-            const double first = quadratic_first(a, b, f2[i], f1[i], f[i]);
-            const double first_trapezoid = a / 2 * (f2[i] + f1[i]);
-            W[i] += first - first_trapezoid;
-            estimate += std::abs(first - first_trapezoid);
-          }
-          estimate += std::abs(q - trapezoid);
-        }
-        W[i] += q;
-        rate_norm += f[i] * f[i];
-      }
-      rate_integral += b * std::sqrt(rate_norm);
+      rate_integral += (t - t_last) * std::sqrt(rate_norm);
     }
-    t2 = t1;
-    t1 = t;
-    f2 = f1;
-    f1 = f;
+    t_last = t;
+    quadrature.add(t, f);
     double e2 = 0, x2 = 0;
     for (std::size_t i = 0; i < n; ++i) {
-      const double d = A[ca[i]] - X0[i] - W[i];
+      const double d = A[ca[i]] - X0[i] - quadrature.integral()[i];
       e2 += d * d;
       x2 += A[ca[i]] * A[ca[i]];
     }
@@ -340,6 +462,11 @@ Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, cons
   acc->kind = Accumulator::Kind::Pair;
   acc->ca = std::move(ca);
   acc->cb = std::move(cb);
+  for (const std::string& col : q.scale_columns) {
+    const int i = column_index(B.result, col);
+    if (i >= 0) acc->cs.push_back(i);
+  }
+  if (acc->cs.size() != q.scale_columns.size()) acc->cs.clear();
   acc->ta = column_index(A.result, "t");
   acc->attitude = q.attitude;
   acc->n = std::min(A.result.rows(), B.result.rows());
@@ -715,6 +842,7 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   // the scene does not conserve it ("" when it does).
   const std::string no_E = energy_not_conserved_reason(system);
   const std::string no_H = momentum_not_conserved_reason(system);
+  const std::vector<double> breakpoints = system.breakpoints();  // where a balance's rate may jump
   const struct {
     const char* quantity;
     const std::string& not_conserved;
@@ -728,7 +856,10 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
         checks.push_back(d.not_conserved.empty()
                              ? drift_check(d.quantity, *r, look, d.not_conserved, accs.back())
                              : balance_check(d.quantity, *r, look, d.not_conserved, accs.back()));
-        if (accs.back()) accs.back()->a = index_of(r);
+        if (accs.back()) {
+          accs.back()->a = index_of(r);
+          accs.back()->breakpoints = &breakpoints;
+        }
       }
 
   // Pass 1: largest errors, their times, the scales.
@@ -749,10 +880,10 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   for (std::size_t i = 0; i < accs.size(); ++i)
     if (accs[i]) {
       // A balance's bound has room for its quadrature on the output times (Accumulator).
-      if (accs[i]->kind == Accumulator::Kind::Balance && accs[i]->estimate > 0) {
-        checks[i].tolerance.atol += accs[i]->estimate;
+      if (accs[i]->kind == Accumulator::Kind::Balance && accs[i]->quadrature.estimate() > 0) {
+        checks[i].tolerance.atol += accs[i]->quadrature.estimate();
         checks[i].note += "; quadrature of the output times: estimated error " +
-                          sci(accs[i]->estimate, 2) + " in the bound";
+                          sci(accs[i]->quadrature.estimate(), 2) + " in the bound";
       }
       finish(checks[i]);
       if (checks[i].status == CheckStatus::Fail) failed.push_back(&*accs[i]);

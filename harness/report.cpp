@@ -264,6 +264,8 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
     j["notes"] = c.notes;
     j["energy_not_conserved"] = s.system ? energy_not_conserved_reason(*s.system) : "";
     j["momentum_not_conserved"] = s.system ? momentum_not_conserved_reason(*s.system) : "";
+    // Where the loads switch: a balance's quadrature keeps its pieces apart there (compare.cpp).
+    j["breakpoints"] = s.system ? s.system->breakpoints() : std::vector<double>{};
     n_checks += static_cast<int>(c.checks.size());
     n_failed += c.count(CheckStatus::Fail);
     out_scenes.push_back(j);

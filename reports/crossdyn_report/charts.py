@@ -455,28 +455,68 @@ def chart_differences(scene, runs, out_dir, sid):
                   "for the whole run. Exact agreement is drawn at 1e-17.")
 
 
-def balance_integral(t, rate):
-    """The integral of rate from t[0] on the output times, each interval by the quadratic through
-    it and the row before (the first by the quadratic of the first three rows): the rule of the
-    harness's balance check (harness/compare.cpp, quadratic_last / quadratic_first)."""
-    t = np.asarray(t, dtype=float)
-    f = np.asarray(rate, dtype=float)
-    w = np.zeros_like(f)
+def _poly_integral(piece, u, v, points):
+    """The integral over [u, v] of the polynomial through the last `points` samples of piece."""
+    p = piece[len(piece) - points:]
+    t0, f0 = p[0]
+    U, V = u - t0, v - t0
+    r = f0 * (V - U)
+    if points >= 2:
+        t1, f1 = p[1]
+        d1 = (f1 - f0) / (t1 - t0)
+        r += d1 * (V * V - U * U) / 2
+        if points >= 3:
+            t2, f2 = p[2]
+            d2 = ((f2 - f1) / (t2 - t1) - d1) / (t2 - t0)
+            r += d2 * ((V ** 3 - U ** 3) / 3 - (t1 - t0) * (V * V - U * U) / 2)
+    return r
+
+
+def balance_integral(t, rate, breakpoints=()):
+    """The integral of rate from t[0] on the output times, by the harness's rule for a balance
+    (harness/compare.cpp, PiecewiseQuadrature): pieces apart at the breakpoints, each interval by
+    the quadratic through it and the sample before, provisional values corrected as samples come."""
+    breaks = sorted(b for b in breakpoints if b > t[0])
+    W = np.zeros(len(t))
+    w = 0.0
+    piece, count, pending, tb, prov, first_trap, nb = [(t[0], rate[0])], 1, False, 0.0, 0.0, 0.0, 0
     for k in range(1, len(t)):
-        b = t[k] - t[k - 1]
-        if k >= 2:
-            a = t[k - 1] - t[k - 2]
-            q = (-b ** 3 / (6 * a * (a + b)) * f[k - 2] + (b * b / (6 * a) + b / 2) * f[k - 1]
-                 + (b * b / 3 + a * b / 2) / (a + b) * f[k])
+        tk, fk = float(t[k]), float(rate[k])
+        t_prev = piece[-1][0]
+        inside = []
+        while nb < len(breaks) and breaks[nb] <= tk:
+            if breaks[nb] > t_prev:
+                inside.append(breaks[nb])
+            nb += 1
+        if inside:
+            w += _poly_integral(piece, t_prev, inside[0], len(piece))
+            w += fk * (inside[-1] - inside[0])
+            prov = fk * (tk - inside[-1])
+            w += prov
+            pending, tb, piece, count = True, inside[-1], [(tk, fk)], 1
+            W[k] = w
+            continue
+        piece.append((tk, fk))
+        piece = piece[-3:]
+        count += 1
+        m = len(piece)
+        trap = (tk - t_prev) / 2 * (piece[m - 2][1] + fk)
+        if m == 2:
+            w += trap
+            first_trap = trap
         else:
-            q = b / 2 * (f[0] + f[1])
-        w[k] = w[k - 1] + q
-    if len(t) >= 3:  # the first interval by the quadratic of the first three rows
-        a, b = t[1] - t[0], t[2] - t[1]
-        first = ((a * a / 3 + a * b / 2) / (a + b) * f[0] + (a * a / (6 * b) + a / 2) * f[1]
-                 - a ** 3 / (6 * b * (a + b)) * f[2])
-        w[1:] += first - (a / 2 * (f[0] + f[1]))
-    return w
+            w += _poly_integral(piece, t_prev, tk, 3)
+            if count == 3:
+                a = piece[1][0] - piece[0][0]
+                w += _poly_integral(piece, piece[0][0], piece[0][0] + a, 3) - first_trap
+        if pending and count <= 3:
+            better = _poly_integral(piece, tb, piece[0 if count == 3 else m - 2][0], min(m, 3))
+            w += better - prov
+            prov = better
+        if count >= 3:
+            pending = False
+        W[k] = w
+    return W
 
 
 def chart_drift(scene, runs, out_dir, sid):
@@ -496,7 +536,8 @@ def chart_drift(scene, runs, out_dir, sid):
                 if not all(r.has(n) for n in names[0] + names[1]):
                     continue
                 X = np.stack([r.col(n) for n in names[0]], axis=1)
-                W = np.stack([balance_integral(r.t, r.col(n)) for n in names[1]], axis=1)
+                W = np.stack([balance_integral(r.t, r.col(n), scene.get("breakpoints", [])) for n in names[1]],
+                             axis=1)
                 dev = np.linalg.norm(X - X[0] - W, axis=1)
                 x0 = max(np.max(np.linalg.norm(X, axis=1)), 0.0)
                 c = checks.get((x + ".balance", r.label))
@@ -518,9 +559,8 @@ def chart_drift(scene, runs, out_dir, sid):
         if balanced:
             what = "|E(t) - E(0) - W(t)|" if x == "E" else "|H(t) - H(0) - integral of M|"
             ax.set_ylabel(what + (" / scale" if relative else unit))
-            title = ("balance of %s: it is not conserved (%s); its change against the integral of "
-                     "each engine's own %s" % (x, reasons[x].replace("scene has ", ""),
-                                               "power P" if x == "E" else "external moment M"))
+            title = ("balance of %s (not conserved: %s) against the integral of its %s"
+                     % (x, reasons[x].replace("scene has ", ""), "power P" if x == "E" else "external moment M"))
         else:
             ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
             title = "drift of %s from its initial value" % x

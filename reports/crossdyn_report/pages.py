@@ -123,8 +123,10 @@ def index_context(summary):
                 cells.append(dict(kind=x["status"], text=text,
                                   detail=x["worst_check"] + (" (%d of %d failed)" % (x["failed"], x["checks"])
                                                              if x["failed"] else "")))
-            else:
-                cells.append(dict(kind=x["status"], text=x["status"].lower(), detail=""))
+            else:  # excluded or skipped: the reason the scene (or the run) gives
+                why = next((c.get("note", "") for c in s.get("checks", [])
+                            if shown(c.get("group", "")) == g and c.get("status") == x["status"]), "")
+                cells.append(dict(kind=x["status"], text=x["status"].lower(), detail=why))
         for c in s.get("checks", []):
             if c["status"] == "FAIL":
                 failed_checks.append(dict(scene=s.get("scene"), page=s["page"], line=check_line(c)))
