@@ -142,7 +142,7 @@ int column_index(const RunResult& r, const std::string& name) {
 
 // Fills bound, normalised, status from error and scale (NaN errors fail).
 void finish(Check& c) {
-  c.bound = c.tolerance.atol + c.tolerance.rtol * c.scale;
+  c.bound = c.tolerance.atol + c.tolerance.rtol * c.scale + c.allowance;
   if (c.error == 0) c.normalised = 0;
   else if (c.bound > 0) c.normalised = c.error / c.bound;
   else c.normalised = std::numeric_limits<double>::infinity();
@@ -881,7 +881,7 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
     if (accs[i]) {
       // A balance's bound has room for its quadrature on the output times (Accumulator).
       if (accs[i]->kind == Accumulator::Kind::Balance && accs[i]->quadrature.estimate() > 0) {
-        checks[i].tolerance.atol += accs[i]->quadrature.estimate();
+        checks[i].allowance = accs[i]->quadrature.estimate();
         checks[i].note += "; quadrature of the output times: estimated error " +
                           sci(accs[i]->quadrature.estimate(), 2) + " in the bound";
       }
@@ -1148,7 +1148,9 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
   out += "pass rule: pair   max_t |a - b| <= bound = atol + rtol * max_t |b|  (b: the reference,\n"
          "                  named second); attitude error = rotation angle between the attitudes\n"
          "                  (rad), with max|b| = 1\n"
-         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n\n";
+         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n"
+         "         balance  max_t |X(t) - X(0) - integral of P (E) or M (H)| <= atol + rtol * scale + Q\n"
+         "                  (scale: max(max_t |X|, integral of |rate|); Q: the quadrature's estimated error)\n\n";
 
   // Checks: failures (worst first), then passes in table order; exclusions and skips listed apart.
   std::vector<const Check*> fails, passes, others;
@@ -1205,8 +1207,9 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
     std::map<std::string, Tolerance> tol;
     for (const Check& k : c.checks) {
       if (k.tolerance_key == "-" || k.status == CheckStatus::Excluded) continue;
-      const std::string key = k.group.size() > 6 && k.group.substr(k.group.size() - 6) == ".drift"
-                                  ? (k.tolerance_key == "default" ? "drift default" : k.tolerance_key)
+      const bool drift = k.group.ends_with(".drift"), balance = k.group.ends_with(".balance");
+      const std::string key = (drift || balance) && k.tolerance_key == "default"
+                                  ? (drift ? "drift default" : "balance default")
                                   : k.tolerance_key;
       auto it = std::find_if(keys.begin(), keys.end(), [&key](const auto& x) { return x.first == key; });
       if (it == keys.end()) it = keys.insert(keys.end(), {key, {}});
@@ -1225,7 +1228,8 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
           }
           list += (list.empty() ? "" : ", ") + q;
         }
-        const std::string name = key == "default" || key == "drift default" ? key : "'" + key + "'";
+        const std::string name =
+            key == "default" || key == "drift default" || key == "balance default" ? key : "'" + key + "'";
         out += wrap(name + ": " + sci(tol[key].atol, 2) + ", " + sci(tol[key].rtol, 2) + " for " + list,
                     "  ", "    ");
       }

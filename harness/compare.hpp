@@ -127,7 +127,8 @@ struct Check {
   std::string tolerance_key;  // scene key the tolerance came from, or "default"
   Tolerance tolerance;
   double scale = 0;       // max_t |b| (attitude: 1; drift: |X(0)|)
-  double bound = 0;       // atol + rtol * scale
+  double bound = 0;       // atol + rtol * scale (+ allowance)
+  double allowance = 0;   // balance: the estimated error of its quadrature (compare.cpp)
   double error = 0;       // max_t |a - b|, or max_t |X(t) - X(0)|
   double time = 0;        // s, where the largest error occurred (run: when the engine failed)
   std::optional<double> first_exceeded;  // s, first output time with error > bound

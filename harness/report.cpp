@@ -165,6 +165,7 @@ json check_json(const Check& c) {
             {"rtol", number(c.tolerance.rtol)},
             {"scale", number(c.scale)},
             {"bound", number(c.bound)},
+            {"allowance", number(c.allowance)},
             {"error", number(c.error)},
             {"time", number(c.time)},
             {"first_exceeded", c.first_exceeded ? number(*c.first_exceeded) : json(nullptr)},
