@@ -288,7 +288,7 @@ class PiecewiseQuadrature {
 };
 
 struct Accumulator {
-  enum class Kind { Pair, Drift, Time, Balance };
+  enum class Kind { Pair, Drift, Time, Balance, Rate };
   Kind kind = Kind::Pair;
   Check* check = nullptr;
   std::size_t a = 0, b = 0;   // runs (indices into the lockstep rows); b unused for Drift
@@ -306,6 +306,9 @@ struct Accumulator {
   // scene's breakpoints, whose error estimate is added to the check's bound.
   std::array<double, 3> X0{};
   double rate_integral = 0, t_last = 0;
+  // Rate: the largest estimated error of the differences, and the rows without them.
+  double difference_error = 0;
+  std::size_t unevaluated = 0;
   const std::vector<double>* breakpoints = nullptr;
   PiecewiseQuadrature quadrature;
 
@@ -341,6 +344,26 @@ struct Accumulator {
         return std::abs(A[ta] - B[tb]);
       case Kind::Balance:
         return balance_error(A, k, widen_scale);
+      case Kind::Rate: {
+        // ca: dX/dt (1 or 3 columns), cb: the engine's rate (P, or M), cs: the differences' errors.
+        double e2 = 0, d2 = 0, r2 = 0, err2 = 0;
+        for (std::size_t i = 0; i < ca.size(); ++i) {
+          const double d = A[ca[i]], r = A[cb[i]];
+          if (std::isnan(d)) {  // the engine could not be evaluated beside this row
+            if (widen_scale) ++unevaluated;
+            return 0;
+          }
+          e2 += (d - r) * (d - r);
+          d2 += d * d;
+          r2 += r * r;
+          err2 += A[cs[i]] * A[cs[i]];
+        }
+        if (widen_scale) {
+          check->scale = std::max({check->scale, std::sqrt(d2), std::sqrt(r2)});
+          difference_error = std::max(difference_error, std::sqrt(err2));
+        }
+        return std::sqrt(e2);
+      }
     }
     return kNaN;
   }
@@ -414,7 +437,8 @@ void feed(const std::vector<const EngineRun*>& runs, std::vector<Accumulator*>& 
     bool pending = false;
     for (Accumulator* acc : accs) {
       if (k >= acc->n) continue;
-      const bool one_run = acc->kind == Accumulator::Kind::Drift || acc->kind == Accumulator::Kind::Balance;
+      const bool one_run = acc->kind == Accumulator::Kind::Drift || acc->kind == Accumulator::Kind::Balance ||
+                           acc->kind == Accumulator::Kind::Rate;
       const double* B = one_run ? nullptr : row[acc->b];
       if (second) {
         acc->pass2(row[acc->a], B, k);
@@ -550,6 +574,54 @@ Check balance_check(const std::string& x, const EngineRun& R, const Lookup& look
   acc->kind = Accumulator::Kind::Balance;
   acc->ca = std::move(ca);
   acc->cb = std::move(cb);
+  acc->ta = it;
+  acc->n = R.result.rows();
+  return c;
+}
+
+// The rate of H or E of one engine against its own P or M, row by row (issue 26): dX/dt from the
+// runner's differences along the engine's motion (IntegratorSettings::rate_columns). Settled
+// without rows (nothing to check) when the run has no rate columns.
+std::optional<Check> rate_check(const std::string& x, const EngineRun& R, const Lookup& look,
+                                std::optional<Accumulator>& acc) {
+  const bool energy = x == "E";
+  const std::vector<std::string> d = energy ? std::vector<std::string>{"dE_dt"}
+                                            : std::vector<std::string>{"dHx_dt", "dHy_dt", "dHz_dt"};
+  const std::vector<std::string> r = energy ? std::vector<std::string>{"P"}
+                                            : std::vector<std::string>{"Mx", "My", "Mz"};
+  std::vector<int> ca, cb, cs;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    ca.push_back(column_index(R.result, d[i]));
+    cb.push_back(column_index(R.result, r[i]));
+    cs.push_back(column_index(R.result, d[i] + ".err"));
+  }
+  const int it = column_index(R.result, "t");
+  const auto missing = [](const std::vector<int>& v) { return std::find(v.begin(), v.end(), -1) != v.end(); };
+  if (missing(ca) || missing(cs) || it < 0 || R.result.rows() == 0) return std::nullopt;
+  Check c;
+  c.quantity = x + ".rate";
+  c.group = x + ".balance";
+  c.a = R.label;
+  const Tolerance fallback{kDefaultDriftTolerance, kDefaultRateTolerance};
+  std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "balance"}, fallback);
+  if (const std::string* reason = look.exclusion({c.quantity, "balance"})) {
+    c.status = CheckStatus::Excluded;
+    c.note = *reason;
+    return c;
+  }
+  if (missing(cb)) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    c.note = "column '" + r[0] + "' missing from " + R.label + "'s output";
+    return c;
+  }
+  c.note = std::string("d") + x + "/dt along the engine's own motion against its " +
+           (energy ? "power P" : "external moment M");
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Rate;
+  acc->ca = std::move(ca);
+  acc->cb = std::move(cb);
+  acc->cs = std::move(cs);
   acc->ta = it;
   acc->n = R.result.rows();
   return c;
@@ -810,7 +882,8 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
 
   // Pinned quantities, then extra columns the scene's tolerances name.
   std::vector<Quantity> quantities = pinned_quantities(system);
-  std::set<std::string> known_keys{"drift", "H.drift", "E.drift", "balance", "H.balance", "E.balance"};
+  std::set<std::string> known_keys{"drift",     "H.drift", "E.drift", "balance",
+                                   "H.balance", "E.balance", "H.rate", "E.rate"};
   for (const Quantity& q : quantities)
     for (const std::string& k : lookup_keys(q)) known_keys.insert(k);
   for (const auto& [key, tol] : system.compare.tolerances) {
@@ -860,6 +933,12 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
           accs.back()->a = index_of(r);
           accs.back()->breakpoints = &breakpoints;
         }
+        std::optional<Accumulator> rate;
+        if (std::optional<Check> k = rate_check(d.quantity, *r, look, rate)) {
+          checks.push_back(std::move(*k));
+          accs.push_back(std::move(rate));
+          if (accs.back()) accs.back()->a = index_of(r);
+        }
       }
 
   // Pass 1: largest errors, their times, the scales.
@@ -880,6 +959,15 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   for (std::size_t i = 0; i < accs.size(); ++i)
     if (accs[i]) {
       // A balance's bound has room for its quadrature on the output times (Accumulator).
+      if (accs[i]->kind == Accumulator::Kind::Rate) {
+        checks[i].allowance = accs[i]->difference_error;
+        if (accs[i]->difference_error > 0)
+          checks[i].note += "; the differences' estimated error " + sci(accs[i]->difference_error, 2) +
+                            " in the bound";
+        if (accs[i]->unevaluated)
+          checks[i].note += "; " + std::to_string(accs[i]->unevaluated) +
+                            " rows without a rate (the engine could not be evaluated beside them)";
+      }
       if (accs[i]->kind == Accumulator::Kind::Balance && accs[i]->quadrature.estimate() > 0) {
         checks[i].allowance = accs[i]->quadrature.estimate();
         checks[i].note += "; quadrature of the output times: estimated error " +
@@ -921,6 +1009,7 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   if (options.atol) settings.atol = *options.atol;
   if (options.dt) settings.dt = settings.first_step = *options.dt;
   if (options.max_steps) settings.max_steps = *options.max_steps;
+  settings.rate_columns = options.rates;
 
   std::vector<EngineSpec> specs = options.engines;
   if (specs.empty())

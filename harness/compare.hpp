@@ -20,12 +20,17 @@
 //   X.drift           drift      |X(t) - X(0)|               (a conserved X)
 //   X.balance         balance    |X(t) - X(0) - W(t)|         (an X the scene does not conserve;
 //                                W the integral of P, or of the vector M with H the vector)
+//   X.rate            balance    |dX/dt - P| (E), |dH/dt - M| (H, a vector), at every output row:
+//                                dX/dt the engine's own E (H) differentiated along its own motion
+//                                (core/integrate.hpp, rate_columns); every scene, conserved or not
 //
 // The pass rule (written in every table and report):
 //   pair:   max_t |a(t) - b(t)| <= atol + rtol * max_t |b(t)|
 //   drift:  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|
 //   balance: max_t |X(t) - X(0) - W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + Q,
 //            Q the estimated error of W's quadrature on the output times (compare.cpp)
+//   rate:   max_t |dX/dt - rate| <= atol + rtol * max_t max(|rate|, |dX/dt|) + D, D the largest
+//            estimated error of the difference (kRateColumns' .err columns)
 // where b is the pair's reference: the earlier of the two in the run order (analytic first, then
 // the engines in the order asked for). For attitude the scale max|b| is 1 (a unit quaternion), so
 // atol + rtol is a bound on the angle in rad. "normalised error" = error / bound; <= 1 passes.
@@ -95,6 +100,10 @@ struct CompareOptions {
   std::optional<long> max_steps;            // per run: IntegratorSettings::max_steps
   std::optional<double> timeout;            // per run, s of wall-clock time (set-up included)
   bool progress = false;                    // progress line on stderr (when it is a terminal)
+  // The runs carry the rates of their own E and H (IntegratorSettings::rate_columns) and each
+  // engine's P and M are checked against them row by row (E.rate, H.rate). Off for converge's
+  // model runs, which compare states only.
+  bool rates = true;
 };
 
 // The command-line options compare and verify share (harness/compare_command.cpp).
@@ -112,6 +121,9 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o);
 // Validates and converts; throws InputError naming the option and the bad value.
 CompareOptions to_compare_options(const CompareCliOptions& o);
 
+// Default rtol of E.rate and H.rate (their atol is the drift default): the difference of E along
+// the motion, with its own error estimate in the bound, against P.
+inline constexpr double kDefaultRateTolerance = 1e-7;
 // Default drift tolerance (H.drift, E.drift) when the scene sets none.
 inline constexpr double kDefaultDriftTolerance = 1e-9;
 
