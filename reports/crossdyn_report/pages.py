@@ -26,9 +26,9 @@ GROUP_HELP = {
     "H": "angular momentum H, its vector Hx/Hy/Hz and the external moment Mx/My/Mz",
     "E": "energy E and the power P of the non-conservative loads",
     "H.drift": "each engine's drift of H from H(0) where H is conserved, else its balance "
-               "H(t) - H(0) - integral of M",
+               "H(t) - H(0) - integral of M; and dH/dt against M at every output time",
     "E.drift": "each engine's drift of E from E(0) where E is conserved, else its balance "
-               "E(t) - E(0) - integral of P",
+               "E(t) - E(0) - integral of P; and dE/dt against P at every output time",
     "extra": "extra columns named in the scene's tolerances",
 }
 # Why a scene has no check of a kind: the feature does not exist in it.
