@@ -497,20 +497,15 @@ Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, cons
   return c;
 }
 
-// Drift of H or E of one engine from its initial value.
+// Drift of H or E of one engine from its initial value (a quantity the scene conserves).
 Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
-                  const std::string& not_conserved, std::optional<Accumulator>& acc) {
+                  std::optional<Accumulator>& acc) {
   Check c;
   c.quantity = x + ".drift";
   c.group = c.quantity;
   c.a = R.label;
   const Tolerance fallback{kDefaultDriftTolerance, kDefaultDriftTolerance};
   std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "drift"}, fallback);
-  if (!not_conserved.empty()) {
-    c.status = CheckStatus::Excluded;
-    c.note = "not conserved: " + not_conserved;
-    return c;
-  }
   if (const std::string* reason = look.exclusion({c.quantity, "drift"})) {
     c.status = CheckStatus::Excluded;
     c.note = *reason;
@@ -927,7 +922,7 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
       if (r->engine != "analytic") {
         accs.emplace_back();
         checks.push_back(d.not_conserved.empty()
-                             ? drift_check(d.quantity, *r, look, d.not_conserved, accs.back())
+                             ? drift_check(d.quantity, *r, look, accs.back())
                              : balance_check(d.quantity, *r, look, d.not_conserved, accs.back()));
         if (accs.back()) {
           accs.back()->a = index_of(r);
