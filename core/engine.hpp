@@ -78,6 +78,11 @@ struct EngineOptions {
   // Test-only hook: scale every body's inertia tensor (not its mass) seen by this engine instance,
   // so that the harness can be shown to catch a wrong engine. 1 in every real run.
   double test_inertia_scale = 1.0;
+  // Test-only hook (issue 26): scale every joint damper's and every modal damper's load in the
+  // equations of motion by this factor, but not in the power column P, which keeps the scene's
+  // damper (P = -c rate^2, -eta'^T D eta'). A damper whose load is wrong in the equations of
+  // motion then fails the energy balance E(t) - E(0) = integral of P. 1 in every real run.
+  double test_damper_scale = 1.0;
 };
 
 class Engine {

@@ -109,7 +109,14 @@ Runner::Runner(Engine& engine, const System& system, const IntegratorSettings& s
                const RowCallback& on_row, const StepCallback& on_step, RowStore* rows)
     : engine_(engine), s_(s), result_(result), on_row_(on_row), on_step_(on_step), rows_(rows),
       sys_{&engine, &result.stats}, outputs_(output_times(s.duration, s.output_step)),
-      breaks_(system.breakpoints()), row_(engine.columns().size()) {
+      breaks_(system.breakpoints()), row_(engine.columns().size()),
+      engine_width_(engine.columns().size()) {
+  if (s.rate_columns) {
+    row_.resize(engine_width_ + rate_column_names().size());
+    xdot_.resize(static_cast<std::size_t>(engine.state_size()));
+    xs_.resize(xdot_.size());
+    side_.resize(engine_width_);
+  }
   sys_.trial_steps = s.method != Integrator::Rk4;
   sys_.start_x = &start_x_;
 }
@@ -174,10 +181,69 @@ void Runner::emit(double t, const double* x) {
 
 void Runner::hold(double t, const double* x) {
   engine_.output_row(t, x, row_.data());
-  for (std::size_t i = 0; i < row_.size(); ++i)
+  for (std::size_t i = 0; i < engine_width_; ++i)
     if (!std::isfinite(row_[i]))
       throw RunFailure(engine_.name(), t, engine_.columns()[i], "non-finite output");
+  if (s_.rate_columns) rates(t, x);
   held_.insert(held_.end(), row_.begin(), row_.end());
+}
+
+// IntegratorSettings::rate_columns: d/dt of E, Hx, Hy, Hz along (1, xdot) at (t, x) by the
+// sixth-order central difference, and each one's error estimate (core/integrate.hpp). Not the hot
+// path: 1 right-hand side and 6 output rows per output time.
+void Runner::rates(double t, const double* x) {
+  const std::size_t n = xdot_.size();
+  const OutputLayout& layout = engine_.layout();
+  const int cols[4] = {layout.E(), layout.H_vector(), layout.H_vector() + 1, layout.H_vector() + 2};
+  double* out = row_.data() + engine_width_;
+  try {
+    engine_.rhs(t, x, xdot_.data());
+    const double h = kRateStep * s_.output_step;
+    // A load or a prescribed profile changes formula at a breakpoint: E and H are not smooth
+    // across it (a prescribed joint's profile enters them through t). Within 4h of one, the
+    // differences stay on one side of it: forward from a breakpoint at or just before t (the
+    // state and the loads at t are already the new ones), backward from one just after.
+    int side = 0;  // 0 central, +1 forward, -1 backward
+    for (double b : breaks_)
+      if (std::abs(b - t) < 4 * h) side = b <= t ? 1 : -1;
+    const double central[6] = {-3, -2, -1, 1, 2, 3};
+    const double one_sided[4] = {1, 2, 3, 4};
+    const int m = side == 0 ? 6 : 4;
+    double f[6][4];  // f[k][quantity] at t + steps[k] h
+    for (int k = 0; k < m; ++k) {
+      const double step = (side == 0 ? central[k] : side * one_sided[k]) * h;
+      for (std::size_t i = 0; i < n; ++i) xs_[i] = x[i] + step * xdot_[i];
+      engine_.output_row(t + step, xs_.data(), side_.data());
+      for (int q = 0; q < 4; ++q) f[k][q] = side_[static_cast<std::size_t>(cols[q])];
+    }
+    for (int q = 0; q < 4; ++q) {
+      const double f0 = row_[static_cast<std::size_t>(cols[q])];
+      double D = 0, D_low = 0, weights = 0;
+      if (side == 0) {
+        // Central differences of orders 6 and 4 (Fornberg 1988, Table 1: 3/4, -3/20, 1/60 and
+        // 2/3, -1/12 at +-h, +-2h, +-3h).
+        const double d1 = f[3][q] - f[2][q], d2 = f[4][q] - f[1][q], d3 = f[5][q] - f[0][q];
+        D = (45 * d1 - 9 * d2 + d3) / (60 * h);
+        D_low = (8 * d1 - d2) / (12 * h);
+        weights = 110.0 / 60;
+      } else {
+        // One-sided differences of orders 4 and 3 (Fornberg 1988, Table 3: -25/12, 4, -3, 4/3,
+        // -1/4 and -11/6, 3, -3/2, 1/3), h signed by the side.
+        const double hs = side * h;
+        D = (-25 * f0 + 48 * f[0][q] - 36 * f[1][q] + 16 * f[2][q] - 3 * f[3][q]) / (12 * hs);
+        D_low = (-11 * f0 + 18 * f[0][q] - 9 * f[1][q] + 2 * f[2][q]) / (6 * hs);
+        weights = 128.0 / 12;
+      }
+      // D's error: at most |D - D_low| where truncation dominates; where rounding does, the
+      // weights times kRateUlps ulps of the largest value, over h.
+      double fmax = std::abs(f0);
+      for (int k = 0; k < m; ++k) fmax = std::max(fmax, std::abs(f[k][q]));
+      out[q] = D;
+      out[4 + q] = std::abs(D - D_low) + kRateUlps * std::numeric_limits<double>::epsilon() * fmax * weights / h;
+    }
+  } catch (const RunFailure&) {
+    for (int q = 0; q < 8; ++q) out[q] = std::numeric_limits<double>::quiet_NaN();
+  }
 }
 
 void Runner::release() {
@@ -511,6 +577,8 @@ RunResult simulate(Engine& engine, const System& system, const TreeState& initia
   RunResult result;
   result.engine = engine.name();
   result.columns = engine.columns();
+  if (s.rate_columns)
+    result.columns.insert(result.columns.end(), rate_column_names().begin(), rate_column_names().end());
   State x(static_cast<std::size_t>(engine.state_size()));
   const auto start = std::chrono::steady_clock::now();
   std::optional<RowStore> rows;

@@ -75,6 +75,17 @@ struct IntegratorSettings {
   // modal rate were off by 3.4e-9 of its scale at rtol 1e-13, the step ends by 5e-11). Each
   // output time then costs a restart (one right-hand side, and the step regrows from there).
   bool land_on_outputs = false;
+  // The rates of the engine's own E and H along its own equations of motion at every output row
+  // (issue 26; `compare` sets it): columns after the engine's (rate_column_names()), each the
+  // directional derivative of the engine's E (Hx, Hy, Hz) at (t, x) along (1, xdot), by the
+  // sixth-order central difference over t +- h, +- 2h, +- 3h (h = kRateStep x the output step;
+  // within 4h of a load or profile breakpoint the fourth-order one-sided difference on the side
+  // away from it), then each one's estimated error: its difference from the next lower order plus
+  // kRateUlps ulps of the largest value times the weights over h (rounding). Compared with the engine's P
+  // (and M) they check, row by row, that the power the engine reports is the one its equations of
+  // motion dissipate or supply. A state beside which the engine cannot be evaluated (it throws)
+  // gives NaN there, and the run goes on.
+  bool rate_columns = false;
   // From a scene's run block (duration, output step, method, tolerances, dt; a `run.dt` the scene
   // gives is also the first trial step).
   static IntegratorSettings from(const RunSpec& run);
@@ -126,6 +137,15 @@ using StepCallback = std::function<void(double t, const RunStats& stats)>;
 // derivative or state, step-size underflow, step limit, interrupt, timeout, rows that cannot be
 // stored) is returned in RunResult::failure, not thrown. cancel::poll() is called before every
 // step attempt (engines poll inside long right-hand sides).
+// The names of the columns IntegratorSettings::rate_columns adds, and the difference step.
+inline const std::vector<std::string>& rate_column_names() {
+  static const std::vector<std::string> names{"dE_dt",     "dHx_dt",     "dHy_dt",     "dHz_dt",
+                                              "dE_dt.err", "dHx_dt.err", "dHy_dt.err", "dHz_dt.err"};
+  return names;
+}
+inline constexpr double kRateStep = 2e-3;
+inline constexpr double kRateUlps = 32;
+
 RunResult simulate(Engine& engine, const System& system, const TreeState& initial,
                    const IntegratorSettings& settings, const RowCallback& on_row = {},
                    const StepCallback& on_step = {});

@@ -119,6 +119,10 @@ class Runner {
   std::vector<double> breaks_;
   std::vector<double> row_;
   std::vector<double> held_;  // rows computed by hold(), row-major
+  // rate_columns: the engine's own row width, and scratch for the differences.
+  std::size_t engine_width_ = 0;
+  std::vector<double> xdot_, xs_, side_;
+  void rates(double t, const double* x);
   // predict_cost(): the start of the current tenth of the step limit (steps used, the simulated
   // time then), and where the next tenth begins.
   struct Pace {

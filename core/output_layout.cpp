@@ -12,7 +12,8 @@ int OutputLayout::push(Column c) {
 }
 
 OutputLayout::OutputLayout(const System& s)
-    : body_w_(s.bodies.size(), -1), joint_(s.joints.size(), -1), modal_(s.bodies.size(), -1) {
+    : body_w_(s.bodies.size(), -1), joint_(s.joints.size(), -1), modal_(s.bodies.size(), -1),
+      body_p_(s.bodies.size(), -1), load_(s.joints.size(), -1) {
   push({"t", ColumnKind::Time, -1, -1, -1, "s"});
   for (std::size_t b = 0; b < s.bodies.size(); ++b) {
     const int bi = static_cast<int>(b);
@@ -61,6 +62,32 @@ OutputLayout::OutputLayout(const System& s)
   }
   H_ = push({"H", ColumnKind::MomentumH, -1, -1, -1, "kg m^2/s"});
   E_ = push({"E", ColumnKind::EnergyE, -1, -1, -1, "J"});
+  // Issue 26: positions, the momentum vector, joint loads, power and external moment. After E, so
+  // that the columns above keep their places.
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+    body_p_[b] = static_cast<int>(columns_.size());
+    for (int i = 0; i < 3; ++i)
+      push({s.bodies[b].name + "." + "xyz"[i], ColumnKind::BodyPosition, static_cast<int>(b), -1, i, "m"});
+  }
+  cm_ = static_cast<int>(columns_.size());
+  for (int i = 0; i < 3; ++i) push({std::string("CM") + "xyz"[i], ColumnKind::SystemCM, -1, -1, i, "m"});
+  Hv_ = static_cast<int>(columns_.size());
+  for (int i = 0; i < 3; ++i)
+    push({std::string("H") + "xyz"[i], ColumnKind::MomentumVector, -1, -1, i, "kg m^2/s"});
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const Joint& J = s.joints[j];
+    if (J.type == JointType::Free) continue;
+    const int ji = static_cast<int>(j);
+    load_[j] = static_cast<int>(columns_.size());
+    for (int i = 0; i < 3; ++i)
+      push({J.name + ".F" + "xyz"[i], ColumnKind::JointForce, J.child, ji, i, "N"});
+    for (int i = 0; i < 3; ++i)
+      push({J.name + ".M" + "xyz"[i], ColumnKind::JointMoment, J.child, ji, i, "N m"});
+  }
+  P_ = push({"P", ColumnKind::Power, -1, -1, -1, "W"});
+  M_ = static_cast<int>(columns_.size());
+  for (int i = 0; i < 3; ++i)
+    push({std::string("M") + "xyz"[i], ColumnKind::ExternalMoment, -1, -1, i, "N m"});
   pinned_ = columns_.size();
 }
 
@@ -118,6 +145,31 @@ void RowWriter::modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,
   const Eigen::Index n = eta.size();
   for (Eigen::Index k = 0; k < n; ++k) r[k] = eta(k);
   for (Eigen::Index k = 0; k < n; ++k) r[n + k] = eta_rate(k);
+}
+
+void RowWriter::momentum(const Eigen::Vector3d& H_Scm_N) {
+  row_[layout_.H()] = H_Scm_N.norm();
+  for (int i = 0; i < 3; ++i) row_[layout_.H_vector() + i] = H_Scm_N(i);
+}
+
+void RowWriter::body_position(int b, const Eigen::Vector3d& p_NoBo_N) {
+  for (int i = 0; i < 3; ++i) row_[layout_.body_position(b) + i] = p_NoBo_N(i);
+}
+
+void RowWriter::system_cm(const Eigen::Vector3d& p_NoScm_N) {
+  for (int i = 0; i < 3; ++i) row_[layout_.cm() + i] = p_NoScm_N(i);
+}
+
+void RowWriter::joint_load(int joint, const Eigen::Vector3d& F_C, const Eigen::Vector3d& M_J_C) {
+  double* r = row_ + layout_.joint_load(joint);
+  for (int i = 0; i < 3; ++i) {
+    r[i] = F_C(i);
+    r[3 + i] = M_J_C(i);
+  }
+}
+
+void RowWriter::external_moment(const Eigen::Vector3d& M_Scm_N) {
+  for (int i = 0; i < 3; ++i) row_[layout_.external_moment() + i] = M_Scm_N(i);
 }
 
 std::vector<std::string> pinned_columns(const System& system) { return OutputLayout(system).names(); }

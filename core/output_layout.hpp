@@ -16,6 +16,21 @@
 //   per flexible body             <body>.<mode> for every mode, then <body>.<mode>_rate
 //   H                             |angular momentum about the system CM|, kg m^2/s
 //   E                             kinetic + elastic + spring energy, J
+// and after them (issue 26; docs/conventions.md "Positions, momentum, power and joint loads"):
+//   per body                      <body>.x .y .z   p_NoBo_N, the body frame's origin in N, m (the
+//                                   CM; for a flexible body its undeformed CM)
+//   CMx CMy CMz                   p_NoScm_N, the system's CM in N (deformed bodies), m
+//   Hx Hy Hz                      H_Scm_N, angular momentum about the system CM, N components
+//   per joint but the free one    <joint>.Fx .Fy .Fz  F_C, the force the parent exerts on the
+//                                   child through the joint (constraint reaction plus the joint's
+//                                   spring, damper, motor or drive), child body frame, N
+//                                 <joint>.Mx .My .Mz  M_J_C, the moment of the same loads about
+//                                   the joint point J (the node's displaced point at a node),
+//                                   child body frame, N m
+//   P                             power of the non-conservative loads (motors, dampers, drives of
+//                                   prescribed joints, external torques), W: dE/dt = P
+//   Mx My Mz                      M_Scm_N, external moment about the system CM (external torques;
+//                                   a prescribed base's reaction), N m: dH_N/dt = M_N
 // then the engine's extra columns in the order it adds them (add_extra).
 //
 // Each column carries its kind and the body or joint it belongs to, so that the harness can group
@@ -48,6 +63,13 @@ enum class ColumnKind {
   ModalRate,       // <body>.<mode>_rate    component = mode index
   MomentumH,       // H
   EnergyE,         // E
+  BodyPosition,    // <body>.x/y/z          component 0..2 (unit m)
+  SystemCM,        // CMx/CMy/CMz           component 0..2
+  MomentumVector,  // Hx/Hy/Hz              component 0..2
+  JointForce,      // <joint>.Fx/Fy/Fz      component 0..2
+  JointMoment,     // <joint>.Mx/My/Mz      component 0..2
+  Power,           // P
+  ExternalMoment,  // Mx/My/Mz              component 0..2
   Extra            // engine-specific
 };
 
@@ -80,14 +102,21 @@ class OutputLayout {
   int modal_first(int body) const { return modal_[static_cast<std::size_t>(body)]; }
   int H() const { return H_; }
   int E() const { return E_; }
+  int body_position(int body) const { return body_p_[static_cast<std::size_t>(body)]; }
+  int cm() const { return cm_; }
+  int H_vector() const { return Hv_; }
+  // -1 for a joint without load columns (the free joint: it carries no load).
+  int joint_load(int joint) const { return load_[static_cast<std::size_t>(joint)]; }
+  int P() const { return P_; }
+  int external_moment() const { return M_; }
 
  private:
   int push(Column c);
   std::vector<Column> columns_;
   std::vector<std::string> names_;
   std::size_t pinned_ = 0;
-  std::vector<int> body_w_, joint_, modal_;
-  int H_ = -1, E_ = -1;
+  std::vector<int> body_w_, joint_, modal_, body_p_, load_;
+  int H_ = -1, E_ = -1, cm_ = -1, Hv_ = -1, P_ = -1, M_ = -1;
 };
 
 // Fills one row of an OutputLayout. Every pinned value must be written once per row; the writer
@@ -111,8 +140,20 @@ class RowWriter {
   // A flexible body's modal coordinates and their rates (sizes: the body's mode count).
   void modal(int b, const Eigen::Ref<const Eigen::VectorXd>& eta,
              const Eigen::Ref<const Eigen::VectorXd>& eta_rate);
-  void momentum(double H) { row_[layout_.H()] = H; }
+  // The angular momentum about the system CM, N components: writes Hx, Hy, Hz and H = |H_N|.
+  void momentum(const Eigen::Vector3d& H_Scm_N);
   void energy(double E) { row_[layout_.E()] = E; }
+  // Body b's frame origin p_NoBo_N (its CM; a flexible body's undeformed CM), m.
+  void body_position(int b, const Eigen::Vector3d& p_NoBo_N);
+  // The system's CM p_NoScm_N (every body's mass where it is, deformed), m.
+  void system_cm(const Eigen::Vector3d& p_NoScm_N);
+  // The loads the parent exerts on the child through joint j: force F_C (N) and moment about the
+  // joint point M_J_C (N m), both in the child body frame. Not for the free joint.
+  void joint_load(int joint, const Eigen::Vector3d& F_C, const Eigen::Vector3d& M_J_C);
+  // Power of the non-conservative loads (W), and the external moment about the system CM in N
+  // (N m): dE/dt = P, dH_Scm_N/dt = M_Scm_N.
+  void power(double P) { row_[layout_.P()] = P; }
+  void external_moment(const Eigen::Vector3d& M_Scm_N);
   void extra(int column, double value) { row_[column] = value; }
 
  private:

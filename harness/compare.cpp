@@ -12,6 +12,7 @@
 #include "core/rotation.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -33,12 +34,19 @@ struct Quantity {
   std::string vector_key;  // "main.w" for main.wx; "" when none
   std::vector<std::string> columns;
   bool attitude = false;
+  // A vector's component is scaled by the vector: max_t |(x, y, z)| of these columns of b, not
+  // max_t |b| of its own column (H's components: a torque-free body's H along y, 200 kg m^2/s,
+  // with 1 along x, would hold Hx to 1e-8 of 1 where its attitude is held to 1e-8 rad).
+  std::vector<std::string> scale_columns = {};
 };
 
 // The quantities every engine must output for this scene, in table order: the pinned columns of
 // the output layout (core/output_layout.hpp), a body's four quaternion columns as one attitude.
 std::vector<Quantity> pinned_quantities(const System& s) {
   const OutputLayout layout(s);
+  auto xyz = [](const std::string& prefix) {
+    return std::vector<std::string>{prefix + "x", prefix + "y", prefix + "z"};
+  };
   std::vector<Quantity> q;
   // Does the column's joint have more than one coordinate column of this kind?
   auto multi = [&layout](const Column& c) {
@@ -72,6 +80,21 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       case ColumnKind::ModalRate: q.push_back({c.name, "modal", "", {c.name}, false}); break;
       case ColumnKind::MomentumH: q.push_back({"H", "H", "", {"H"}, false}); break;
       case ColumnKind::EnergyE: q.push_back({"E", "E", "", {"E"}, false}); break;
+      // Issue 26's columns: positions with the joints' (m), the momentum vector and the external
+      // moment with H, the power with E, the joints' forces and moments as loads.
+      case ColumnKind::BodyPosition:
+        q.push_back({c.name, "position", body + ".position", {c.name}, false, xyz(body + ".")});
+        break;
+      case ColumnKind::SystemCM: q.push_back({c.name, "position", "CM", {c.name}, false, xyz("CM")}); break;
+      case ColumnKind::MomentumVector: q.push_back({c.name, "H", "", {c.name}, false, xyz("H")}); break;
+      case ColumnKind::ExternalMoment: q.push_back({c.name, "H", "M", {c.name}, false, xyz("M")}); break;
+      case ColumnKind::Power: q.push_back({"P", "E", "", {"P"}, false}); break;
+      case ColumnKind::JointForce:
+        q.push_back({c.name, "load", joint + ".F", {c.name}, false, xyz(joint + ".F")});
+        break;
+      case ColumnKind::JointMoment:
+        q.push_back({c.name, "load", joint + ".M", {c.name}, false, xyz(joint + ".M")});
+        break;
       case ColumnKind::Time:
       case ColumnKind::Extra: break;
     }
@@ -119,7 +142,7 @@ int column_index(const RunResult& r, const std::string& name) {
 
 // Fills bound, normalised, status from error and scale (NaN errors fail).
 void finish(Check& c) {
-  c.bound = c.tolerance.atol + c.tolerance.rtol * c.scale;
+  c.bound = c.tolerance.atol + c.tolerance.rtol * c.scale + c.allowance;
   if (c.error == 0) c.normalised = 0;
   else if (c.bound > 0) c.normalised = c.error / c.bound;
   else c.normalised = std::numeric_limits<double>::infinity();
@@ -132,12 +155,145 @@ void finish(Check& c) {
 // does not grow with the number of rows. Pass 1 finds the largest error, its time and the scale;
 // pass 2 (only for checks that failed) finds the first time the error exceeded the bound, which
 // needs the bound and therefore the whole of pass 1.
+// The integral from the first output time of a rate sampled at the output times (a balance's W,
+// issue 26), its pieces separated by the scene's breakpoints (System::breakpoints(): a motor or
+// torque switching between two output times, where the rate jumps). Within a piece each interval
+// is integrated by the polynomial through the piece's last (up to) three samples: the quadratic
+// through the interval and the sample before it (the piece's first interval, once its third sample
+// arrives, by the quadratic of its first three), third order in the output step. Across a
+// breakpoint tb in (t_prev, t]: [t_prev, tb] by the left piece's polynomial carried to tb, [tb, t]
+// by the right piece's, provisional (its value at t) until the right piece has two and then three
+// samples, then corrected. estimate() sums what each rule differs from the next lower one
+// (quadratic against trapezoid, each correction): an estimate of the error of W, which the balance
+// check adds to its bound.
+class PiecewiseQuadrature {
+ public:
+  void reset(std::size_t components, const std::vector<double>* breakpoints) {
+    n_ = components;
+    breaks_ = breakpoints;
+    next_break_ = 0;
+    piece_.clear();
+    pending_ = false;
+    W_ = {};
+    estimate_ = 0;
+  }
+  const std::array<double, 3>& integral() const { return W_; }
+  double estimate() const { return estimate_; }
+
+  void add(double t, const std::array<double, 3>& f) {
+    if (piece_.empty()) {
+      piece_.push_back({t, f});
+      skip_breaks_to(t);
+      count_ = 1;
+      return;
+    }
+    const double t_prev = piece_.back().t;
+    double b_first = 0, b_last = 0;
+    bool jump = false;
+    while (breaks_ && next_break_ < breaks_->size() && (*breaks_)[next_break_] <= t) {
+      const double b = (*breaks_)[next_break_++];
+      if (b <= t_prev) continue;
+      if (!jump) b_first = b;
+      b_last = b;
+      jump = true;
+    }
+    if (jump) {
+      // The left piece to the first breakpoint (its polynomial against the one of one degree less).
+      for (std::size_t i = 0; i < n_; ++i) {
+        const double left = integrate(piece_, i, t_prev, b_first, piece_.size());
+        W_[i] += left;
+        if (piece_.size() >= 2)
+          estimate_ += std::abs(left - integrate(piece_, i, t_prev, b_first, piece_.size() - 1));
+        // Between two breakpoints in one interval nothing is sampled: its size is the estimate.
+        W_[i] += f[i] * (b_last - b_first);
+        estimate_ += (std::abs(f[i]) + std::abs(piece_.back().f[i])) * (b_last - b_first);
+        provisional_[i] = f[i] * (t - b_last);  // the right piece, until it has more samples
+        W_[i] += provisional_[i];
+      }
+      pending_ = true;
+      tb_ = b_last;
+      piece_.assign(1, {t, f});
+      count_ = 1;
+      return;
+    }
+    piece_.push_back({t, f});
+    if (piece_.size() > 3) piece_.erase(piece_.begin());
+    ++count_;
+    const std::size_t m = piece_.size();
+    const double a = m >= 3 ? piece_[1].t - piece_[0].t : 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      const double trapezoid = (t - t_prev) / 2 * (piece_[m - 2].f[i] + f[i]);
+      if (m == 2) {
+        W_[i] += trapezoid;
+        first_trapezoid_[i] = trapezoid;
+      } else {
+        const double q = integrate(piece_, i, t_prev, t, 3);
+        W_[i] += q;
+        estimate_ += std::abs(q - trapezoid);
+        if (count_ == 3) {  // the piece's first interval, by its first three samples
+          const double first = integrate(piece_, i, piece_[0].t, piece_[0].t + a, 3);
+          W_[i] += first - first_trapezoid_[i];
+          estimate_ += std::abs(first - first_trapezoid_[i]);
+        }
+      }
+      if (pending_ && count_ <= 3) {  // the right piece of the last breakpoint, corrected
+        const double better = integrate(piece_, i, tb_, piece_[count_ == 3 ? 0 : m - 2].t, std::min<std::size_t>(m, 3));
+        W_[i] += better - provisional_[i];
+        estimate_ += std::abs(better - provisional_[i]);
+        provisional_[i] = better;
+      }
+    }
+    if (count_ >= 3) pending_ = false;
+  }
+
+ private:
+  struct Sample {
+    double t;
+    std::array<double, 3> f;
+  };
+  // The integral over [u, v] of component i of the polynomial through the first `degree + 1`
+  // (1 to 3) of the last samples of p (Newton's form about p's first sample used).
+  static double integrate(const std::vector<Sample>& p, std::size_t i, double u, double v, std::size_t points) {
+    const std::size_t first = p.size() - points;
+    const Sample& s0 = p[first];
+    const double U = u - s0.t, V = v - s0.t;
+    double r = s0.f[i] * (V - U);
+    if (points >= 2) {
+      const Sample& s1 = p[first + 1];
+      const double h1 = s1.t - s0.t;
+      const double d1 = (s1.f[i] - s0.f[i]) / h1;
+      r += d1 * (V * V - U * U) / 2;
+      if (points >= 3) {
+        const Sample& s2 = p[first + 2];
+        const double d12 = (s2.f[i] - s1.f[i]) / (s2.t - s1.t);
+        const double d2 = (d12 - d1) / (s2.t - s0.t);
+        r += d2 * ((V * V * V - U * U * U) / 3 - h1 * (V * V - U * U) / 2);
+      }
+    }
+    return r;
+  }
+  void skip_breaks_to(double t) {
+    while (breaks_ && next_break_ < breaks_->size() && (*breaks_)[next_break_] <= t) ++next_break_;
+  }
+
+  std::size_t n_ = 1;
+  const std::vector<double>* breaks_ = nullptr;
+  std::size_t next_break_ = 0;
+  std::vector<Sample> piece_;  // the current piece's last (up to) three samples
+  int count_ = 0;              // samples in the current piece so far
+  bool pending_ = false;       // the right piece of breakpoint tb_ is still provisional
+  double tb_ = 0;
+  std::array<double, 3> W_{}, provisional_{}, first_trapezoid_{};
+  double estimate_ = 0;
+};
+
 struct Accumulator {
-  enum class Kind { Pair, Drift, Time };
+  enum class Kind { Pair, Drift, Time, Balance, Rate };
   Kind kind = Kind::Pair;
   Check* check = nullptr;
   std::size_t a = 0, b = 0;   // runs (indices into the lockstep rows); b unused for Drift
   std::vector<int> ca, cb;    // the quantity's columns in a and b
+  std::vector<int> cs;        // Pair: the columns of b whose norm is the scale (else cb[0]'s)
   int ta = -1, tb = -1;       // time column of a (and b for Time)
   bool attitude = false;
   std::size_t n = 0;          // rows compared: min of the two runs' rows
@@ -145,6 +301,16 @@ struct Accumulator {
   double x0 = 0;              // Drift: the value at row 0
   bool stopped = false;       // a NaN error was found: error and time stay as they are
   bool found = false;         // pass 2: first_exceeded is set
+  // Balance: X (ca: E, or Hx Hy Hz) against the integral W of its rate (cb, in run a: P, or Mx
+  // My Mz) from the first output time, X(t) - X(0) - W(t); W by PiecewiseQuadrature over the
+  // scene's breakpoints, whose error estimate is added to the check's bound.
+  std::array<double, 3> X0{};
+  double rate_integral = 0, t_last = 0;
+  // Rate: the largest estimated error of the differences, and the rows without them.
+  double difference_error = 0;
+  std::size_t unevaluated = 0;
+  const std::vector<double>* breakpoints = nullptr;
+  PiecewiseQuadrature quadrature;
 
   // Error at one row (pass 1 also widens the scale).
   double error(const double* A, const double* B, std::size_t k, bool widen_scale) {
@@ -156,7 +322,15 @@ struct Accumulator {
           return rot::angle_between(qa.normalized(), qb.normalized());
         }
         const double va = A[ca[0]], vb = B[cb[0]];
-        if (widen_scale) check->scale = std::max(check->scale, std::abs(vb));
+        if (widen_scale) {
+          double v = std::abs(vb);
+          if (!cs.empty()) {
+            double n2 = 0;
+            for (int c : cs) n2 += B[c] * B[c];
+            v = std::sqrt(n2);
+          }
+          check->scale = std::max(check->scale, v);
+        }
         if (!std::isfinite(va) || !std::isfinite(vb)) return kNaN;
         return std::abs(va - vb);
       }
@@ -168,8 +342,58 @@ struct Accumulator {
         return std::abs(A[ca[0]] - x0);
       case Kind::Time:
         return std::abs(A[ta] - B[tb]);
+      case Kind::Balance:
+        return balance_error(A, k, widen_scale);
+      case Kind::Rate: {
+        // ca: dX/dt (1 or 3 columns), cb: the engine's rate (P, or M), cs: the differences' errors.
+        double e2 = 0, d2 = 0, r2 = 0, err2 = 0;
+        for (std::size_t i = 0; i < ca.size(); ++i) {
+          const double d = A[ca[i]], r = A[cb[i]];
+          if (std::isnan(d)) {  // the engine could not be evaluated beside this row
+            if (widen_scale) ++unevaluated;
+            return 0;
+          }
+          e2 += (d - r) * (d - r);
+          d2 += d * d;
+          r2 += r * r;
+          err2 += A[cs[i]] * A[cs[i]];
+        }
+        if (widen_scale) {
+          check->scale = std::max({check->scale, std::sqrt(d2), std::sqrt(r2)});
+          difference_error = std::max(difference_error, std::sqrt(err2));
+        }
+        return std::sqrt(e2);
+      }
     }
     return kNaN;
+  }
+
+  double balance_error(const double* A, std::size_t k, bool widen_scale) {
+    const std::size_t n = ca.size();
+    const double t = A[ta];
+    std::array<double, 3> f{};
+    double rate_norm = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      f[i] = A[cb[i]];
+      rate_norm += f[i] * f[i];
+    }
+    if (k == 0) {
+      for (std::size_t i = 0; i < n; ++i) X0[i] = A[ca[i]];
+      quadrature.reset(n, breakpoints);
+      rate_integral = 0;
+    } else {
+      rate_integral += (t - t_last) * std::sqrt(rate_norm);
+    }
+    t_last = t;
+    quadrature.add(t, f);
+    double e2 = 0, x2 = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double d = A[ca[i]] - X0[i] - quadrature.integral()[i];
+      e2 += d * d;
+      x2 += A[ca[i]] * A[ca[i]];
+    }
+    if (widen_scale) check->scale = std::max({check->scale, std::sqrt(x2), rate_integral});
+    return std::sqrt(e2);
   }
 
   void pass1(const double* A, const double* B, std::size_t k) {
@@ -213,7 +437,9 @@ void feed(const std::vector<const EngineRun*>& runs, std::vector<Accumulator*>& 
     bool pending = false;
     for (Accumulator* acc : accs) {
       if (k >= acc->n) continue;
-      const double* B = acc->kind == Accumulator::Kind::Drift ? nullptr : row[acc->b];
+      const bool one_run = acc->kind == Accumulator::Kind::Drift || acc->kind == Accumulator::Kind::Balance ||
+                           acc->kind == Accumulator::Kind::Rate;
+      const double* B = one_run ? nullptr : row[acc->b];
       if (second) {
         acc->pass2(row[acc->a], B, k);
         pending = pending || !acc->found;
@@ -260,26 +486,26 @@ Check pair_check(const Quantity& q, const EngineRun& A, const EngineRun& B, cons
   acc->kind = Accumulator::Kind::Pair;
   acc->ca = std::move(ca);
   acc->cb = std::move(cb);
+  for (const std::string& col : q.scale_columns) {
+    const int i = column_index(B.result, col);
+    if (i >= 0) acc->cs.push_back(i);
+  }
+  if (acc->cs.size() != q.scale_columns.size()) acc->cs.clear();
   acc->ta = column_index(A.result, "t");
   acc->attitude = q.attitude;
   acc->n = std::min(A.result.rows(), B.result.rows());
   return c;
 }
 
-// Drift of H or E of one engine from its initial value.
+// Drift of H or E of one engine from its initial value (a quantity the scene conserves).
 Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
-                  const std::string& not_conserved, std::optional<Accumulator>& acc) {
+                  std::optional<Accumulator>& acc) {
   Check c;
   c.quantity = x + ".drift";
   c.group = c.quantity;
   c.a = R.label;
   const Tolerance fallback{kDefaultDriftTolerance, kDefaultDriftTolerance};
   std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "drift"}, fallback);
-  if (!not_conserved.empty()) {
-    c.status = CheckStatus::Excluded;
-    c.note = "not conserved: " + not_conserved;
-    return c;
-  }
   if (const std::string* reason = look.exclusion({c.quantity, "drift"})) {
     c.status = CheckStatus::Excluded;
     c.note = *reason;
@@ -295,6 +521,102 @@ Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
   acc.emplace();
   acc->kind = Accumulator::Kind::Drift;
   acc->ca = {ix};
+  acc->ta = it;
+  acc->n = R.result.rows();
+  return c;
+}
+
+// Balance of H or E of one engine that does not conserve it (issue 26): X(t) - X(0) against the
+// integral of its rate from the engine's own loads (E: P; H: the external moment M), |X(t) - X(0) -
+// W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + the quadrature's estimate.
+Check balance_check(const std::string& x, const EngineRun& R, const Lookup& look,
+                    const std::string& not_conserved, std::optional<Accumulator>& acc) {
+  Check c;
+  c.quantity = x + ".balance";
+  c.group = c.quantity;
+  c.a = R.label;
+  const Tolerance fallback{kDefaultDriftTolerance, kDefaultDriftTolerance};
+  std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "balance"}, fallback);
+  if (const std::string* reason = look.exclusion({c.quantity, "balance"})) {
+    c.status = CheckStatus::Excluded;
+    c.note = *reason;
+    return c;
+  }
+  const bool energy = x == "E";
+  const std::vector<std::string> xs = energy ? std::vector<std::string>{"E"}
+                                             : std::vector<std::string>{"Hx", "Hy", "Hz"};
+  const std::vector<std::string> rates = energy ? std::vector<std::string>{"P"}
+                                                : std::vector<std::string>{"Mx", "My", "Mz"};
+  std::vector<int> ca, cb;
+  for (std::size_t i = 0; i < xs.size(); ++i) {
+    ca.push_back(column_index(R.result, xs[i]));
+    cb.push_back(column_index(R.result, rates[i]));
+    for (const auto& [name, idx] : {std::pair{&xs[i], ca.back()}, std::pair{&rates[i], cb.back()}})
+      if (idx < 0 && c.note.empty()) c.note = "column '" + *name + "' missing from " + R.label + "'s output";
+  }
+  const int it = column_index(R.result, "t");
+  if (!c.note.empty() || it < 0 || R.result.rows() == 0) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    if (c.note.empty()) c.note = R.label + "'s output has no rows";
+    return c;
+  }
+  c.note = "not conserved (" + not_conserved.substr(not_conserved.rfind("has ") == std::string::npos
+                                                        ? 0
+                                                        : not_conserved.rfind("has ") + 4) +
+           "): " + x + "(t) - " + x + "(0) against the integral of " + (energy ? "P" : "M");
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Balance;
+  acc->ca = std::move(ca);
+  acc->cb = std::move(cb);
+  acc->ta = it;
+  acc->n = R.result.rows();
+  return c;
+}
+
+// The rate of H or E of one engine against its own P or M, row by row (issue 26): dX/dt from the
+// runner's differences along the engine's motion (IntegratorSettings::rate_columns). Settled
+// without rows (nothing to check) when the run has no rate columns.
+std::optional<Check> rate_check(const std::string& x, const EngineRun& R, const Lookup& look,
+                                std::optional<Accumulator>& acc) {
+  const bool energy = x == "E";
+  const std::vector<std::string> d = energy ? std::vector<std::string>{"dE_dt"}
+                                            : std::vector<std::string>{"dHx_dt", "dHy_dt", "dHz_dt"};
+  const std::vector<std::string> r = energy ? std::vector<std::string>{"P"}
+                                            : std::vector<std::string>{"Mx", "My", "Mz"};
+  std::vector<int> ca, cb, cs;
+  for (std::size_t i = 0; i < d.size(); ++i) {
+    ca.push_back(column_index(R.result, d[i]));
+    cb.push_back(column_index(R.result, r[i]));
+    cs.push_back(column_index(R.result, d[i] + ".err"));
+  }
+  const int it = column_index(R.result, "t");
+  const auto missing = [](const std::vector<int>& v) { return std::find(v.begin(), v.end(), -1) != v.end(); };
+  if (missing(ca) || missing(cs) || it < 0 || R.result.rows() == 0) return std::nullopt;
+  Check c;
+  c.quantity = x + ".rate";
+  c.group = x + ".balance";
+  c.a = R.label;
+  const Tolerance fallback{kDefaultDriftTolerance, kDefaultRateTolerance};
+  std::tie(c.tolerance_key, c.tolerance) = look.tolerance({c.quantity, "balance"}, fallback);
+  if (const std::string* reason = look.exclusion({c.quantity, "balance"})) {
+    c.status = CheckStatus::Excluded;
+    c.note = *reason;
+    return c;
+  }
+  if (missing(cb)) {
+    c.status = CheckStatus::Fail;
+    c.error = c.normalised = kNaN;
+    c.note = "column '" + r[0] + "' missing from " + R.label + "'s output";
+    return c;
+  }
+  c.note = std::string("d") + x + "/dt along the engine's own motion against its " +
+           (energy ? "power P" : "external moment M");
+  acc.emplace();
+  acc->kind = Accumulator::Kind::Rate;
+  acc->ca = std::move(ca);
+  acc->cb = std::move(cb);
+  acc->cs = std::move(cs);
   acc->ta = it;
   acc->n = R.result.rows();
   return c;
@@ -435,8 +757,15 @@ RunResult analytic_run(const System& system, const std::vector<double>& times) {
     const analytic::TorqueFreeState x = reference.at(t);
     const Eigen::Quaterniond q = rot::canonical(x.q_NB);
     const Eigen::Vector3d H_B = body.I_BBo_B * x.w_NB_B;
+    const Eigen::Vector3d H_N = x.q_NB * H_B;
+    // The CM moves uniformly: p_NoBo_N(t) = p_NoBo_N(0) + v t (v zero when the scene zeroes the
+    // linear momentum); no loads, so P and M are zero.
+    const Eigen::Vector3d v = system.zero_linear_momentum ? Eigen::Vector3d::Zero() : s0.v_NBo_N;
+    const Eigen::Vector3d p = s0.p_NoBo_N + v * t;
     const double row[] = {t, x.w_NB_B.x(), x.w_NB_B.y(), x.w_NB_B.z(), q.w(), q.x(), q.y(), q.z(),
-                          H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation};
+                          H_B.norm(), 0.5 * x.w_NB_B.dot(H_B) + E_translation,
+                          p.x(), p.y(), p.z(), p.x(), p.y(), p.z(), H_N.x(), H_N.y(), H_N.z(),
+                          0, 0, 0, 0};
     if (r.columns.size() != std::size(row))
       throw std::logic_error("analytic_run: the pinned columns of a single body changed");
     rows.append(row);
@@ -548,7 +877,8 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
 
   // Pinned quantities, then extra columns the scene's tolerances name.
   std::vector<Quantity> quantities = pinned_quantities(system);
-  std::set<std::string> known_keys{"drift", "H.drift", "E.drift"};
+  std::set<std::string> known_keys{"drift",     "H.drift", "E.drift", "balance",
+                                   "H.balance", "E.balance", "H.rate", "E.rate"};
   for (const Quantity& q : quantities)
     for (const std::string& k : lookup_keys(q)) known_keys.insert(k);
   for (const auto& [key, tol] : system.compare.tolerances) {
@@ -580,16 +910,30 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   // the scene does not conserve it ("" when it does).
   const std::string no_E = energy_not_conserved_reason(system);
   const std::string no_H = momentum_not_conserved_reason(system);
+  const std::vector<double> breakpoints = system.breakpoints();  // where a balance's rate may jump
   const struct {
     const char* quantity;
     const std::string& not_conserved;
   } drifts[] = {{"H", no_H}, {"E", no_E}};
+  // A quantity the scene does not conserve is balanced instead (issue 26): its change against the
+  // integral of the rate the engine reports from its own loads.
   for (const auto& d : drifts)
     for (const EngineRun* r : ok)
       if (r->engine != "analytic") {
         accs.emplace_back();
-        checks.push_back(drift_check(d.quantity, *r, look, d.not_conserved, accs.back()));
-        if (accs.back()) accs.back()->a = index_of(r);
+        checks.push_back(d.not_conserved.empty()
+                             ? drift_check(d.quantity, *r, look, accs.back())
+                             : balance_check(d.quantity, *r, look, d.not_conserved, accs.back()));
+        if (accs.back()) {
+          accs.back()->a = index_of(r);
+          accs.back()->breakpoints = &breakpoints;
+        }
+        std::optional<Accumulator> rate;
+        if (std::optional<Check> k = rate_check(d.quantity, *r, look, rate)) {
+          checks.push_back(std::move(*k));
+          accs.push_back(std::move(rate));
+          if (accs.back()) accs.back()->a = index_of(r);
+        }
       }
 
   // Pass 1: largest errors, their times, the scales.
@@ -609,6 +953,21 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   std::vector<Accumulator*> failed;
   for (std::size_t i = 0; i < accs.size(); ++i)
     if (accs[i]) {
+      // A balance's bound has room for its quadrature on the output times (Accumulator).
+      if (accs[i]->kind == Accumulator::Kind::Rate) {
+        checks[i].allowance = accs[i]->difference_error;
+        if (accs[i]->difference_error > 0)
+          checks[i].note += "; the differences' estimated error " + sci(accs[i]->difference_error, 2) +
+                            " in the bound";
+        if (accs[i]->unevaluated)
+          checks[i].note += "; " + std::to_string(accs[i]->unevaluated) +
+                            " rows without a rate (the engine could not be evaluated beside them)";
+      }
+      if (accs[i]->kind == Accumulator::Kind::Balance && accs[i]->quadrature.estimate() > 0) {
+        checks[i].allowance = accs[i]->quadrature.estimate();
+        checks[i].note += "; quadrature of the output times: estimated error " +
+                          sci(accs[i]->quadrature.estimate(), 2) + " in the bound";
+      }
       finish(checks[i]);
       if (checks[i].status == CheckStatus::Fail) failed.push_back(&*accs[i]);
     }
@@ -618,8 +977,6 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
     if (finish_time_check(time_checks[i], *pairs[i].first, *pairs[i].second, time_accs[i].has_value()))
       out.checks.push_back(time_checks[i]);
   out.checks.insert(out.checks.end(), checks.begin(), checks.end());
-  if (!no_E.empty()) out.notes.push_back("E drift not checked: not conserved: " + no_E);
-  if (!no_H.empty()) out.notes.push_back("H drift not checked: not conserved: " + no_H);
 
   // A universal joint's keyhole (a finding, not a failure): its boresight b, the direction both
   // axes leave free (axis x axis2 at zero angles, turned by angle2 about axis2), makes with the
@@ -647,6 +1004,7 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   if (options.atol) settings.atol = *options.atol;
   if (options.dt) settings.dt = settings.first_step = *options.dt;
   if (options.max_steps) settings.max_steps = *options.max_steps;
+  settings.rate_columns = options.rates;
 
   std::vector<EngineSpec> specs = options.engines;
   if (specs.empty())
@@ -874,7 +1232,9 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
   out += "pass rule: pair   max_t |a - b| <= bound = atol + rtol * max_t |b|  (b: the reference,\n"
          "                  named second); attitude error = rotation angle between the attitudes\n"
          "                  (rad), with max|b| = 1\n"
-         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n\n";
+         "           drift  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|\n"
+         "         balance  max_t |X(t) - X(0) - integral of P (E) or M (H)| <= atol + rtol * scale + Q\n"
+         "                  (scale: max(max_t |X|, integral of |rate|); Q: the quadrature's estimated error)\n\n";
 
   // Checks: failures (worst first), then passes in table order; exclusions and skips listed apart.
   std::vector<const Check*> fails, passes, others;
@@ -931,8 +1291,9 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
     std::map<std::string, Tolerance> tol;
     for (const Check& k : c.checks) {
       if (k.tolerance_key == "-" || k.status == CheckStatus::Excluded) continue;
-      const std::string key = k.group.size() > 6 && k.group.substr(k.group.size() - 6) == ".drift"
-                                  ? (k.tolerance_key == "default" ? "drift default" : k.tolerance_key)
+      const bool drift = k.group.ends_with(".drift"), balance = k.group.ends_with(".balance");
+      const std::string key = (drift || balance) && k.tolerance_key == "default"
+                                  ? (drift ? "drift default" : "balance default")
                                   : k.tolerance_key;
       auto it = std::find_if(keys.begin(), keys.end(), [&key](const auto& x) { return x.first == key; });
       if (it == keys.end()) it = keys.insert(keys.end(), {key, {}});
@@ -951,7 +1312,8 @@ std::string format_comparison(const SceneComparison& c, bool failures_only) {
           }
           list += (list.empty() ? "" : ", ") + q;
         }
-        const std::string name = key == "default" || key == "drift default" ? key : "'" + key + "'";
+        const std::string name =
+            key == "default" || key == "drift default" || key == "balance default" ? key : "'" + key + "'";
         out += wrap(name + ": " + sci(tol[key].atol, 2) + ", " + sci(tol[key].rtol, 2) + " for " + list,
                     "  ", "    ");
       }

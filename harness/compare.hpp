@@ -11,13 +11,26 @@
 //   <body>.<mode>     modal      |a - b| (and <mode>_rate)    (flexible bodies)
 //   <joint>.torque    torque     |a - b|, N m                 (prescribed revolute joints)
 //   H, E              H, E       |a - b|
+//   <body>.x/y/z      position   |a - b|, m (and the system CM, CMx CMy CMz)
+//   Hx Hy Hz, Mx My Mz  H        |a - b| (the momentum vector about the CM and the external moment)
+//   P                 E          |a - b|, W (the power of the non-conservative loads)
+//   <joint>.Fx..Mz    load       |a - b|, N and N m (every joint but the free one)
 //   other columns     extra      only when the scene's tolerances name them
-// and for every engine alone (not the analytic solution):
-//   H.drift, E.drift  drift      |X(t) - X(0)|
+// and for every engine alone (not the analytic solution), for each of H and E:
+//   X.drift           drift      |X(t) - X(0)|               (a conserved X)
+//   X.balance         balance    |X(t) - X(0) - W(t)|         (an X the scene does not conserve;
+//                                W the integral of P, or of the vector M with H the vector)
+//   X.rate            balance    |dX/dt - P| (E), |dH/dt - M| (H, a vector), at every output row:
+//                                dX/dt the engine's own E (H) differentiated along its own motion
+//                                (core/integrate.hpp, rate_columns); every scene, conserved or not
 //
 // The pass rule (written in every table and report):
 //   pair:   max_t |a(t) - b(t)| <= atol + rtol * max_t |b(t)|
 //   drift:  max_t |X(t) - X(0)| <= atol + rtol * |X(0)|
+//   balance: max_t |X(t) - X(0) - W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + Q,
+//            Q the estimated error of W's quadrature on the output times (compare.cpp)
+//   rate:   max_t |dX/dt - rate| <= atol + rtol * max_t max(|rate|, |dX/dt|) + D, D the largest
+//            estimated error of the difference (kRateColumns' .err columns)
 // where b is the pair's reference: the earlier of the two in the run order (analytic first, then
 // the engines in the order asked for). For attitude the scale max|b| is 1 (a unit quaternion), so
 // atol + rtol is a bound on the angle in rad. "normalised error" = error / bound; <= 1 passes.
@@ -26,14 +39,17 @@
 // wins: the quantity itself ("main.wx", "main.attitude", "H.drift"), then its vector ("main.w",
 // "hinge1.w" for a spherical joint's wx/wy/wz; "gimbal.angle", "gimbal.rate" for a universal
 // joint's two), then its group ("w", "rate", "angle", "position" (a prismatic joint's), "torque",
-// "attitude", "modal", "H", "E"), then the scene's default (System::compare.default_tolerance). Drift checks
-// look up "H.drift" / "E.drift" only and default to atol = rtol = 1e-9. Exclusions match the same
-// keys and carry their reason into every table.
+// "attitude", "modal", "H", "E", "load"), then the scene's default (System::compare.default_tolerance).
+// Drift checks look up "H.drift" / "E.drift", then "drift"; balances "H.balance" / "E.balance",
+// then "balance"; both default to atol = rtol = 1e-9. Exclusions match the same keys and carry
+// their reason into every table.
 //
-// E drift is not checked when the scene has joint dampers, modal damping (a flexible body's),
-// motors, external torques or prescribed joints (not conserved; the note names which); H drift
-// is not checked when it has external torques or a prescribed base (a prescribed joint inside the
-// tree is internal: H stays). Engine runs that fail are recorded as a
+// E is not conserved when the scene has joint dampers, modal damping (a flexible body's), motors,
+// external torques or prescribed joints; H when it has external torques or a prescribed base (a
+// prescribed joint inside the tree is internal: H stays). Such an X is balanced instead of
+// drift-checked (issue 26): each engine's own power P and external moment M (core/output_layout)
+// say how it must change, so a damper or motor whose load is wrong in one engine's equations of
+// motion fails there even when the three engines agree. Engine runs that fail are recorded as a
 // failed "run" check (engine, time, reason) and left out of the pairwise comparison; an engine
 // that is not built yet (make_engine throws InputError "... not built yet") is skipped with a note.
 //
@@ -84,6 +100,10 @@ struct CompareOptions {
   std::optional<long> max_steps;            // per run: IntegratorSettings::max_steps
   std::optional<double> timeout;            // per run, s of wall-clock time (set-up included)
   bool progress = false;                    // progress line on stderr (when it is a terminal)
+  // The runs carry the rates of their own E and H (IntegratorSettings::rate_columns) and each
+  // engine's P and M are checked against them row by row (E.rate, H.rate). Off for converge's
+  // model runs, which compare states only.
+  bool rates = true;
 };
 
 // The command-line options compare and verify share (harness/compare_command.cpp).
@@ -101,6 +121,9 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o);
 // Validates and converts; throws InputError naming the option and the bad value.
 CompareOptions to_compare_options(const CompareCliOptions& o);
 
+// Default rtol of E.rate and H.rate (their atol is the drift default): the difference of E along
+// the motion, with its own error estimate in the bound, against P.
+inline constexpr double kDefaultRateTolerance = 1e-7;
 // Default drift tolerance (H.drift, E.drift) when the scene sets none.
 inline constexpr double kDefaultDriftTolerance = 1e-9;
 
@@ -111,12 +134,13 @@ struct Check {
   std::string quantity;   // "main.wx", "main.attitude", "H", "H.drift", "run", "t"
   std::string group;      // "w", "attitude", "angle", "position", "rate", "torque", "modal", "H",
                           // "E", "extra",
-                          // "H.drift", "E.drift", "run", "t"
+                          // "H.drift", "E.drift", "H.balance", "E.balance", "load", "run", "t"
   std::string a, b;       // engine labels: a compared with the reference b; b empty for one engine
   std::string tolerance_key;  // scene key the tolerance came from, or "default"
   Tolerance tolerance;
   double scale = 0;       // max_t |b| (attitude: 1; drift: |X(0)|)
-  double bound = 0;       // atol + rtol * scale
+  double bound = 0;       // atol + rtol * scale (+ allowance)
+  double allowance = 0;   // balance: the estimated error of its quadrature (compare.cpp)
   double error = 0;       // max_t |a - b|, or max_t |X(t) - X(0)|
   double time = 0;        // s, where the largest error occurred (run: when the engine failed)
   std::optional<double> first_exceeded;  // s, first output time with error > bound

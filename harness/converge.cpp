@@ -256,6 +256,7 @@ namespace {
 
 CompareOptions one_engine(const CompareOptions& options) {
   CompareOptions one = options;
+  one.rates = false;  // the models are compared on their states, one engine each
   one.analytic = false;
   if (one.engines.empty()) one.engines.push_back({"kane", "kane", {}});
   one.engines.resize(1);

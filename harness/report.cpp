@@ -165,6 +165,7 @@ json check_json(const Check& c) {
             {"rtol", number(c.tolerance.rtol)},
             {"scale", number(c.scale)},
             {"bound", number(c.bound)},
+            {"allowance", number(c.allowance)},
             {"error", number(c.error)},
             {"time", number(c.time)},
             {"first_exceeded", c.first_exceeded ? number(*c.first_exceeded) : json(nullptr)},
@@ -264,6 +265,8 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
     j["notes"] = c.notes;
     j["energy_not_conserved"] = s.system ? energy_not_conserved_reason(*s.system) : "";
     j["momentum_not_conserved"] = s.system ? momentum_not_conserved_reason(*s.system) : "";
+    // Where the loads switch: a balance's quadrature keeps its pieces apart there (compare.cpp).
+    j["breakpoints"] = s.system ? s.system->breakpoints() : std::vector<double>{};
     n_checks += static_cast<int>(c.checks.size());
     n_failed += c.count(CheckStatus::Fail);
     out_scenes.push_back(j);
@@ -275,6 +278,9 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
                      "(the earlier of the two: analytic, then engines in the order asked)"},
             {"attitude", "error = rotation angle between the two attitudes (rad); max|b| = 1"},
             {"drift", "max_t |X(t) - X(0)| <= atol + rtol * |X(0)|"},
+            {"balance", "max_t |X(t) - X(0) - W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + "
+                        "Q; W the integral of the engine's P (E) or M (H, a vector), Q its quadrature's "
+                        "estimated error on the output times"},
             {"normalised", "error / (atol + rtol * scale); <= 1 passes"}}},
           {"group_order", group_order()},
           {"passed", n_failed == 0 && n_bad == 0},
@@ -331,9 +337,10 @@ std::string describe_failure(const Check& c) {
 const std::vector<std::string>& group_order() {
   // Every group a Check can carry (compare.cpp), in table order; a group missing here would be
   // left out of verify's table and the report (tests/harness/test_compare.cpp checks the list).
-  static const std::vector<std::string> order{"run",    "t",      "w",     "attitude", "rate",
-                                              "angle",  "position", "modal", "torque", "H",
-                                              "E",      "H.drift", "E.drift", "extra"};
+  static const std::vector<std::string> order{
+      "run", "t",    "w",       "attitude", "rate",      "angle",     "position", "modal",
+      "torque", "load", "H",    "E",        "H.drift",   "E.drift",   "H.balance", "E.balance",
+      "extra"};
   return order;
 }
 

@@ -303,7 +303,7 @@ json check_to(const Check& c) {
   return {{"quantity", c.quantity}, {"group", c.group}, {"a", c.a}, {"b", c.b},
           {"tolerance_key", c.tolerance_key}, {"atol", num(c.tolerance.atol)},
           {"rtol", num(c.tolerance.rtol)}, {"scale", num(c.scale)}, {"bound", num(c.bound)},
-          {"error", num(c.error)}, {"time", num(c.time)},
+          {"allowance", num(c.allowance)}, {"error", num(c.error)}, {"time", num(c.time)},
           {"first_exceeded", c.first_exceeded ? num(*c.first_exceeded) : json(nullptr)},
           {"normalised", num(c.normalised)}, {"status", status_name(c.status)}, {"note", c.note}};
 }
@@ -319,6 +319,7 @@ Check check_from(const PartField& j) {
   c.tolerance.rtol = j.at("rtol").number();
   c.scale = j.at("scale").number();
   c.bound = j.at("bound").number();
+  if (j.has("allowance")) c.allowance = j.at("allowance").number();  // a balance's quadrature
   c.error = j.at("error").number();
   c.time = j.at("time").number();
   if (!j.at("first_exceeded").is_null()) c.first_exceeded = j.at("first_exceeded").number();

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <optional>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -199,56 +200,96 @@ VerifyResult run_verify(const VerifyOptions& o, const std::vector<std::string>& 
   return result;
 }
 
-std::string format_verify_table(const VerifyResult& r, bool strict) {
-  // Columns: the groups any scene has, in the fixed order.
+namespace {
+
+// The table's columns: short headers, each over one or more check groups (group_order()), so that
+// a scene with every kind of quantity fits 130 columns. A conserved quantity's drift and a
+// balanced one's balance share one (a scene has one or the other); a prescribed joint's drive
+// torque is a joint load.
+struct TableColumn {
+  const char* header;
   std::vector<std::string> groups;
+};
+const std::vector<TableColumn>& table_columns() {
+  static const std::vector<TableColumn> columns{
+      {"runs", {"run"}},   {"t", {"t"}},           {"w", {"w"}},
+      {"att", {"attitude"}}, {"rate", {"rate"}},   {"angle", {"angle"}},
+      {"pos", {"position"}}, {"modal", {"modal"}}, {"load", {"torque", "load"}},
+      {"H", {"H"}},        {"E", {"E"}},           {"dH", {"H.drift", "H.balance"}},
+      {"dE", {"E.drift", "E.balance"}},           {"extra", {"extra"}}};
+  return columns;
+}
+
+// The groups of one column merged: Fail if any fails, Pass if any passes, else the rest.
+std::optional<GroupSummary> merged(const std::vector<GroupSummary>& scene, const TableColumn& col) {
+  std::optional<GroupSummary> m;
+  for (const GroupSummary& g : scene) {
+    if (std::find(col.groups.begin(), col.groups.end(), g.group) == col.groups.end()) continue;
+    if (!m) {
+      m = g;
+      continue;
+    }
+    m->checks += g.checks;
+    m->failed += g.failed;
+    m->excluded += g.excluded;
+    m->skipped += g.skipped;
+    if (g.worst > m->worst) {
+      m->worst = g.worst;
+      m->worst_check = g.worst_check;
+    }
+    if (g.status == CheckStatus::Fail || (g.status == CheckStatus::Pass && m->status != CheckStatus::Fail))
+      m->status = g.status;
+  }
+  return m;
+}
+
+}  // namespace
+
+std::string format_verify_table(const VerifyResult& r, bool strict) {
+  // Columns: those any scene has, in the fixed order.
   std::vector<std::vector<GroupSummary>> per_scene;
   for (const SceneOutcome& s : r.scenes)
     per_scene.push_back(s.comparison ? summarise_groups(*s.comparison) : std::vector<GroupSummary>{});
-  for (const std::string& g : group_order())
-    for (const auto& gs : per_scene)
-      if (std::any_of(gs.begin(), gs.end(), [&g](const GroupSummary& x) { return x.group == g; })) {
-        groups.push_back(g);
-        break;
-      }
+  std::vector<const TableColumn*> columns;
+  for (const TableColumn& col : table_columns())
+    if (std::any_of(per_scene.begin(), per_scene.end(), [&](const auto& gs) { return merged(gs, col).has_value(); }))
+      columns.push_back(&col);
   std::vector<std::vector<std::string>> rows;
   rows.push_back({"scene"});
-  for (const std::string& g : groups) rows[0].push_back(g == "run" ? "runs" : g);
+  for (const TableColumn* col : columns) rows[0].push_back(col->header);
   rows[0].push_back("result");
   int n_checks = 0, n_failed = 0, n_excluded = 0, n_skipped = 0;
   for (std::size_t i = 0; i < r.scenes.size(); ++i) {
     const SceneOutcome& s = r.scenes[i];
     std::vector<std::string> row{s.comparison ? s.comparison->scene : s.path};
     if (!s.comparison) {
-      for (std::size_t k = 0; k < groups.size(); ++k) row.push_back("-");
+      for (std::size_t k = 0; k < columns.size(); ++k) row.push_back("-");
       row.push_back(s.internal_error ? "ERROR" : "BAD INPUT");
       rows.push_back(row);
       continue;
     }
-    std::map<std::string, const GroupSummary*> by_group;
-    for (const GroupSummary& g : per_scene[i]) by_group[g.group] = &g;
-    for (const std::string& g : groups) {
-      const auto it = by_group.find(g);
-      if (it == by_group.end()) {
+    for (const TableColumn* col : columns) {
+      const std::optional<GroupSummary> m = merged(per_scene[i], *col);
+      if (!m) {
         row.push_back("-");
         continue;
       }
-      const GroupSummary& x = *it->second;
-      if (g == "run") {
+      const GroupSummary& x = *m;
+      if (x.group == "run") {
         const int ran = x.checks - x.failed - x.skipped;
         std::string cell = x.failed ? "FAIL " + std::to_string(x.failed) + " failed"
                                     : std::to_string(ran) + " ok";
         if (x.skipped) cell += ", " + std::to_string(x.skipped) + " skipped";
         row.push_back(cell);
       } else if (x.status == CheckStatus::Pass) {
-        row.push_back(sci(x.worst, 2));  // a passing cell is its number: the table fits 130 columns
+        row.push_back(sci(x.worst, 1));  // a passing cell is its number: the table fits 130 columns
       } else if (x.status == CheckStatus::Fail) {
-        row.push_back("FAIL " + sci(x.worst, 2));
+        row.push_back("FAIL " + sci(x.worst, 1));
       } else {
         row.push_back(x.status == CheckStatus::Excluded ? "excl." : "skip");
       }
     }
-    const SceneComparison& c = *s.comparison;
+  const SceneComparison& c = *s.comparison;
     row.push_back(c.passed() ? "PASS" : "FAIL");
     rows.push_back(row);
     n_checks += static_cast<int>(c.checks.size());
@@ -258,7 +299,9 @@ std::string format_verify_table(const VerifyResult& r, bool strict) {
   }
   std::string out = text_table(rows);
   out += "cells: worst normalised error of the group, error / (atol + rtol * scale); <= 1 passes\n"
-         "       FAIL: above 1; excl.: excluded by the scene; -: the scene has no such quantity\n";
+         "       FAIL: above 1; excl.: excluded by the scene; -: the scene has no such quantity\n"
+         "       att: attitudes; pos: positions; load: joint loads and drive torques; dH, dE: drift of H\n"
+         "       and E where the scene conserves them, else their balance against the integral of M, P\n";
   // Failures: per scene and quantity the worst pair (or engine), at most kMaxLines lines.
   constexpr int kMaxLines = 30;
   std::string failures;

@@ -74,8 +74,8 @@ std::optional<std::string> name_problem(std::string_view name) {
 std::optional<std::string> mode_name_problem(std::string_view name) {
   if (auto p = name_problem(name)) return p;
   // A body's own output columns <body>.wx ... <body>.qz (core/output_layout).
-  static constexpr std::array<std::string_view, 7> kBodyColumns = {"wx", "wy", "wz", "qw",
-                                                                  "qx", "qy", "qz"};
+  static constexpr std::array<std::string_view, 10> kBodyColumns = {
+      "wx", "wy", "wz", "qw", "qx", "qy", "qz", "x", "y", "z"};
   for (std::string_view c : kBodyColumns)
     if (name == c)
       return "mode name '" + std::string(name) +

@@ -367,8 +367,8 @@ constexpr std::array kKeys = std::to_array<Key>({
  .noun = "a tolerance",
  .doc = "`default`: the tolerance of every quantity not named; any other key names a quantity (a "
         "column such as `main.wx`, a joint's columns such as `gimbal.angle`, or a class: `angle`, "
-        "`position`, `rate`, `torque`, `w`, `attitude`, `modal`, `H`, `E`, `H.drift`, `E.drift`) and "
-        "takes what it does not give from `default`."},
+        "`position`, `rate`, `torque`, `w`, `attitude`, `modal`, `load`, `H`, `E`, `H.drift`, "
+        "`E.drift`, `H.balance`, `E.balance`) and takes what it does not give from `default`."},
 {.path = "compare.tolerances.<quantity>.atol", .type = Number, .default_value = "from default",
  .doc = "Absolute tolerance, >= 0."},
 {.path = "compare.tolerances.<quantity>.rtol", .type = Number, .default_value = "from default",

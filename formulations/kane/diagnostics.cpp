@@ -66,7 +66,8 @@ KaneEngine::Momenta KaneEngine::sum_momenta(const double* u) {
     m.P += P_B;
     m.H += h_Bo + w.p_B0oBo_N.cross(P_B);
   }
-  m.H -= (first_moment / total_mass_).cross(m.P);
+  m.cm = first_moment / total_mass_;
+  m.H -= m.cm.cross(m.P);
   return m;
 }
 
@@ -255,10 +256,9 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
     rigid_output_row(t, x, row);
     return;
   }
-  if (has_prescribed_) {  // the prescribed joints' torques need the accelerations
-    dynamics(t, x);
-    prescribed_torque_pass(t);
-  }
+  // The joint loads and the prescribed joints' torques need the accelerations (loads.cpp).
+  dynamics(t, x);
+  load_pass(t);
   set_time(t);
   position_pass(x, /*rigid_inertia=*/false);  // the sums below use I_BBo_B for rigid bodies
   velocity_pass(x + n_q_);
@@ -313,8 +313,15 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
       out.modal(n.body, Eigen::Map<const Eigen::VectorXd>(x + n.q0 + n.nqj, n.nm),
                 Eigen::Map<const Eigen::VectorXd>(u + n.u0 + n.nuj, n.nm));
   }
-  out.momentum(H.norm());
+  out.momentum(H);  // H = |H_N| and Hx, Hy, Hz
   out.energy(T + V);
+  // Issue 26: positions (a free base's origin is in x; a prescribed base's tree is measured
+  // from No), the system CM, joint loads, P and the external moment (loads.cpp).
+  const Vector3d p_NoB0o_N = nodes_[0].shape == JointShape::Base6
+                                 ? Vector3d(Eigen::Map<const Vector3d>(x + nodes_[0].q0))
+                                 : Vector3d::Zero();
+  write_issue26_columns(t, x, p_NoB0o_N, p_NoB0o_N + m.cm, out);
+  // Extras: kane.H_N.x/y/z repeat Hx, Hy, Hz (kept; superseded by the pinned columns).
   int c = extra0_;
   out.extra(c++, T);
   out.extra(c++, V);

@@ -32,7 +32,9 @@ struct FlexModel {
   std::vector<Eigen::Matrix3d> Q;  // n * n: Q_kl = sum m_i Phi_ik Phi_il^T   (index k n + l)
   std::vector<Eigen::Vector3d> C;  // n * n: C_kl = sum m_i Phi_ik x Phi_il   (index k n + l)
   Eigen::MatrixXd Mm;              // n x n: sum m_i Phi_i^T Phi_i (modal mass)
-  Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping
+  Eigen::MatrixXd K, D;            // n x n: modal stiffness and damping (D in the equations of
+                                   // motion: times EngineOptions::test_damper_scale)
+  Eigen::MatrixXd D_P;             // n x n: the scene's modal damping, for the power column P
   // Geometric stiffening (FlexBody::geometric_stiffening; docs/flexible-bodies.md "Geometric
   // stiffening"): u_i = Phi_i eta + e_i (1/2 eta^T G_i eta).  The integrals above then depend on
   // eta beyond the linear terms, so they are summed over the nodes at each state (FlexWork,
@@ -128,6 +130,10 @@ struct Node {
   double axis_sign = 1;
   Inertia inertia = Inertia::General;
   bool body_torque = false, hinge_load = false;
+  // The scene's joint dampers (damping, damping2), for the power column P (output_row): the
+  // equations of motion read System::joints, whose dampers carry EngineOptions::
+  // test_damper_scale (KaneModel::system_), P never does.
+  double damping_P = 0, damping2_P = 0;
   bool sums_start = true, parent_start = false, leaf_rigid = false, parent_free_base = false;
   // Attachment at a node of a flexible parent whose shape or slope there is not zero: the
   // node's shapes Phi_Pj and slopes Psi_Pj (3 x pm, parent frame; pm the parent's modes).
@@ -262,7 +268,9 @@ struct BodyMotion {
 // the constructor (model_building.cpp) and only read afterwards (docs/style.md item 1; not
 // declared const because the constructor fills it in place).
 struct KaneModel {
-  explicit KaneModel(const System& system) : system_(system), layout_(system_) {}
+  // damper_scale: EngineOptions::test_damper_scale, folded into system_'s joint dampers (1: an
+  // exact copy).
+  KaneModel(const System& system, double damper_scale);
   const System system_;  // the engine's own copy (loads are read from it)
   std::vector<Node> nodes_;
   std::vector<FlexModel> flex_;  // per flexible body (Node::flex)
@@ -292,6 +300,9 @@ struct KaneWorkspace {
   Eigen::VectorXd f_, udot_;
   std::vector<Eigen::Quaterniond> q_N_;    // output_row: every body's attitude
   std::vector<double> prescribed_torque_;  // per node (prescribed joints only)
+  // output_row (load_pass, loads.cpp): per node the loads its joint passes from the parent to
+  // the child, F_C and M_J_C (child body frame; the free base's stay zero), and the same in N.
+  std::vector<Eigen::Vector3d> F_C_, M_J_C_, F_N_, M_J_N_;
 };
 
 // The engine: its model and its workspace (private bases, so that the passes name their members
@@ -365,6 +376,16 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   void subtree_pass(double t, bool full = false);
   // After dynamics(t, x): the torque of each prescribed joint into prescribed_torque_ (per node).
   void prescribed_torque_pass(double t);
+  // output_row (loads.cpp): after dynamics(t, x), every joint's load from its child's subtree
+  // momentum balance (prescribed_torque_pass's full sums) => F_C_, M_J_C_, F_N_, M_J_N_ and the
+  // prescribed torques.
+  void load_pass(double t);
+  // After load_pass and the velocities of the row (w_NB_N, w_NB_B of every body, set by
+  // sum_momenta or rigid_output_row): the power of the non-conservative loads P, the external
+  // moment about the system CM p_NoScm_N (N components); both written with the positions to out.
+  // p_NoB0o_N: the base's body-frame origin from No (a prescribed base's tree: zero).
+  void write_issue26_columns(double t, const double* x, const Eigen::Vector3d& p_NoB0o_N,
+                             const Eigen::Vector3d& p_NoScm_N, RowWriter& out) const;
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   // (M_, f_) => udot_ (false: M not positive definite).  fixed_base_block: a rigid base's 6 x 6
@@ -412,6 +433,7 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   struct Momenta {
     double T;
     Eigen::Vector3d P, H;
+    Eigen::Vector3d cm;  // the system CM from the base's body-frame origin B0o (N components)
   };
   Momenta sum_momenta(const double* u);
 };

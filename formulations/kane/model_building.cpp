@@ -16,8 +16,26 @@ namespace crossdyn::kane {
 // ------------------------------------------------------------------------------------------------
 // Construction: validate the tree, build the node tables, size the workspace.
 
+namespace {
+// The engine's copy of the scene with every joint damper (both universal axes) times
+// EngineOptions::test_damper_scale (core/engine.hpp, issue 26): the equations of motion read
+// System::joints. Scale 1 (every real run): an exact copy, so nothing changes.
+System damper_scaled(const System& system, double scale) {
+  System s = system;
+  if (scale != 1.0)
+    for (Joint& J : s.joints) {
+      J.damping *= scale;
+      J.damping2 *= scale;
+    }
+  return s;
+}
+}  // namespace
+
+KaneModel::KaneModel(const System& system, double damper_scale)
+    : system_(damper_scaled(system, damper_scale)), layout_(system_) {}
+
 KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneSolver solver)
-    : KaneModel(system) {
+    : KaneModel(system, options.test_damper_scale) {
   const std::string file = where(system_);
   const std::size_t nj = system_.joints.size(), nb = system_.bodies.size();
   // The tree (one free joint first, every parent the child of an earlier joint, one joint per
@@ -25,6 +43,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   check_topology(system_);
   if (!(options.test_inertia_scale > 0) || !std::isfinite(options.test_inertia_scale))
     throw InputError("engine option test_inertia_scale must be positive and finite");
+  if (!(options.test_damper_scale >= 0) || !std::isfinite(options.test_damper_scale))
+    throw InputError("engine option test_damper_scale must be finite and not negative");
 
   // Flexible bodies: validated, modal integrals built once.
   std::vector<int> flex_of_body(nb, -1);
@@ -33,6 +53,10 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     if (!B.flex) continue;
     flex_of_body[b] = static_cast<int>(flex_.size());
     flex_.push_back(build_flex_model(B, file, options.test_inertia_scale));
+    // The modal damper in the equations of motion times test_damper_scale; P keeps the scene's.
+    FlexModel& F = flex_.back();
+    F.D_P = F.D;
+    if (options.test_damper_scale != 1.0) F.D *= options.test_damper_scale;
   }
 
   nodes_.resize(nj);
@@ -59,6 +83,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     n.p_PoJ_P = J.p_PoJ_P;
     n.p_CoJ_C = J.p_CoJ_C;
     n.body_torque = !B.torque.empty();
+    n.damping_P = system.joints[k].damping;  // the scene's, unscaled (P)
+    n.damping2_P = system.joints[k].damping2;
     n.hinge_load = J.stiffness != 0 || J.damping != 0 || !J.motor_revolute.empty() ||
                    !J.motor_spherical.empty() || J.stiffness2 != 0 || J.damping2 != 0 ||
                    !J.motor_universal.empty();
@@ -179,6 +205,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   // Workspace.
   work_.resize(nj);
   prescribed_torque_.assign(nj, 0.0);
+  for (auto* v : {&F_C_, &M_J_C_, &F_N_, &M_J_N_}) v->assign(nj, Vector3d::Zero());
   for (NodeWork* w : {&ground_}) {
     w->R_NB.setIdentity();
     w->I_BBo_N.setZero();

@@ -252,6 +252,11 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
 // (h_Bo = R_NB I_BBo_B w_NB_B), so no I_BBo_N is formed; the base's w_NB_B is its speeds u_1..3
 // themselves.
 void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
+  // Issue 26's joint loads need the accelerations: the general passes (dynamics(), whose u' is
+  // rigid_rhs's to the last bit) and the loads from the subtree sums (loads.cpp), first, so that
+  // the loop below overwrites the positions and velocities with the same values.
+  dynamics(t, x);
+  load_pass(t);
   const double* u = x + n_q_;
   RowWriter out(layout_, row);
   out.time(t);
@@ -361,10 +366,14 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
     }
   }
   const double T = 0.5 * T2;
-  H -= (first_moment / total_mass_).cross(P);
+  const Vector3d cm = first_moment / total_mass_;  // from the base's origin B0o
+  H -= cm.cross(P);
   const double V = has_potential_ ? potential_energy(x) : 0.0;
-  out.momentum(H.norm());
+  out.momentum(H);  // H = |H_N| and Hx, Hy, Hz
   out.energy(T + V);
+  // Issue 26: positions, the system CM, joint loads, P, the external moment (loads.cpp).
+  const Vector3d p_NoB0o_N(Eigen::Map<const Vector3d>(x + nodes_[0].q0));
+  write_issue26_columns(t, x, p_NoB0o_N, p_NoB0o_N + cm, out);
   int c = extra0_;
   out.extra(c++, T);
   out.extra(c++, V);

@@ -31,6 +31,14 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   if (!(options.test_inertia_scale > 0.0) || !std::isfinite(options.test_inertia_scale))
     throw InputError(where + "engine option test_inertia_scale must be positive, got " +
                      format_number(options.test_inertia_scale));
+  // Test hook (EngineOptions::test_damper_scale): the joint and modal dampers of the equations of
+  // motion are the scene's times this factor, folded into the model's coefficients here (untouched
+  // when it is 1: the same floating-point operations); the power column P keeps the scene's
+  // (Model::BodyM::D_scene, Model::JointM::damping_scene).
+  const double damper_scale = options.test_damper_scale;
+  if (!(damper_scale >= 0.0) || !std::isfinite(damper_scale))
+    throw InputError(where + "engine option test_damper_scale must be finite and >= 0, got " +
+                     format_number(damper_scale));
   validate_flex(system, where);
   for (const Body& b : system.bodies) {
     Model::BodyM bm;
@@ -43,6 +51,8 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       // The flexible body's mass and inertia are its node sums (docs/flexible-bodies.md).
       bm.flex = static_cast<int>(m->flex.size());
       m->flex.emplace_back(*b.flex, options.test_inertia_scale);
+      bm.D_scene = m->flex.back().Dmp;
+      if (damper_scale != 1.0) m->flex.back().Dmp *= damper_scale;
       bm.nm = b.flex->modes();
       bm.mass = m->flex.back().m;
       bm.I_BBo_B = m->flex.back().rigid_inertia();
@@ -107,6 +117,9 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     }
     if (unit.slides > 0) jm.slide_P = J.axis_P.normalized();
     unit.loads(J, jm);
+    jm.damping_scene = jm.damping;
+    if (damper_scale != 1.0)
+      for (double& c : jm.damping) c *= damper_scale;
     if (unit.at_nodes && J.parent_node >= 0) {
       const FlexNode& nd =
           system.bodies[static_cast<std::size_t>(J.parent)].flex->nodes[static_cast<std::size_t>(
@@ -248,6 +261,10 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->he0 = Eigen::VectorXd::Zero(m->max_modes);
   w->unit = Eigen::VectorXd::Zero(m->max_modes);
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
+  for (auto* v : {&w->dP_N, &w->dK_N, &w->T_N})
+    v->assign(static_cast<std::size_t>(nb), Eigen::Vector3d::Zero());
+  for (auto* v : {&w->F_N, &w->M_J_N, &w->r_J_N})
+    v->assign(m->joints.size(), Eigen::Vector3d::Zero());
   w->M = Eigen::MatrixXd::Zero(n, n);
   w->U = Eigen::MatrixXd::Zero(n, n);
   w->DX = Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, n);

@@ -26,6 +26,10 @@ struct LagrangeEngine::Model {
     int flex = -1;  // index into Model::flex; -1 for a rigid body
     int e0 = -1;    // flexible: index of eta in q* (and of eta' in pi')
     int nm = 0;     // flexible: number of modes
+    // Flexible: the scene's modal damping D (FlexBody::D), for the power column P, which keeps the
+    // scene's damper when EngineOptions::test_damper_scale scales FlexInvariants::Dmp (the
+    // equations of motion's).
+    Eigen::MatrixXd D_scene;
   };
   struct JointM {
     std::string name;
@@ -83,6 +87,9 @@ struct LagrangeEngine::Model {
     // a damper damping[k] and a motor motor(t)[k] per quasi-velocity k < loaded.
     int loaded = 0;
     std::array<double, 3> stiffness{}, neutral{}, damping{};
+    // The scene's dampers, for the power column P: `damping` is them times
+    // EngineOptions::test_damper_scale (the equations of motion's; the same when it is 1).
+    std::array<double, 3> damping_scene{};
     bool has_spring = false;  // a stiffness is not zero
     PiecewiseConstant<3> motor;
     // Prescribed revolute or prismatic joint (docs/prescribed-motion.md): the angle (position)

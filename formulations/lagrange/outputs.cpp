@@ -13,6 +13,7 @@
 #include "formulations/lagrange/kinematics.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/passes.hpp"
 #include "formulations/lagrange/workspace.hpp"
 
 namespace crossdyn::lagrange {
@@ -110,10 +111,12 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   Workspace& w = *ws_;
   const int n = m.n;
   const double* x = expand(t, xs);
-  if (m.has_prescribed) evaluate(t, x);  // the prescribed joints' torques
+  // The accelerations pi'' at (t, x) (the joint loads) and the prescribed joints' torques.
+  evaluate(t, x);
   const double* u = x + n;
   const double E = kinetic_energy_full(x) + potential_energy_full(x);
-  const double H = angular_momentum_full(x).norm();  // leaves the pose and twist passes in k0
+  const Eigen::Vector3d H_Scm_N = angular_momentum_full(x);  // leaves the pose and twist passes
+                                                             // in k0
   // Attitude quaternions: q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^*, q_J from the joint's own
   // coordinates, q(psi) the node frame's rotation vector psi = Psi eta (exp map).
   auto node_q = [&](const Eigen::Matrix3Xd& Psi, int e0) {
@@ -158,8 +161,70 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   }
   for (std::size_t k = 0; k < m.prescribed_joints.size(); ++k)
     out.joint_torque(m.prescribed_joints[k], w.torque(static_cast<Eigen::Index>(k)));
-  out.momentum(H);
+  out.momentum(H_Scm_N);
   out.energy(E);
+
+  // Issue 26 (docs/conventions.md "Positions, momentum, power and joint loads").
+  // Body frame origins p_NoBo_N (a flexible body's undeformed CM) and the system CM
+  // p_NoScm_N = sum_b s_b / m_total, s_b the first mass moment (deformed nodes; body_momenta).
+  const Kin<double>& k = w.k0;
+  Eigen::Vector3d s = Eigen::Vector3d::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    out.body_position(static_cast<int>(b), k.p_NoBo_N[b]);
+    s += m.bodies[b].flex < 0 ? Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b])
+                              : Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b] +
+                                                k.R_NB[b] * k.fi[b].s);
+  }
+  const Eigen::Vector3d p_NoScm_N = s / m.total_mass;
+  out.system_cm(p_NoScm_N);
+
+  // Joint loads from each child subtree's momentum balance (loads.cpp), in the child body frame.
+  joint_loads(m, w, t);
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    if (J.absolute) continue;  // the free joint carries nothing
+    const Eigen::Matrix3d& R_NC = k.R_NB[static_cast<std::size_t>(J.child)];
+    out.joint_load(static_cast<int>(j), R_NC.transpose() * w.F_N[j],
+                   R_NC.transpose() * w.M_J_N[j]);
+  }
+
+  // P, the power of the non-conservative loads, from the scene's loads and the velocities
+  // (docs/conventions.md "Power and external moment"; the rate of work of a torque on a body is
+  // T . w, of a force on a point F . v: Greenwood 2003, Ch. 1, work and power): joint motors and
+  // dampers on their own quasi-velocities (revolute and prismatic rate, universal a1' and a2',
+  // spherical w_PC_C: (motor - damping rate) rate per component, the scene's damping), modal
+  // dampers -eta'^T D eta', prescribed drives (torque times rate) and external torques T . w_NB.
+  double P = 0;
+  for (const Model::JointM& J : m.joints) {
+    if (J.loaded == 0) continue;
+    const Eigen::Vector3d motor = J.motor.value(t);
+    for (int a = 0; a < J.loaded; ++a) {
+      const double rate = u[J.i0 + a];
+      P += (motor(a) - J.damping_scene[static_cast<std::size_t>(a)] * rate) * rate;
+    }
+  }
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    P += w.T_N[b].dot(k.R_NB[b] * k.w_NB_B[b]);
+    if (B.flex < 0) continue;
+    const double* ed = u + B.e0;
+    for (int r = 0; r < B.nm; ++r)
+      for (int c = 0; c < B.nm; ++c) P -= ed[r] * B.D_scene(r, c) * ed[c];
+  }
+  for (std::size_t i = 0; i < m.prescribed_joints.size(); ++i) {
+    const Model::JointM& J = m.joints[static_cast<std::size_t>(m.prescribed_joints[i])];
+    P += w.torque(static_cast<Eigen::Index>(i)) * u[J.i0];
+  }
+  out.power(P);
+
+  // External moment about the system CM in N: the external torques and, for a prescribed base,
+  // its joint's load on the base moved to the CM, M_J + (r_J - r_cm) x F (the moment of a force
+  // about another point; Greenwood 2003, Ch. 1).
+  Eigen::Vector3d M_Scm_N = Eigen::Vector3d::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) M_Scm_N += w.T_N[b];
+  if (!m.base_free) M_Scm_N += w.M_J_N[0] + (w.r_J_N[0] - p_NoScm_N).cross(w.F_N[0]);
+  out.external_moment(M_Scm_N);
+
   out.extra(m.recharts_column, static_cast<double>(w.recharts));
 }
 

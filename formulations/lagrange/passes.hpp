@@ -29,4 +29,11 @@ void hamel_terms(const Model& m, Workspace& w);
 // is not positive definite.
 void solve(const Model& m, Workspace& w, double t);
 
+// loads.cpp (outputs, not rhs()): per body its momentum rates and external torque, per joint the
+// force and moment about its point that the parent exerts on the child, all in N (w.dP_N, w.dK_N,
+// w.T_N, w.F_N, w.M_J_N, w.r_J_N), from the child subtree's momentum balance. Needs evaluate() at
+// the state (w.Xi, w.Xi_dot, w.u, w.udot, w.k1.fi, w.fi0) and the double pose and twist passes
+// into w.k0 at the same state.
+void joint_loads(const Model& m, Workspace& w, double t);
+
 }  // namespace crossdyn::lagrange

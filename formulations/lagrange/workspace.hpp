@@ -54,6 +54,11 @@ struct LagrangeEngine::Workspace {
 
   Eigen::VectorXd u, qdot, p, Mdot_u, hamel, dL, N, f, udot, seed, inv_diag;
   std::vector<Eigen::Quaterniond> q_NB;  // per body, output_row
+  // Joint loads (output_row; loads.cpp): per body the rates of its linear momentum dP_N and of its
+  // angular momentum about its origin Bo plus v_Bo x P (dK_N, i.e. sum (r_i - p_Bo) x m_i a_i plus
+  // the spin rates), and its external torque T_N, all N components; per joint the force F_N and
+  // moment about the joint point M_J_N the parent exerts on the child, and the point r_J_N.
+  std::vector<Eigen::Vector3d> dP_N, dK_N, T_N, F_N, M_J_N, r_J_N;
   // Prescribed joints: the full (q*, pi') at t (expand), the free block of M, its factor and
   // right-hand side, and the joints' torques (per Model::prescribed_joints).
   Eigen::VectorXd xf;

@@ -61,6 +61,8 @@ JointModel model(const Joint& joint, const System* system) {
   m.b2_P = m.a_P.cross(m.b1_P);
   m.e1_C = m.a_C.unitOrthogonal();
   m.e2_C = m.a_C.cross(m.e1_C);
+  m.damping = joint.damping;
+  m.damping2 = joint.damping2;
   m.unit->model(joint, m);  // rows, prescribed, has_angle, unwraps, translates, the type's constants
   return m;
 }

@@ -128,6 +128,10 @@ struct JointModel {
   Eigen::Vector3d a2_P = Eigen::Vector3d::UnitY();  // universal: the second axis n2 in F (zero angles)
   Eigen::Vector3d a2_C = Eigen::Vector3d::UnitY();  // the same axis in G (R_PJ0^T a2_P, constant)
   double a12 = 0;                     // universal: a_P . a2_P, the row's value at zero angles
+  // The joint's dampers as the equations of motion see them: Joint::damping, damping2 times
+  // EngineOptions::test_damper_scale (the engine scales them after from(); 1 in every real run,
+  // then they are the scene's values exactly). The power column P uses the scene's Joint values.
+  double damping = 0, damping2 = 0;
 
   // Rigid attachments on both sides (the bodies' modes are not known).
   static JointModel from(const Joint& joint);

@@ -11,6 +11,11 @@
 //   [Shuster93] Shuster (1993), "A survey of attitude representations", J. Astronaut. Sci. 41(4).
 //   [Shabana05] Shabana (2005), "Dynamics of Multibody Systems", 3rd ed., Cambridge, Ch. 5.
 //   [Barfoot17] Barfoot (2017), "State Estimation for Robotics", Cambridge, Sec. 7.1.5.
+//   [Feath08]  Featherstone (2008), "Rigid Body Dynamics Algorithms", Springer, Sec. 2.8 (the
+//              transform of a force and a moment to another point and frame, Eq. 2.26 in its
+//              3-vector form: M_Q = M_P + (p_P - p_Q) x F).
+//   [Haug89]   Haug (1989), "Computer Aided Kinematics and Dynamics of Mechanical Systems",
+//              Sec. 6.3 (Lagrange multipliers as the reaction forces of the constraints).
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/errors.hpp"
@@ -124,8 +129,12 @@ class NewtonEulerEngine final : public Engine {
   Vector3d first_moment() const;     // sum over elements of m x (from bk_)
   Vector3d linear_momentum() const;  // sum over elements of m v (from bk_)
   void shift_all(const Vector3d& dp, const Vector3d& dv);
-  double angular_momentum() const;
+  Vector3d system_cm() const;  // p_NoScm_N (deformed bodies; terms_ after mass_pass)
+  Vector3d angular_momentum(const Vector3d& p_NoScm_N) const;  // H_Scm_N
   double energy() const;
+  // Joint j's load on its child (constraint + its spring, damper, motor), child frame, about the
+  // joint point; valid after dynamics() (newton_euler.hpp "Joint loads").
+  void joint_load(int j, double t, Vector3d& F_C, Vector3d& M_J_C) const;
   [[noreturn]] void fail(double t, const std::string& quantity, const std::string& reason) const;
 
   // ---- model (constant after construction) ----
@@ -148,8 +157,8 @@ class NewtonEulerEngine final : public Engine {
   // same solve as every other multiplier, and a flexible base keeps its modal coordinates.
   bool prescribed_base_ = false;
   BodyKinematics ground_;                // N: identity attitude, at rest
-  OutputLayout layout_;          // pinned columns, then joint wrenches, then constraint violations
-  int wrench0_ = 0, violation0_ = 0;  // first extra column of each group
+  OutputLayout layout_;          // pinned columns, then the constraint violations
+  int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
 
   // ---- workspace (mutable, preallocated) ----
@@ -181,6 +190,9 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   if (!std::isfinite(options.test_inertia_scale) || options.test_inertia_scale <= 0)
     throw InputError("engine option test_inertia_scale: must be finite and > 0 (got " +
                      std::to_string(options.test_inertia_scale) + ")");
+  if (!std::isfinite(options.test_damper_scale))
+    throw InputError("engine option test_damper_scale: must be finite (got " +
+                     std::to_string(options.test_damper_scale) + ")");
   alpha_ = options.baumgarte_alpha;
   beta_ = options.baumgarte_beta;
 
@@ -237,6 +249,13 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
                          B->name + "' (" + std::to_string(B->flex->nodes.size()) + " nodes)");
     }
     joints_.push_back(JointModel::from(system, j));
+    // EngineOptions::test_damper_scale: the dampers of the equations of motion (the unit's load
+    // verb reads JointModel::damping, damping2); the scene's stay in system_ for P. Skipped at 1,
+    // so that a real run's arithmetic is the scene's, unchanged.
+    if (options.test_damper_scale != 1.0) {
+      joints_.back().damping *= options.test_damper_scale;
+      joints_.back().damping2 *= options.test_damper_scale;
+    }
     lever_scale_ = std::max(lever_scale_, J.p_PoJ_P.norm() + J.p_CoJ_C.norm());
     if (j > 0) links.push_back(KktLink{J.parent, J.child, joints_.back().rows});
   }
@@ -259,14 +278,9 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       throw InputError(file + ": bodies[" + std::to_string(b) + "]: mass matrix not positive definite");
   }
 
-  // Columns and labels.
+  // Columns and labels. (The joints' constraint wrenches, once extras <joint>.fx .. .mz, are the
+  // pinned total loads <joint>.Fx .. .Mz now: issue 26.)
   layout_ = OutputLayout(system);
-  wrench0_ = static_cast<int>(layout_.size());
-  for (int j = 1; j < nj_; ++j) {
-    for (const char* s : {".fx", ".fy", ".fz"}) layout_.add_extra(system.joints[at(j)].name + s, "N");
-    for (const char* s : {".mx", ".my", ".mz"})
-      layout_.add_extra(system.joints[at(j)].name + s, "N m");
-  }
   violation0_ = layout_.add_extra("constraint.pos", "m");
   layout_.add_extra("constraint.vel", "m/s");
   layout_.add_extra("constraint.ang", "rad");
@@ -368,6 +382,9 @@ void NewtonEulerEngine::validate_flex(const std::string& file, int b, const Body
       throw InputError(key + ": modal " + what + " matrix must be positive semi-definite (eigenvalue " +
                        std::to_string(lowest) + ")");
   }
+  // EngineOptions::test_damper_scale: the modal damper of the equations of motion (modal_terms'
+  // -Dmp eta'), after the check above (on the scene's D, which P keeps). Skipped at 1.
+  if (o.test_damper_scale != 1.0) inv.Dmp *= o.test_damper_scale;
   flex_[at(b)] = static_cast<int>(inv_.size());
   inv_.push_back(std::move(inv));
 }
@@ -890,11 +907,10 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
   }
 }
 
-// |sum_i m_i (x_i - x_c) x (v_i - v_c) + sum R_NB J w| about the system CM x_c over every mass
-// element [KLL83 Sec. 4.5]. Per body (modal_body.hpp): linear momentum L_b = m v + R (w x S + Phi_bar
-// eta'), angular momentum about its origin h_b = (R S) x v + R (I w + Lambda eta'); then
-// H = sum_b h_b + (p_b - x_c) x L_b (the sum of m_i (x_i - x_c) over all elements is zero).
-double NewtonEulerEngine::angular_momentum() const {
+// The system's CM x_c = sum_i m_i x_i / sum_i m_i over every mass element, deformed [KLL83
+// Sec. 4.5]: per body m p_NoBo_N + R_NB S (S = sum m_i r_i, modal_body.hpp; zero for a rigid body).
+// Valid after mass_pass (terms_).
+Vector3d NewtonEulerEngine::system_cm() const {
   Vector3d first_moment = Vector3d::Zero();
   double total = 0;
   for (int b = 0; b < nb_; ++b) {
@@ -902,7 +918,15 @@ double NewtonEulerEngine::angular_momentum() const {
     if (flex_[at(b)] >= 0) first_moment += bk_[at(b)].R_NB * terms_[at(flex_[at(b)])].S;
     total += mass_[at(b)];
   }
-  const Vector3d x_c = first_moment / total;
+  return first_moment / total;
+}
+
+// H_Scm_N = sum_i m_i (x_i - x_c) x (v_i - v_c) + sum R_NB J w about the system CM x_c over every
+// mass element [KLL83 Sec. 4.5], N components. Per body (modal_body.hpp): linear momentum L_b =
+// m v + R (w x S + Phi_bar eta'), angular momentum about its origin h_b = (R S) x v + R (I w +
+// Lambda eta'); then H = sum_b h_b + (p_b - x_c) x L_b (the sum of m_i (x_i - x_c) over all
+// elements is zero). The column H is its norm (RowWriter::momentum).
+Vector3d NewtonEulerEngine::angular_momentum(const Vector3d& x_c) const {
   Vector3d h = Vector3d::Zero();
   for (int b = 0; b < nb_; ++b) {
     const BodyKinematics& k = bk_[at(b)];
@@ -918,7 +942,7 @@ double NewtonEulerEngine::angular_momentum() const {
     }
     h += (k.p_NoBo_N - x_c).cross(L);
   }
-  return h.norm();
+  return h;
 }
 
 // Kinetic energy 1/2 nu^T M nu of every body (modal_body.hpp), plus the modal strain energy
@@ -962,8 +986,38 @@ double NewtonEulerEngine::torque(int j) const {
   return -y_[at(j - 1)](5);
 }
 
+// Joint j's load on its child: everything that passes from the parent to the child through the
+// joint (docs/conventions.md "Joint loads"), reduced to a force F_C and a moment M_J_C about the
+// joint point J, both in the child's body frame C.
+//   Constraint part [Haug89 Sec. 6.3; Paper Eqs. (1), (2), (7)]: the multipliers lambda = -y of
+//   the solve at (t, x) (the same KKT system as rhs(), so the same accelerations: their reading at
+//   this state, Baumgarte's terms included when that stabilisation is on) act on the child as the
+//   generalised force J_C^T lambda in its [v_NCo_N; w_NC_C] columns: the constraint force F_N
+//   (N components) and its moment about Co, M_Co_C (C components: the generalised force of w in
+//   body axes is the moment about the origin; on a flexible child at a node the force acts at the
+//   displaced point s_C = p_i + u_i and the rows' couples on the node frame G, E A^T lambda).
+//   Moved to J (s_C = jk.G.s_B, the joint point from Co in C; a prismatic joint's point on the
+//   child) [Feath08 Eq. 2.26]: M_J_C = M_Co_C - s_C x F_C, F_C = R_CN F_N.
+//   Applied part (core/system.hpp "Loads", the unit's load verb, as force_pass() applies it): the
+//   torque T_P on the child-side frame (P components) and, along a translation, the force F_P at
+//   the child's joint point: F_C += R_CP F_P (at J: no moment about J), M_J_C += R_CP T_P.
+void NewtonEulerEngine::joint_load(int j, double t, Vector3d& F_C, Vector3d& M_J_C) const {
+  const JointModel& m = joints_[at(j)];
+  const JointKinematics& jk = jk_[at(j)];
+  const Vector6d& y = j == 0 ? kkt_.y_root() : y_[at(j - 1)];
+  const Vector6d wrench = -(cr_[at(j)].J_C.transpose() * y);  // [F_N; M_Co_C]
+  F_C.noalias() = bk_[at(m.child)].R_NB.transpose() * wrench.head<3>();
+  M_J_C = wrench.tail<3>() - jk.G.s_B.cross(F_C);
+  Vector3d T_P, F_P;
+  if (m.unit->load && m.unit->load(system_.joints[at(j)], m, jk, coords_[at(j)], t, T_P, F_P)) {
+    M_J_C.noalias() += jk.R_PC.transpose() * T_P;
+    if (m.translates) F_C.noalias() += jk.R_PC.transpose() * F_P;
+  }
+}
+
+// One output row at (t, x) (core/output_layout.hpp; equations in newton_euler.hpp "Outputs").
 void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
-  dynamics(t, x);  // the constraint forces need the accelerations
+  dynamics(t, x);  // the joint loads need this state's accelerations and multipliers
   RowWriter out(layout_, row);
   out.time(t);
   for (int b = 0; b < nb_; ++b) {
@@ -976,27 +1030,54 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
       m.unit->output(out, j, system_.joints[at(j)], m, jk_[at(j)], coords_[at(j)],
                      m.prescribed ? torque(j) : 0.0, t);
   }
-  out.momentum(angular_momentum());
+  const Vector3d p_NoScm_N = system_cm();
+  out.momentum(angular_momentum(p_NoScm_N));
   out.energy(energy());
-  int c = wrench0_;
-  // Constraint wrench on the child, J_C^T lambda = [F_N; M_Co_C; ...], lambda = -y: the force F_N
-  // at the (deformed) joint point and the couple M_Co_C - s_C x F_C, both expressed in the
-  // parent-side joint frame F (the parent's body frame for a rigid attachment).
+  for (int b = 0; b < nb_; ++b) out.body_position(b, bk_[at(b)].p_NoBo_N);
+  out.system_cm(p_NoScm_N);
+
+  // Joint loads; the power P of the non-conservative loads and the external moment about the
+  // system CM, M_Scm_N (docs/conventions.md "Power and external moment"; newton_euler.hpp).
+  double P = 0;
+  Vector3d M_Scm_N = Vector3d::Zero();
+  for (int j = first_joint(); j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    Vector3d F_C, M_J_C;
+    joint_load(j, t, F_C, M_J_C);
+    out.joint_load(j, F_C, M_J_C);
+    if (m.unit->power)  // motors, dampers (the scene's), a prescribed joint's drive
+      P += m.unit->power(system_.joints[at(j)], m, jk_[at(j)], m.prescribed ? torque(j) : 0.0, t);
+    if (j == 0) {  // a prescribed base: N's load on it is external, moved to the CM [Feath08 2.26]
+      const BodyKinematics& B = bk_[at(m.child)];
+      const Vector3d F_N = B.R_NB * F_C;
+      const Vector3d p_NoJ_N = B.p_NoBo_N + B.R_NB * jk_[0].G.s_B;
+      M_Scm_N += B.R_NB * M_J_C + (p_NoJ_N - p_NoScm_N).cross(F_N);
+    }
+  }
+  for (int b = 0; b < nb_; ++b) {
+    const Body& body = system_.bodies[at(b)];
+    const BodyKinematics& k = bk_[at(b)];
+    if (!body.torque.empty()) {  // external torque: power T . w_NB (on the body frame), moment T
+      const Vector3d T = body.torque.value(t);
+      const bool in_B = body.torque_frame == Body::Frame::Body;
+      const Vector3d T_B = in_B ? T : Vector3d(k.R_NB.transpose() * T);
+      P += T_B.dot(k.w_NB_B);
+      M_Scm_N += in_B ? Vector3d(k.R_NB * T) : T;
+    }
+    // Modal damping, the scene's D (core/system.hpp "FlexBody"): power -eta'^T D eta'.
+    if (!body.flex || body.flex->D.size() == 0) continue;
+    const Eigen::MatrixXd& D = body.flex->D;
+    for (int r = 0; r < modes(b); ++r)
+      for (int c = 0; c < modes(b); ++c) P -= k.eta_dot(r) * D(r, c) * k.eta_dot(c);
+  }
+  out.power(P);
+  out.external_moment(M_Scm_N);
+
   double pos_violation = 0, vel_violation = 0, ang_violation = 0, angvel_violation = 0;
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const JointKinematics& jk = jk_[at(j)];
     const ConstraintRows& cr = cr_[at(j)];
-    const Vector6d wrench = -(cr.J_C.transpose() * y_[at(j - 1)]);
-    const Matrix3d& R_NC = bk_[at(m.child)].R_NB;
-    const Vector3d F_N = wrench.head<3>();
-    const Vector3d couple_C = wrench.tail<3>() - jk.G.s_B.cross(R_NC.transpose() * F_N);
-    const Matrix3d R_FP = jk.F.E.transpose();
-    const Vector3d F_F = R_FP * (bk_[at(m.parent)].R_NB.transpose() * F_N);
-    const Vector3d M_F = R_FP * (jk.R_PC * couple_C);
-    for (int i = 0; i < 3; ++i) out.extra(c + i, F_F(i));
-    for (int i = 0; i < 3; ++i) out.extra(c + 3 + i, M_F(i));
-    c += 6;
     if (!m.unit->point_rows) {  // the common rows 0-2: the joint point (else the unit's)
       pos_violation = std::max(pos_violation, cr.g.head<3>().norm());
       vel_violation = std::max(vel_violation, cr.gdot.head<3>().norm());

@@ -62,13 +62,39 @@
 // G_i eta kept exactly; a stiffened body's mass matrix and velocity terms are node sums per state
 // (O(nodes n^2) per call for that body), joint points at its nodes move with the same u_i.
 //
-// Extra output columns after the pinned ones:
-//   per joint other than the free one: <joint>.fx .fy .fz (N) .mx .my .mz (N m): the constraint
-//     force and the constraint moment about the joint point exerted BY THE PARENT ON THE CHILD
-//     (springs, dampers and motors are not included: they are applied loads), expressed in the
-//     parent-side joint frame: the parent's body frame for a rigid attachment; at node i of a
-//     flexible parent, the node frame R_NP exp([psi_i x]), and the joint point is the deformed
-//     point p_i + u_i;
+// Outputs (core/output_layout.hpp; docs/conventions.md "Positions, momentum, power and joint
+// loads"), written by output_row() at (t, x) after one solve of the KKT system at that state (the
+// same passes as rhs(), so the loads are those of the accelerations rhs() returns there):
+//   <body>.x .y .z  p_NoBo_N from the state (a flexible body's undeformed CM, its frame origin).
+//   CMx CMy CMz     p_NoScm_N = sum_b (m_b p_b + R_NB S_b) / sum_b m_b, S_b = sum_i m_i (p_i + u_i)
+//                   (modal_body.hpp; zero for a rigid body) [KLL83 Sec. 4.5].
+//   Hx Hy Hz, H     H_Scm_N = sum_b h_b + (p_b - x_c) x L_b (angular_momentum(), H its norm).
+//   <joint>.Fx..Mz  joint j's total load on its child (joint_load()): the constraint part is the
+//                   generalised force J_C^T lambda of the joint's multipliers (lambda = -y) on the
+//                   child's [v_NCo_N; w_NC_C] columns, i.e. the force F_N and the moment about Co
+//                   in C components (Haug 1989, Sec. 6.3: multipliers as reaction forces; the
+//                   reference paper's Eqs. (1), (2), (7)), moved to the joint point J by
+//                   M_J = M_Co - s_C x F (Featherstone 2008, "Rigid Body Dynamics Algorithms",
+//                   Sec. 2.8, Eq. 2.26), s_C the (displaced) joint point from Co; plus the joint's
+//                   own spring, damper and motor from its unit's load verb (a torque, and a
+//                   prismatic joint's force at the child's point): F_C = R_CN F_N + R_CP F_P,
+//                   M_J_C = M_Co_C - s_C x F_C + R_CP T_P. A prescribed joint's drive is a
+//                   multiplier (row 5): inside the constraint part. A prescribed base: N's load on
+//                   it (the root rows' multipliers). Not for the free joint.
+//   P               sum over joints of the unit's power verb (motor and damper with the scene's
+//                   values, a prescribed joint's drive torque(j) theta'(t)), external torques
+//                   T_B . w_NB_B, modal dampers -eta'^T D eta' (the scene's D): dE/dt = P on the
+//                   constraint manifold, since the other multipliers do no work (lambda^T J nu
+//                   = lambda_5 theta' for the prescribed rows only) and springs and the strain
+//                   energy are in E.
+//   Mx My Mz        M_Scm_N: external torques in N, plus a prescribed base's load moved to the CM,
+//                   R_NB M_J_C + (p_NoJ_N - p_NoScm_N) x R_NB F_C (Featherstone 2008, Eq. 2.26).
+// EngineOptions::test_damper_scale s multiplies the dampers of the equations of motion (each
+// JointModel's damping, damping2 and a flexible body's Dmp, at construction, skipped when s = 1);
+// P keeps the scene's dampers, so a wrong damper in the equations shows in E(t) - E(0) = int P.
+//
+// Extra output columns after the pinned ones (the joints' constraint wrenches <joint>.fx .. .mz
+// of earlier versions are gone: the pinned <joint>.Fx .. .Mz, total loads, supersede them):
 //   constraint.pos (m) and constraint.vel (m/s): largest distance between the two copies of a
 //     joint point, and the largest relative velocity of those copies, over the joints (prismatic:
 //     their separation and its rate normal to the axis, and a prescribed one's position and rate
@@ -102,7 +128,7 @@ namespace crossdyn {
 // flexible body's mass or inertia different from its node sums, a singular undeformed mass matrix
 // (a mode with no mass, or a rigid-body or dependent mode), K or D not symmetric positive
 // semi-definite, an unknown stabilisation name, negative Baumgarte gains or a non-positive
-// test_inertia_scale.
+// test_inertia_scale, or a non-finite test_damper_scale.
 std::unique_ptr<Engine> make_newton_euler_engine(const System& system, const EngineOptions& options);
 
 }  // namespace crossdyn

@@ -21,11 +21,16 @@ GROUP_TITLES = {
     "attitude": "attitudes",
     "rate": "joint rates",
     "angle": "joint angles",
+    "position": "positions",
+    "torque": "drive torques",
     "modal": "modal coordinates",
-    "H": "angular momentum H",
-    "E": "energy E",
+    "load": "joint loads",
+    "H": "angular momentum H (and M)",
+    "E": "energy E (and P)",
     "H.drift": "drift of H",
     "E.drift": "drift of E",
+    "H.balance": "balance of H",
+    "E.balance": "balance of E",
     "extra": "extra columns",
 }
 JOINT_COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",
@@ -390,7 +395,7 @@ def chart_differences(scene, runs, out_dir, sid):
         return None
     present = {c["group"] for c in scene.get("checks", [])}
     groups = [g for g in scene.get("group_order", []) if g in present and
-              g in ("w", "attitude", "rate", "angle", "position", "modal", "torque", "H", "E", "extra")]
+              g in ("w", "attitude", "rate", "angle", "position", "modal", "torque", "load", "H", "E", "extra")]
     palette = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     colours = {g: palette[i % len(palette)] for i, g in enumerate(groups)}
     n = len(pairs)
@@ -450,43 +455,174 @@ def chart_differences(scene, runs, out_dir, sid):
                   "for the whole run. Exact agreement is drawn at 1e-17.")
 
 
+def _poly_integral(piece, u, v, points):
+    """The integral over [u, v] of the polynomial through the last `points` samples of piece."""
+    p = piece[len(piece) - points:]
+    t0, f0 = p[0]
+    U, V = u - t0, v - t0
+    r = f0 * (V - U)
+    if points >= 2:
+        t1, f1 = p[1]
+        d1 = (f1 - f0) / (t1 - t0)
+        r += d1 * (V * V - U * U) / 2
+        if points >= 3:
+            t2, f2 = p[2]
+            d2 = ((f2 - f1) / (t2 - t1) - d1) / (t2 - t0)
+            r += d2 * ((V ** 3 - U ** 3) / 3 - (t1 - t0) * (V * V - U * U) / 2)
+    return r
+
+
+def balance_integral(t, rate, breakpoints=()):
+    """The integral of rate from t[0] on the output times, by the harness's rule for a balance
+    (harness/compare.cpp, PiecewiseQuadrature): pieces apart at the breakpoints, each interval by
+    the quadratic through it and the sample before, provisional values corrected as samples come."""
+    breaks = sorted(b for b in breakpoints if b > t[0])
+    W = np.zeros(len(t))
+    w = 0.0
+    piece, count, pending, tb, prov, first_trap, nb = [(t[0], rate[0])], 1, False, 0.0, 0.0, 0.0, 0
+    for k in range(1, len(t)):
+        tk, fk = float(t[k]), float(rate[k])
+        t_prev = piece[-1][0]
+        inside = []
+        while nb < len(breaks) and breaks[nb] <= tk:
+            if breaks[nb] > t_prev:
+                inside.append(breaks[nb])
+            nb += 1
+        if inside:
+            w += _poly_integral(piece, t_prev, inside[0], len(piece))
+            w += fk * (inside[-1] - inside[0])
+            prov = fk * (tk - inside[-1])
+            w += prov
+            pending, tb, piece, count = True, inside[-1], [(tk, fk)], 1
+            W[k] = w
+            continue
+        piece.append((tk, fk))
+        piece = piece[-3:]
+        count += 1
+        m = len(piece)
+        trap = (tk - t_prev) / 2 * (piece[m - 2][1] + fk)
+        if m == 2:
+            w += trap
+            first_trap = trap
+        else:
+            w += _poly_integral(piece, t_prev, tk, 3)
+            if count == 3:
+                a = piece[1][0] - piece[0][0]
+                w += _poly_integral(piece, piece[0][0], piece[0][0] + a, 3) - first_trap
+        if pending and count <= 3:
+            better = _poly_integral(piece, tb, piece[0 if count == 3 else m - 2][0], min(m, 3))
+            w += better - prov
+            prov = better
+        if count >= 3:
+            pending = False
+        W[k] = w
+    return W
+
+
 def chart_drift(scene, runs, out_dir, sid):
     engines = [r for r in runs if r.info.get("engine") != "analytic" and r.has("H")]
     if not engines:
         return None
-    checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", []) if c["group"].endswith(".drift")}
+    checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", [])
+              if c["group"].endswith(".drift") or c["group"].endswith(".balance")}
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
     reasons = {"H": scene.get("momentum_not_conserved", ""), "E": scene.get("energy_not_conserved", "")}
     for ax, x in zip(axes, ("H", "E")):
+        balanced = bool(reasons[x])
+        names = (["E"], ["P"]) if x == "E" else (["Hx", "Hy", "Hz"], ["Mx", "My", "Mz"])
         relative = True
         for r in engines:
-            if not r.has(x):
-                continue
-            v = r.col(x)
-            x0 = v[0]
-            relative = relative and abs(x0) > 0
-            d = np.abs(v - x0) / (abs(x0) if abs(x0) > 0 else 1.0)
+            if balanced:
+                if not all(r.has(n) for n in names[0] + names[1]):
+                    continue
+                X = np.stack([r.col(n) for n in names[0]], axis=1)
+                W = np.stack([balance_integral(r.t, r.col(n), scene.get("breakpoints", [])) for n in names[1]],
+                             axis=1)
+                dev = np.linalg.norm(X - X[0] - W, axis=1)
+                x0 = max(np.max(np.linalg.norm(X, axis=1)), 0.0)
+                c = checks.get((x + ".balance", r.label))
+            else:
+                if not r.has(x):
+                    continue
+                v = r.col(x)
+                x0 = abs(v[0])
+                dev = np.abs(v - v[0])
+                c = checks.get((x + ".drift", r.label))
+            scale = c["scale"] if balanced and c and c.get("scale") else x0
+            relative = relative and scale > 0
+            d = dev / (scale if scale > 0 else 1.0)
             ax.semilogy(r.t, np.maximum(d, TINY), label=r.label, **{k: s for k, s in r.style.items() if k != "alpha"})
-            c = checks.get((x + ".drift", r.label))
             if c and c["status"] in ("PASS", "FAIL") and c["bound"]:
-                ax.axhline(c["bound"] / (abs(x0) if abs(x0) > 0 else 1.0), color=r.style["color"],
+                ax.axhline(c["bound"] / (scale if scale > 0 else 1.0), color=r.style["color"],
                            linestyle="--", linewidth=0.9, alpha=0.7)
         unit = "" if relative else (" (kg m^2/s)" if x == "H" else " (J)")
-        ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
-        title = "drift of %s from its initial value" % x
-        if reasons[x]:
-            title += "\n(not checked: not conserved, %s)" % reasons[x]
+        if balanced:
+            what = "|E(t) - E(0) - W(t)|" if x == "E" else "|H(t) - H(0) - integral of M|"
+            ax.set_ylabel(what + (" / scale" if relative else unit))
+            title = ("balance of %s (not conserved: %s) against the integral of its %s"
+                     % (x, reasons[x].replace("scene has ", ""), "power P" if x == "E" else "external moment M"))
+        else:
+            ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
+            title = "drift of %s from its initial value" % x
         ax.set_title(title, fontsize="medium")
         ax.grid(True, which="both", alpha=0.3)
     outside_legend(fig, axes[0], title="engine")
     axes[-1].set_xlabel("time t (s)")
-    fig.suptitle("Conservation: drift of H and E of each engine (log scale)\n"
-                 "dashed lines: the drift tolerance atol + rtol |X(0)| of each engine's check")
+    fig.suptitle("Conservation and balance of H and E of each engine (log scale)\n"
+                 "dashed lines: each engine's check bound (drift: atol + rtol |X(0)|; balance: see the pass rule)")
     name = finish(fig, "%s-drift.png" % sid, out_dir)
-    return name, ("Relative drift |X(t) - X(0)| / |X(0)| of the angular momentum magnitude H and "
-                  "the energy E of each engine (absolute drift where X(0) = 0). In a scene without "
-                  "external torques H is conserved; without dampers, motors or external torques E "
-                  "is too, so the drift measures integration and formulation error.")
+    return name, ("Where the scene conserves them: the relative drift |X(t) - X(0)| / |X(0)| of the "
+                  "angular momentum H and the energy E of each engine. Where it does not (dampers, "
+                  "motors, prescribed joints, external torques): the balance X(t) - X(0) - W(t), W "
+                  "the integral of the engine's own power P (for E) or external moment M about the "
+                  "system CM (for H, as a vector), relative to the check's scale. Either measures "
+                  "integration and formulation error; a load whose power is wrong in one engine's "
+                  "equations of motion shows as that engine's balance growing.")
+
+
+def chart_loads(scene, runs, out_dir, sid):
+    """One panel per joint (at most 8, the most loaded first): the magnitude of the force and of the
+    moment about the joint point that the parent exerts on the child, every engine overlaid."""
+    engines = [r for r in runs if r.info.get("engine") != "analytic"]
+    joints = []
+    for r in engines[:1]:
+        for c in r.columns:
+            if c.endswith(".Fx"):
+                joints.append(c[:-3])
+    if not joints or not engines:
+        return None
+
+    def magnitude(r, j, q):
+        return np.sqrt(sum(r.col("%s.%s%s" % (j, q, a)) ** 2 for a in "xyz"))
+
+    def peak(j):
+        r = engines[0]
+        return float(np.max(magnitude(r, j, "M"))) + float(np.max(magnitude(r, j, "F")))
+    shown = sorted(joints, key=peak, reverse=True)[:8]
+    shown.sort(key=joints.index)
+    fig, axes = plt.subplots(len(shown), 2, figsize=(10, 1.9 * len(shown) + 1.2), sharex=True, squeeze=False)
+    for row, j in zip(axes, shown):
+        for ax, q, unit in ((row[0], "F", "N"), (row[1], "M", "N m")):
+            for r in engines:
+                if all(r.has("%s.%s%s" % (j, q, a)) for a in "xyz"):
+                    ax.plot(r.t, magnitude(r, j, q), label=r.label, **r.style)
+            ax.set_ylabel("|%s| (%s)" % (q, unit))
+            ax.set_title("%s: %s" % (j, "force on the child" if q == "F" else "moment about the joint point"),
+                         fontsize="small")
+            ax.grid(True, alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time t (s)")
+    outside_legend(fig, axes[0][1], title="engine")
+    more = "" if len(shown) == len(joints) else " (the %d most loaded of %d joints)" % (len(shown), len(joints))
+    fig.suptitle("Joint loads from every engine%s\nthe parent on the child, through the joint" % more)
+    name = finish(fig, "%s-loads.png" % sid, out_dir)
+    return name, ("Each joint's load as each engine computes it its own way (newton-euler from its "
+                  "constraint multipliers, kane and lagrange from their own accelerations): the "
+                  "force F and the moment M about the joint point that the parent exerts on the "
+                  "child (constraint reaction plus the joint's spring, damper, motor or drive; "
+                  "components in the child's frame in the CSV columns <joint>.Fx ... .Mz). "
+                  "Overlaid lines that coincide are the three engines agreeing; the harness "
+                  "compares every component (group 'load').")
 
 
 def chart_converge(scene, out_dir, sid):
@@ -676,6 +812,7 @@ def chart_conditioning(scaling, out_dir):
                   "of that kind (exact agreement drawn at 1e-17): the digits actually lost.")
 
 
-CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_differences, chart_drift]
+CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_loads, chart_differences,
+          chart_drift]
 
 __all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]

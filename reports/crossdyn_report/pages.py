@@ -19,13 +19,16 @@ GROUP_HELP = {
     "attitude": "bodies' attitudes (rotation angle between runs)",
     "rate": "joint rates (revolute and prismatic .rate, universal .rate1/.rate2, spherical .wx/wy/wz)",
     "angle": "joint angles (revolute .angle, universal .angle1/.angle2)",
-    "position": "prismatic joint positions",
+    "position": "positions: prismatic joints', bodies' <body>.x/y/z and the system CM CMx/CMy/CMz",
     "torque": "the torque (force) a prescribed joint takes",
     "modal": "flexible bodies' modal coordinates",
-    "H": "angular momentum magnitude H",
-    "E": "energy E",
-    "H.drift": "each engine's drift of H from H(0)",
-    "E.drift": "each engine's drift of E from E(0)",
+    "load": "joint loads <joint>.Fx .. .Mz: force and moment of the parent on the child",
+    "H": "angular momentum H, its vector Hx/Hy/Hz and the external moment Mx/My/Mz",
+    "E": "energy E and the power P of the non-conservative loads",
+    "H.drift": "each engine's drift of H from H(0) where H is conserved, else its balance "
+               "H(t) - H(0) - integral of M; and dH/dt against M at every output time",
+    "E.drift": "each engine's drift of E from E(0) where E is conserved, else its balance "
+               "E(t) - E(0) - integral of P; and dE/dt against P at every output time",
     "extra": "extra columns named in the scene's tolerances",
 }
 # Why a scene has no check of a kind: the feature does not exist in it.
@@ -39,7 +42,12 @@ GROUP_ABSENT = {
     "extra": "no extra columns asked for",
     "E.drift": "E not checked",
     "H.drift": "H not checked",
+    "load": "no joints but the free one",
 }
+# The index shows a conserved quantity's drift and a balanced one's balance in one column (a scene
+# has one or the other): the table stays narrow enough to read without scrolling.
+MERGED_COLUMNS = {"H.balance": "H.drift", "E.balance": "E.drift"}
+COLUMN_TITLES = {"H.drift": "H drift or balance", "E.drift": "E drift or balance"}
 
 PASS_RULE = ("pass when  max over the run of |a(t) - b(t)|  <=  atol + rtol * max over the run of |b(t)|")
 
@@ -88,12 +96,14 @@ def scene_result(s):
 def index_context(summary):
     scenes = summary.get("scenes", [])
     order = summary.get("group_order", [])
-    present = [g for g in order if any(x["group"] == g for s in scenes for x in s.get("groups", []))]
+    shown = lambda g: MERGED_COLUMNS.get(g, g)  # noqa: E731
+    present = [g for g in order if g not in MERGED_COLUMNS and
+               any(shown(x["group"]) == g for s in scenes for x in s.get("groups", []))]
     rows = []
     failed_checks = []
     warned = []  # every scene warning: (scene, page, message, code)
     for s in scenes:
-        by = {x["group"]: x for x in s.get("groups", [])}
+        by = {shown(x["group"]): x for x in s.get("groups", [])}
         cells = []
         for g in present:
             x = by.get(g)
@@ -108,11 +118,15 @@ def index_context(summary):
                     text += ", %d skipped" % x["skipped"]
                 cells.append(dict(kind=x["status"], text=text, detail=""))
             elif x["status"] in ("PASS", "FAIL"):
-                cells.append(dict(kind=x["status"], text="%s %s" % (x["status"], sci(x["worst"], 2)),
+                # The colour says pass or fail; a failing cell also says it in words.
+                text = sci(x["worst"], 2) if x["status"] == "PASS" else "FAIL %s" % sci(x["worst"], 2)
+                cells.append(dict(kind=x["status"], text=text,
                                   detail=x["worst_check"] + (" (%d of %d failed)" % (x["failed"], x["checks"])
                                                              if x["failed"] else "")))
-            else:
-                cells.append(dict(kind=x["status"], text=x["status"].lower(), detail=""))
+            else:  # excluded or skipped: the reason the scene (or the run) gives
+                why = next((c.get("note", "") for c in s.get("checks", [])
+                            if shown(c.get("group", "")) == g and c.get("status") == x["status"]), "")
+                cells.append(dict(kind=x["status"], text=x["status"].lower(), detail=why))
         for c in s.get("checks", []):
             if c["status"] == "FAIL":
                 failed_checks.append(dict(scene=s.get("scene"), page=s["page"], line=check_line(c)))
@@ -131,7 +145,8 @@ def index_context(summary):
         verdict="PASS" if summary.get("passed") else "FAIL",
         scenes_total=n, scenes_passed=n - failed - unreadable, scenes_failed=failed,
         scenes_unreadable=unreadable, checks=status_counts(all_checks), checks_total=len(all_checks),
-        columns=[dict(group=g, title=GROUP_TITLES.get(g, g), help=GROUP_HELP.get(g, "")) for g in present],
+        columns=[dict(group=g, title=COLUMN_TITLES.get(g, GROUP_TITLES.get(g, g)), help=GROUP_HELP.get(g, ""))
+                 for g in present],
         rows=rows, failed_checks=failed_checks, warned=warned,
         unreadable=[r for r in rows if r["input_error"]],
         pass_rule=PASS_RULE, summary=summary.get("pass_rule", {}))

@@ -48,7 +48,8 @@ TEST_CASE("compare: identical runs pass every check and the reference is the ear
       compare_runs(s, {engine_run("first", make_run(s)), engine_run("second", make_run(s))});
   CHECK(c.passed());
   CHECK(c.count(CheckStatus::Fail) == 0);
-  // Per pair: 2 bodies x (3 w + attitude) + hinge angle + rate + H + E = 12; 2 runs; drift 2 x 2.
+  // Per pair: 2 bodies x (3 w + attitude) + hinge angle + rate + H + E = 12, and issue 26's
+  // 2 bodies x 3 positions + CM 3 + H vector 3 + hinge loads 6 + P + M 3 = 22; 2 runs; drift 2 x 2.
   CHECK(find_checks(c, "base.wx").size() == 1);
   CHECK(find_checks(c, "base.wx")[0].a == "second");
   CHECK(find_checks(c, "base.wx")[0].b == "first");
@@ -58,7 +59,12 @@ TEST_CASE("compare: identical runs pass every check and the reference is the ear
   CHECK(find_checks(c, "H.drift").size() == 2);
   CHECK(find_checks(c, "E.drift").size() == 2);
   CHECK(find_checks(c, "run").size() == 2);
-  CHECK(c.checks.size() == 12 + 2 * 2 + 2);
+  CHECK(find_checks(c, "hinge.Mz").size() == 1);
+  CHECK(find_checks(c, "hinge.Mz")[0].group == "load");
+  CHECK(find_checks(c, "arm.y")[0].group == "position");
+  CHECK(find_checks(c, "CMz")[0].group == "position");
+  CHECK(find_checks(c, "root.Fx").empty());  // the free joint carries no load
+  CHECK(c.checks.size() == 34 + 2 * 2 + 2);
 }
 
 TEST_CASE("compare: pass rule is |a - b| <= atol + rtol * max|b|, evaluated at its boundary") {
@@ -206,23 +212,83 @@ TEST_CASE("compare: drift of H and E from their initial values, per engine") {
   CHECK(find_checks(loose, "H.drift", "drifty")[0].tolerance_key == "H.drift");
 }
 
-TEST_CASE("compare: E drift is not checked when the scene has motors or dampers") {
+TEST_CASE("compare: E is balanced against the integral of P, not drift-checked, with motors or dampers") {
   System s = two_body_system();
   s.joints[1].damping = 0.5;
   s.joints[1].motor_revolute.times = {0.0};
   s.joints[1].motor_revolute.values = {Eigen::Matrix<double, 1, 1>(1.0)};
+  // E loses 4 J/s (rows 0.25 s apart); the honest engine reports P = -4 W, the other P = 0 (its
+  // damper's load left out of its power: what a balance exists to catch).
   auto losing = [](const std::string& c, std::size_t r) {
-    return c == "E" ? 5.0 - static_cast<double>(r) : baseline(c, r);
+    return c == "E" ? 5.0 - static_cast<double>(r) : c == "P" ? -4.0 : baseline(c, r);
   };
+  auto unpowered = [&losing](const std::string& c, std::size_t r) { return c == "P" ? 0.0 : losing(c, r); };
   const SceneComparison c =
-      compare_runs(s, {engine_run("x", make_run(s, losing)), engine_run("y", make_run(s, losing))});
-  CHECK(c.passed());
-  const Check e = find_checks(c, "E.drift", "x")[0];
-  CHECK(e.status == CheckStatus::Excluded);
-  CHECK(e.note == "not conserved: scene has joint dampers and motors");
+      compare_runs(s, {engine_run("x", make_run(s, losing)), engine_run("y", make_run(s, unpowered))});
+  CHECK(find_checks(c, "E.drift").empty());
+  const Check e = find_checks(c, "E.balance", "x")[0];
+  CHECK(e.status == CheckStatus::Pass);
+  CHECK(e.error <= 1e-14);  // the rule integrates a constant exactly, up to rounding
+  CHECK(e.note.rfind("not conserved (joint dampers and motors): E(t) - E(0) against the integral of P", 0) == 0);
+  CHECK(e.group == "E.balance");
+  const Check f = find_checks(c, "E.balance", "y")[0];
+  CHECK(f.status == CheckStatus::Fail);
+  CHECK(f.error == 4.0);
+  CHECK(f.time == 1.0);
+  CHECK(f.first_exceeded == 0.25);
+  CHECK(f.scale == 5.0);  // max(max |E|, integral of |P|)
+  // P itself is compared between engines like any quantity.
+  CHECK(find_checks(c, "P")[0].status == CheckStatus::Fail);
   CHECK(find_checks(c, "H.drift", "x")[0].status == CheckStatus::Pass);
+  CHECK(find_checks(c, "H.balance").empty());
   CHECK(crossdyn::harness::energy_not_conserved_reason(s) == "scene has joint dampers and motors");
   CHECK(crossdyn::harness::momentum_not_conserved_reason(s).empty());
+}
+
+TEST_CASE("compare: H with external torques is balanced as a vector against the integral of M") {
+  System s = two_body_system();
+  s.bodies[0].torque.times = {0.0};
+  s.bodies[0].torque.values = {Eigen::Vector3d(0, 2, 0)};
+  auto torqued = [](const std::string& c, std::size_t r) {
+    const double t = 0.25 * static_cast<double>(r);
+    return c == "Hy" ? 2 * t : c == "My" ? 2.0 : c == "P" ? 0.0 : baseline(c, r);
+  };
+  // The same moment about another axis: |H| would balance, the vector does not.
+  auto turned = [&torqued](const std::string& c, std::size_t r) {
+    return c == "My" ? 0.0 : c == "Mz" ? 2.0 : torqued(c, r);
+  };
+  const SceneComparison c =
+      compare_runs(s, {engine_run("x", make_run(s, torqued)), engine_run("y", make_run(s, turned))});
+  CHECK(find_checks(c, "H.drift").empty());
+  const Check h = find_checks(c, "H.balance", "x")[0];
+  CHECK(h.status == CheckStatus::Pass);
+  CHECK(h.error <= 1e-14);
+  const Check g = find_checks(c, "H.balance", "y")[0];
+  CHECK(g.status == CheckStatus::Fail);
+  CHECK(crossdyn::test::close(g.error, std::sqrt(8.0), 1e-15, 0));  // |(0, 2, -2)| at t = 1
+}
+
+// The quadrature of the balance on the output times: third order, with its estimated error in
+// the bound, so a smooth power sampled coarsely passes and a power wrong by a factor fails.
+TEST_CASE("compare: a balance's quadrature of a smooth rate on coarse output times, its estimate in the bound") {
+  System s = two_body_system();
+  s.joints[1].damping = 0.5;
+  auto smooth = [](double factor) {
+    return [factor](const std::string& c, std::size_t r) {
+      const double t = 0.25 * static_cast<double>(r);
+      return c == "E" ? 5 + std::sin(3 * t) : c == "P" ? factor * 3 * std::cos(3 * t) : baseline(c, r);
+    };
+  };
+  const SceneComparison c = compare_runs(
+      s, {engine_run("x", make_run(s, smooth(1.0))), engine_run("y", make_run(s, smooth(2.0)))});
+  const Check e = find_checks(c, "E.balance", "x")[0];
+  CHECK(e.status == CheckStatus::Pass);
+  CHECK(e.error > 0);           // the rule is not exact for a sine ...
+  CHECK(e.error < 0.05);        // ... but third order in h w = 0.75, a coarse grid
+  CHECK(e.note.find("quadrature of the output times: estimated error") != std::string::npos);
+  CHECK(e.bound > e.error);
+  CHECK(e.bound < 0.2);
+  CHECK(find_checks(c, "E.balance", "y")[0].status == CheckStatus::Fail);
 }
 
 // Every joint type's dampers and motors count (a universal joint keeps its second axis's damper
@@ -238,7 +304,7 @@ TEST_CASE("compare: dampers and motors of every joint type make E not conserved"
   s.joints[1].motor_universal.times = {0.0};
   s.joints[1].motor_universal.values = {Eigen::Vector2d(0.05, 0.02)};
   CHECK(energy_not_conserved_reason(s) == "scene has motors");
-  // Through the program on such a scene: passes, E drift excluded with the reason.
+  // Through the program on such a scene: passes, E balanced against each engine's P.
   const System g = crossdyn::read_scene_text(R"(name: gmotor
 bodies:
   - {name: hub, mass: 120 kg, inertia: [40, 55, 60]}
@@ -252,19 +318,20 @@ run: {duration: 2 s, output_step: 0.05 s}
 )", "gmotor.yaml");
   const SceneComparison c = crossdyn::harness::compare_scene(g, crossdyn::harness::CompareOptions{});
   CHECK(c.passed());
-  CHECK(find_checks(c, "E.drift", "kane")[0].status == CheckStatus::Excluded);
+  CHECK(find_checks(c, "E.balance", "kane")[0].status == CheckStatus::Pass);
+  CHECK(find_checks(c, "E.drift").empty());
 }
 
-TEST_CASE("compare: the E drift exclusion names joint dampers and modal damping apart") {
+TEST_CASE("compare: the E balance names joint dampers and modal damping apart") {
   using crossdyn::harness::energy_not_conserved_reason;
   // scenarios/hub_nodal_panel.yaml: 0.5 % modal damping and no joint damper.
   const System panel = crossdyn::read_scene(crossdyn::test::scene_path("hub_nodal_panel"));
   CHECK(energy_not_conserved_reason(panel) == "scene has modal damping");
   const SceneComparison c = compare_runs(
       panel, {engine_run("x", make_run(panel)), engine_run("y", make_run(panel))});
-  const Check e = find_checks(c, "E.drift", "x")[0];
-  CHECK(e.status == CheckStatus::Excluded);
-  CHECK(e.note == "not conserved: scene has modal damping");
+  const Check e = find_checks(c, "E.balance", "x")[0];
+  CHECK(e.status == CheckStatus::Pass);
+  CHECK(e.note.rfind("not conserved (modal damping): E(t) - E(0) against the integral of P", 0) == 0);
 
   System s = two_body_system();
   CHECK(energy_not_conserved_reason(s).empty());
@@ -367,15 +434,26 @@ TEST_CASE("compare: the analytic pseudo-engine writes the pinned columns of a to
   const Eigen::Matrix3d I = s.bodies[0].I_BBo_B;
   const Eigen::Vector3d w0 = s.joints[0].w_NB_B0;
   CHECK(crossdyn::test::close(r.at(0, 1), w0.x(), 1e-14, 1e-13));
-  CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 2), (I * w0).norm(), 0, 1e-14));
-  CHECK(crossdyn::test::close(r.at(2, r.columns.size() - 1), 0.5 * w0.dot(I * w0), 0, 1e-14));
+  const auto col = [&r](const char* name) { return static_cast<std::size_t>(r.column(name)); };
+  CHECK(crossdyn::test::close(r.at(2, col("H")), (I * w0).norm(), 0, 1e-14));
+  CHECK(crossdyn::test::close(r.at(2, col("E")), 0.5 * w0.dot(I * w0), 0, 1e-14));
   CHECK(r.at(1, 4) >= 0);  // qw, canonical sign
+  // The momentum vector in N is constant and its norm is H; no loads: P and M are zero; the CM
+  // stays where it started.
+  const Eigen::Vector3d H0 = s.joints[0].q_NB0 * (I * w0);
+  for (std::size_t k = 0; k < 3; ++k) {
+    const Eigen::Vector3d H(r.at(k, col("Hx")), r.at(k, col("Hy")), r.at(k, col("Hz")));
+    CHECK((H - H0).norm() <= 1e-12 * H0.norm());
+    CHECK(r.at(k, col("P")) == 0);
+    CHECK(r.at(k, col("Mz")) == 0);
+    CHECK(r.at(k, col("CMx")) == r.at(0, col("base.x")));
+  }
 }
 
 // A group missing from group_order() would leave its checks out of verify's table and the
 // report's columns: every group a comparison makes must be in it. The scenes here hold every kind
 // of pinned column (revolute, spherical, prismatic and universal joints, a prescribed joint's
-// torque and force, modes) and every drift check.
+// torque and force, modes, loads) and every drift and balance check.
 TEST_CASE("compare: every check's group is a column of verify's table (group_order)") {
   using namespace crossdyn;
   using namespace crossdyn::harness;
@@ -397,6 +475,7 @@ TEST_CASE("compare: every check's group is a column of verify's table (group_ord
     for (const GroupSummary& g : summarise_groups(c)) summarised += static_cast<std::size_t>(g.checks);
     CHECK(summarised == c.checks.size());
   }
-  for (const char* g : {"position", "angle", "rate", "torque", "modal", "attitude", "H.drift", "E.drift"})
+  for (const char* g : {"position", "angle", "rate", "torque", "modal", "attitude", "load", "H.drift",
+                        "E.drift", "E.balance"})
     CHECK(seen.count(g) == 1);
 }

@@ -58,6 +58,16 @@ Reference reference_pair(const Check& k, const RunResult& A, const RunResult& B)
     ca.push_back(col(A, name));
     cb.push_back(col(B, name));
   }
+  // Issue 26's vectors (positions, the CM, H and M, a joint's force and moment) are scaled by the
+  // vector's largest norm, not the component's largest value.
+  std::vector<int> vector_columns;
+  const std::string& q = k.quantity;
+  const bool vector = (k.group == "position" && (q.ends_with(".x") || q.ends_with(".y") || q.ends_with(".z") ||
+                                                  q.rfind("CM", 0) == 0)) ||
+                      k.group == "load" || q == "Hx" || q == "Hy" || q == "Hz" || q == "Mx" || q == "My" ||
+                      q == "Mz";
+  if (vector)
+    for (const char* a : {"x", "y", "z"}) vector_columns.push_back(col(B, q.substr(0, q.size() - 1) + a));
   const std::size_t n = std::min(A.rows(), B.rows());
   const int ta = col(A, "t");
   c.scale = attitude ? 1.0 : 0.0;
@@ -70,7 +80,13 @@ Reference reference_pair(const Check& k, const RunResult& A, const RunResult& B)
     } else {
       const double a = A.at(i, ca[0]), b = B.at(i, cb[0]);
       err[i] = std::abs(a - b);
-      c.scale = std::max(c.scale, std::abs(b));
+      double v = std::abs(b);
+      if (!vector_columns.empty()) {
+        double n2 = 0;
+        for (int vc : vector_columns) n2 += B.at(i, vc) * B.at(i, vc);
+        v = std::sqrt(n2);
+      }
+      c.scale = std::max(c.scale, v);
       if (!std::isfinite(a) || !std::isfinite(b)) err[i] = kNaN;
     }
   }

@@ -166,4 +166,25 @@ run:
     CHECK(g_allocations.load() == 0);
   }
 }
+// output_row() (issue 26: an evaluation of the accelerations and the joint loads per row) does not
+// allocate either: a run writes thousands of rows.
+TEST_CASE("lagrange: output_row() does not allocate", "[lagrange][alloc][loads]") {
+  using crossdyn::lagrange::LagrangeEngine;
+  std::mt19937 g(32);
+  for (const crossdyn::System& s :
+       {crossdyn::test::spear1(), crossdyn::test::chain(12), crossdyn::test::mixed_tree(true),
+        crossdyn::test::flex_tree(true)}) {
+    LagrangeEngine e(s, {});
+    std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+    std::vector<double> row(e.layout().size());
+    e.pack(crossdyn::test::random_flex_state(s, g), x.data());
+    e.output_row(0.0, x.data(), row.data());  // warm-up
+    g_allocations = 0;
+    g_counting = true;
+    for (int k = 0; k < 10; ++k) e.output_row(0.1 * k, x.data(), row.data());
+    g_counting = false;
+    INFO("scene " << s.name);
+    CHECK(g_allocations.load() == 0);
+  }
+}
 #endif

@@ -177,7 +177,9 @@ TEST_CASE("newton-euler: joint accelerations are the time derivatives of the joi
 
 // SPEAR-1 at its initial state: no external force acts on a boom, so the hinge force IS the
 // boom's m a; the boom's Euler equation about its CM balances the hinge force's moment and the
-// constraint couple; the main body carries both reactions; the couple has no axis component.
+// hinge's moment about the joint point; the main body carries both reactions; with no spring,
+// damper or motor the moment has no axis component. The loads are the pinned <joint>.Fx .. .Mz:
+// the child's (boom's) frame, about the joint point.
 TEST_CASE("newton-euler: hinge constraint forces on spear1 are each body's m a and I alpha",
           "[newton_euler][engine][forces]") {
   const System s = spear1();
@@ -191,28 +193,28 @@ TEST_CASE("newton-euler: hinge constraint forces on spear1 are each body's m a a
     const Body& boom = s.bodies[static_cast<std::size_t>(k)];
     const Joint& J = s.joints[static_cast<std::size_t>(k)];
     const BodyState bs = body_state(*p.engine, p.x.data(), boom.name);
-    const Vector3d F_P(col(p, hinge + ".fx"), col(p, hinge + ".fy"), col(p, hinge + ".fz"));
-    const Vector3d M_P(col(p, hinge + ".mx"), col(p, hinge + ".my"), col(p, hinge + ".mz"));
-    const Vector3d F_N = main.R_NB * F_P;
+    const Vector3d F_C(col(p, hinge + ".Fx"), col(p, hinge + ".Fy"), col(p, hinge + ".Fz"));
+    const Vector3d M_C(col(p, hinge + ".Mx"), col(p, hinge + ".My"), col(p, hinge + ".Mz"));
+    const Vector3d F_N = bs.R_NB * F_C;
     const Vector3d m_a = boom.mass * a.a_NBo_N[static_cast<std::size_t>(k)];
     INFO(hinge << " F_N " << F_N.transpose() << " m a " << m_a.transpose());
     CHECK(m_a.norm() > 1.0);  // the spinning booms do pull on their hinges (~ 1e2 N)
     CHECK((F_N - m_a).norm() <= 1e-12 * m_a.norm());
-    // Euler: I alpha + w x I w = (r_C x F) + couple, in boom axes.
+    // Euler: I alpha + w x I w = (r_C x F) + M_J, in boom axes.
     const Vector3d& alpha = a.wdot_NB_B[static_cast<std::size_t>(k)];
     const Vector3d lhs = boom.I_BBo_B * alpha + bs.w_B.cross(boom.I_BBo_B * bs.w_B);
-    const Vector3d F_C = bs.R_NB.transpose() * F_N;
-    const Vector3d couple_C = bs.R_NB.transpose() * (main.R_NB * M_P);
-    const Vector3d rhs = J.p_CoJ_C.cross(F_C) + couple_C;
+    const Vector3d rhs = J.p_CoJ_C.cross(F_C) + M_C;
     CHECK((lhs - rhs).norm() <= 1e-12 * (1 + lhs.norm()));
-    CHECK(std::abs(M_P.dot(J.axis_P)) <= 1e-12 * (1 + M_P.norm()));
+    const Vector3d axis_C = bs.R_NB.transpose() * (main.R_NB * J.axis_P);
+    CHECK(std::abs(M_C.dot(axis_C)) <= 1e-12 * (1 + M_C.norm()));
     reaction_N -= F_N;
   }
   const Vector3d m_a_main = s.bodies[0].mass * a.a_NBo_N[0];
   CHECK((m_a_main - reaction_N).norm() <= 1e-12 * reaction_N.norm());
-  // Symmetric deployment: the two hinge forces mirror each other across main's x-z plane.
-  CHECK(std::abs(col(p, "hinge1.fx") - col(p, "hinge2.fx")) <= 1e-12 * std::abs(col(p, "hinge1.fx")));
-  CHECK(std::abs(col(p, "hinge1.fy") + col(p, "hinge2.fy")) <= 1e-12 * std::abs(col(p, "hinge1.fx")));
+  // Symmetric deployment: the two hinge forces mirror each other across main's x-z plane (both
+  // booms at angle 0: their frames are main's).
+  CHECK(std::abs(col(p, "hinge1.Fx") - col(p, "hinge2.Fx")) <= 1e-12 * std::abs(col(p, "hinge1.Fx")));
+  CHECK(std::abs(col(p, "hinge1.Fy") + col(p, "hinge2.Fy")) <= 1e-12 * std::abs(col(p, "hinge1.Fx")));
 }
 
 // Two equal bodies (mass m, CMs 2d apart, joint midway) turning rigidly at rate W about z, a
@@ -220,6 +222,7 @@ TEST_CASE("newton-euler: hinge constraint forces on spear1 are each body's m a a
 // d, so the joint pulls the child toward the parent with m W^2 d. With the revolute variant the
 // bodies' inertia tensors carry opposite products I_xz = +-c, and the steady turn needs the couple
 // w x I w = (0, c W^2, 0) on the child, which only the hinge's constraint moment can supply.
+// (The pinned loads are in the child's frame, here the parent's: the joint is at zero.)
 TEST_CASE("newton-euler: joint constraint force and moment of a steadily turning pair match the "
           "closed form", "[newton_euler][engine][forces]") {
   const double m = 5, d = 1.5, W = 0.8, c = 0.3;
@@ -248,12 +251,12 @@ TEST_CASE("newton-euler: joint constraint force and moment of a steadily turning
     p.engine->accelerations(0.0, p.x.data(), a);
     INFO("joint type " << static_cast<int>(type));
     const double f = m * W * W * d;
-    CHECK(std::abs(col(p, "j.fx") + f) <= 1e-13 * f);
-    CHECK(std::abs(col(p, "j.fy")) <= 1e-13 * f);
-    CHECK(std::abs(col(p, "j.fz")) <= 1e-13 * f);
-    CHECK(std::abs(col(p, "j.mx")) <= 1e-13);
-    CHECK(std::abs(col(p, "j.my") - (type == JointType::Revolute ? c * W * W : 0.0)) <= 1e-13);
-    CHECK(std::abs(col(p, "j.mz")) <= 1e-13);
+    CHECK(std::abs(col(p, "j.Fx") + f) <= 1e-13 * f);
+    CHECK(std::abs(col(p, "j.Fy")) <= 1e-13 * f);
+    CHECK(std::abs(col(p, "j.Fz")) <= 1e-13 * f);
+    CHECK(std::abs(col(p, "j.Mx")) <= 1e-13);
+    CHECK(std::abs(col(p, "j.My") - (type == JointType::Revolute ? c * W * W : 0.0)) <= 1e-13);
+    CHECK(std::abs(col(p, "j.Mz")) <= 1e-13);
     for (int b = 0; b < 2; ++b) {
       CHECK(a.wdot_NB_B[static_cast<std::size_t>(b)].norm() <= 1e-13);
       CHECK(std::abs(a.a_NBo_N[static_cast<std::size_t>(b)].x() - (b == 0 ? 1 : -1) * W * W * d) <= 1e-13);
@@ -290,7 +293,7 @@ TEST_CASE("newton-euler: state labels, columns and input errors", "[newton_euler
   const std::vector<std::string> pinned = pinned_columns(s);
   REQUIRE(e->columns().size() > pinned.size());
   for (std::size_t i = 0; i < pinned.size(); ++i) CHECK(e->columns()[i] == pinned[i]);
-  for (const char* c : {"hinge1.fx", "hinge2.mz", "constraint.pos", "constraint.vel"})
+  for (const char* c : {"hinge1.Fx", "hinge2.Mz", "constraint.pos", "constraint.vel"})
     CHECK_NOTHROW(column(*e, c));
 
   System flexible = s;

@@ -420,12 +420,12 @@ TEST_CASE("newton-euler flex: joint and modal accelerations are the derivatives 
   for (int i = 0; i < 3; ++i) CHECK(near(fd(std::string("beam.w") + "xyz"[i]), a.wdot_NB_B[0](i)));
 }
 
-// The rigid leaves hang on joints at nodes: the joint force on each is its m a, the joint couple
-// and the force's moment about its CM give I w' + w x I w, and the outputs are expressed in the
-// parent-side joint frame F = R_NP exp([psi x]) (psi = Psi_node eta, here by Eigen's angle-axis).
-// The revolute joint's couple has no component along its axis.
-TEST_CASE("newton-euler flex: joint forces at nodes are the leaves' m a and I alpha, in the "
-          "node frame", "[newton_euler][flexible][engine][forces]") {
+// The rigid leaves hang on joints at nodes: the joint force on each is its m a, the joint moment
+// about the joint point and the force's moment about its CM give I w' + w x I w (the pinned
+// <joint>.Fx .. .Mz, in the leaf's frame). The revolute joint's moment along its axis (the node
+// frame's, F = R_NP exp([psi x]), psi = Psi_node eta, here by Eigen's angle-axis) is its torque.
+TEST_CASE("newton-euler flex: joint loads at nodes are the leaves' m a and I alpha",
+          "[newton_euler][flexible][engine][forces]") {
   std::mt19937 rng(8);
   const System s = flexible_tree();
   for (int trial = 0; trial < 3; ++trial) {
@@ -446,17 +446,21 @@ TEST_CASE("newton-euler flex: joint forces at nodes are the leaves' m a and I al
       const Matrix3d E = Eigen::AngleAxisd(psi.norm(), psi.normalized()).toRotationMatrix();
       const Matrix3d R_NF = P.b.R_NB * E;
       const std::string n(leaf);
-      const Vector3d F_F(p.col(n + ".fx"), p.col(n + ".fy"), p.col(n + ".fz"));
-      const Vector3d M_F(p.col(n + ".mx"), p.col(n + ".my"), p.col(n + ".mz"));
+      const Vector3d F_C(p.col(n + ".Fx"), p.col(n + ".Fy"), p.col(n + ".Fz"));
+      const Vector3d M_C(p.col(n + ".Mx"), p.col(n + ".My"), p.col(n + ".Mz"));
       const Vector3d m_a = body.mass * a.a_NBo_N[C];
       INFO("trial " << trial << " joint " << leaf);
       CHECK(m_a.norm() > 0.1);
-      CHECK((R_NF * F_F - m_a).norm() <= 1e-12 * m_a.norm());
+      CHECK((c.R_NB * F_C - m_a).norm() <= 1e-12 * m_a.norm());
       const Vector3d& alpha = a.wdot_NB_B[C];
       const Vector3d lhs = body.I_BBo_B * alpha + c.w_B.cross(body.I_BBo_B * c.w_B);
-      const Vector3d rhs = J.p_CoJ_C.cross(c.R_NB.transpose() * m_a) + c.R_NB.transpose() * R_NF * M_F;
+      const Vector3d rhs = J.p_CoJ_C.cross(F_C) + M_C;
       CHECK((lhs - rhs).norm() <= 1e-12 * (1 + lhs.norm()));
-      if (J.type == JointType::Revolute) CHECK(std::abs(M_F.dot(J.axis_P)) <= 1e-12 * (1 + M_F.norm()));
+      if (J.type == JointType::Revolute) {
+        const double tau = -J.stiffness * (p.col(n + ".angle") - J.neutral_angle) - J.damping * p.col(n + ".rate");
+        const Vector3d axis_C = c.R_NB.transpose() * (R_NF * J.axis_P.normalized());
+        CHECK(std::abs(M_C.dot(axis_C) - tau) <= 1e-12 * (1 + M_C.norm()));
+      }
     }
   }
 }
@@ -588,7 +592,7 @@ TEST_CASE("newton-euler flex: modal state labels and input errors", "[newton_eul
   CHECK_NOTHROW(label_index(*e, "beam.qy1_rate"));
   CHECK_NOTHROW(label_index(*e, "panel.qx1_rate"));
   CHECK(label_index(*e, "beam.qx2") == label_index(*e, "beam.qx1") + 1);
-  for (const char* c : {"beam.qx1", "beam.qx2", "beam.qy1", "beam.qx1_rate", "arm.qy1_rate", "ball.fx", "weld.mz"})
+  for (const char* c : {"beam.qx1", "beam.qx2", "beam.qy1", "beam.qx1_rate", "arm.qy1_rate", "ball.Fx", "weld.Mz"})
     CHECK_NOTHROW(column(*e, c));
 
   auto error = [](const System& bad) {

@@ -53,6 +53,6 @@ void lock_rotation_rows(const JointModel& m, const JointKinematics& jk, int row0
 }
 
 const JointUnit kFixedJoint{"fixed", model,   nullptr, nullptr, nullptr, rotation_rows, nullptr,
-                            nullptr, nullptr, nullptr, nullptr, nullptr, violation};
+                            nullptr, nullptr, nullptr, nullptr, nullptr, violation, nullptr};
 
 }  // namespace crossdyn::newton_euler

@@ -12,6 +12,6 @@ void model(const Joint& /*joint*/, JointModel& m) { m.rows = 0; }
 }  // namespace
 
 const JointUnit kFreeJoint{"free",  model,   nullptr, nullptr, nullptr, nullptr, nullptr,
-                           nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
+                           nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
 
 }  // namespace crossdyn::newton_euler

@@ -26,7 +26,10 @@
 //   load             (joint, model, jk, coordinates, t) => T_P, the torque of the spring, damper
 //                    and motor on the child-side frame in P body components, and (a unit with
 //                    JointModel::translates) F_P, the force on the child at its joint point in P
-//                    components (the reaction on the parent at the same point); false: no load
+//                    components (the reaction on the parent at the same point); false: no load.
+//                    The damper is JointModel::damping, damping2 (EngineOptions::
+//                    test_damper_scale's); the engine applies the load in force_pass() and adds
+//                    it to the joint's output load (<joint>.Fx .. .Mz, joint_load())
 //   pack             (model, TreeState joint) => q_J, w_FG_G, the joint point's offset r_F and its
 //                    F-frame rate v_F along a translation, and angle_ref (the engine-neutral
 //                    coordinates in maximal ones)
@@ -40,6 +43,12 @@
 //   violation        (model, jk, rows) => the largest violations (constraint.pos and .vel of a
 //                    unit with point_rows, constraint.ang and constraint.angvel,
 //                    newton_euler.hpp)
+//   power            (joint, model, jk, torque, t) => the power of the joint's non-conservative
+//                    loads, from the scene's Joint values (never test_damper_scale's): motor and
+//                    damper (motor - damping rate) rate per coordinate (spherical: (motor -
+//                    damping w_PC_C) . w_PC_C), a prescribed joint's drive torque (force) times
+//                    its prescribed rate theta'(t) (the P column, newton_euler.hpp "Power");
+//                    nullptr: none (fixed, free)
 // A joint's coordinates are a JointCoords (joint_constraints.hpp): the angle (a prismatic joint's
 // position) and a universal joint's second angle. The engine's state layout and its extra output
 // columns do not depend on the joint type.
@@ -90,6 +99,8 @@ struct JointUnit {
                  const JointKinematics& jk, const JointCoords& coords, double torque, double t);
   void (*violation)(const JointModel& m, const JointKinematics& jk, const ConstraintRows& cr,
                     double& pos, double& vel, double& ang, double& angvel);
+  double (*power)(const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                  double torque, double t);
 };
 
 // The units (one file each) and the choice among them (joints/dispatch.cpp).
@@ -107,6 +118,10 @@ const JointUnit& joint_unit(JointType type);
 // a prescribed joint's from its profile followed by its torque (force) column.
 void one_coordinate_potential(const Joint& joint, const JointModel& m, const JointKinematics& jk,
                               const JointCoords& coords, double& e);
+// The power of a one-coordinate joint's motor and damper, (motor - damping rate) rate, or of a
+// prescribed one's drive, torque (force) theta'(t) (joints/revolute.cpp; a `power`).
+double one_coordinate_power(const Joint& joint, const JointModel& m, const JointKinematics& jk,
+                            double torque, double t);
 void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
                            const Joint& joint, const JointModel& m, const JointKinematics& jk,
                            const JointCoords& coords, double torque, double t);

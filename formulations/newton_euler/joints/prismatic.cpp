@@ -100,7 +100,7 @@ void track(const Joint& J, const JointModel& m, double t, const JointKinematics&
 // applies it at the child's joint point and the reaction on the parent at the same point.
 bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
           double t, Vector3d& T_P, Vector3d& F_P) {
-  const double F = -J.stiffness * (coords(0) - J.neutral_angle) - J.damping * jk.rate +
+  const double F = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
                    (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
   if (F == 0) return false;
   T_P.setZero();
@@ -156,6 +156,7 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 const JointUnit kPrismaticJoint{"prismatic", model,         validate,      relative,  point_rows,
                                 rotation_rows, track,       load,          pack,      accelerations,
-                                one_coordinate_potential, output, violation};
+                                one_coordinate_potential, output, violation,
+                                one_coordinate_power};
 
 }  // namespace crossdyn::newton_euler

@@ -80,7 +80,7 @@ void track(const Joint& J, const JointModel& m, double t, const JointKinematics&
 // Spring, damper and motor about the axis (core/system.hpp), on the child-side frame, in P.
 bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
           double t, Vector3d& T_P, Vector3d& /*F_P*/) {
-  const double tau = -J.stiffness * (coords(0) - J.neutral_angle) - J.damping * jk.rate +
+  const double tau = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
                      (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
   if (tau == 0) return false;
   T_P = tau * m.a_P;  // in F
@@ -146,8 +146,24 @@ void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWri
   }
 }
 
+// Power (docs/conventions.md "Power and external moment"): the load tau = -k (angle - neutral) -
+// c rate + motor about the axis does the work tau rate (its torque T on the child-side frame and
+// -T on the parent-side one: T . (w_G - w_F) = tau a . w_FG_F = tau rate); the spring's part is
+// -dV/dt, in E, so P keeps (motor - c rate) rate with the scene's c. A prescribed joint's drive
+// (row 5's multiplier, the torque about the axis) works at the prescribed rate theta'(t): the
+// other rows' multipliers do no work on a state that satisfies the velocity constraints
+// (lambda^T J nu = lambda_5 rate; Haug 1989, Sec. 6.3). Prismatic likewise, with a force along the
+// axis at the child's joint point and the reaction at the same point: F . (relative velocity of
+// the point) = F s'.
+double one_coordinate_power(const Joint& J, const JointModel& m, const JointKinematics& jk,
+                            double torque, double t) {
+  if (m.prescribed) return torque * J.prescribed->velocity(t);
+  const double motor = J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0);
+  return (motor - J.damping * jk.rate) * jk.rate;
+}
+
 const JointUnit kRevoluteJoint{"revolute", model,     validate,      relative,  nullptr,
                                rotation_rows, track,  load,          pack,      accelerations,
-                               one_coordinate_potential, output, violation};
+                               one_coordinate_potential, output, violation, one_coordinate_power};
 
 }  // namespace crossdyn::newton_euler

@@ -18,7 +18,7 @@ void model(const Joint& /*joint*/, JointModel& m) { m.rows = 3; }
 // Spring, damper and motor in G (core/system.hpp), on the child-side frame, in P.
 bool load(const Joint& J, const JointModel& m, const JointKinematics& jk,
           const JointCoords& /*coords*/, double t, Vector3d& T_P, Vector3d& /*F_P*/) {
-  Vector3d tau_G = -J.damping * jk.w_FG_G;
+  Vector3d tau_G = -m.damping * jk.w_FG_G;
   if (J.stiffness != 0) tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
   if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
   const Vector3d T_C = m.C.modes > 0 ? Vector3d(jk.G.E * tau_G) : tau_G;
@@ -53,10 +53,20 @@ void output(RowWriter& out, int j, const Joint& /*J*/, const JointModel& /*m*/,
   out.spherical(j, jk.w_FG_G);
 }
 
+// Power of the motor and damper (the scene's values): the torque tau_G on the child-side frame G
+// and its reaction on F work at w_FG_G (= the output w_PC_C): (motor - damping w_PC_C) . w_PC_C;
+// the spring's part is -dV/dt (in E).
+double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk, double /*torque*/,
+             double t) {
+  Vector3d tau_G = -J.damping * jk.w_FG_G;
+  if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
+  return tau_G.dot(jk.w_FG_G);
+}
+
 }  // namespace
 
 const JointUnit kSphericalJoint{"spherical", model,   nullptr,       nullptr,   nullptr,
                                 nullptr,     nullptr, load,          pack,      accelerations,
-                                potential,   output,  nullptr};
+                                potential,   output,  nullptr,       power};
 
 }  // namespace crossdyn::newton_euler

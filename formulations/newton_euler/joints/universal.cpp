@@ -102,9 +102,9 @@ void track(const Joint& /*J*/, const JointModel& /*m*/, double /*t*/, const Join
 bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
           double t, Vector3d& T_P, Vector3d& /*F_P*/) {
   const Vector2d motor = J.motor_universal.empty() ? Vector2d::Zero() : J.motor_universal.value(t);
-  const double tau1 = -J.stiffness * (coords(0) - J.neutral_angle) - J.damping * jk.rate + motor(0);
+  const double tau1 = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate + motor(0);
   const double tau2 =
-      -J.stiffness2 * (coords(1) - J.neutral_angle2) - J.damping2 * jk.rate2 + motor(1);
+      -J.stiffness2 * (coords(1) - J.neutral_angle2) - m.damping2 * jk.rate2 + motor(1);
   if (tau1 == 0 && tau2 == 0) return false;
   Vector3d e1, e2;
   dual(m.a_P, jk.R_FG * m.a2_C, e1, e2);
@@ -154,10 +154,19 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
   angvel_violation = std::max(angvel_violation, std::abs(n.dot(jk.w_FG_F)) / n.norm());
 }
 
+// Power of the motors and dampers (the scene's values): T . w_FG_F = tau_1 a1' + tau_2 a2' (the
+// dual basis, header), of which the springs' parts are -dV/dt (in E): sum_k (motor_k - damping_k
+// rate_k) rate_k.
+double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk, double /*torque*/,
+             double t) {
+  const Vector2d motor = J.motor_universal.empty() ? Vector2d::Zero() : J.motor_universal.value(t);
+  return (motor(0) - J.damping * jk.rate) * jk.rate + (motor(1) - J.damping2 * jk.rate2) * jk.rate2;
+}
+
 }  // namespace
 
 const JointUnit kUniversalJoint{"universal", model,         validate,      relative,  nullptr,
                                 rotation_rows, track,       load,          pack,      accelerations,
-                                potential,   output,        violation};
+                                potential,   output,        violation,     power};
 
 }  // namespace crossdyn::newton_euler

@@ -1,0 +1,111 @@
+// The Lagrange engine's joint loads, power and external moment for the output row (issue 26;
+// README.md, "Joint loads, power and external moment"). Not part of rhs(): output_row() calls
+// these after evaluate() (the accelerations pi'' at the row's state) and after the double pose and
+// twist passes into w.k0 (angular_momentum_full).
+//
+// Lagrange's equations in the minimal coordinates q* carry no constraint forces, so the loads are
+// computed from the momentum principles of each joint's child subtree (Greenwood, "Advanced
+// Dynamics", 2003, Ch. 1, systems of particles, Eqs. (1.103)-(1.110): Newton's law m_i a_i = F_i +
+// internal forces summed over the particles, the internal forces cancelling in equal, opposite and
+// collinear pairs, for the force and for the moment about a point; Meirovitch, "Methods of
+// Analytical Dynamics", 1970, Ch. 1, the momentum principles of a system of particles). The only
+// loads from outside a joint's child subtree are the joint's (from the parent) and the external
+// body torques (scenes carry no external forces), so
+//
+//   F_N   = sum_{b in subtree} dP_b/dt
+//   M_J_N = sum_{b in subtree} [ (p_Bo - r_J) x dP_b/dt + dK_b ] - sum_{b in subtree} T_b
+//
+// with P_b the body's linear momentum and dK_b = sum_i (r_i - p_Bo) x m_i a_i + d/dt(R_NB J_i w)
+// its moment of the mass-acceleration about its origin Bo.
+#include <Eigen/Core>
+#include <cstddef>
+
+#include "formulations/lagrange/autodiff.hpp"
+#include "formulations/lagrange/flex_body.hpp"
+#include "formulations/lagrange/kinematics.hpp"
+#include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/passes.hpp"
+#include "formulations/lagrange/workspace.hpp"
+
+namespace crossdyn::lagrange {
+
+void joint_loads(const Model& m, Workspace& w, double t) {
+  const Kin<double>& k = w.k0;
+  const double* u = w.u.data();
+  const double* ud = w.udot.data();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    // The body twist's rate in body components: xi = Xi(q*) pi' => xi' = Xi pi'' + (dXi/dt) pi'
+    // (as accelerations(), outputs.cpp).
+    const Eigen::Matrix<double, 6, 1> xid = w.Xi[b] * w.udot + w.Xi_dot[b] * w.u;
+    const Eigen::Vector3d& w_B = k.w_NB_B[b];
+    const Eigen::Vector3d& v_B = k.v_NBo_B[b];
+    const Eigen::Vector3d wd_B = xid.head<3>(), vd_B = xid.tail<3>();
+    const Eigen::Matrix3d& R_NB = k.R_NB[b];
+    // Body momenta in body components: h_v (linear) and h_w (angular, about Bo), and their
+    // component rates h_v', h_w'.
+    Eigen::Vector3d hw, hv, hwd, hvd;
+    if (B.flex < 0) {
+      // Rigid: h_v = m v_NBo_B, h_w = I w_NB_B about the CM Bo.
+      hv = B.mass * v_B;
+      hw = B.I_BBo_B * w_B;
+      hvd = B.mass * vd_B;
+      hwd = B.I_BBo_B * wd_B;
+    } else {
+      // Flexible: h = M_B(eta) xi (flex_body.hpp, Meirovitch 1991 J. Guidance 14(5)), so
+      // h' = (dM_B/dt) xi + M_B xi': the Dual<1> inertia of the mass pass (w.k1.fi, along q*')
+      // on the twist with its rate gives (dM_B/dt) xi + M_B (w', v', 0); M_B (0, 0, eta'') adds
+      // the modal accelerations.
+      const FlexInvariants& f = m.flex[static_cast<std::size_t>(B.flex)];
+      flex_momentum(f, w.fi0[b], w_B, v_B, u + B.e0, hw, hv, static_cast<double*>(nullptr));
+      Vec3<Dual<1>> wt, vt, hw1, hv1;
+      for (int a = 0; a < 3; ++a) {
+        wt(a) = Dual<1>(w_B(a));
+        wt(a).d[0] = wd_B(a);
+        vt(a) = Dual<1>(v_B(a));
+        vt(a).d[0] = vd_B(a);
+      }
+      flex_momentum(f, w.k1.fi[b], wt, vt, u + B.e0, hw1, hv1, static_cast<Dual<1>*>(nullptr));
+      const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+      Eigen::Vector3d hwe, hve;
+      flex_momentum(f, w.fi0[b], zero, zero, ud + B.e0, hwe, hve, static_cast<double*>(nullptr));
+      for (int a = 0; a < 3; ++a) {
+        hwd(a) = hw1(a).d[0] + hwe(a);
+        hvd(a) = hv1(a).d[0] + hve(a);
+      }
+    }
+    // N components: d/dt (R_NB h) = R_NB (h' + w x h) (Kane & Levinson 1985, Sec. 2.3,
+    // differentiation in two reference frames).
+    w.dP_N[b] = R_NB * (hvd + w_B.cross(hv));
+    // sum_i (r_i - p_Bo) x m_i a_i + spin rates = d/dt h_Bo + v_Bo x P (the moment of the
+    // mass-accelerations about the moving point Bo; Greenwood 2003, Ch. 1, Eqs. (1.103)-(1.110));
+    // for a rigid body P = m v_Bo and the second term is zero.
+    w.dK_N[b] = R_NB * (hwd + w_B.cross(hw));
+    if (B.flex >= 0) w.dK_N[b] += (R_NB * v_B).cross(R_NB * hv);
+    // External torque (system.hpp "Loads": body frame or N).
+    w.T_N[b].setZero();
+    if (!B.torque.empty()) {
+      const Eigen::Vector3d tau = B.torque.value(t);
+      w.T_N[b] = B.torque_frame == Body::Frame::Inertial ? tau : Eigen::Vector3d(R_NB * tau);
+    }
+  }
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    const auto c = static_cast<std::size_t>(J.child);
+    // The joint point J on the child: p_CoJ_C, or the child node's displaced point r_C (pose
+    // pass); a prismatic joint's point on the child, which slides on the parent (system.hpp).
+    const Eigen::Vector3d r_C = J.child_node >= 0 ? k.r_C[c] : J.p_CoJ_C;
+    const Eigen::Vector3d r_J = k.p_NoBo_N[c] + k.R_NB[c] * r_C;
+    Eigen::Vector3d F = Eigen::Vector3d::Zero(), M = Eigen::Vector3d::Zero();
+    for (int jj : J.subtree) {
+      const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(jj)].child);
+      F += w.dP_N[b];
+      M += (k.p_NoBo_N[b] - r_J).cross(w.dP_N[b]) + w.dK_N[b] - w.T_N[b];
+    }
+    w.F_N[j] = F;
+    w.M_J_N[j] = M;
+    w.r_J_N[j] = r_J;
+  }
+}
+
+}  // namespace crossdyn::lagrange
