@@ -580,9 +580,34 @@ def chart_drift(scene, runs, out_dir, sid):
                   "equations of motion shows as that engine's balance growing.")
 
 
+def _quat_rotate_inverse(q, v):
+    """R(q)^T v for a unit quaternion q = (w, x, y, z), scalar first."""
+    w, x, y, z = q
+    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return R.T @ np.asarray(v, dtype=float)
+
+
+def _applied_torque(joint, run, t):
+    """A revolute joint's own torque about its axis from the scene: -k (angle - neutral) - c rate +
+    motor(t) (docs/conventions.md "Loads"); a prescribed one's: its .torque column."""
+    name = joint["name"]
+    if run.has(name + ".torque"):
+        return run.col(name + ".torque")
+    angle, rate = run.col(name + ".angle"), run.col(name + ".rate")
+    tau = (-joint.get("stiffness_N_m_rad", 0.0) * (angle - joint.get("neutral_angle_rad", 0.0))
+           - joint.get("damping_N_m_s_rad", 0.0) * rate)
+    motor = np.zeros_like(t)
+    for step in joint.get("motor_N_m", []):
+        motor = np.where(t >= step["from_t"], step["value"], motor)
+    return tau + motor
+
+
 def chart_loads(scene, runs, out_dir, sid):
-    """One panel per joint (at most 8, the most loaded first): the magnitude of the force and of the
-    moment about the joint point that the parent exerts on the child, every engine overlaid."""
+    """One row per joint (at most 8, the most loaded first): the magnitude of the force and of the
+    moment about the joint point that the parent exerts on the child, every engine overlaid; for a
+    revolute joint also the moment about its axis beside the joint's own torque from the scene."""
     engines = [r for r in runs if r.info.get("engine") != "analytic"]
     joints = []
     for r in engines[:1]:
@@ -591,6 +616,7 @@ def chart_loads(scene, runs, out_dir, sid):
                 joints.append(c[:-3])
     if not joints or not engines:
         return None
+    scene_joints = {j["name"]: j for j in scene.get("system", {}).get("joints", [])}
 
     def magnitude(r, j, q):
         return np.sqrt(sum(r.col("%s.%s%s" % (j, q, a)) ** 2 for a in "xyz"))
@@ -600,7 +626,10 @@ def chart_loads(scene, runs, out_dir, sid):
         return float(np.max(magnitude(r, j, "M"))) + float(np.max(magnitude(r, j, "F")))
     shown = sorted(joints, key=peak, reverse=True)[:8]
     shown.sort(key=joints.index)
-    fig, axes = plt.subplots(len(shown), 2, figsize=(10, 1.9 * len(shown) + 1.2), sharex=True, squeeze=False)
+    axial = {j for j in shown if scene_joints.get(j, {}).get("type") == "revolute" and "axis" in scene_joints[j]}
+    ncols = 3 if axial else 2
+    fig, axes = plt.subplots(len(shown), ncols, figsize=(5 * ncols, 1.9 * len(shown) + 1.2), sharex=True,
+                             squeeze=False)
     for row, j in zip(axes, shown):
         for ax, q, unit in ((row[0], "F", "N"), (row[1], "M", "N m")):
             for r in engines:
@@ -610,9 +639,35 @@ def chart_loads(scene, runs, out_dir, sid):
             ax.set_title("%s: %s" % (j, "force on the child" if q == "F" else "moment about the joint point"),
                          fontsize="small")
             ax.grid(True, alpha=0.3)
+        if ncols == 3:
+            ax = row[2]
+            if j not in axial:
+                ax.set_visible(False)
+                continue
+            J = scene_joints[j]
+            # The axis in the child frame: the joint's rotation leaves it fixed, so it is the offset's
+            # R_PJ0^T axis_P (a child attached at a flexible node turns it further by the node's slope).
+            a_C = _quat_rotate_inverse(J.get("orientation_offset_q", [1, 0, 0, 0]), J["axis"])
+            for r in engines:
+                if all(r.has("%s.M%s" % (j, c)) for c in "xyz"):
+                    M = np.stack([r.col("%s.M%s" % (j, c)) for c in "xyz"], axis=1)
+                    ax.plot(r.t, M @ a_C, label=r.label, **r.style)
+            if all(engines[0].has(j + c) for c in (".angle", ".rate")):
+                ax.plot(engines[0].t, _applied_torque(J, engines[0], engines[0].t), color="black",
+                        linestyle=(0, (1, 3)), linewidth=2.2, alpha=0.6, label="joint torque (scene)")
+            ax.set_ylabel("M . axis (N m)")
+            ax.set_title("%s: moment about its axis, and its own torque" % j, fontsize="small")
+            ax.grid(True, alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel("time t (s)")
-    outside_legend(fig, axes[0][1], title="engine")
+    handles, labels = [], []
+    for ax in axes.flat:
+        if ax.get_visible():
+            for h, l in zip(*ax.get_legend_handles_labels()):
+                if l not in labels:
+                    handles.append(h)
+                    labels.append(l)
+    outside_legend(fig, handles=handles, labels=labels, title="engine (and scene)")
     more = "" if len(shown) == len(joints) else " (the %d most loaded of %d joints)" % (len(shown), len(joints))
     fig.suptitle("Joint loads from every engine%s\nthe parent on the child, through the joint" % more)
     name = finish(fig, "%s-loads.png" % sid, out_dir)
@@ -620,9 +675,12 @@ def chart_loads(scene, runs, out_dir, sid):
                   "constraint multipliers, kane and lagrange from their own accelerations): the "
                   "force F and the moment M about the joint point that the parent exerts on the "
                   "child (constraint reaction plus the joint's spring, damper, motor or drive; "
-                  "components in the child's frame in the CSV columns <joint>.Fx ... .Mz). "
-                  "Overlaid lines that coincide are the three engines agreeing; the harness "
-                  "compares every component (group 'load').")
+                  "components in the child's frame in the CSV columns <joint>.Fx ... .Mz). For a "
+                  "revolute joint the third panel is M along the joint's axis beside the torque "
+                  "the scene gives the joint (spring, damper and motor from the first run's angle "
+                  "and rate; a prescribed joint's drive torque): they must coincide, since the "
+                  "constraint carries no moment about the free axis. Overlaid lines that coincide "
+                  "are the engines agreeing; the harness compares every component (group 'load').")
 
 
 def chart_converge(scene, out_dir, sid):
