@@ -479,3 +479,22 @@ TEST_CASE("compare: every check's group is a column of verify's table (group_ord
                         "E.drift", "E.balance"})
     CHECK(seen.count(g) == 1);
 }
+
+// Loads follow the accelerations: a stiff mode amplifies an integration error in them. When they
+// alone fail, compare says how to tell integration from physics.
+TEST_CASE("compare: joint loads that fail while the motions agree get a note on how to tell integration from physics") {
+  System s = two_body_system();
+  auto off = [](const std::string& c, std::size_t r) { return baseline(c, r) + (c == "hinge.Mx" && r == 2 ? 1.0 : 0.0); };
+  const SceneComparison c = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, off))});
+  CHECK_FALSE(c.passed());
+  CHECK(find_checks(c, "hinge.Mx")[0].status == CheckStatus::Fail);
+  const auto noted = [](const SceneComparison& x) {
+    return std::any_of(x.notes.begin(), x.notes.end(),
+                       [](const std::string& n) { return n.rfind("joint loads differ while the motions agree", 0) == 0; });
+  };
+  CHECK(noted(c));
+  // A motion that fails too: no such note (the loads are not the first thing wrong).
+  auto both = [&off](const std::string& col, std::size_t r) { return off(col, r) + (col == "hinge.rate" && r == 2 ? 1.0 : 0.0); };
+  const SceneComparison d = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, both))});
+  CHECK_FALSE(noted(d));
+}
