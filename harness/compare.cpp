@@ -526,6 +526,19 @@ Check drift_check(const std::string& x, const EngineRun& R, const Lookup& look,
   return c;
 }
 
+// The columns of E or H in one engine's run that its balance and rate checks read: the quantity
+// (E; H as the vector Hx Hy Hz), the rate the engine reports for it (P; M as Mx My Mz) and, in
+// compare's runs, its derivative along the motion (core/integrate.hpp, rate_column_names(): dE_dt,
+// then dHx_dt dHy_dt dHz_dt).
+struct BalancedColumns {
+  std::vector<std::string> x, rate, derivative;
+};
+BalancedColumns balanced_columns(const std::string& x) {
+  const auto& d = rate_column_names();
+  if (x == "E") return {{"E"}, {"P"}, {d[0]}};
+  return {{"Hx", "Hy", "Hz"}, {"Mx", "My", "Mz"}, {d[1], d[2], d[3]}};
+}
+
 // Balance of H or E of one engine that does not conserve it (issue 26): X(t) - X(0) against the
 // integral of its rate from the engine's own loads (E: P; H: the external moment M), |X(t) - X(0) -
 // W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + the quadrature's estimate.
@@ -543,10 +556,9 @@ Check balance_check(const std::string& x, const EngineRun& R, const Lookup& look
     return c;
   }
   const bool energy = x == "E";
-  const std::vector<std::string> xs = energy ? std::vector<std::string>{"E"}
-                                             : std::vector<std::string>{"Hx", "Hy", "Hz"};
-  const std::vector<std::string> rates = energy ? std::vector<std::string>{"P"}
-                                                : std::vector<std::string>{"Mx", "My", "Mz"};
+  const BalancedColumns names = balanced_columns(x);
+  const std::vector<std::string>& xs = names.x;
+  const std::vector<std::string>& rates = names.rate;
   std::vector<int> ca, cb;
   for (std::size_t i = 0; i < xs.size(); ++i) {
     ca.push_back(column_index(R.result, xs[i]));
@@ -580,10 +592,9 @@ Check balance_check(const std::string& x, const EngineRun& R, const Lookup& look
 std::optional<Check> rate_check(const std::string& x, const EngineRun& R, const Lookup& look,
                                 std::optional<Accumulator>& acc) {
   const bool energy = x == "E";
-  const std::vector<std::string> d = energy ? std::vector<std::string>{"dE_dt"}
-                                            : std::vector<std::string>{"dHx_dt", "dHy_dt", "dHz_dt"};
-  const std::vector<std::string> r = energy ? std::vector<std::string>{"P"}
-                                            : std::vector<std::string>{"Mx", "My", "Mz"};
+  const BalancedColumns names = balanced_columns(x);
+  const std::vector<std::string>& d = names.derivative;
+  const std::vector<std::string>& r = names.rate;
   std::vector<int> ca, cb, cs;
   for (std::size_t i = 0; i < d.size(); ++i) {
     ca.push_back(column_index(R.result, d[i]));

@@ -30,7 +30,7 @@
 //   balance: max_t |X(t) - X(0) - W(t)| <= atol + rtol * max(max_t |X|, integral of |rate|) + Q,
 //            Q the estimated error of W's quadrature on the output times (compare.cpp)
 //   rate:   max_t |dX/dt - rate| <= atol + rtol * max_t max(|rate|, |dX/dt|) + D, D the largest
-//            estimated error of the difference (kRateColumns' .err columns)
+//            estimated error of the difference (the .err columns of rate_column_names())
 // where b is the pair's reference: the earlier of the two in the run order (analytic first, then
 // the engines in the order asked for). For attitude the scale max|b| is 1 (a unit quaternion), so
 // atol + rtol is a bound on the angle in rad. "normalised error" = error / bound; <= 1 passes.
