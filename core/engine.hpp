@@ -83,6 +83,11 @@ struct EngineOptions {
   // damper (P = -c rate^2, -eta'^T D eta'). A damper whose load is wrong in the equations of
   // motion then fails the energy balance E(t) - E(0) = integral of P. 1 in every real run.
   double test_damper_scale = 1.0;
+  // Test-only hook (issue 27): +1, or -1 to flip the sign of the gyroscopic term w x (I w) of
+  // every rigid body's (and a flexible body's rigid-inertia) moment equation in an engine that
+  // implements it (kane), so that `crossdyn linearize` can be shown to catch a wrong gyroscopic
+  // sign at a steady spin. 1 in every real run.
+  double test_gyroscopic_sign = 1.0;
 };
 
 class Engine {

@@ -181,7 +181,8 @@ int crossdyn_main(int argc, char** argv) {
         {"run", add_run_command},   {"compare", add_compare_command}, {"verify", add_verify_command},
         {"merge", add_merge_command},
         {"list", add_list_command}, {"draw", add_draw_command},       {"converge", add_converge_command},
-        {"study", add_study_command}, {"stability", add_stability_command}};
+        {"study", add_study_command}, {"stability", add_stability_command},
+        {"linearize", add_linearize_command}};
     const Command* named = nullptr;
     for (const Command& c : kCommands)
       if (argc > 1 && std::string_view(argv[1]) == c.name) named = &c;

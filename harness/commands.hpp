@@ -38,5 +38,6 @@ void add_list_command(CLI::App& app, int& exit_code);     // harness/list_comman
 void add_converge_command(CLI::App& app, int& exit_code); // harness/converge_command.cpp
 void add_study_command(CLI::App& app, int& exit_code);    // harness/study_command.cpp
 void add_stability_command(CLI::App& app, int& exit_code); // harness/stability_command.cpp
+void add_linearize_command(CLI::App& app, int& exit_code); // harness/linearize_command.cpp
 
 }  // namespace crossdyn

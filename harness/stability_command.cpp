@@ -70,29 +70,6 @@ void write_stability_outputs(const harness::StabilityMap& map, StabilityOutputs&
   commit_together({out.csv ? &*out.csv : nullptr}, {out.report.get()});
 }
 
-// "1,10,100" or "1..1e4" (one per decade); negative and zero values allowed in lists (a rate).
-std::vector<double> parse_parameter_values(const std::string& text) {
-  if (text.find("..") != std::string::npos) return harness::parse_values(text, "--values", true);
-  std::vector<double> out;
-  std::stringstream in(text);
-  std::string item;
-  while (std::getline(in, item, ',')) {
-    char* end = nullptr;  // strtod: 1e-320 is a number, refused by apply_knob's bounds
-    const double v = std::strtod(item.c_str(), &end);
-    if (end == item.c_str() || end != item.c_str() + item.size() || std::isspace(static_cast<unsigned char>(item[0])))
-      throw InputError("--values: '" + item + "' is not a number (give a list 1,10,100 or a range 1..1e4)");
-    if (!std::isfinite(v))
-      throw InputError("--values: '" + item + "' is not a finite number");
-    out.push_back(v);
-  }
-  if (out.empty() || out.size() > 40) throw InputError("--values: give 1 to 40 values");
-  for (std::size_t i = 0; i < out.size(); ++i)  // 10,1e1: one value twice (as for every list)
-    for (std::size_t j = 0; j < i; ++j)
-      if (out[i] == out[j])
-        throw InputError("--values: the value " + harness::shortest_text(out[i]) + " is listed twice in '" + text + "'");
-  return out;
-}
-
 int stability(const StabilityCliOptions& o) {
   harness::StabilityOptions options;
   options.engine_specs = harness::parse_engine_variants(o.engines, "--engines");
@@ -162,7 +139,7 @@ int stability(const StabilityCliOptions& o) {
     throw InputError("--vary: give the scene parameter to sweep (this scene offers: " + list + ")");
   }
   const harness::Knob knob = harness::parse_knob(system, o.vary);
-  const std::vector<double> values = parse_parameter_values(o.values);
+  const std::vector<double> values = harness::parse_parameter_values(o.values);
   for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first
 
   StabilityOutputs stability_outputs;
@@ -318,5 +295,32 @@ void add_stability_command(CLI::App& app, int& exit_code) {
                   "SHA-256, this slice's columns)");
   sub->callback([o, &exit_code] { exit_code = stability(*o); });
 }
+
+namespace harness {
+
+// "1,10,100" or "1..1e4" (one per decade); negative and zero values allowed in lists (a rate).
+std::vector<double> parse_parameter_values(const std::string& text) {
+  if (text.find("..") != std::string::npos) return harness::parse_values(text, "--values", true);
+  std::vector<double> out;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    char* end = nullptr;  // strtod: 1e-320 is a number, refused by apply_knob's bounds
+    const double v = std::strtod(item.c_str(), &end);
+    if (end == item.c_str() || end != item.c_str() + item.size() || std::isspace(static_cast<unsigned char>(item[0])))
+      throw InputError("--values: '" + item + "' is not a number (give a list 1,10,100 or a range 1..1e4)");
+    if (!std::isfinite(v))
+      throw InputError("--values: '" + item + "' is not a finite number");
+    out.push_back(v);
+  }
+  if (out.empty() || out.size() > 40) throw InputError("--values: give 1 to 40 values");
+  for (std::size_t i = 0; i < out.size(); ++i)  // 10,1e1: one value twice (as for every list)
+    for (std::size_t j = 0; j < i; ++j)
+      if (out[i] == out[j])
+        throw InputError("--values: the value " + harness::shortest_text(out[i]) + " is listed twice in '" + text + "'");
+  return out;
+}
+
+}  // namespace harness
 
 }  // namespace crossdyn

@@ -280,6 +280,9 @@ struct KaneModel {
   OutputLayout layout_;  // pinned columns, then kane's extras from extra0_ on
   int extra0_ = 0;       // first extra column
   KaneSolver solver_ = KaneSolver::Composite;
+  // EngineOptions::test_gyroscopic_sign (a test double, issue 27): multiplies every w x (I w)
+  // term (rigid_fast_path.cpp, subtree_sums.cpp); 1 in every real run (an exact product).
+  double gyro_sign_ = 1.0;
   int max_speed_depth_ = 0;
   std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).

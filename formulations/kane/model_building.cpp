@@ -45,6 +45,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     throw InputError("engine option test_inertia_scale must be positive and finite");
   if (!(options.test_damper_scale >= 0) || !std::isfinite(options.test_damper_scale))
     throw InputError("engine option test_damper_scale must be finite and not negative");
+  if (options.test_gyroscopic_sign != 1.0 && options.test_gyroscopic_sign != -1.0)
+    throw InputError("engine option test_gyroscopic_sign must be 1 or -1");
+  gyro_sign_ = options.test_gyroscopic_sign;
 
   // Flexible bodies: validated, modal integrals built once.
   std::vector<int> flex_of_body(nb, -1);

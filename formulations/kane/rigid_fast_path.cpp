@@ -202,7 +202,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
         Iw = n.I_BBo_B.diagonal().cwiseProduct(w_B);
       else
         Iw.noalias() = n.I_BBo_B * w_B;
-      f_w = -w_B.cross(Iw);
+      f_w = -gyro_sign_ * w_B.cross(Iw);
     }
     if (!start && n.body_torque) {
       const Body& body = system_.bodies[static_cast<std::size_t>(n.body)];
@@ -219,7 +219,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
         rotate_inertia(w.I_BBo_N, R, n.I_BBo_B, n.inertia == Node::Inertia::Diagonal);
       Vector3d T_B = Vector3d::Zero();
       if (n.inertia != Node::Inertia::Isotropic)
-        T_B.noalias() -= w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+        T_B.noalias() -= gyro_sign_ * w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
       if (n.body_torque) add_body_torque(n, w, t, T_B);
       Matrix3d JR;
       JR.noalias() = w.I_BBo_N * R;

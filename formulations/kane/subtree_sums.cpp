@@ -48,7 +48,7 @@ void KaneEngine::subtree_pass(double t, bool full) {
         R_B.setZero();
         T_B = Vector3d::Zero();  // -I alpha_t - w x I w with alpha_t = 0
         if (n.inertia != Node::Inertia::Isotropic)
-          T_B.noalias() -= w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+          T_B.noalias() -= gyro_sign_ * w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
       }
       if (n.body_torque) add_body_torque(n, w, t, T_B);
       put(start, w.F_sub_N, R_B);
@@ -71,7 +71,7 @@ void KaneEngine::subtree_pass(double t, bool full) {
               2.0 * wN.cross(fw.cdot_N));
       const Vector3d w_B = w.R_NB.transpose() * wN;
       const Vector3d cor_B = w_B * fw.L_B.trace() - fw.L_B.transpose() * w_B;
-      T_B = -c.cross(a_t) - w.I_BBo_N * alpha_t - wN.cross(w.I_BBo_N * wN) -
+      T_B = -c.cross(a_t) - w.I_BBo_N * alpha_t - gyro_sign_ * wN.cross(w.I_BBo_N * wN) -
             2.0 * (w.R_NB * cor_B);
       if (flex_[static_cast<std::size_t>(n.flex)].stiff) {  // -sum m_i R b_i, its moment
         R_B -= fw.bsum_N;
@@ -109,7 +109,7 @@ void KaneEngine::subtree_pass(double t, bool full) {
 Vector3d KaneEngine::rigid_residual_torque(const Node& n, const NodeWork& w,
                                            const Vector3d& alpha) const {
   if (n.inertia == Node::Inertia::Isotropic) return -(n.I_BBo_B(0, 0) * alpha);
-  return -(w.I_BBo_N * alpha) - w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
+  return -(w.I_BBo_N * alpha) - gyro_sign_ * w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
 }
 
 // The body's external torque at t (Eq. (35): it works through W_r), added to T_B in N components.

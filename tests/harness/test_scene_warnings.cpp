@@ -202,6 +202,7 @@ TEST_CASE("scene warnings: every committed scene's warnings are known (hub_two_p
       // Both hinges turn about the hub's +x: a positive angle lifts panel1 (+y side) and lowers
       // panel2 (-y side); the scene's initial angles (+5 deg, -3 deg) are written for that.
       {"hub_two_panels", {"mirror-axes"}},
+      {"hub_two_panels_spin", {"mirror-axes"}},
       // The paper's Example 2: both payloads hinge about the beam's +y and take the same motor
       // torque, so they swing the same way, not as mirror images.
       {"pointing_flex", {"mirror-axes"}}};

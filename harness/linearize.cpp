@@ -1,0 +1,1163 @@
+// Linear models of every engine about one operating point (harness/linearize.hpp; issue 27).
+#include "harness/linearize.hpp"
+
+#include "core/errors.hpp"
+#include "core/output.hpp"
+#include "core/rotation.hpp"
+#include "harness/engines.hpp"
+#include "harness/scene_geometry.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/LU>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <set>
+#include <sstream>
+
+namespace crossdyn::harness {
+
+namespace {
+
+using Eigen::MatrixXd;
+using Eigen::Vector3d;
+using Eigen::VectorXd;
+using cd = std::complex<double>;
+
+std::string num(double v, int digits = 6) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+std::string num(cd v, int digits = 10) {
+  if (v.imag() == 0) return num(v.real(), digits);
+  return num(v.real(), digits) + (v.imag() < 0 ? " - " : " + ") + num(std::abs(v.imag()), digits) + "i";
+}
+
+// ------------------------------------------------------------------------------------------------
+// The reduced coordinates.
+
+struct Coordinate {
+  enum class Kind { BaseW, Angle, Angle2, Phi, Eta, Rate, Rate2, W, EtaRate };
+  Kind kind;
+  int index = 0;      // joint (Angle .. W) or body (Eta, EtaRate)
+  int component = 0;  // x/y/z, or mode
+  std::string name;
+  std::string mode_name;  // the configuration it belongs to (a mode's coordinate name)
+};
+
+class ReducedMap {
+ public:
+  ReducedMap(const System& s, const TreeState& op) : system_(s), op_(op) {
+    const std::vector<Joint>& J = s.joints;
+    // Configuration coordinates.
+    for (std::size_t j = 0; j < J.size(); ++j) {
+      const Joint& joint = J[j];
+      const int ji = static_cast<int>(j);
+      if (joint.prescribed) continue;
+      switch (joint.type) {
+        case JointType::Revolute:
+          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle", joint.name + ".angle");
+          break;
+        case JointType::Prismatic:
+          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".position", joint.name + ".position");
+          break;
+        case JointType::Universal:
+          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle1", joint.name + ".angle1");
+          add(Coordinate::Kind::Angle2, ji, 0, joint.name + ".angle2", joint.name + ".angle2");
+          break;
+        case JointType::Spherical:
+          for (int c = 0; c < 3; ++c)
+            add(Coordinate::Kind::Phi, ji, c, joint.name + ".phi" + "xyz"[c], joint.name + ".phi");
+          break;
+        case JointType::Free:
+        case JointType::Fixed: break;
+      }
+    }
+    for (std::size_t b = 0; b < s.bodies.size(); ++b)
+      if (s.bodies[b].flex)
+        for (int k = 0; k < s.bodies[b].flex->modes(); ++k) {
+          const std::string n = s.bodies[b].name + "." + s.bodies[b].flex->mode_names[static_cast<std::size_t>(k)];
+          add(Coordinate::Kind::Eta, static_cast<int>(b), k, n, n);
+        }
+    configuration_ = static_cast<int>(coords_.size());
+    // Velocity coordinates.
+    if (s.base_is_free()) {
+      const std::string base = s.bodies[static_cast<std::size_t>(s.base_body())].name;
+      for (int c = 0; c < 3; ++c)
+        add(Coordinate::Kind::BaseW, 0, c, base + ".w" + "xyz"[c], base + ".w");
+    }
+    for (std::size_t j = 0; j < J.size(); ++j) {
+      const Joint& joint = J[j];
+      const int ji = static_cast<int>(j);
+      if (joint.prescribed) continue;
+      switch (joint.type) {
+        case JointType::Revolute:
+          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate", joint.name + ".angle");
+          break;
+        case JointType::Prismatic:
+          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate", joint.name + ".position");
+          break;
+        case JointType::Universal:
+          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate1", joint.name + ".angle1");
+          add(Coordinate::Kind::Rate2, ji, 0, joint.name + ".rate2", joint.name + ".angle2");
+          break;
+        case JointType::Spherical:
+          for (int c = 0; c < 3; ++c)
+            add(Coordinate::Kind::W, ji, c, joint.name + ".w" + "xyz"[c], joint.name + ".phi");
+          break;
+        case JointType::Free:
+        case JointType::Fixed: break;
+      }
+    }
+    for (std::size_t b = 0; b < s.bodies.size(); ++b)
+      if (s.bodies[b].flex)
+        for (int k = 0; k < s.bodies[b].flex->modes(); ++k) {
+          const std::string n = s.bodies[b].name + "." + s.bodies[b].flex->mode_names[static_cast<std::size_t>(k)];
+          add(Coordinate::Kind::EtaRate, static_cast<int>(b), k, n + "_rate", n);
+        }
+  }
+
+  int size() const { return static_cast<int>(coords_.size()); }
+  int configuration_size() const { return configuration_; }
+  const Coordinate& coordinate(int i) const { return coords_[static_cast<std::size_t>(i)]; }
+  std::vector<std::string> names() const {
+    std::vector<std::string> n;
+    for (const Coordinate& c : coords_) n.push_back(c.name);
+    return n;
+  }
+
+  // The operating point's z (its spherical phi are zero by definition).
+  VectorXd z0() const {
+    VectorXd z(size());
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      switch (c.kind) {
+        case Coordinate::Kind::BaseW: z(i) = op_.w_NB_B(c.component); break;
+        case Coordinate::Kind::Angle: z(i) = op_.joints[j].angle; break;
+        case Coordinate::Kind::Angle2: z(i) = op_.joints[j].angle2; break;
+        case Coordinate::Kind::Phi: z(i) = 0; break;
+        case Coordinate::Kind::Eta: z(i) = op_.eta[j](c.component); break;
+        case Coordinate::Kind::Rate: z(i) = op_.joints[j].rate; break;
+        case Coordinate::Kind::Rate2: z(i) = op_.joints[j].rate2; break;
+        case Coordinate::Kind::W: z(i) = op_.joints[j].w_PC_C(c.component); break;
+        case Coordinate::Kind::EtaRate: z(i) = op_.eta_rate[j](c.component); break;
+      }
+    }
+    return z;
+  }
+
+  TreeState state(const VectorXd& z) const {
+    TreeState s = op_;
+    std::vector<Vector3d> phi(system_.joints.size(), Vector3d::Zero());
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      switch (c.kind) {
+        case Coordinate::Kind::BaseW: s.w_NB_B(c.component) = z(i); break;
+        case Coordinate::Kind::Angle: s.joints[j].angle = z(i); break;
+        case Coordinate::Kind::Angle2: s.joints[j].angle2 = z(i); break;
+        case Coordinate::Kind::Phi: phi[j](c.component) = z(i); break;
+        case Coordinate::Kind::Eta: s.eta[j](c.component) = z(i); break;
+        case Coordinate::Kind::Rate: s.joints[j].rate = z(i); break;
+        case Coordinate::Kind::Rate2: s.joints[j].rate2 = z(i); break;
+        case Coordinate::Kind::W: s.joints[j].w_PC_C(c.component) = z(i); break;
+        case Coordinate::Kind::EtaRate: s.eta_rate[j](c.component) = z(i); break;
+      }
+    }
+    for (std::size_t j = 0; j < phi.size(); ++j)
+      if (system_.joints[j].type == JointType::Spherical && !system_.joints[j].prescribed)
+        s.joints[j].q_J = (op_.joints[j].q_J * exp_rotation(phi[j])).normalized();
+    return s;
+  }
+
+  // dz/dt from the engine-neutral accelerations at z.
+  VectorXd rate(const VectorXd& z, const TreeAccel& a) const {
+    VectorXd zd(size());
+    std::vector<Vector3d> phi(system_.joints.size(), Vector3d::Zero()), w(system_.joints.size(), Vector3d::Zero());
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      if (c.kind == Coordinate::Kind::Phi) phi[static_cast<std::size_t>(c.index)](c.component) = z(i);
+      if (c.kind == Coordinate::Kind::W) w[static_cast<std::size_t>(c.index)](c.component) = z(i);
+    }
+    const int base = system_.base_body();
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      switch (c.kind) {
+        case Coordinate::Kind::BaseW: zd(i) = a.wdot_NB_B[static_cast<std::size_t>(base)](c.component); break;
+        case Coordinate::Kind::Angle: zd(i) = z(index_of(Coordinate::Kind::Rate, c.index, 0)); break;
+        case Coordinate::Kind::Angle2: zd(i) = z(index_of(Coordinate::Kind::Rate2, c.index, 0)); break;
+        case Coordinate::Kind::Phi: zd(i) = (right_jacobian_inverse(phi[j]) * w[j])(c.component); break;
+        case Coordinate::Kind::Eta: zd(i) = z(index_of(Coordinate::Kind::EtaRate, c.index, c.component)); break;
+        case Coordinate::Kind::Rate: zd(i) = a.angle_ddot[j]; break;
+        case Coordinate::Kind::Rate2: zd(i) = a.angle2_ddot[j]; break;
+        case Coordinate::Kind::W: zd(i) = a.wdot_PC_C[j](c.component); break;
+        case Coordinate::Kind::EtaRate: zd(i) = a.eta_ddot[j](c.component); break;
+      }
+    }
+    return zd;
+  }
+
+ private:
+  void add(Coordinate::Kind k, int index, int component, std::string name, std::string mode) {
+    coords_.push_back({k, index, component, std::move(name), std::move(mode)});
+  }
+  int index_of(Coordinate::Kind k, int index, int component) const {
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      if (c.kind == k && c.index == index && c.component == component) return i;
+    }
+    throw std::logic_error("linearize: a coordinate's rate is missing");
+  }
+  // exp([phi x]) as a quaternion.
+  static Eigen::Quaterniond exp_rotation(const Vector3d& phi) {
+    const double a = phi.norm();
+    if (a == 0) return Eigen::Quaterniond::Identity();
+    return Eigen::Quaterniond(Eigen::AngleAxisd(a, phi / a));
+  }
+  // J_r(phi)^-1 = 1 + [phi x]/2 + (1/a^2 - (1 + cos a) / (2 a sin a)) [phi x]^2, a = |phi|
+  // (Sola, Deray and Atchuthan 2018, Eq. (144)); w = J_r(phi) phi' for R = R* exp([phi x]) and
+  // R' = R [w x].
+  static Eigen::Matrix3d right_jacobian_inverse(const Vector3d& phi) {
+    Eigen::Matrix3d P;
+    P << 0, -phi.z(), phi.y(), phi.z(), 0, -phi.x(), -phi.y(), phi.x(), 0;
+    const double a = phi.norm();
+    // Series below 1e-4 rad: 1/12 + a^2/720 + ...
+    const double c = a < 1e-4 ? 1.0 / 12.0 + a * a / 720.0
+                              : 1.0 / (a * a) - (1.0 + std::cos(a)) / (2.0 * a * std::sin(a));
+    return Eigen::Matrix3d::Identity() + 0.5 * P + c * P * P;
+  }
+
+  const System& system_;
+  TreeState op_;
+  std::vector<Coordinate> coords_;
+  int configuration_ = 0;
+};
+
+// ------------------------------------------------------------------------------------------------
+// The operating point.
+
+TreeState operating_state(const System& s, double t, OperatingPoint point, std::string& how) {
+  TreeState st = TreeState::initial(s);
+  bool moved = false;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const Joint& J = s.joints[j];
+    TreeState::JointState& js = st.joints[j];
+    if (J.prescribed) {
+      js.angle = J.angle0 + J.prescribed->angle(t);
+      js.rate = J.prescribed->velocity(t);
+      if (j == 0) st.place_prescribed_base(J, js.angle, js.rate);
+      moved = moved || t != 0;
+      continue;
+    }
+    if (point != OperatingPoint::Neutral) continue;
+    switch (J.type) {
+      case JointType::Revolute:
+      case JointType::Prismatic:
+        js.angle = J.stiffness != 0 ? J.neutral_angle : J.angle0;
+        js.rate = 0;
+        break;
+      case JointType::Universal:
+        js.angle = J.stiffness != 0 ? J.neutral_angle : J.angle0;
+        js.angle2 = J.stiffness2 != 0 ? J.neutral_angle2 : J.angle2_0;
+        js.rate = js.rate2 = 0;
+        break;
+      case JointType::Spherical:
+        if (J.stiffness != 0) js.q_J = Eigen::Quaterniond::Identity();
+        js.w_PC_C.setZero();
+        break;
+      case JointType::Free:
+      case JointType::Fixed: break;
+    }
+  }
+  if (point == OperatingPoint::Neutral)
+    for (std::size_t b = 0; b < s.bodies.size(); ++b)
+      if (s.bodies[b].flex) {
+        st.eta[b].setZero();
+        st.eta_rate[b].setZero();
+      }
+  std::ostringstream o;
+  o << (point == OperatingPoint::Neutral
+            ? "the scene's initial state with every joint at its spring's neutral angle (its initial "
+              "angle where it has no spring), every joint rate, modal coordinate and modal rate zero"
+            : "the scene's initial state");
+  if (s.base_is_free()) {
+    const Vector3d& w = st.w_NB_B;
+    o << "; the base turns at w_NB_B = (" << num(w.x()) << ", " << num(w.y()) << ", " << num(w.z())
+      << ") rad/s" << (w.norm() == 0 ? " (at rest)" : "");
+  }
+  if (moved) o << "; prescribed joints at their profiles' t = " << num(t) << " s";
+  how = o.str();
+  return st;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Finite differences with two Richardson extrapolations.
+
+// f(z) => (value, derivative estimate along e_j). `eval` writes f at a point; returns false when
+// the engine failed there.
+struct Derivative {
+  VectorXd d, error;
+};
+
+template <class F>
+Derivative richardson(const F& eval, const VectorXd& z, int j, double h0, int m) {
+  auto central = [&](double h) {
+    VectorXd zp = z, zm = z, fp(m), fm(m);
+    zp(j) += h;
+    zm(j) -= h;
+    eval(zp, fp);
+    eval(zm, fm);
+    return VectorXd((fp - fm) / (2 * h));
+  };
+  const VectorXd D1 = central(h0), D2 = central(h0 / 2), D4 = central(h0 / 4);
+  const VectorXd R1a = (4 * D2 - D1) / 3, R1b = (4 * D4 - D2) / 3;
+  const VectorXd R2 = (16 * R1b - R1a) / 15;
+  Derivative out{R2, (R2 - R1b).cwiseAbs()};
+  return out;
+}
+
+// The step chosen per column as in Ridders' method (Numerical Recipes, 3rd ed., Sec. 5.7): of the
+// first steps h0 = c max(|z_j|, 1), c in {1e-1, 3e-2, 1e-2, 3e-3, 1e-3} (or the one given), the
+// one whose estimated error is smallest. Large steps suit an engine whose accelerations carry
+// the rounding of a constrained solve (newton-euler's KKT system: at 1e-3 its difference noise
+// moved a spinning beam's eigenvalue by 3e-9 relative), small ones a strongly curved function.
+template <class F>
+Derivative best_derivative(const F& eval, const VectorXd& z, int j, double fixed_step, int m) {
+  static constexpr double kSteps[] = {1e-1, 3e-2, 1e-2, 3e-3, 1e-3};
+  const double scale = std::max(std::abs(z(j)), 1.0);
+  Derivative best;
+  double best_error = std::numeric_limits<double>::infinity();
+  for (double c : kSteps) {
+    const double h0 = (fixed_step > 0 ? fixed_step : c) * scale;
+    Derivative d = richardson(eval, z, j, h0, m);
+    const double e = m ? d.error.maxCoeff() : 0.0;
+    if (e < best_error || best.d.size() == 0) {
+      best_error = e;
+      best = std::move(d);
+    }
+    if (fixed_step > 0) break;
+  }
+  return best;
+}
+
+
+struct Probe {
+  Engine* engine = nullptr;
+  const ReducedMap* map = nullptr;
+  double t = 0;
+  std::vector<int> output_columns;
+  std::vector<double> x, row;
+  TreeAccel accel;
+
+  void eval(const VectorXd& z, VectorXd& zdot, VectorXd* y) {
+    engine->pack(map->state(z), x.data());
+    engine->accelerations(t, x.data(), accel);
+    zdot = map->rate(z, accel);
+    if (y) {
+      engine->output_row(t, x.data(), row.data());
+      y->resize(static_cast<Eigen::Index>(output_columns.size()));
+      for (std::size_t k = 0; k < output_columns.size(); ++k)
+        (*y)(static_cast<Eigen::Index>(k)) = row[static_cast<std::size_t>(output_columns[k])];
+    }
+  }
+};
+
+// A copy of the scene with input k's load at the operating time set to its value + delta.
+struct InputRef {
+  std::string name;
+  enum class Kind { Revolute, Universal, Spherical, Body } kind;
+  int index = 0, component = 0;
+};
+
+std::vector<InputRef> all_inputs(const System& s) {
+  std::vector<InputRef> in;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const Joint& J = s.joints[j];
+    const int ji = static_cast<int>(j);
+    if (J.prescribed) continue;
+    switch (J.type) {
+      case JointType::Revolute:
+      case JointType::Prismatic: in.push_back({J.name + ".motor", InputRef::Kind::Revolute, ji, 0}); break;
+      case JointType::Universal:
+        in.push_back({J.name + ".motor1", InputRef::Kind::Universal, ji, 0});
+        in.push_back({J.name + ".motor2", InputRef::Kind::Universal, ji, 1});
+        break;
+      case JointType::Spherical:
+        for (int c = 0; c < 3; ++c)
+          in.push_back({J.name + ".motor" + "xyz"[c], InputRef::Kind::Spherical, ji, c});
+        break;
+      case JointType::Free:
+      case JointType::Fixed: break;
+    }
+  }
+  for (std::size_t b = 0; b < s.bodies.size(); ++b)
+    for (int c = 0; c < 3; ++c)
+      in.push_back({s.bodies[b].name + ".T" + "xyz"[c], InputRef::Kind::Body, static_cast<int>(b), c});
+  return in;
+}
+
+bool input_named_by_scene(const System& s, const InputRef& u) {
+  if (u.kind == InputRef::Kind::Body) return !s.bodies[static_cast<std::size_t>(u.index)].torque.empty();
+  return s.joints[static_cast<std::size_t>(u.index)].has_motor();
+}
+
+double input_value(const System& s, const InputRef& u, double t) {
+  const auto i = static_cast<std::size_t>(u.index);
+  switch (u.kind) {
+    case InputRef::Kind::Revolute: return s.joints[i].motor_revolute.value(t)(0);
+    case InputRef::Kind::Universal: return s.joints[i].motor_universal.value(t)(u.component);
+    case InputRef::Kind::Spherical: return s.joints[i].motor_spherical.value(t)(u.component);
+    case InputRef::Kind::Body: return s.bodies[i].torque.value(t)(u.component);
+  }
+  return 0;
+}
+
+// The scene with every load of the input's kind frozen at its value at t, input u's at value + delta.
+System with_input(const System& s, const InputRef& u, double t, double delta) {
+  System c = s;
+  const auto i = static_cast<std::size_t>(u.index);
+  auto freeze = [t](auto& f, int component, double add) {
+    auto v = f.value(t);
+    v(component) += add;
+    f.times = {0.0};
+    f.values = {v};
+  };
+  switch (u.kind) {
+    case InputRef::Kind::Revolute: freeze(c.joints[i].motor_revolute, 0, delta); break;
+    case InputRef::Kind::Universal: freeze(c.joints[i].motor_universal, u.component, delta); break;
+    case InputRef::Kind::Spherical: freeze(c.joints[i].motor_spherical, u.component, delta); break;
+    case InputRef::Kind::Body: freeze(c.bodies[i].torque, u.component, delta); break;
+  }
+  return c;
+}
+
+// Eigenvalues grouped: zeros, then the modes (Im >= 0) by frequency.
+void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol) {
+  const int n = static_cast<int>(m.A.rows());
+  m.eigenvalues.clear();
+  m.modes.clear();
+  m.zeros = 0;
+  if (n == 0) return;
+  Eigen::EigenSolver<MatrixXd> es(m.A, true);
+  if (es.info() != Eigen::Success) throw RunFailure(m.label, 0, "eigenvalues", "the eigenvalue solver did not converge");
+  double rho = 0;
+  for (int i = 0; i < n; ++i) rho = std::max(rho, std::abs(es.eigenvalues()(i)));
+  m.zero_bound = zero_tol * rho;
+  // The finite differences' error carried to each eigenvalue: |d lambda| <= kappa |E|2 with
+  // kappa = |x| |y| / |y^H x| (y the left eigenvector, a row of V^-1; Golub and Van Loan,
+  // Matrix Computations, 4th ed., Sec. 7.2.2) and |E|2 <= n max|E_ij| <= n a_error.
+  const Eigen::MatrixXcd V = es.eigenvectors();
+  const Eigen::FullPivLU<Eigen::MatrixXcd> vlu(V);
+  const Eigen::MatrixXcd W = vlu.isInvertible() ? Eigen::MatrixXcd(vlu.inverse()) : Eigen::MatrixXcd();
+  for (int i = 0; i < n; ++i) {
+    const cd l = es.eigenvalues()(i);
+    m.eigenvalues.push_back(l);
+    // A defective eigenvalue (a Jordan block, V singular): no first-order bound; its zeros are
+    // grouped, not compared.
+    const double kappa = W.size() ? V.col(i).norm() * W.row(i).norm() : std::numeric_limits<double>::infinity();
+    m.allowances.push_back(kappa * n * m.a_error);
+    if (std::abs(l) <= m.zero_bound || rho == 0) {
+      ++m.zeros;
+      continue;
+    }
+    if (l.imag() < 0) continue;
+    LinearMode mode;
+    mode.lambda = l;
+    mode.frequency = std::abs(l);
+    mode.damping_ratio = -l.real() / std::abs(l);
+    mode.allowance = m.allowances.back();
+    // The coordinate it moves most: velocity components divided by |lambda| (a rate's amplitude
+    // is |lambda| times its coordinate's), so configurations and velocities weigh alike.
+    // Named by every coordinate within half of the largest (a symmetric pair: "a + b").
+    const Eigen::VectorXcd v = es.eigenvectors().col(i);
+    std::vector<std::pair<double, std::string>> weight;  // by coordinate, largest first
+    for (int k = 0; k < n; ++k) {
+      const double w = std::abs(v(k)) / (k < map.configuration_size() ? 1.0 : std::abs(l));
+      const std::string& name = map.coordinate(k).mode_name;
+      auto it = std::find_if(weight.begin(), weight.end(), [&](const auto& p) { return p.second == name; });
+      if (it == weight.end())
+        weight.emplace_back(w, name);
+      else
+        it->first = std::max(it->first, w);
+    }
+    std::stable_sort(weight.begin(), weight.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    for (const auto& [w, name] : weight)
+      if (w >= 0.5 * weight.front().first && weight.front().first > 0)
+        mode.coordinate += (mode.coordinate.empty() ? "" : " + ") + name;
+    m.modes.push_back(mode);
+  }
+  std::sort(m.modes.begin(), m.modes.end(), [](const LinearMode& a, const LinearMode& b) {
+    return a.frequency != b.frequency ? a.frequency < b.frequency : a.lambda.real() < b.lambda.real();
+  });
+}
+
+// Transfer matrix C (i w - A)^-1 B + D.
+Eigen::MatrixXcd transfer(const EngineLinearModel& m, double w) {
+  const auto n = m.A.rows();
+  Eigen::MatrixXcd Z = -m.A.cast<cd>();
+  Z.diagonal().array() += cd(0, w);
+  const Eigen::MatrixXcd X = Z.partialPivLu().solve(m.B.cast<cd>());
+  (void)n;
+  return m.C.cast<cd>() * X + m.D.cast<cd>();
+}
+
+// A lone free rigid body without loads: the analytic eigenvalues of Euler's equations about a
+// steady spin w = Omega e_k along principal axis k (i, j the others): lambda^2 =
+// Omega^2 (I_j - I_k)(I_k - I_i) / (I_i I_j) (Hughes, Spacecraft Attitude Dynamics, 1986, Sec. 4.4,
+// Eq. (19)): +-i Omega sqrt((I_k - I_i)(I_k - I_j) / (I_i I_j)) about the major and minor axes
+// (the nutation frequency seen in the body), +-Omega sqrt(...) real about the intermediate one.
+void analytic_checks(const System& s, const TreeState& op, LinearizeResult& r, double rtol) {
+  if (s.bodies.size() != 1 || !s.base_is_free() || s.bodies[0].flex || !s.bodies[0].torque.empty()) return;
+  const Eigen::Matrix3d I = s.bodies[0].I_BBo_B;
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I);
+  const Vector3d w = op.w_NB_B;
+  if (w.norm() == 0) return;
+  int k = -1;
+  for (int c = 0; c < 3; ++c)
+    if (std::abs(std::abs(es.eigenvectors().col(c).dot(w)) - w.norm()) <= 1e-12 * w.norm()) k = c;
+  if (k < 0) {
+    r.findings.push_back("the lone body's spin is not along a principal axis: no analytic eigenvalues "
+                         "(the operating point is then not a steady spin)");
+    return;
+  }
+  const int i = (k + 1) % 3, j = (k + 2) % 3;
+  const Vector3d Ip = es.eigenvalues();
+  const double Om = w.norm();
+  const double l2 = Om * Om * (Ip(j) - Ip(k)) * (Ip(k) - Ip(i)) / (Ip(i) * Ip(j));
+  const cd expected = l2 < 0 ? cd(0, std::sqrt(-l2)) : cd(std::sqrt(l2), 0);
+  const std::string axis = (Ip(k) >= Ip.maxCoeff()) ? "major" : (Ip(k) <= Ip.minCoeff()) ? "minor" : "intermediate";
+  for (const EngineLinearModel& m : r.engines) {
+    if (!m.failure.empty()) continue;
+    LinearCheck c;
+    c.kind = "analytic";
+    c.what = std::string(l2 < 0 ? "nutation frequency" : "growth rate") + " of a spin about the " + axis +
+             " axis (Euler's equations)";
+    c.engine_a = m.label;
+    c.engine_b = "analytic";
+    c.b = expected;
+    double best = std::numeric_limits<double>::infinity(), allowance = 0;
+    for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
+      if (std::abs(m.eigenvalues[q] - expected) < best) {
+        best = std::abs(m.eigenvalues[q] - expected);
+        c.a = m.eigenvalues[q];
+        allowance = m.allowances[q];
+      }
+    c.error = best;
+    c.bound = rtol * std::abs(expected) + allowance;
+    c.passed = c.error <= c.bound;
+    r.checks.push_back(c);
+  }
+}
+
+// One flexible body rigidly carried by a prescribed base turning at a constant rate Omega about
+// its fixed axis a (every other joint fixed or prescribed at rest: the modal coordinates are the
+// only degrees of freedom): its modal equations in the turning frame, derived here from the
+// Lagrangian L = 1/2 sum_i m_i |rho_i' + w x rho_i|^2 - 1/2 eta^T K eta with w = Omega a and
+// rho_i = r_i + Phi_i eta + e_i (1/2 eta^T G_i eta) (system.hpp's node model; r_i from a point of
+// the axis), independently of every engine (Meirovitch, "Methods of Analytical Dynamics", 1970,
+// Sec. 4.9, a Lagrangian in a rotating frame; Kane, Ryan and Banerjee 1987 for the
+// foreshortening):
+//   M eta'' + (D + Gy) eta' + (K - Omega^2 S - Omega^2 C) eta = 0,
+//   M = sum m_i Phi_i^T Phi_i,   Gy = 2 Omega sum m_i Phi_i^T [a x] Phi_i,
+//   S = sum m_i Phi_i^T (1 - a a^T) Phi_i           (centrifugal softening),
+//   C = sum m_i (r_i . e_i - (r_i . a)(e_i . a)) G_i (geometric stiffening: G_i <= 0 stiffens).
+// Its eigenvalues are the spinning beam's rotating-frame ones, with or without stiffening; at
+// Omega = 0 a cantilever's (a clamped beam on a base at rest).
+void spinning_flexible_checks(const System& s, double t, LinearizeResult& r, double rtol) {
+  if (s.base_is_free() || s.joints.empty() || !s.joints[0].prescribed) return;
+  int flex = -1;
+  for (std::size_t b = 0; b < s.bodies.size(); ++b)
+    if (s.bodies[b].flex) {
+      if (flex >= 0) return;
+      flex = static_cast<int>(b);
+    }
+  if (flex < 0) return;
+  for (std::size_t j = 1; j < s.joints.size(); ++j)
+    if (s.joints[j].type != JointType::Fixed && !s.joints[j].prescribed) return;
+  for (std::size_t j = 1; j < s.joints.size(); ++j)
+    if (s.joints[j].prescribed && (s.joints[j].prescribed->velocity(t) != 0 || s.joints[j].prescribed->accel(t) != 0)) return;
+  const Joint& base = s.joints[0];
+  if (base.prescribed->accel(t) != 0) return;
+  const double Om = base.prescribed->velocity(t);
+  const FlexBody& F = *s.bodies[static_cast<std::size_t>(flex)].flex;
+  const geometry::Configuration c = geometry::initial_configuration(s);
+  const Eigen::Matrix3d R = c.bodies[static_cast<std::size_t>(flex)].R_NB;
+  const Vector3d a = base.axis_P.normalized(), o = base.p_PoJ_P;
+  Eigen::Matrix3d ax;
+  ax << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  const int n = F.modes();
+  MatrixXd M = MatrixXd::Zero(n, n), Gy = MatrixXd::Zero(n, n), S = MatrixXd::Zero(n, n), C = MatrixXd::Zero(n, n);
+  for (std::size_t i = 0; i < F.nodes.size(); ++i) {
+    const FlexNode& node = F.nodes[i];
+    const Eigen::Matrix3Xd Phi = R * node.Phi_B;
+    const Vector3d ri = c.nodes_N[static_cast<std::size_t>(flex)][i] - o;
+    M += node.mass * Phi.transpose() * Phi;
+    Gy += 2 * Om * node.mass * Phi.transpose() * ax * Phi;
+    S += node.mass * Phi.transpose() * (Eigen::Matrix3d::Identity() - a * a.transpose()) * Phi;
+    if (F.geometric_stiffening && node.G.size() > 0) {
+      const Vector3d e = R * node.e_B;
+      C += node.mass * (ri.dot(e) - ri.dot(a) * e.dot(a)) * node.G;
+    }
+  }
+  const MatrixXd Keff = F.K - Om * Om * S - Om * Om * C;
+  MatrixXd Z = MatrixXd::Zero(2 * n, 2 * n);
+  const Eigen::PartialPivLU<MatrixXd> lu(M);
+  Z.topRightCorner(n, n).setIdentity();
+  Z.bottomLeftCorner(n, n) = -lu.solve(Keff);
+  Z.bottomRightCorner(n, n) = -lu.solve(F.D + Gy);
+  Eigen::EigenSolver<MatrixXd> es(Z, false);
+  for (int k = 0; k < 2 * n; ++k) {
+    const cd expected = es.eigenvalues()(k);
+    if (expected.imag() < 0) continue;
+    for (const EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      LinearCheck ch;
+      ch.kind = "analytic";
+      ch.what = "rotating-frame eigenvalue of the flexible body spinning at " + num(Om) + " rad/s (" +
+                (F.geometric_stiffening ? "with" : "without") + " geometric stiffening; modal Lagrangian)";
+      ch.engine_a = m.label;
+      ch.engine_b = "analytic";
+      ch.b = expected;
+      double best = std::numeric_limits<double>::infinity(), allowance = 0;
+      for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
+        if (std::abs(m.eigenvalues[q] - expected) < best) {
+          best = std::abs(m.eigenvalues[q] - expected);
+          ch.a = m.eigenvalues[q];
+          allowance = m.allowances[q];
+        }
+      ch.error = best;
+      ch.bound = rtol * std::abs(expected) + 1e-14 + allowance;
+      ch.passed = ch.error <= ch.bound;
+      r.checks.push_back(ch);
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> linear_input_names(const System& system, bool named_only) {
+  std::vector<std::string> names;
+  for (const InputRef& u : all_inputs(system))
+    if (!named_only || input_named_by_scene(system, u)) names.push_back(u.name);
+  return names;
+}
+
+bool LinearizeResult::passed() const {
+  for (const LinearCheck& c : checks)
+    if (!c.passed) return false;
+  for (const EngineLinearModel& m : engines)
+    if (!m.failure.empty()) return false;
+  return true;
+}
+
+LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
+  LinearizeResult r;
+  r.scene = system.name;
+  r.time = o.time;
+  const TreeState op = operating_state(system, o.time, o.point, r.how);
+  const ReducedMap map(system, op);
+  r.states = map.names();
+  r.z0 = map.z0();
+  const int n = map.size();
+
+  // Inputs and outputs, checked before any engine runs.
+  const std::vector<InputRef> known_inputs = all_inputs(system);
+  std::vector<InputRef> inputs;
+  if (!o.inputs_given) {
+    for (const InputRef& u : known_inputs)
+      if (input_named_by_scene(system, u)) inputs.push_back(u);
+  } else {
+    for (const std::string& name : o.inputs) {
+      auto it = std::find_if(known_inputs.begin(), known_inputs.end(), [&](const InputRef& u) { return u.name == name; });
+      if (it == known_inputs.end()) {
+        std::string list;
+        for (const InputRef& u : known_inputs) list += (list.empty() ? "" : ", ") + u.name;
+        throw InputError("--inputs: '" + name + "' is not an input of this scene (its inputs: " +
+                         (list.empty() ? std::string("none") : list) + ")");
+      }
+      inputs.push_back(*it);
+    }
+  }
+  for (const InputRef& u : inputs) r.inputs.push_back(u.name);
+  const int m_in = static_cast<int>(inputs.size());
+  r.outputs = o.outputs;
+
+  for (const LinearEngineChoice& choice : o.engines) {
+    EngineLinearModel m;
+    m.label = choice.label;
+    const std::unique_ptr<Engine> engine = make_engine(choice.engine, system, choice.options);
+    Probe probe;
+    probe.engine = engine.get();
+    probe.map = &map;
+    probe.t = o.time;
+    probe.x.resize(static_cast<std::size_t>(engine->state_size()));
+    probe.row.resize(engine->columns().size());
+    for (const std::string& y : o.outputs) {
+      const std::vector<std::string>& cols = engine->columns();
+      auto it = std::find(cols.begin(), cols.end(), y);
+      if (it == cols.end() || y == "t")
+        throw InputError("--outputs: '" + y + "' is not an output column of this scene (see `crossdyn run " +
+                         system.name + "`'s header; the pinned columns of docs/conventions.md)");
+      probe.output_columns.push_back(static_cast<int>(it - cols.begin()));
+    }
+    const int p = static_cast<int>(o.outputs.size());
+    try {
+      VectorXd zd0, y0;
+      probe.eval(r.z0, zd0, &y0);
+      m.residual = zd0;
+      m.A.resize(n, n);
+      m.C.resize(p, n);
+      MatrixXd Aerr(n, n), Cerr(p, n);
+      for (int j = 0; j < n; ++j) {
+        const Derivative dA = best_derivative(
+            [&](const VectorXd& z, VectorXd& f) {
+              VectorXd y;
+              probe.eval(z, f, p > 0 ? &y : nullptr);
+              if (p > 0) {
+                f.conservativeResize(n + p);
+                f.tail(p) = y;
+              }
+            },
+            r.z0, j, o.fd_step, n + p);
+        m.A.col(j) = dA.d.head(n);
+        Aerr.col(j) = dA.error.head(n);
+        if (p > 0) {
+          m.C.col(j) = dA.d.tail(p);
+          Cerr.col(j) = dA.error.tail(p);
+        }
+      }
+      // Rounding: each difference carries ~ eps |f| / h, amplified ~ 3 by the extrapolations.
+      const double eps = std::numeric_limits<double>::epsilon();
+      const double fscale = std::max(zd0.lpNorm<Eigen::Infinity>(), m.A.lpNorm<Eigen::Infinity>() * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0));
+      m.a_error = (n ? Aerr.maxCoeff() : 0.0) + 8 * eps * fscale;
+      m.c_error = p && n ? Cerr.maxCoeff() + 8 * eps * std::max(y0.lpNorm<Eigen::Infinity>(), 1.0) : 0.0;
+      const double denom = (n ? m.A.lpNorm<Eigen::Infinity>() : 0.0) * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0);
+      const double res = n ? zd0.lpNorm<Eigen::Infinity>() : 0.0;
+      m.relative_residual = denom > 0 ? res / denom : (res > 0 ? std::numeric_limits<double>::infinity() : 0.0);
+
+      // B and D: the equations are linear in the loads, so one central difference is exact to
+      // rounding (delta = max(1, |u|) in the load's unit).
+      m.B.resize(n, m_in);
+      m.D.resize(p, m_in);
+      for (int k = 0; k < m_in; ++k) {
+        const InputRef& u = inputs[static_cast<std::size_t>(k)];
+        const double delta = std::max(1.0, std::abs(input_value(system, u, o.time)));
+        VectorXd f[2], y[2];
+        for (int side = 0; side < 2; ++side) {
+          const System s = with_input(system, u, o.time, side == 0 ? delta : -delta);
+          const std::unique_ptr<Engine> e = make_engine(choice.engine, s, choice.options);
+          Probe q = probe;
+          q.engine = e.get();
+          q.eval(r.z0, f[side], p > 0 ? &y[side] : nullptr);
+        }
+        m.B.col(k) = (f[0] - f[1]) / (2 * delta);
+        if (p > 0) m.D.col(k) = (y[0] - y[1]) / (2 * delta);
+      }
+
+      // The engine's own coordinates: d(rhs)/dx at the packed operating point.
+      const int nx = engine->state_size();
+      std::vector<double> x0(static_cast<std::size_t>(nx));
+      engine->pack(op, x0.data());
+      const VectorXd X0 = Eigen::Map<const VectorXd>(x0.data(), nx);
+      m.own_A.resize(nx, nx);
+      double own_err = 0;
+      for (int i = 0; i < nx; ++i) m.own_states.push_back(engine->state_label(i));
+      for (int j = 0; j < nx; ++j) {
+        const Derivative d = best_derivative(
+            [&](const VectorXd& x, VectorXd& f) {
+              f.resize(nx);
+              engine->rhs(o.time, x.data(), f.data());
+            },
+            X0, j, o.fd_step, nx);
+        m.own_A.col(j) = d.d;
+        own_err = std::max(own_err, nx ? d.error.maxCoeff() : 0.0);
+      }
+      m.own_error = own_err;
+      eigen_analysis(m, map, o.zero_tol);
+    } catch (const RunFailure& f) {
+      m.failure = f.what();
+    }
+    r.engines.push_back(std::move(m));
+  }
+
+  // An equilibrium (of the reduced equations) in every engine, or refused.
+  r.equilibrium = true;
+  for (const EngineLinearModel& m : r.engines)
+    if (m.failure.empty() && !(m.relative_residual <= o.residual_tol)) r.equilibrium = false;
+  if (!r.equilibrium && !o.jacobian_only) {
+    std::ostringstream msg;
+    msg << system.file << ": the operating point (" << r.how << ", t = " << num(o.time)
+        << " s) is not an equilibrium or a steady spin: ";
+    bool first = true;
+    for (const EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      Eigen::Index k = 0;
+      m.residual.cwiseAbs().maxCoeff(&k);
+      msg << (first ? "" : "; ") << m.label << " d/dt " << r.states[static_cast<std::size_t>(k)] << " = "
+          << num(m.residual(k)) << " (|dz/dt| " << num(m.relative_residual, 3) << " of |A| max(|z|, 1), allowed "
+          << num(o.residual_tol, 3) << ")";
+      first = false;
+    }
+    std::string loads;
+    for (const InputRef& u : known_inputs)
+      if (const double v = input_value(system, u, o.time); v != 0) loads += (loads.empty() ? "" : ", ") + u.name + " = " + num(v);
+    if (!loads.empty()) msg << ". Loads at t = " << num(o.time) << " s: " << loads << " (a --time where they are off?)";
+    msg << ". Try " << (o.point == OperatingPoint::Neutral ? "" : "--operating-point neutral, ")
+        << "another --time, or --jacobian-only for each engine's Jacobian there (coordinate-dependent, "
+           "not compared)";
+    throw InputError(msg.str());
+  }
+  if (!r.equilibrium) return r;  // Jacobians only, nothing compared
+
+  // Eigenvalues: each engine against the first that ran.
+  const EngineLinearModel* ref = nullptr;
+  for (const EngineLinearModel& m : r.engines)
+    if (m.failure.empty()) {
+      ref = &m;
+      break;
+    }
+  if (!ref) return r;
+  double rho = 0;
+  for (const cd& l : ref->eigenvalues) rho = std::max(rho, std::abs(l));
+  for (const EngineLinearModel& m : r.engines) {
+    if (&m == ref || !m.failure.empty()) continue;
+    LinearCheck z;
+    z.kind = "zeros";
+    z.what = "rigid-body zero eigenvalues";
+    z.engine_a = ref->label;
+    z.engine_b = m.label;
+    z.a = ref->zeros;
+    z.b = m.zeros;
+    z.error = std::abs(ref->zeros - m.zeros);
+    z.bound = 0;
+    z.passed = ref->zeros == m.zeros;
+    r.checks.push_back(z);
+    // Match every non-zero eigenvalue (with its conjugate) to the nearest unmatched one.
+    std::vector<cd> other;
+    std::vector<double> other_allowance;
+    for (std::size_t k = 0; k < m.eigenvalues.size(); ++k)
+      if (!(std::abs(m.eigenvalues[k]) <= m.zero_bound)) {
+        other.push_back(m.eigenvalues[k]);
+        other_allowance.push_back(m.allowances[k]);
+      }
+    std::vector<bool> used(other.size(), false);
+    for (const LinearMode& mode : ref->modes) {
+      LinearCheck c;
+      c.kind = "eigenvalue";
+      c.what = mode.coordinate;
+      c.engine_a = ref->label;
+      c.engine_b = m.label;
+      c.a = mode.lambda;
+      // Plus both eigenvalues' allowances for the finite differences (eigen_analysis).
+      c.bound = o.rtol * std::abs(mode.lambda) + o.atol * rho;
+      double best = std::numeric_limits<double>::infinity();
+      std::size_t bi = other.size();
+      for (std::size_t k = 0; k < other.size(); ++k)
+        if (!used[k] && std::abs(other[k] - mode.lambda) < best) {
+          best = std::abs(other[k] - mode.lambda);
+          bi = k;
+        }
+      if (bi < other.size()) {
+        used[bi] = true;
+        c.b = other[bi];
+        c.bound += mode.allowance + other_allowance[bi];
+        // Its conjugate partner, too.
+        if (mode.lambda.imag() != 0) {
+          double bc = std::numeric_limits<double>::infinity();
+          std::size_t ci = other.size();
+          for (std::size_t k = 0; k < other.size(); ++k)
+            if (!used[k] && std::abs(other[k] - std::conj(mode.lambda)) < bc) {
+              bc = std::abs(other[k] - std::conj(mode.lambda));
+              ci = k;
+            }
+          if (ci < other.size()) used[ci] = true;
+        }
+        c.error = best;
+        c.passed = best <= c.bound;
+      } else {
+        c.note = "no eigenvalue left to match";
+        c.error = std::numeric_limits<double>::infinity();
+      }
+      r.checks.push_back(c);
+    }
+  }
+
+  // Transfer functions at a few frequencies between (and beyond) the modes.
+  if (!r.inputs.empty() && !r.outputs.empty()) {
+    std::vector<double> f;
+    for (const LinearMode& mode : ref->modes)
+      if (f.empty() || mode.frequency > f.back() * (1 + 1e-6)) f.push_back(mode.frequency);
+    if (f.empty()) {
+      r.frequencies = {1.0};
+    } else {
+      r.frequencies.push_back(0.5 * f.front());
+      const std::size_t gaps = f.size() - 1;
+      std::set<std::size_t> pick;
+      if (gaps > 0) {
+        pick.insert(0);
+        pick.insert(gaps / 2);
+        pick.insert(gaps - 1);
+      }
+      for (std::size_t k : pick) r.frequencies.push_back(std::sqrt(f[k] * f[k + 1]));
+      r.frequencies.push_back(2.0 * f.back());
+    }
+    std::vector<Eigen::MatrixXcd> Gref;
+    for (double w : r.frequencies) Gref.push_back(transfer(*ref, w));
+    const auto p = static_cast<Eigen::Index>(r.outputs.size()), q = static_cast<Eigen::Index>(r.inputs.size());
+    for (const EngineLinearModel& m : r.engines) {
+      if (&m == ref || !m.failure.empty()) continue;
+      for (Eigen::Index a = 0; a < p; ++a)
+        for (Eigen::Index b = 0; b < q; ++b) {
+          double scale = 0;
+          for (const Eigen::MatrixXcd& G : Gref) scale = std::max(scale, std::abs(G(a, b)));
+          LinearCheck c;
+          c.kind = "transfer";
+          c.engine_a = ref->label;
+          c.engine_b = m.label;
+          c.bound = o.tf_rtol * scale + 1e-300;
+          c.passed = true;
+          for (std::size_t k = 0; k < r.frequencies.size(); ++k) {
+            const cd gb = transfer(m, r.frequencies[k])(a, b);
+            const double e = std::abs(gb - Gref[k](a, b));
+            if (e >= c.error) {
+              c.error = e;
+              c.a = Gref[k](a, b);
+              c.b = gb;
+              c.what = r.outputs[static_cast<std::size_t>(a)] + " <- " + r.inputs[static_cast<std::size_t>(b)] +
+                       " at " + num(r.frequencies[k]) + " rad/s";
+            }
+          }
+          c.passed = c.error <= c.bound;
+          r.checks.push_back(c);
+        }
+    }
+  }
+
+  analytic_checks(system, op, r, 1e-10);
+  spinning_flexible_checks(system, o.time, r, 1e-10);
+
+  // Unstable modes are findings (each engine's own, so a disagreement shows).
+  for (const EngineLinearModel& m : r.engines) {
+    if (!m.failure.empty()) continue;
+    for (const LinearMode& mode : m.modes)
+      if (mode.lambda.real() > o.rtol * mode.frequency + o.atol * rho)
+        r.findings.push_back(m.label + ": unstable mode " + mode.coordinate + ", lambda = " + num(mode.lambda, 8) +
+                             " (grows by e in " + num(1.0 / mode.lambda.real(), 4) + " s)");
+  }
+  return r;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Outputs.
+
+std::string format_linearization(const LinearizeResult& r) {
+  std::ostringstream o;
+  o << "linearize " << r.scene << " at t = " << num(r.time) << " s\n";
+  o << "operating point: " << r.how << "\n";
+  o << "reduced state (" << r.states.size() << "):";
+  for (const std::string& s : r.states) o << ' ' << s;
+  o << "\ninputs (" << r.inputs.size() << "):";
+  for (const std::string& s : r.inputs) o << ' ' << s;
+  if (r.inputs.empty()) o << " none";
+  o << "\noutputs (" << r.outputs.size() << "):";
+  for (const std::string& s : r.outputs) o << ' ' << s;
+  if (r.outputs.empty()) o << " none (--outputs)";
+  o << "\n\n";
+  for (const EngineLinearModel& m : r.engines) {
+    if (!m.failure.empty()) {
+      o << m.label << ": FAILED: " << m.failure << "\n";
+      continue;
+    }
+    o << m.label << ": residual |dz/dt| " << num(m.residual.size() ? m.residual.lpNorm<Eigen::Infinity>() : 0.0, 3)
+      << " (" << num(m.relative_residual, 3) << " relative); A's error <= " << num(m.a_error, 2) << " (|A| "
+      << num(m.A.size() ? m.A.lpNorm<Eigen::Infinity>() : 0.0, 3) << "); " << m.zeros << " zero eigenvalue"
+      << (m.zeros == 1 ? "" : "s") << " (|lambda| <= " << num(m.zero_bound, 2) << "); own state " << m.own_states.size()
+      << "\n";
+  }
+  if (!r.equilibrium) {
+    o << "\nnot an equilibrium: each engine's Jacobian is in the outputs (coordinate-dependent), nothing compared\n";
+    return o.str();
+  }
+  // The modes table: one row per mode of the first engine.
+  const EngineLinearModel* ref = nullptr;
+  for (const EngineLinearModel& m : r.engines)
+    if (m.failure.empty()) {
+      ref = &m;
+      break;
+    }
+  if (ref) {
+    o << "\nmodes (w_n rad/s, zeta) ";
+    for (const EngineLinearModel& m : r.engines)
+      if (m.failure.empty()) o << " | " << m.label;
+    o << "\n";
+    int width = 10;
+    for (const LinearMode& md : ref->modes) width = std::max(width, static_cast<int>(md.coordinate.size()));
+    for (std::size_t k = 0; k < ref->modes.size(); ++k) {
+      const LinearMode& md = ref->modes[k];
+      char b[400];
+      std::snprintf(b, sizeof b, "  %2zu %-*.300s", k + 1, width, md.coordinate.c_str());
+      o << b;
+      for (const EngineLinearModel& m : r.engines) {
+        if (!m.failure.empty()) continue;
+        // The matching mode of m: nearest lambda.
+        const LinearMode* best = nullptr;
+        for (const LinearMode& x : m.modes)
+          if (!best || std::abs(x.lambda - md.lambda) < std::abs(best->lambda - md.lambda)) best = &x;
+        if (best) {
+          std::snprintf(b, sizeof b, " | %.12g %+.3g", best->frequency, best->damping_ratio);
+          o << b;
+        } else {
+          o << " | -";
+        }
+      }
+      o << "  lambda = " << num(md.lambda, 10) << "\n";
+    }
+  }
+  o << "\nchecks:\n";
+  int failed = 0;
+  for (const LinearCheck& c : r.checks) {
+    if (!c.passed) ++failed;
+    o << "  " << (c.passed ? "PASS " : "FAIL ") << c.kind << ' ' << c.what << ": " << c.engine_a << ' ' << num(c.a, 12)
+      << " vs " << c.engine_b << ' ' << num(c.b, 12) << ", |difference| " << num(c.error, 2) << " (bound "
+      << num(c.bound, 2) << ")" << (c.note.empty() ? "" : "; " + c.note) << "\n";
+  }
+  if (!r.frequencies.empty()) {
+    o << "transfer functions at";
+    for (double w : r.frequencies) o << ' ' << num(w, 4);
+    o << " rad/s\n";
+  }
+  if (!r.findings.empty()) {
+    o << "\nfindings:\n";
+    for (const std::string& f : r.findings) o << "  " << f << "\n";
+  }
+  int engine_failures = 0;
+  for (const EngineLinearModel& m : r.engines)
+    if (!m.failure.empty()) ++engine_failures;
+  o << "\n" << (r.passed() ? "PASS" : "FAIL") << ": " << r.checks.size() << " checks, " << failed << " failed";
+  if (engine_failures) o << ", " << engine_failures << " engine(s) failed";
+  o << "\n";
+  return o.str();
+}
+
+namespace {
+nlohmann::json matrix_json(const MatrixXd& M) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (Eigen::Index i = 0; i < M.rows(); ++i) {
+    nlohmann::json row = nlohmann::json::array();
+    for (Eigen::Index j = 0; j < M.cols(); ++j) row.push_back(M(i, j));
+    rows.push_back(row);
+  }
+  return rows;
+}
+nlohmann::json complex_json(cd v) { return nlohmann::json{{"re", v.real()}, {"im", v.imag()}}; }
+
+std::string csv_matrix(const std::vector<std::string>& header, const MatrixXd& M) {
+  std::ostringstream o;
+  write_csv_header(o, header);
+  for (Eigen::Index i = 0; i < M.rows(); ++i) {
+    for (Eigen::Index j = 0; j < M.cols(); ++j) o << (j ? "," : "") << format_value(M(i, j));
+    o << "\n";
+  }
+  return o.str();
+}
+std::string csv_names(const std::vector<std::string>& names) {
+  std::ostringstream o;
+  o << "index,name\n";
+  for (std::size_t i = 0; i < names.size(); ++i) o << i + 1 << ',' << names[i] << "\n";
+  return o.str();
+}
+}  // namespace
+
+std::string linearization_json(const LinearizeResult& r) {
+  nlohmann::json j;
+  j["scene"] = r.scene;
+  j["time"] = r.time;
+  j["operating_point"] = {{"how", r.how}, {"equilibrium", r.equilibrium}};
+  j["states"] = r.states;
+  j["inputs"] = r.inputs;
+  j["outputs"] = r.outputs;
+  std::vector<double> z0(r.z0.data(), r.z0.data() + r.z0.size());
+  j["z0"] = z0;
+  j["engines"] = nlohmann::json::array();
+  for (const EngineLinearModel& m : r.engines) {
+    nlohmann::json e;
+    e["label"] = m.label;
+    if (!m.failure.empty()) {
+      e["failure"] = m.failure;
+      j["engines"].push_back(e);
+      continue;
+    }
+    e["A"] = matrix_json(m.A);
+    e["B"] = matrix_json(m.B);
+    e["C"] = matrix_json(m.C);
+    e["D"] = matrix_json(m.D);
+    e["A_error"] = m.a_error;
+    e["C_error"] = m.c_error;
+    std::vector<double> res(m.residual.data(), m.residual.data() + m.residual.size());
+    e["residual"] = res;
+    e["relative_residual"] = m.relative_residual;
+    e["eigenvalues"] = nlohmann::json::array();
+    for (const cd& l : m.eigenvalues) e["eigenvalues"].push_back(complex_json(l));
+    e["zeros"] = m.zeros;
+    e["zero_bound"] = m.zero_bound;
+    e["modes"] = nlohmann::json::array();
+    for (const LinearMode& md : m.modes)
+      e["modes"].push_back({{"lambda", complex_json(md.lambda)},
+                            {"frequency", md.frequency},
+                            {"damping_ratio", md.damping_ratio},
+                            {"coordinate", md.coordinate}});
+    e["own_coordinates"] = {{"note", "the engine's own state; coordinate-dependent, never compared"},
+                            {"states", m.own_states},
+                            {"A", matrix_json(m.own_A)},
+                            {"A_error", m.own_error}};
+    j["engines"].push_back(e);
+  }
+  j["frequencies"] = r.frequencies;
+  j["checks"] = nlohmann::json::array();
+  for (const LinearCheck& c : r.checks)
+    j["checks"].push_back({{"kind", c.kind},
+                           {"what", c.what},
+                           {"engine_a", c.engine_a},
+                           {"engine_b", c.engine_b},
+                           {"a", complex_json(c.a)},
+                           {"b", complex_json(c.b)},
+                           {"error", std::isfinite(c.error) ? nlohmann::json(c.error) : nlohmann::json(nullptr)},
+                           {"bound", c.bound},
+                           {"passed", c.passed},
+                           {"note", c.note}});
+  j["findings"] = r.findings;
+  j["passed"] = r.passed();
+  return j.dump(1) + "\n";
+}
+
+std::vector<std::pair<std::string, std::string>> linearization_csv(const LinearizeResult& r) {
+  std::vector<std::pair<std::string, std::string>> files;
+  files.emplace_back("states.csv", csv_names(r.states));
+  files.emplace_back("inputs.csv", csv_names(r.inputs));
+  files.emplace_back("outputs.csv", csv_names(r.outputs));
+  for (const EngineLinearModel& m : r.engines) {
+    if (!m.failure.empty()) continue;
+    files.emplace_back(m.label + ".A.csv", csv_matrix(r.states, m.A));
+    files.emplace_back(m.label + ".B.csv", csv_matrix(r.inputs, m.B));
+    files.emplace_back(m.label + ".C.csv", csv_matrix(r.states, m.C));
+    files.emplace_back(m.label + ".D.csv", csv_matrix(r.inputs, m.D));
+    MatrixXd E(static_cast<Eigen::Index>(m.eigenvalues.size()), 2);
+    for (std::size_t k = 0; k < m.eigenvalues.size(); ++k) {
+      E(static_cast<Eigen::Index>(k), 0) = m.eigenvalues[k].real();
+      E(static_cast<Eigen::Index>(k), 1) = m.eigenvalues[k].imag();
+    }
+    files.emplace_back(m.label + ".eigenvalues.csv", csv_matrix({"re", "im"}, E));
+    files.emplace_back(m.label + ".own_A.csv", csv_matrix(m.own_states, m.own_A));
+  }
+  return files;
+}
+
+}  // namespace crossdyn::harness

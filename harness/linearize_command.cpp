@@ -1,0 +1,333 @@
+// crossdyn linearize SCENE: every engine's linear model about an equilibrium or a steady spin, its
+// eigenvalues and transfer functions compared between engines (harness/linearize.hpp; issue 27;
+// docs/commands/linearize.md).
+#include <CLI/CLI.hpp>
+
+#include "core/errors.hpp"
+#include "core/output.hpp"
+#include "harness/cli.hpp"
+#include "harness/commands.hpp"
+#include "harness/engines.hpp"
+#include "harness/linearize.hpp"
+#include "harness/locations.hpp"
+#include "harness/report.hpp"
+#include "harness/scene_warnings.hpp"
+#include "harness/stability.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+
+namespace crossdyn {
+
+namespace {
+
+struct LinearizeCommandOptions {
+  std::string scene;
+  std::string engines;
+  std::string operating_point = "initial";
+  double time = 0;
+  std::string inputs, outputs;
+  bool inputs_given = false;
+  double rtol = 1e-8;
+  double tf_rtol = 1e-7;
+  double residual_tol = 1e-9;
+  double zero_tol = 1e-6;
+  bool jacobian_only = false;
+  double fd_step = 0;
+  std::string json, csv;
+  bool strict = false;
+  std::vector<std::string> test_gyroscopic_sign;  // engines: add a copy with the sign flipped
+  std::string vary, values;           // a root locus: the scene parameter and its values
+  std::vector<std::string> settings;  // --set KNOB=VALUE before the sweep
+};
+
+// One value of a --vary sweep: its linearisation, or why it was refused there.
+struct LocusPoint {
+  double value = 0;
+  std::optional<harness::LinearizeResult> result;
+  std::string refused;
+};
+
+std::string short_num(double v, int digits = 4) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+// The root locus as text: per value, the first engine's modes (w_n rad/s / zeta), whether the
+// engines agree, and the unstable modes.
+std::string format_locus(const harness::Knob& knob, const std::vector<LocusPoint>& points, double rtol) {
+  std::ostringstream o;
+  o << "root locus: " << knob.description << (knob.unit.empty() ? "" : " (" + knob.unit + ")")
+    << "; modes of the first engine as w_n rad/s / damping ratio\n";
+  for (const LocusPoint& p : points) {
+    o << "  " << std::left << std::setw(10) << short_num(p.value, 6) << ' ';
+    if (!p.result) {
+      o << "refused: " << p.refused << "\n";
+      continue;
+    }
+    const harness::LinearizeResult& r = *p.result;
+    int failed = 0;
+    for (const harness::LinearCheck& c : r.checks) failed += !c.passed;
+    o << (r.passed() ? "PASS" : "FAIL") << " (" << r.checks.size() - static_cast<std::size_t>(failed) << "/"
+      << r.checks.size() << ")";
+    for (const harness::EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      o << "  " << m.zeros << " zero" << (m.zeros == 1 ? "" : "s") << ";";
+      for (const harness::LinearMode& md : m.modes)
+        o << ' ' << short_num(md.frequency) << '/' << short_num(md.damping_ratio, 2)
+          << (md.lambda.real() > rtol * md.frequency ? "!" : "");
+      break;
+    }
+    for (const std::string& f : r.findings)
+      if (f.rfind(r.engines.front().label + ":", 0) == 0) o << "\n             " << f;
+    o << "\n";
+  }
+  o << "(! marks a growing mode)\n";
+  return o.str();
+}
+
+std::vector<std::string> split_list(const std::string& text, const std::string& option) {
+  std::vector<std::string> items;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    if (item.empty()) throw InputError(option + ": empty name in '" + text + "'");
+    if (std::find(items.begin(), items.end(), item) != items.end())
+      throw InputError(option + ": '" + item + "' is listed twice");
+    items.push_back(item);
+  }
+  if (!text.empty() && text.back() == ',') throw InputError(option + ": empty name in '" + text + "'");
+  return items;
+}
+
+void positive(double v, const std::string& option) {
+  if (!(v > 0) || !std::isfinite(v)) throw InputError(option + ": must be a positive, finite number");
+}
+
+// --vary KNOB --values LIST: the linearisation at every value (a root locus). A value whose
+// operating point is not an equilibrium is listed as refused, not an error of the sweep.
+int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOptions& options, const System& scene) {
+  if (o.vary.empty() || o.values.empty())
+    throw InputError("--vary and --values go together (a root locus: the scene parameter and its values)");
+  System system = scene;
+  for (std::size_t i = 0; i < o.settings.size(); ++i) {  // a knob set twice is refused
+    const std::string knob = o.settings[i].substr(0, o.settings[i].find('='));
+    for (std::size_t j = 0; j < i; ++j)
+      if (o.settings[j].substr(0, o.settings[j].find('=')) == knob)
+        throw InputError("--set: '" + knob + "' is set twice ('" + o.settings[j] + "', '" + o.settings[i] + "')");
+  }
+  for (const std::string& setting : o.settings) system = harness::apply_setting(system, setting);
+  const harness::Knob knob = harness::parse_knob(system, o.vary);
+  const std::vector<double> values = harness::parse_parameter_values(o.values);
+  for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first
+  // Inputs and outputs are checked once, at the first value, before the outputs are opened.
+  std::vector<LocusPoint> points;
+  for (double v : values) {
+    LocusPoint p;
+    p.value = v;
+    try {
+      p.result = harness::linearize(harness::apply_knob(system, knob, v), options);
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      if (what.find("is not an equilibrium") == std::string::npos) throw;
+      p.refused = what;
+    }
+    points.push_back(std::move(p));
+  }
+  std::optional<AtomicFile> json;
+  std::vector<std::unique_ptr<AtomicFile>> csv;
+  if (!o.json.empty()) {
+    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
+    nlohmann::json j;
+    j["scene"] = system.name;
+    j["vary"] = knob.spec;
+    j["unit"] = knob.unit;
+    j["points"] = nlohmann::json::array();
+    for (const LocusPoint& p : points) {
+      nlohmann::json q;
+      q["value"] = p.value;
+      if (p.result)
+        q["linearization"] = nlohmann::json::parse(harness::linearization_json(*p.result));
+      else
+        q["refused"] = p.refused;
+      j["points"].push_back(q);
+    }
+    json.emplace(o.json, "--json");
+    json->stream() << j.dump(1) << "\n";
+  }
+  if (!o.csv.empty()) {
+    harness::make_directories(o.csv);
+    std::ostringstream t;
+    t << "value,engine,re,im,frequency,damping_ratio\n";
+    for (const LocusPoint& p : points) {
+      if (!p.result) continue;
+      for (const harness::EngineLinearModel& m : p.result->engines)
+        for (const std::complex<double>& l : m.eigenvalues)
+          t << format_value(p.value) << ',' << m.label << ',' << format_value(l.real()) << ',' << format_value(l.imag())
+            << ',' << format_value(std::abs(l)) << ',' << format_value(std::abs(l) > 0 ? -l.real() / std::abs(l) : 0.0)
+            << "\n";
+    }
+    csv.push_back(std::make_unique<AtomicFile>((std::filesystem::path(o.csv) / "root_locus.csv").string(), "--csv"));
+    csv.back()->stream() << t.str();
+  }
+  std::cout << format_locus(knob, points, options.rtol);
+  check_written(std::cout);
+  std::vector<AtomicFile*> files;
+  if (json) files.push_back(&*json);
+  for (auto& f : csv) files.push_back(f.get());
+  if (!files.empty()) commit_together(files);
+  bool passed = true;
+  for (const LocusPoint& p : points) passed = passed && (!p.result || p.result->passed());
+  return passed ? kExitOk : kExitCheckFailed;
+}
+
+int linearize_command(const LinearizeCommandOptions& o) {
+  harness::LinearizeOptions options;
+  const std::vector<std::string> known = engine_names();
+  auto check_name = [&known](const std::string& name, const std::string& option) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError(option + ": unknown engine '" + name + "' (known: " + list + ")");
+    }
+  };
+  for (const std::string& name : o.engines.empty() ? known : split_list(o.engines, "--engines")) {
+    check_name(name, "--engines");
+    options.engines.push_back({name, name, {}});
+  }
+  for (const std::string& name : o.test_gyroscopic_sign) {
+    check_name(name, "--test-gyroscopic-sign");
+    harness::LinearEngineChoice c{name + "*gyro", name, {}};
+    c.options.test_gyroscopic_sign = -1.0;
+    options.engines.push_back(c);
+  }
+  if (o.operating_point == "initial")
+    options.point = harness::OperatingPoint::Initial;
+  else if (o.operating_point == "neutral")
+    options.point = harness::OperatingPoint::Neutral;
+  else
+    throw InputError("--operating-point: '" + o.operating_point + "' is not one of initial, neutral");
+  if (!(o.time >= 0) || !std::isfinite(o.time)) throw InputError("--time: must be a finite time >= 0 s");
+  options.time = o.time;
+  positive(o.rtol, "--rtol");
+  positive(o.tf_rtol, "--tf-rtol");
+  positive(o.residual_tol, "--residual-tol");
+  positive(o.zero_tol, "--zero-tol");
+  options.rtol = o.rtol;
+  options.tf_rtol = o.tf_rtol;
+  options.residual_tol = o.residual_tol;
+  options.zero_tol = o.zero_tol;
+  options.jacobian_only = o.jacobian_only;
+  if (o.fd_step != 0) positive(o.fd_step, "--fd-step");
+  options.fd_step = o.fd_step;
+  options.inputs_given = o.inputs_given;
+  if (o.inputs_given && o.inputs != "none") options.inputs = split_list(o.inputs, "--inputs");
+  if (!o.outputs.empty()) options.outputs = split_list(o.outputs, "--outputs");
+
+  const std::string scene = harness::resolve_scene(o.scene);
+  const harness::CheckedScene checked = harness::read_checked_scene(scene);
+  const System& system = checked.system;
+  harness::print_warnings(checked.warnings, std::cerr);
+  std::vector<NamedPath> outputs{{"standard output", "-"}};
+  if (!o.json.empty()) outputs.push_back({"--json", o.json});
+  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
+  check_outputs_are_not_inputs(outputs, harness::scene_inputs(system));
+  std::error_code ec;
+  if (!o.csv.empty() && std::filesystem::exists(o.csv, ec) && !std::filesystem::is_directory(o.csv, ec))
+    throw InputError("--csv '" + o.csv + "': a folder is needed (it gets one CSV file per matrix)");
+  if (!o.json.empty() && o.json != "-" && std::filesystem::is_directory(o.json, ec))
+    throw InputError("--json '" + o.json + "' is a folder; give a file name");
+
+  if (!o.vary.empty() || !o.values.empty() || !o.settings.empty()) return locus_command(o, options, system);
+  // The linear models (may refuse a point that is not an equilibrium: exit 2, nothing written).
+  const harness::LinearizeResult r = harness::linearize(system, options);
+
+  std::optional<AtomicFile> json;
+  std::vector<std::unique_ptr<AtomicFile>> csv;
+  if (!o.json.empty()) {
+    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
+    json.emplace(o.json, "--json");
+    json->stream() << harness::linearization_json(r);
+  }
+  if (!o.csv.empty()) {
+    harness::make_directories(o.csv);
+    for (const auto& [name, content] : harness::linearization_csv(r)) {
+      const std::string path = (std::filesystem::path(o.csv) / harness::file_safe(name, true)).string();
+      csv.push_back(std::make_unique<AtomicFile>(path, "--csv"));
+      csv.back()->stream() << content;
+    }
+  }
+  std::cout << harness::format_linearization(r);
+  check_written(std::cout);
+  std::vector<AtomicFile*> files;
+  if (json) files.push_back(&*json);
+  for (auto& f : csv) files.push_back(f.get());
+  if (!files.empty()) commit_together(files);
+  return harness::strict_status(r.passed() ? kExitOk : kExitCheckFailed, o.strict, checked.warnings.size());
+}
+
+}  // namespace
+
+void add_linearize_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<LinearizeCommandOptions>();
+  CLI::App* sub = app.add_subcommand(
+      "linearize",
+      "Linearise every engine's equations about an equilibrium or a steady spin (the scene's\n"
+      "initial state at --time, or --operating-point neutral) in the same reduced coordinates\n"
+      "(joint coordinates and rates, a free base's angular velocity, modal coordinates and\n"
+      "rates), and compare their eigenvalues (frequency and damping per mode) and transfer\n"
+      "functions between engines. A state that is not an equilibrium is refused with its\n"
+      "residual (exit 2) unless --jacobian-only. Unstable modes are reported as findings.\n"
+      "Exit status 0 all agree, 1 a check failed, 2 bad input, 3 a write failed.");
+  sub->add_option("scene", o->scene, "Scene file (YAML), or a scene name (crossdyn list)")->required();
+  list_option(sub->add_option("--engines", o->engines,
+                              "Comma-separated engines (default: kane,lagrange,newton-euler)"));
+  sub->add_option("--operating-point", o->operating_point,
+                  "initial (the scene's initial state, default) or neutral (joints at their springs' "
+                  "neutral angles, every rate and modal coordinate zero, the base's spin kept)");
+  sub->add_option("--time", o->time, "Operating time, s (prescribed joints' profiles and motors at it; default 0)");
+  sub->add_option("--inputs", o->inputs,
+                  "Comma-separated inputs: <joint>.motor, .motor1/.motor2 (universal), .motorx/y/z "
+                  "(spherical), <body>.Tx/Ty/Tz; `none` for none (default: every motor and body "
+                  "torque the scene names)")
+      ->each([o](const std::string&) { o->inputs_given = true; });
+  sub->add_option("--outputs", o->outputs, "Comma-separated pinned output columns (C and D; default none)");
+  sub->add_option("--rtol", o->rtol, "Eigenvalue agreement: |l_a - l_b| <= rtol |l_a| + 1e-12 |l|max (default 1e-8)");
+  sub->add_option("--tf-rtol", o->tf_rtol, "Transfer-function agreement, relative to the largest |G| (default 1e-7)");
+  sub->add_option("--residual-tol", o->residual_tol,
+                  "An equilibrium: |dz/dt| <= this x |A| max(|z|, 1) (default 1e-9)");
+  sub->add_option("--zero-tol", o->zero_tol,
+                  "An eigenvalue below this x the spectral radius is a rigid-body zero (default 1e-6)");
+  sub->add_flag("--jacobian-only", o->jacobian_only,
+                "At a state that is not an equilibrium: write each engine's Jacobian "
+                "(coordinate-dependent, never compared) instead of refusing");
+  sub->add_option("--fd-step", o->fd_step,
+                  "The first central-difference step of the Jacobians, times max(|z_j|, 1), halved twice "
+                  "for the extrapolation (default: per column, the one of 1e-1 .. 1e-3 with the "
+                  "smallest estimated error)");
+  sub->add_option("--json", o->json, "Write A, B, C, D, eigenvalues and checks as JSON to FILE (atomically)");
+  sub->add_option("--csv", o->csv, "Write one CSV file per matrix into the folder DIR");
+  sub->add_flag("--strict", o->strict, "Exit with status 1 when the scene has a warning");
+  sub->add_option("--vary", o->vary,
+                  "A root locus: linearise at every value of this scene parameter (the knobs of "
+                  "`crossdyn stability --vary`: <joint>.stiffness, <joint>.rate, <joint>.wx/wy/wz, "
+                  "<joint>.prescribed_rate, <body>.modal_stiffness, <body>.modal_damping, ...)");
+  sub->add_option("--values", o->values, "With --vary: a list 1,10,100 or a range 1..1e4 (one per decade)");
+  sub->add_option("--set", o->settings, "With --vary: KNOB=VALUE set first (several allowed)");
+  // Test hook (hidden): a copy of ENGINE with its gyroscopic term's sign flipped.
+  sub->add_option("--test-gyroscopic-sign", o->test_gyroscopic_sign,
+                  "Add a copy of ENGINE with the sign of its gyroscopic term w x I w flipped; for tests")
+      ->group("");
+  sub->callback([o, &exit_code] { exit_code = linearize_command(*o); });
+}
+
+}  // namespace crossdyn

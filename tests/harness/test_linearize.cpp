@@ -1,0 +1,348 @@
+// `crossdyn linearize` (harness/linearize.hpp; issue 27): every engine's linear model about an
+// equilibrium or a steady spin, eigenvalues against closed forms and between engines, a wrong
+// gyroscopic sign caught, points that are not equilibria refused, and the outputs.
+#include <catch2/catch.hpp>
+
+#include <unistd.h>
+
+#include <Eigen/Eigenvalues>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <complex>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/errors.hpp"
+#include "core/flex/beam.hpp"
+#include "core/scene/scene.hpp"
+#include "harness/engines.hpp"
+#include "harness/linearize.hpp"
+#include "tests/harness/run_program.hpp"
+#include "tests/support/paths.hpp"
+
+using namespace crossdyn;
+using namespace crossdyn::harness;
+using cd = std::complex<double>;
+
+namespace {
+
+LinearizeOptions every_engine() {
+  LinearizeOptions o;
+  for (const std::string& e : engine_names()) o.engines.push_back({e, e, {}});
+  return o;
+}
+
+// The engine's eigenvalue nearest to `expected`, and its distance.
+double nearest(const EngineLinearModel& m, cd expected) {
+  double best = INFINITY;
+  for (const cd& l : m.eigenvalues) best = std::min(best, std::abs(l - expected));
+  return best;
+}
+
+std::string failed_checks(const LinearizeResult& r) {
+  std::string s;
+  for (const LinearCheck& c : r.checks)
+    if (!c.passed) s += c.kind + " " + c.what + " " + c.engine_a + " vs " + c.engine_b + "; ";
+  for (const EngineLinearModel& m : r.engines)
+    if (!m.failure.empty()) s += m.label + ": " + m.failure + "; ";
+  return s;
+}
+
+int count(const LinearizeResult& r, const std::string& kind) {
+  int n = 0;
+  for (const LinearCheck& c : r.checks) n += c.kind == kind;
+  return n;
+}
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST_CASE("linearize: a torque-free body's steady spin about each principal axis gives Euler's eigenvalues to 1e-10 in every engine") {
+  // diag(100, 200, 300) kg m^2; lambda^2 = Omega^2 (I_j - I_k)(I_k - I_i) / (I_i I_j) about axis k.
+  // Spin 2 rad/s: minor (x) +-i 2 sqrt(1/3), intermediate (y) +-2 sqrt(1/3) real, major (z) +-2i.
+  // The body is also turned (principal axes not the body axes) so that the principal-axis
+  // search is exercised.
+  const double Om = 2.0;
+  struct Case {
+    int axis;
+    cd expected;
+  };
+  const Case cases[] = {{0, cd(0, Om * std::sqrt(1.0 / 3.0))}, {1, cd(Om * std::sqrt(1.0 / 3.0), 0)}, {2, cd(0, Om)}};
+  for (const bool turned : {false, true}) {
+    for (const Case& c : cases) {
+      INFO("axis " << c.axis << (turned ? " (principal axes turned in the body)" : ""));
+      System s = read_scene(test::scene_path("torque_free_asymmetric"));
+      s.analytic.clear();
+      Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+      if (turned) R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+      s.bodies[0].I_BBo_B = R * Eigen::Vector3d(100, 200, 300).asDiagonal() * R.transpose();
+      s.joints[0].w_NB_B0 = Om * R.col(c.axis);
+      const LinearizeResult r = linearize(s, every_engine());
+      CHECK(failed_checks(r) == "");
+      CHECK(r.equilibrium);
+      CHECK(count(r, "analytic") == 3);
+      for (const EngineLinearModel& m : r.engines) {
+        INFO(m.label);
+        CHECK(nearest(m, c.expected) <= 1e-10 * Om);
+        CHECK(nearest(m, -c.expected) <= 1e-10 * Om);
+        CHECK(m.zeros == 1);  // the spin's own magnitude
+      }
+      // The intermediate axis is a finding in every engine, the others are not.
+      int unstable = 0;
+      for (const std::string& f : r.findings) unstable += f.find("unstable") != std::string::npos;
+      CHECK(unstable == (c.axis == 1 ? 3 : 0));
+    }
+  }
+}
+
+TEST_CASE("linearize: hub_two_panels_spin's engines agree to 1e-8 and find the intermediate-axis instability") {
+  const System s = read_scene(test::scene_path("hub_two_panels_spin"));
+  LinearizeOptions o = every_engine();
+  o.point = OperatingPoint::Neutral;
+  const LinearizeResult r = linearize(s, o);
+  CHECK(failed_checks(r) == "");
+  CHECK(count(r, "eigenvalue") == 2 * 4);  // 4 modes, two engine pairs
+  for (const EngineLinearModel& m : r.engines) {
+    INFO(m.label);
+    REQUIRE(m.modes.size() == 4);
+    CHECK(m.modes[2].frequency == Approx(1.423672).epsilon(1e-6));
+    CHECK(m.modes[3].frequency == Approx(2.236786).epsilon(1e-6));
+    CHECK(m.modes[1].lambda.real() == Approx(0.0218069).epsilon(1e-5));  // the unstable one
+  }
+  for (const LinearCheck& c : r.checks)
+    if (c.kind == "eigenvalue") CHECK(c.error <= 1e-8 * std::abs(c.a));
+  CHECK(r.findings.size() == 3);
+}
+
+TEST_CASE("linearize: a wrong gyroscopic sign in one engine (test double) is caught at a steady spin") {
+  const System s = read_scene(test::scene_path("hub_two_panels_spin"));
+  LinearizeOptions o = every_engine();
+  o.point = OperatingPoint::Neutral;
+  LinearEngineChoice wrong{"kane*gyro", "kane", {}};
+  wrong.options.test_gyroscopic_sign = -1;
+  o.engines.push_back(wrong);
+  const LinearizeResult r = linearize(s, o);
+  int failed_wrong = 0, failed_right = 0;
+  for (const LinearCheck& c : r.checks)
+    if (!c.passed) (c.engine_b == "kane*gyro" ? failed_wrong : failed_right)++;
+  CHECK(failed_right == 0);
+  CHECK(failed_wrong >= 2);  // the hinge modes move by 1.3e-3 relative; the instability disappears
+  CHECK_FALSE(r.passed());
+  // The test double changes nothing when nothing spins (the sign multiplies w x I w).
+  System rest = s;
+  rest.joints[0].w_NB_B0.setZero();
+  CHECK(failed_checks(linearize(rest, o)) == "");
+}
+
+TEST_CASE("linearize: a spinning cantilever with and without geometric stiffening matches its modal Lagrangian and the linear model's runaway is an unstable mode") {
+  // spinup_beam(_linear): a clamped beam on a hub whose spin is prescribed; at t = 20 s it turns
+  // at 10 rad/s, at t = 0 it is at rest (the cantilever's own frequencies).
+  const double ok = std::sqrt(14000.0 / (1.2 * 1e4));  // sqrt(EI / (rho A L^4))
+  for (const char* scene : {"spinup_beam", "spinup_beam_linear"}) {
+    for (const double t : {0.0, 20.0}) {
+      INFO(scene << " at t = " << t);
+      const System s = read_scene(test::scene_path(scene));
+      LinearizeOptions o = every_engine();
+      o.time = t;
+      const LinearizeResult r = linearize(s, o);
+      CHECK(failed_checks(r) == "");
+      CHECK(count(r, "analytic") >= 3 * 3);  // three modes (a real pair counts twice), every engine
+      // Without stiffening: K_eff = K - Omega^2 M, so lambda_k^2 = Omega^2 - omega_k^2 with the
+      // clamped-free omega_k (the sampled modal mass is nearly diagonal at 50 slices).
+      if (std::string(scene) == "spinup_beam_linear") {
+        const double Om = t > 15 ? 10.0 : 0.0;
+        const double w1 = std::pow(flex::clamped_root(1), 2) * ok;
+        const cd expected = std::sqrt(cd(Om * Om - w1 * w1, 0));
+        for (const EngineLinearModel& m : r.engines) CHECK(nearest(m, expected) <= 1e-6 * std::abs(expected));
+        int unstable = 0;
+        for (const std::string& f : r.findings) unstable += f.find("unstable mode beam.qy1") != std::string::npos;
+        CHECK(unstable == (Om > w1 ? 3 : 0));
+      } else {
+        CHECK(r.findings.empty());
+      }
+    }
+  }
+}
+
+TEST_CASE("linearize: every committed scene at an equilibrium or steady spin: the three engines' eigenvalues agree to 1e-8") {
+  struct Point {
+    const char* scene;
+    OperatingPoint point;
+    double t;
+  };
+  const Point points[] = {{"spear1_case1", OperatingPoint::Neutral, 0},
+                          {"spear1_case2", OperatingPoint::Neutral, 0},
+                          {"spear1_case1_spherical", OperatingPoint::Neutral, 0},
+                          {"pointing_flex", OperatingPoint::Neutral, 10},
+                          {"hub_two_panels_spin", OperatingPoint::Neutral, 0},
+                          {"spinup_beam", OperatingPoint::Initial, 20}};
+  for (const Point& p : points) {
+    INFO(p.scene);
+    const System s = read_scene(test::scene_path(p.scene));
+    LinearizeOptions o = every_engine();
+    o.point = p.point;
+    o.time = p.t;
+    const LinearizeResult r = linearize(s, o);
+    CHECK(failed_checks(r) == "");
+    CHECK(count(r, "eigenvalue") > 0);
+    for (const LinearCheck& c : r.checks)
+      if (c.kind == "eigenvalue") {
+        INFO(c.what << " " << c.engine_a << " vs " << c.engine_b);
+        CHECK(c.error <= 1e-8 * std::abs(c.a));
+      }
+  }
+}
+
+TEST_CASE("linearize: a state that is not an equilibrium is refused with its residual and --jacobian-only compares nothing") {
+  // A tumbling body, a spring away from its neutral angle, a motor that is on.
+  struct Case {
+    const char* scene;
+    OperatingPoint point;
+    double t;
+    const char* says;
+  };
+  const Case cases[] = {{"torque_free_asymmetric", OperatingPoint::Initial, 0, "body.w"},
+                        {"hub_two_panels", OperatingPoint::Initial, 0, "not an equilibrium"},
+                        {"pointing_flex", OperatingPoint::Neutral, 0, "joint1.motor = 1"},
+                        {"spinup_beam", OperatingPoint::Initial, 5, "not an equilibrium"}};
+  for (const Case& c : cases) {
+    INFO(c.scene);
+    const System s = read_scene(test::scene_path(c.scene));
+    LinearizeOptions o = every_engine();
+    o.point = c.point;
+    o.time = c.t;
+    try {
+      linearize(s, o);
+      FAIL("not refused");
+    } catch (const InputError& e) {
+      CHECK_THAT(e.what(), Catch::Contains(c.says) && Catch::Contains("allowed 1e-09"));
+    }
+    o.jacobian_only = true;
+    const LinearizeResult r = linearize(s, o);
+    CHECK_FALSE(r.equilibrium);
+    CHECK(r.checks.empty());
+    for (const EngineLinearModel& m : r.engines) {
+      CHECK(m.A.rows() == static_cast<Eigen::Index>(r.states.size()));
+      CHECK(m.own_A.rows() == static_cast<Eigen::Index>(m.own_states.size()));
+      CHECK(m.own_A.rows() > 0);
+    }
+  }
+}
+
+TEST_CASE("linearize: bad input on the command line is refused with exit 2 and nothing written") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn-linearize-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string json = (dir / "out.json").string();
+  std::ofstream(dir / "file.txt") << "x";
+  const std::pair<std::string, std::string> cases[] = {
+      {"pointing_flex --time 10 --operating-point neutral --inputs joint9.motor", "'joint9.motor' is not an input"},
+      {"pointing_flex --time 10 --operating-point neutral --outputs beam.nope", "'beam.nope' is not an output column"},
+      {"pointing_flex --time 10 --operating-point neutral --outputs t", "'t' is not an output column"},
+      {"pointing_flex --time 10 --operating-point neutral --inputs joint1.motor,joint1.motor", "listed twice"},
+      {"pointing_flex --operating-point sideways", "not one of initial, neutral"},
+      {"pointing_flex --time -1", "--time"},
+      {"pointing_flex --rtol 0", "--rtol"},
+      {"pointing_flex --engines kane,foo", "unknown engine 'foo'"},
+      {"pointing_flex --time 10 --operating-point neutral --csv '" + (dir / "file.txt").string() + "'", "a folder is needed"},
+      {"torque_free_asymmetric", "is not an equilibrium"},
+      {"no_such_scene", "no_such_scene"}};
+  for (const auto& [args, says] : cases) {
+    INFO(args);
+    const test::ProgramResult p = test::run_crossdyn("linearize " + args + " --json '" + json + "'");
+    CHECK(p.status == 2);
+    CHECK_THAT(p.output, Catch::Contains(says));
+    CHECK_FALSE(fs::exists(json));
+  }
+  fs::remove_all(dir);
+}
+
+TEST_CASE("linearize: A B C D and the eigenvalues as JSON and CSV with every state named and transfer functions compared") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn-linearize-out-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const std::string json = (dir / "lin.json").string(), csv = (dir / "csv").string();
+  const test::ProgramResult p = test::run_crossdyn(
+      "linearize pointing_flex --time 10 --operating-point neutral --outputs joint1.angle,beam.wy,beam.qx1 --json '" +
+      json + "' --csv '" + csv + "'");
+  INFO(p.output);
+  REQUIRE(p.status == 0);
+  CHECK_THAT(p.output, Catch::Contains("PASS transfer joint1.angle <- joint1.motor"));
+  const nlohmann::json j = nlohmann::json::parse(slurp(json));
+  const std::size_t n = j["states"].size(), m = j["inputs"].size(), q = j["outputs"].size();
+  CHECK(n == 15);
+  CHECK(m == 2);
+  CHECK(q == 3);
+  CHECK(j["engines"].size() == 3);
+  for (const auto& e : j["engines"]) {
+    CHECK(e["A"].size() == n);
+    CHECK(e["A"][0].size() == n);
+    CHECK(e["B"].size() == n);
+    CHECK(e["B"][0].size() == m);
+    CHECK(e["C"].size() == q);
+    CHECK(e["D"].size() == q);
+    CHECK(e["eigenvalues"].size() == n);
+    CHECK(e["own_coordinates"]["states"].size() == e["own_coordinates"]["A"].size());
+  }
+  CHECK(j["passed"] == true);
+  // B: a motor torque on joint1 accelerates joint1 (and not the configuration rows).
+  const auto& B = j["engines"][0]["B"];
+  CHECK(B[0][0].get<double>() == 0.0);
+  // The CSV files: a header row of names, then the matrix; states.csv lists the order.
+  for (const std::string engine : {"kane", "lagrange", "newton-euler"})
+    for (const std::string what : {"A", "B", "C", "D", "eigenvalues", "own_A"})
+      CHECK(fs::exists(fs::path(csv) / (engine + "." + what + ".csv")));
+  std::ifstream a(fs::path(csv) / "kane.A.csv");
+  std::string header;
+  std::getline(a, header);
+  CHECK(header.rfind("joint1.angle,joint2.angle,", 0) == 0);
+  int rows = 0;
+  for (std::string line; std::getline(a, line);) ++rows;
+  CHECK(rows == 15);
+  CHECK(slurp((fs::path(csv) / "states.csv").string()).rfind("index,name\n1,joint1.angle\n", 0) == 0);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("linearize: a root locus over a scene parameter finds where the linear spinning beam diverges") {
+  // spinup_beam_linear at full spin: the first mode's lambda^2 = Omega^2 - omega_1^2 (omega_1 =
+  // 3.7977 rad/s): stable at 3.7 rad/s, growing at 3.9; spinup_beam (stiffened) never.
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn-locus-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const test::ProgramResult p = test::run_crossdyn(
+      "linearize spinup_beam_linear --time 20 --vary spin.prescribed_rate --values 3.7,3.9,10 --json '" +
+      (dir / "l.json").string() + "' --csv '" + (dir / "csv").string() + "'");
+  INFO(p.output);
+  REQUIRE(p.status == 0);
+  const nlohmann::json j = nlohmann::json::parse(slurp((dir / "l.json").string()));
+  REQUIRE(j["points"].size() == 3);
+  const bool growing[] = {false, true, true};
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto& lin = j["points"][k]["linearization"];
+    CHECK(lin["passed"] == true);
+    bool unstable = false;
+    for (const auto& f : lin["findings"]) unstable = unstable || f.get<std::string>().find("unstable mode beam.qy1") != std::string::npos;
+    CHECK(unstable == growing[k]);
+  }
+  CHECK(slurp((dir / "csv" / "root_locus.csv").string()).rfind("value,engine,re,im,frequency,damping_ratio\n3.7,kane,", 0) == 0);
+  const test::ProgramResult q = test::run_crossdyn("linearize spinup_beam --time 20 --vary spin.prescribed_rate --values 3.7,3.9,10");
+  CHECK(q.status == 0);
+  CHECK(q.output.find("unstable") == std::string::npos);
+  // A value whose point is not an equilibrium is listed as refused; bad sweeps are refused.
+  const test::ProgramResult r = test::run_crossdyn("linearize hub_two_panels_spin --operating-point neutral --vary base.wx --values 0,0.05");
+  CHECK(r.status == 0);
+  CHECK_THAT(r.output, Catch::Contains("refused: ") && Catch::Contains("not an equilibrium"));
+  CHECK(test::run_crossdyn("linearize spinup_beam --vary spin.prescribed_rate").status == 2);
+  CHECK(test::run_crossdyn("linearize spinup_beam --vary spin.nothing --values 1").status == 2);
+  CHECK(test::run_crossdyn("linearize spinup_beam --vary spin.prescribed_rate --values 1,x").status == 2);
+  fs::remove_all(dir);
+}
