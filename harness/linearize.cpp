@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <limits>
 #include <memory>
+#include <numbers>
 #include <set>
 #include <sstream>
 
@@ -474,6 +475,7 @@ void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol
     mode.frequency = std::abs(l);
     mode.damping_ratio = -l.real() / std::abs(l);
     mode.allowance = m.allowances.back();
+    mode.shape = es.eigenvectors().col(i).normalized();
     // The coordinate it moves most: velocity components divided by |lambda| (a rate's amplitude
     // is |lambda| times its coordinate's), so configurations and velocities weigh alike.
     // Named by every coordinate within half of the largest (a symmetric pair: "a + b").
@@ -1158,6 +1160,47 @@ std::vector<std::pair<std::string, std::string>> linearization_csv(const Lineari
     files.emplace_back(m.label + ".own_A.csv", csv_matrix(m.own_states, m.own_A));
   }
   return files;
+}
+
+}  // namespace crossdyn::harness
+
+namespace crossdyn::harness {
+
+std::string mode_geometry(const System& system, const LinearizeOptions& o, const LinearizeResult& r,
+                          std::size_t engine, std::size_t mode) {
+  const EngineLinearModel& m = r.engines.at(engine);
+  const LinearMode& md = m.modes.at(mode);
+  std::string how;
+  const TreeState op = operating_state(system, o.time, o.point, how);
+  const ReducedMap map(system, op);
+  const int nc = map.configuration_size();
+  double largest = 0;
+  for (int i = 0; i < nc; ++i) largest = std::max(largest, std::abs(md.shape(i)));
+  if (!(largest > 1e-9 * md.shape.norm())) return "";
+  const double a = 0.35 / largest;
+  const LinearEngineChoice& choice = o.engines.at(engine);
+  const std::unique_ptr<Engine> e = make_engine(choice.engine, system, choice.options);
+  std::vector<double> x(static_cast<std::size_t>(e->state_size())), row(e->columns().size());
+  auto configuration = [&](const VectorXd& z, double t) {
+    e->pack(map.state(z), x.data());
+    e->output_row(o.time, x.data(), row.data());
+    geometry::Configuration c = geometry::configuration_from_row(system, e->columns(), row.data());
+    c.t = t;
+    return c;
+  };
+  const double step = md.lambda.imag() != 0 ? 0.5 * std::numbers::pi / std::abs(md.lambda.imag()) : 0.5 / std::abs(md.lambda.real());
+  std::vector<geometry::Configuration> frames;
+  for (int k = 0; k < 4; ++k) {
+    const double t = k * step;
+    const VectorXd dz = (a * md.shape * std::exp(md.lambda * t)).real();
+    frames.push_back(configuration(r.z0 + dz, t));
+  }
+  geometry::MotionSource source;
+  source.engine = m.label;
+  source.state = "ok";
+  source.note = "mode " + std::to_string(mode + 1) + " (" + md.coordinate + ")";
+  source.duration = 3 * step;
+  return geometry::geometry_json(system, configuration(r.z0, 0.0), frames, source, {});
 }
 
 }  // namespace crossdyn::harness

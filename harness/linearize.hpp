@@ -78,6 +78,7 @@ struct LinearMode {
   double damping_ratio = 0;  // -Re(lambda) / |lambda|
   std::string coordinate;    // the coordinate its eigenvector moves most
   double allowance = 0;      // its error from A's (finite differences): condition x n x A's error
+  Eigen::VectorXcd shape;    // its right eigenvector in z (unit norm)
 };
 
 struct EngineLinearModel {
@@ -131,5 +132,14 @@ std::string linearization_json(const LinearizeResult& r);
 // File name => content: states.csv, inputs.csv, outputs.csv, and per engine <label>.A.csv,
 // .B.csv, .C.csv, .D.csv, .eigenvalues.csv, .own_A.csv (docs/commands/linearize.md).
 std::vector<std::pair<std::string, std::string>> linearization_csv(const LinearizeResult& r);
+
+// The report's drawing of mode k of engine e (harness/scene_geometry.hpp's geometry JSON): the
+// scene at the operating point, then at four times of the mode's motion
+// z(t) = z0 + a Re(shape e^(lambda t)) (a quarter period apart; for a real lambda, 1/(2|lambda|)),
+// the amplitude a exaggerated so that the largest configuration coordinate moves by 0.35 (rad or
+// m). Each configuration is the engine's own output row at that state. "" when the mode moves no
+// configuration coordinate (a mode of the base's angular velocity alone).
+std::string mode_geometry(const System& system, const LinearizeOptions& options, const LinearizeResult& r,
+                          std::size_t engine, std::size_t mode);
 
 }  // namespace crossdyn::harness

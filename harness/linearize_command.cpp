@@ -42,7 +42,8 @@ struct LinearizeCommandOptions {
   double zero_tol = 1e-6;
   bool jacobian_only = false;
   double fd_step = 0;
-  std::string json, csv;
+  std::string json, csv, report;
+  std::string python = "/usr/bin/python3";
   bool strict = false;
   std::vector<std::string> test_gyroscopic_sign;  // engines: add a copy with the sign flipped
   std::string vary, values;           // a root locus: the scene parameter and its values
@@ -113,6 +114,45 @@ void positive(double v, const std::string& option) {
   if (!(v > 0) || !std::isfinite(v)) throw InputError(option + ": must be a positive, finite number");
 }
 
+// What a linearize report owns at the top of its folder; anything else there is carried over.
+bool linearize_owned(const std::filesystem::path& name) {
+  const std::string ext = name.extension().string();
+  return name == "linearize.json" || ext == ".html" || ext == ".png" ||
+         (ext == ".json" && name.string().rfind("mode-", 0) == 0) ||
+         name.string().find(".crossdyn-") != std::string::npos;
+}
+
+// --report DIR: refused before the work when unusable (harness/report.hpp).
+std::unique_ptr<harness::StagedFolder> open_report(const LinearizeCommandOptions& o) {
+  if (o.report.empty()) return nullptr;
+  harness::check_python(o.python);
+  return harness::stage_report_folder(o.report, "linearize.json", "linearize", linearize_owned);
+}
+
+void write_report(harness::StagedFolder& staged, const std::string& python, const nlohmann::json& summary) {
+  const std::filesystem::path summary_path = staged.path() / "linearize.json";
+  write_file_atomic(summary_path.string(), summary.dump(1) + "\n");
+  harness::run_python(python, {harness::installed_report_script(), summary_path.string(), staged.path().string()});
+}
+
+nlohmann::json locus_json(const System& system, const harness::Knob& knob, const std::vector<LocusPoint>& points) {
+  nlohmann::json j;
+  j["scene"] = system.name;
+  j["vary"] = knob.spec;
+  j["unit"] = knob.unit;
+  j["points"] = nlohmann::json::array();
+  for (const LocusPoint& p : points) {
+    nlohmann::json q;
+    q["value"] = p.value;
+    if (p.result)
+      q["linearization"] = nlohmann::json::parse(harness::linearization_json(*p.result));
+    else
+      q["refused"] = p.refused;
+    j["points"].push_back(q);
+  }
+  return j;
+}
+
 // --vary KNOB --values LIST: the linearisation at every value (a root locus). A value whose
 // operating point is not an equilibrium is listed as refused, not an error of the sweep.
 int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOptions& options, const System& scene) {
@@ -129,7 +169,7 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   const harness::Knob knob = harness::parse_knob(system, o.vary);
   const std::vector<double> values = harness::parse_parameter_values(o.values);
   for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first
-  // Inputs and outputs are checked once, at the first value, before the outputs are opened.
+  const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   std::vector<LocusPoint> points;
   for (double v : values) {
     LocusPoint p;
@@ -147,22 +187,14 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   std::vector<std::unique_ptr<AtomicFile>> csv;
   if (!o.json.empty()) {
     if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
-    nlohmann::json j;
-    j["scene"] = system.name;
-    j["vary"] = knob.spec;
-    j["unit"] = knob.unit;
-    j["points"] = nlohmann::json::array();
-    for (const LocusPoint& p : points) {
-      nlohmann::json q;
-      q["value"] = p.value;
-      if (p.result)
-        q["linearization"] = nlohmann::json::parse(harness::linearization_json(*p.result));
-      else
-        q["refused"] = p.refused;
-      j["points"].push_back(q);
-    }
     json.emplace(o.json, "--json");
-    json->stream() << j.dump(1) << "\n";
+    json->stream() << locus_json(system, knob, points).dump(1) << "\n";
+  }
+  if (report) {
+    nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", system.name}};
+    s["locus"] = locus_json(system, knob, points);
+    s["locus"]["description"] = knob.description;
+    write_report(*report, o.python, s);
   }
   if (!o.csv.empty()) {
     harness::make_directories(o.csv);
@@ -184,7 +216,8 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   std::vector<AtomicFile*> files;
   if (json) files.push_back(&*json);
   for (auto& f : csv) files.push_back(f.get());
-  if (!files.empty()) commit_together(files);
+  commit_together(files, {report.get()});
+  if (report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
   bool passed = true;
   for (const LocusPoint& p : points) passed = passed && (!p.result || p.result->passed());
   return passed ? kExitOk : kExitCheckFailed;
@@ -239,8 +272,12 @@ int linearize_command(const LinearizeCommandOptions& o) {
   harness::print_warnings(checked.warnings, std::cerr);
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.json.empty()) outputs.push_back({"--json", o.json});
-  if (!o.csv.empty()) outputs.push_back({"--csv", o.csv});
-  check_outputs_are_not_inputs(outputs, harness::scene_inputs(system));
+  std::vector<NamedPath> folders;
+  if (!o.csv.empty()) folders.push_back({"--csv", o.csv});
+  if (!o.report.empty()) folders.push_back({"--report", o.report});
+  std::vector<NamedPath> inputs = harness::scene_inputs(system);
+  if (!o.report.empty()) inputs.push_back({"the report script", harness::installed_report_script()});
+  check_outputs_are_not_inputs(outputs, inputs, folders);
   std::error_code ec;
   if (!o.csv.empty() && std::filesystem::exists(o.csv, ec) && !std::filesystem::is_directory(o.csv, ec))
     throw InputError("--csv '" + o.csv + "': a folder is needed (it gets one CSV file per matrix)");
@@ -248,8 +285,30 @@ int linearize_command(const LinearizeCommandOptions& o) {
     throw InputError("--json '" + o.json + "' is a folder; give a file name");
 
   if (!o.vary.empty() || !o.values.empty() || !o.settings.empty()) return locus_command(o, options, system);
+  const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   // The linear models (may refuse a point that is not an equilibrium: exit 2, nothing written).
   const harness::LinearizeResult r = harness::linearize(system, options);
+  if (report) {
+    nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", system.name}};
+    s["linearization"] = nlohmann::json::parse(harness::linearization_json(r));
+    s["mode_pictures"] = nlohmann::json::array();
+    // The first engine's modes drawn (at most 12), each from its own output rows.
+    for (std::size_t e = 0; e < r.engines.size(); ++e) {
+      if (!r.engines[e].failure.empty() || !r.equilibrium) continue;
+      for (std::size_t k = 0; k < r.engines[e].modes.size() && k < 12; ++k) {
+        const std::string geometry = harness::mode_geometry(system, options, r, e, k);
+        nlohmann::json pic{{"engine", r.engines[e].label}, {"mode", k + 1}, {"coordinate", r.engines[e].modes[k].coordinate}};
+        if (!geometry.empty()) {
+          const std::string name = "mode-" + std::to_string(k + 1) + ".json";
+          write_file_atomic((report->path() / name).string(), geometry);
+          pic["geometry"] = name;
+        }
+        s["mode_pictures"].push_back(pic);
+      }
+      break;
+    }
+    write_report(*report, o.python, s);
+  }
 
   std::optional<AtomicFile> json;
   std::vector<std::unique_ptr<AtomicFile>> csv;
@@ -271,7 +330,8 @@ int linearize_command(const LinearizeCommandOptions& o) {
   std::vector<AtomicFile*> files;
   if (json) files.push_back(&*json);
   for (auto& f : csv) files.push_back(f.get());
-  if (!files.empty()) commit_together(files);
+  commit_together(files, {report.get()});
+  if (report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
   return harness::strict_status(r.passed() ? kExitOk : kExitCheckFailed, o.strict, checked.warnings.size());
 }
 
@@ -316,6 +376,10 @@ void add_linearize_command(CLI::App& app, int& exit_code) {
                   "smallest estimated error)");
   sub->add_option("--json", o->json, "Write A, B, C, D, eigenvalues and checks as JSON to FILE (atomically)");
   sub->add_option("--csv", o->csv, "Write one CSV file per matrix into the folder DIR");
+  sub->add_option("--report", o->report,
+                  "Write pages into DIR: the eigenvalues of every engine overlaid, their differences, "
+                  "each mode drawn on the scene (or the root locus with --vary)");
+  sub->add_option("--python", o->python, "Python with matplotlib and Jinja2 for --report (default /usr/bin/python3)");
   sub->add_flag("--strict", o->strict, "Exit with status 1 when the scene has a warning");
   sub->add_option("--vary", o->vary,
                   "A root locus: linearise at every value of this scene parameter (the knobs of "

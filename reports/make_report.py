@@ -215,6 +215,9 @@ def main(argv):
     os.makedirs(out_dir, exist_ok=True)
     if summary.get("kind") == "study":
         return study_report(summary, out_dir)
+    if summary.get("kind") == "linearize":
+        from crossdyn_report import linear
+        return linear.report(summary, out_dir, pages.environment(), pages.render, warn)
     if summary.get("kind") == "stability":
         from crossdyn_report import stability
         return stability.report(summary, out_dir, pages.environment(), pages.render, warn)

@@ -346,3 +346,32 @@ TEST_CASE("linearize: a root locus over a scene parameter finds where the linear
   CHECK(test::run_crossdyn("linearize spinup_beam --vary spin.prescribed_rate --values 1,x").status == 2);
   fs::remove_all(dir);
 }
+
+TEST_CASE("linearize: the report draws the eigenvalues and every mode and a root locus with --vary") {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("crossdyn-linrep-" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  const test::ProgramResult p =
+      test::run_crossdyn("linearize hub_two_panels_spin --operating-point neutral --report '" + (dir / "one").string() + "'");
+  INFO(p.output);
+  REQUIRE(p.status == 0);
+  for (const char* f : {"index.html", "eigenvalues.png", "differences.png", "mode-1.png", "mode-3.png", "mode-4.png", "linearize.json"})
+    CHECK(fs::exists(dir / "one" / f));
+  const std::string html = slurp((dir / "one" / "index.html").string());
+  CHECK_THAT(html, Catch::Contains("hinge1.angle + hinge2.angle") && Catch::Contains("(grows)") &&
+                       Catch::Contains("unstable mode hub.w"));
+  const test::ProgramResult q = test::run_crossdyn("linearize spinup_beam_linear --time 20 --vary spin.prescribed_rate --values 1,3.9,10 --report '" +
+                                                   (dir / "locus").string() + "'");
+  INFO(q.output);
+  REQUIRE(q.status == 0);
+  CHECK(fs::exists(dir / "locus" / "root-locus.png"));
+  CHECK_THAT(slurp((dir / "locus" / "index.html").string()), Catch::Contains("Root locus against spin.prescribed_rate"));
+  // A folder that is not a linearize report is refused before the work, and left alone.
+  fs::create_directories(dir / "mine");
+  std::ofstream(dir / "mine" / "notes.txt") << "mine";
+  const test::ProgramResult r = test::run_crossdyn("linearize hub_two_panels_spin --operating-point neutral --report '" + (dir / "mine").string() + "'");
+  CHECK(r.status == 2);
+  CHECK(fs::exists(dir / "mine" / "notes.txt"));
+  CHECK_FALSE(fs::exists(dir / "mine" / "index.html"));
+  fs::remove_all(dir);
+}
