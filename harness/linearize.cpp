@@ -643,6 +643,62 @@ void spinning_flexible_checks(const System& s, double t, LinearizeResult& r, dou
   }
 }
 
+// A lone free flexible body at rest without loads: its modes with the rigid body's translation and
+// rotation condensed out (both are cyclic, their momenta zero), from the linearised kinetic energy
+// T = 1/2 sum_i m_i |v + w x p_i + Phi_i eta'|^2 + 1/2 w . J w (sum m_i p_i = 0, the body origin
+// being the undeformed CM):
+//   M_eff = M - L^T L / m - R^T I^-1 R,  L = sum m_i Phi_i,  R = sum m_i [p_i x] Phi_i,
+//   M_eff eta'' + D eta' + K eta = 0
+// (Meirovitch, "Fundamentals of Vibrations", 2001, Sec. 7.4 on the free-free body's rigid-body
+// modes; L and R vanish for modes orthogonal to the rigid-body motions, so that these are then
+// the body's own frequencies, a free-free beam's lambda_k^2 sqrt(EI / (rho A L^4))).
+void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult& r, double rtol) {
+  if (s.bodies.size() != 1 || !s.base_is_free() || !s.bodies[0].flex || !s.bodies[0].torque.empty()) return;
+  if (op.w_NB_B.norm() != 0 || op.eta[0].norm() != 0 || op.eta_rate[0].norm() != 0) return;
+  const FlexBody& F = *s.bodies[0].flex;
+  const int n = F.modes();
+  if (n == 0) return;
+  MatrixXd M = MatrixXd::Zero(n, n);
+  Eigen::Matrix3Xd L = Eigen::Matrix3Xd::Zero(3, n), R = Eigen::Matrix3Xd::Zero(3, n);
+  for (const FlexNode& node : F.nodes) {
+    M += node.mass * node.Phi_B.transpose() * node.Phi_B;
+    L += node.mass * node.Phi_B;
+    for (int k = 0; k < n; ++k) R.col(k) += node.mass * node.p_BoNi_B.cross(node.Phi_B.col(k));
+  }
+  const MatrixXd Meff = M - L.transpose() * L / s.bodies[0].mass -
+                        R.transpose() * s.bodies[0].I_BBo_B.ldlt().solve(MatrixXd(R));
+  MatrixXd Z = MatrixXd::Zero(2 * n, 2 * n);
+  const Eigen::PartialPivLU<MatrixXd> lu(Meff);
+  Z.topRightCorner(n, n).setIdentity();
+  Z.bottomLeftCorner(n, n) = -lu.solve(F.K);
+  Z.bottomRightCorner(n, n) = -lu.solve(F.D);
+  Eigen::EigenSolver<MatrixXd> es(Z, false);
+  for (int k = 0; k < 2 * n; ++k) {
+    const cd expected = es.eigenvalues()(k);
+    if (expected.imag() < 0) continue;
+    for (const EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      LinearCheck ch;
+      ch.kind = "analytic";
+      ch.what = "free flexible body at rest: its modes with the rigid motions condensed out";
+      ch.engine_a = m.label;
+      ch.engine_b = "analytic";
+      ch.b = expected;
+      double best = std::numeric_limits<double>::infinity(), allowance = 0;
+      for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
+        if (std::abs(m.eigenvalues[q] - expected) < best) {
+          best = std::abs(m.eigenvalues[q] - expected);
+          ch.a = m.eigenvalues[q];
+          allowance = m.allowances[q];
+        }
+      ch.error = best;
+      ch.bound = rtol * std::abs(expected) + 1e-14 + allowance;
+      ch.passed = ch.error <= ch.bound;
+      r.checks.push_back(ch);
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<std::string> linear_input_names(const System& system, bool named_only) {
@@ -945,6 +1001,7 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
 
   analytic_checks(system, op, r, 1e-10);
   spinning_flexible_checks(system, o.time, r, 1e-10);
+  free_flexible_checks(system, op, r, 1e-10);
 
   // Unstable modes are findings (each engine's own, so a disagreement shows).
   for (const EngineLinearModel& m : r.engines) {
