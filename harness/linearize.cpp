@@ -245,6 +245,53 @@ class ReducedMap {
 // ------------------------------------------------------------------------------------------------
 // The operating point.
 
+// Turns the base's spin onto the whole spacecraft's principal axis nearest it, keeping |I w0|;
+// the inertia is the bodies' (flexible ones undeformed) placed at st's joint coordinates by
+// harness/scene_geometry. Returns the words for the operating point's description.
+std::string spin_about_principal_axis(const System& s, TreeState& st) {
+  // The whole spacecraft's inertia about its CM in that configuration (harness/scene_geometry's
+  // placement of the bodies), in the base frame; the principal axis nearest the initial base
+  // rate w0, at the rate that keeps |I w0|.
+  System n = s;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    n.joints[j].angle0 = st.joints[j].angle;
+    n.joints[j].angle2_0 = st.joints[j].angle2;
+    n.joints[j].q_J0 = st.joints[j].q_J;
+  }
+  const geometry::Configuration c = geometry::initial_configuration(n);
+  const int base = s.base_body();
+  Eigen::Matrix3d I_N = Eigen::Matrix3d::Zero();
+  double mass = 0;
+  Vector3d first = Vector3d::Zero();
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+    mass += s.bodies[b].mass;
+    first += s.bodies[b].mass * c.bodies[b].p_NoBo_N;
+  }
+  const Vector3d cm = first / mass;
+  for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+    const Eigen::Matrix3d& R = c.bodies[b].R_NB;
+    const Vector3d r = c.bodies[b].p_NoBo_N - cm;
+    I_N += R * s.bodies[b].I_BBo_B * R.transpose() +
+           s.bodies[b].mass * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
+  }
+  const Eigen::Matrix3d& R_NB = c.bodies[static_cast<std::size_t>(base)].R_NB;
+  const Eigen::Matrix3d I_B = R_NB.transpose() * I_N * R_NB;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I_B);
+  const Vector3d w0 = st.w_NB_B;
+  int k = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::abs(es.eigenvectors().col(a).dot(w0)) > std::abs(es.eigenvectors().col(k).dot(w0))) k = a;
+  const Vector3d e = es.eigenvectors().col(k) * (es.eigenvectors().col(k).dot(w0) < 0 ? -1.0 : 1.0);
+  st.w_NB_B = (I_B * w0).norm() / es.eigenvalues()(k) * e;
+  const double Imin = es.eigenvalues().minCoeff(), Imax = es.eigenvalues().maxCoeff();
+  std::ostringstream o;
+  o << "; the base's spin turned onto the whole spacecraft's "
+    << (es.eigenvalues()(k) >= Imax ? "major" : es.eigenvalues()(k) <= Imin ? "minor" : "intermediate")
+    << " principal axis nearest the initial rate (moments " << num(es.eigenvalues()(0), 5) << ", "
+    << num(es.eigenvalues()(1), 5) << ", " << num(es.eigenvalues()(2), 5) << " kg m^2 there), keeping |I w0|";
+    return o.str();
+}
+
 TreeState operating_state(const System& s, double t, OperatingPoint point, std::string& how) {
   TreeState st = TreeState::initial(s);
   bool moved = false;
@@ -258,7 +305,7 @@ TreeState operating_state(const System& s, double t, OperatingPoint point, std::
       moved = moved || t != 0;
       continue;
     }
-    if (point != OperatingPoint::Neutral) continue;
+    if (point == OperatingPoint::Initial) continue;
     switch (J.type) {
       case JointType::Revolute:
       case JointType::Prismatic:
@@ -278,17 +325,18 @@ TreeState operating_state(const System& s, double t, OperatingPoint point, std::
       case JointType::Fixed: break;
     }
   }
-  if (point == OperatingPoint::Neutral)
+  if (point != OperatingPoint::Initial)
     for (std::size_t b = 0; b < s.bodies.size(); ++b)
       if (s.bodies[b].flex) {
         st.eta[b].setZero();
         st.eta_rate[b].setZero();
       }
   std::ostringstream o;
-  o << (point == OperatingPoint::Neutral
+  o << (point != OperatingPoint::Initial
             ? "the scene's initial state with every joint at its spring's neutral angle (its initial "
               "angle where it has no spring), every joint rate, modal coordinate and modal rate zero"
             : "the scene's initial state");
+  if (point == OperatingPoint::Spin && s.base_is_free() && st.w_NB_B.norm() > 0) o << spin_about_principal_axis(s, st);
   if (s.base_is_free()) {
     const Vector3d& w = st.w_NB_B;
     o << "; the base turns at w_NB_B = (" << num(w.x()) << ", " << num(w.y()) << ", " << num(w.z())
@@ -699,6 +747,59 @@ void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult&
   }
 }
 
+// The joint and modal coordinates of an equilibrium near `op` (every rate kept: zero, and the
+// base's spin): Gauss-Newton on the velocity rows of dz/dt (accelerations) of the first engine's
+// equations, minimum-norm steps (a joint without a spring, free to turn, stays where it is);
+// the other engines' residuals are checked afterwards like any operating point's.
+TreeState settle(const System& system, const TreeState& op, const LinearizeOptions& o, std::string& how) {
+  const ReducedMap map(system, op);
+  const int n = map.size(), nc = map.configuration_size(), nv = n - nc;
+  if (nc == 0 || nv == 0) return op;
+  const LinearEngineChoice& choice = o.engines.front();
+  const std::unique_ptr<Engine> engine = make_engine(choice.engine, system, choice.options);
+  Probe probe;
+  probe.engine = engine.get();
+  probe.map = &map;
+  probe.t = o.time;
+  probe.x.resize(static_cast<std::size_t>(engine->state_size()));
+  VectorXd z = map.z0(), f;
+  auto residual = [&](const VectorXd& zz) {
+    probe.eval(zz, f, nullptr);
+    return VectorXd(f.tail(nv));
+  };
+  VectorXd res = residual(z);
+  int iterations = 0;
+  double scale = 0;
+  for (; iterations < 40; ++iterations) {
+    MatrixXd J(nv, nc);
+    for (int j = 0; j < nc; ++j) {
+      const double h = 1e-6 * std::max(std::abs(z(j)), 1.0);
+      VectorXd zp = z, zm = z;
+      zp(j) += h;
+      zm(j) -= h;
+      J.col(j) = (residual(zp) - residual(zm)) / (2 * h);
+    }
+    scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.head(nc).lpNorm<Eigen::Infinity>(), 1.0));
+    if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) break;
+    const VectorXd step = J.completeOrthogonalDecomposition().solve(res);
+    // Halve the step until the residual falls (at most 30 times).
+    double a = 1;
+    VectorXd next = z, next_res;
+    for (int k = 0; k < 30; ++k, a /= 2) {
+      next.head(nc) = z.head(nc) - a * step;
+      next_res = residual(next);
+      if (next_res.norm() < res.norm()) break;
+    }
+    if (!(next_res.norm() < res.norm())) break;
+    z = next;
+    res = next_res;
+  }
+  how += "; its joint and modal coordinates solved for an equilibrium with " + choice.label + "'s equations (" +
+         std::to_string(iterations) + " Gauss-Newton step" + (iterations == 1 ? "" : "s") +
+         ", acceleration residual " + num(res.lpNorm<Eigen::Infinity>(), 3) + ")";
+  return map.state(z);
+}
+
 }  // namespace
 
 std::vector<std::string> linear_input_names(const System& system, bool named_only) {
@@ -720,7 +821,22 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
   LinearizeResult r;
   r.scene = system.name;
   r.time = o.time;
-  const TreeState op = operating_state(system, o.time, o.point, r.how);
+  TreeState op = operating_state(system, o.time, o.point, r.how);
+  if ((o.point == OperatingPoint::Equilibrium || o.point == OperatingPoint::Spin) && !o.engines.empty()) {
+    // Spin: the principal axis moves with the settled joints; alternate until the spin stops
+    // changing (a fixed point; at most 10 rounds).
+    std::string settled;
+    for (int round = 0; round < 10; ++round) {
+      settled.clear();
+      op = settle(system, op, o, settled);
+      if (o.point != OperatingPoint::Spin || !system.base_is_free() || op.w_NB_B.norm() == 0) break;
+      const Vector3d before = op.w_NB_B;
+      spin_about_principal_axis(system, op);
+      if ((op.w_NB_B - before).norm() <= 1e-15 * before.norm()) break;
+    }
+    r.how += settled;
+  }
+  r.op = op;
   const ReducedMap map(system, op);
   r.states = map.names();
   r.z0 = map.z0();
@@ -864,6 +980,16 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
           << num(o.residual_tol, 3) << ")";
       first = false;
     }
+    bool spin_rows = false;
+    for (const EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      Eigen::Index k = 0;
+      m.residual.cwiseAbs().maxCoeff(&k);
+      spin_rows = spin_rows || map.coordinate(static_cast<int>(k)).kind == Coordinate::Kind::BaseW;
+    }
+    if (spin_rows && o.point != OperatingPoint::Spin)
+      msg << ". The base's spin is not about a principal axis of the whole spacecraft there: try "
+             "--operating-point spin";
     std::string loads;
     for (const InputRef& u : known_inputs)
       if (const double v = input_value(system, u, o.time); v != 0) loads += (loads.empty() ? "" : ", ") + u.name + " = " + num(v);
@@ -1227,9 +1353,7 @@ std::string mode_geometry(const System& system, const LinearizeOptions& o, const
                           std::size_t engine, std::size_t mode) {
   const EngineLinearModel& m = r.engines.at(engine);
   const LinearMode& md = m.modes.at(mode);
-  std::string how;
-  const TreeState op = operating_state(system, o.time, o.point, how);
-  const ReducedMap map(system, op);
+  const ReducedMap map(system, r.op);
   const int nc = map.configuration_size();
   double largest = 0;
   for (int i = 0; i < nc; ++i) largest = std::max(largest, std::abs(md.shape(i)));

@@ -43,6 +43,9 @@ enum class OperatingPoint {
   Initial,  // the scene's initial state (at --time)
   Neutral,  // joints at their springs' neutral angles, every joint and modal rate and coordinate
             // zero; a free base keeps its initial spin (a steady spin when along a principal axis)
+  Equilibrium,  // Neutral, then the joint and modal coordinates solved for an equilibrium (a
+                // spring against a constant motor, a spinning body's centrifugal deflection)
+  Spin,     // Equilibrium about the whole spacecraft's principal axis nearest the initial base rate
 };
 
 struct LinearEngineChoice {
@@ -115,6 +118,7 @@ struct LinearizeResult {
   std::string how;          // how the operating point was chosen, in words
   bool equilibrium = false;
   std::vector<std::string> states, inputs, outputs;
+  TreeState op;  // the operating point
   Eigen::VectorXd z0;
   std::vector<EngineLinearModel> engines;
   std::vector<double> frequencies;  // transfer-function frequencies, rad/s

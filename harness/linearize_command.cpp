@@ -247,8 +247,12 @@ int linearize_command(const LinearizeCommandOptions& o) {
     options.point = harness::OperatingPoint::Initial;
   else if (o.operating_point == "neutral")
     options.point = harness::OperatingPoint::Neutral;
+  else if (o.operating_point == "equilibrium")
+    options.point = harness::OperatingPoint::Equilibrium;
+  else if (o.operating_point == "spin")
+    options.point = harness::OperatingPoint::Spin;
   else
-    throw InputError("--operating-point: '" + o.operating_point + "' is not one of initial, neutral");
+    throw InputError("--operating-point: '" + o.operating_point + "' is not one of initial, neutral, equilibrium, spin");
   if (!(o.time >= 0) || !std::isfinite(o.time)) throw InputError("--time: must be a finite time >= 0 s");
   options.time = o.time;
   positive(o.rtol, "--rtol");
@@ -352,8 +356,11 @@ void add_linearize_command(CLI::App& app, int& exit_code) {
   list_option(sub->add_option("--engines", o->engines,
                               "Comma-separated engines (default: kane,lagrange,newton-euler)"));
   sub->add_option("--operating-point", o->operating_point,
-                  "initial (the scene's initial state, default) or neutral (joints at their springs' "
-                  "neutral angles, every rate and modal coordinate zero, the base's spin kept)");
+                  "initial (the scene's initial state, default); neutral (joints at their springs' "
+                  "neutral angles, every rate and modal coordinate zero, the base's spin kept); "
+                  "equilibrium (neutral, then the joint and modal coordinates solved for an "
+                  "equilibrium); spin (equilibrium about the whole spacecraft's principal axis "
+                  "nearest the initial base rate, |I w0| kept)");
   sub->add_option("--time", o->time, "Operating time, s (prescribed joints' profiles and motors at it; default 0)");
   sub->add_option("--inputs", o->inputs,
                   "Comma-separated inputs: <joint>.motor, .motor1/.motor2 (universal), .motorx/y/z "

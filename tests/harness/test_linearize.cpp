@@ -253,7 +253,7 @@ TEST_CASE("linearize: bad input on the command line is refused with exit 2 and n
       {"pointing_flex --time 10 --operating-point neutral --outputs beam.nope", "'beam.nope' is not an output column"},
       {"pointing_flex --time 10 --operating-point neutral --outputs t", "'t' is not an output column"},
       {"pointing_flex --time 10 --operating-point neutral --inputs joint1.motor,joint1.motor", "listed twice"},
-      {"pointing_flex --operating-point sideways", "not one of initial, neutral"},
+      {"pointing_flex --operating-point sideways", "not one of initial, neutral, equilibrium, spin"},
       {"pointing_flex --time -1", "--time"},
       {"pointing_flex --rtol 0", "--rtol"},
       {"pointing_flex --engines kane,foo", "unknown engine 'foo'"},
@@ -420,4 +420,44 @@ run: {duration: 10 s, output_step: 0.1 s}
       CHECK(nearest(m, cd(0, w)) <= kBeamTolerance * w);
     }
   }
+}
+
+TEST_CASE("linearize: --operating-point equilibrium solves for a spring against a motor and spin turns the spin onto a principal axis") {
+  System s = read_scene(test::scene_path("hub_two_panels_spin"));
+  s.joints[1].motor_revolute.times = {0.0};
+  s.joints[1].motor_revolute.values = {Eigen::Matrix<double, 1, 1>(10.0)};  // N m against 500 N m/rad
+  for (const double spin : {0.0, 0.1}) {
+    INFO("spin " << spin);
+    s.joints[0].w_NB_B0 = Eigen::Vector3d(0, 0, spin);
+    LinearizeOptions o = every_engine();
+    o.point = OperatingPoint::Neutral;
+    CHECK_THROWS_AS(linearize(s, o), InputError);  // the motor is on: not an equilibrium
+    o.point = OperatingPoint::Equilibrium;
+    if (spin != 0.0) {
+      // Deflecting one panel turns the principal axes: the spin about z is no longer steady.
+      CHECK_THROWS_WITH(linearize(s, o), Catch::Contains("try --operating-point spin"));
+      o.point = OperatingPoint::Spin;
+    }
+    const LinearizeResult r = linearize(s, o);
+    CHECK(failed_checks(r) == "");
+    CHECK_THAT(r.how, Catch::Contains("solved for an equilibrium with kane's equations"));
+    if (spin != 0.0) CHECK(std::abs(r.op.w_NB_B.x()) + std::abs(r.op.w_NB_B.y()) > 1e-9);  // the axis tilted
+    // At rest the spring balances the motor exactly: 10 / 500 rad; spinning, the centrifugal
+    // pull on the panel changes it a little.
+    if (spin == 0.0) CHECK(r.z0(0) == Approx(0.02).epsilon(1e-10));
+    if (spin != 0.0) CHECK(std::abs(r.z0(0) - 0.02) > 1e-6);
+    if (spin == 0.0) CHECK(std::abs(r.z0(1)) < 1e-12);  // spinning about a tilted axis, panel2 deflects too
+    for (const EngineLinearModel& m : r.engines) CHECK(m.relative_residual <= 1e-9);
+  }
+  // spin: hub_two_panels starts with a transverse rate (0.01, 0, 0.1) and deflected panels; its
+  // spin turned onto the principal axis z keeps |I w0|.
+  const System h = read_scene(test::scene_path("hub_two_panels"));
+  LinearizeOptions o = every_engine();
+  o.point = OperatingPoint::Spin;
+  const LinearizeResult r = linearize(h, o);
+  CHECK(failed_checks(r) == "");
+  CHECK(r.op.w_NB_B.x() == Approx(0).margin(1e-12));
+  CHECK(r.op.w_NB_B.y() == Approx(0).margin(1e-12));
+  CHECK(r.op.w_NB_B.z() > 0.1);  // |I w0| kept: a bit faster about z than 0.1
+  CHECK_THAT(r.how, Catch::Contains("intermediate principal axis"));
 }
