@@ -559,6 +559,48 @@ Eigen::MatrixXcd transfer(const EngineLinearModel& m, double w) {
   return m.C.cast<cd>() * X + m.D.cast<cd>();
 }
 
+// One "analytic" check per engine and expected eigenvalue (those with Im >= 0): the engine's
+// nearest eigenvalue within rtol |expected| + 1e-14 + that eigenvalue's allowance (eigen_analysis).
+void closed_form_checks(LinearizeResult& r, const std::vector<cd>& expected, const std::string& what, double rtol) {
+  for (const cd& x : expected) {
+    if (x.imag() < 0) continue;
+    for (const EngineLinearModel& m : r.engines) {
+      if (!m.failure.empty()) continue;
+      LinearCheck c;
+      c.kind = "analytic";
+      c.what = what;
+      c.engine_a = m.label;
+      c.engine_b = "analytic";
+      c.b = x;
+      double best = std::numeric_limits<double>::infinity(), allowance = 0;
+      for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
+        if (std::abs(m.eigenvalues[q] - x) < best) {
+          best = std::abs(m.eigenvalues[q] - x);
+          c.a = m.eigenvalues[q];
+          allowance = m.allowances[q];
+        }
+      c.error = best;
+      c.bound = rtol * std::abs(x) + 1e-14 + allowance;
+      c.passed = c.error <= c.bound;
+      r.checks.push_back(c);
+    }
+  }
+}
+
+// The eigenvalues of M q'' + D q' + K q = 0 (first-order form [0 1; -M^-1 K  -M^-1 D]).
+std::vector<cd> quadratic_eigenvalues(const MatrixXd& M, const MatrixXd& D, const MatrixXd& K) {
+  const Eigen::Index n = M.rows();
+  MatrixXd Z = MatrixXd::Zero(2 * n, 2 * n);
+  const Eigen::PartialPivLU<MatrixXd> lu(M);
+  Z.topRightCorner(n, n).setIdentity();
+  Z.bottomLeftCorner(n, n) = -lu.solve(K);
+  Z.bottomRightCorner(n, n) = -lu.solve(D);
+  const Eigen::EigenSolver<MatrixXd> es(Z, false);
+  std::vector<cd> out;
+  for (Eigen::Index k = 0; k < 2 * n; ++k) out.push_back(es.eigenvalues()(k));
+  return out;
+}
+
 // A lone free rigid body without loads: the analytic eigenvalues of Euler's equations about a
 // steady spin w = Omega e_k along principal axis k (i, j the others): lambda^2 =
 // Omega^2 (I_j - I_k)(I_k - I_i) / (I_i I_j) (Hughes, Spacecraft Attitude Dynamics, 1986, Sec. 4.4,
@@ -584,27 +626,8 @@ void analytic_checks(const System& s, const TreeState& op, LinearizeResult& r, d
   const double l2 = Om * Om * (Ip(j) - Ip(k)) * (Ip(k) - Ip(i)) / (Ip(i) * Ip(j));
   const cd expected = l2 < 0 ? cd(0, std::sqrt(-l2)) : cd(std::sqrt(l2), 0);
   const std::string axis = (Ip(k) >= Ip.maxCoeff()) ? "major" : (Ip(k) <= Ip.minCoeff()) ? "minor" : "intermediate";
-  for (const EngineLinearModel& m : r.engines) {
-    if (!m.failure.empty()) continue;
-    LinearCheck c;
-    c.kind = "analytic";
-    c.what = std::string(l2 < 0 ? "nutation frequency" : "growth rate") + " of a spin about the " + axis +
-             " axis (Euler's equations)";
-    c.engine_a = m.label;
-    c.engine_b = "analytic";
-    c.b = expected;
-    double best = std::numeric_limits<double>::infinity(), allowance = 0;
-    for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
-      if (std::abs(m.eigenvalues[q] - expected) < best) {
-        best = std::abs(m.eigenvalues[q] - expected);
-        c.a = m.eigenvalues[q];
-        allowance = m.allowances[q];
-      }
-    c.error = best;
-    c.bound = rtol * std::abs(expected) + allowance;
-    c.passed = c.error <= c.bound;
-    r.checks.push_back(c);
-  }
+  closed_form_checks(r, {expected}, std::string(l2 < 0 ? "nutation frequency" : "growth rate") + " of a spin about the " + axis +
+                     " axis (Euler's equations)", rtol);
 }
 
 // One flexible body rigidly carried by a prescribed base turning at a constant rate Omega about
@@ -657,38 +680,10 @@ void spinning_flexible_checks(const System& s, double t, LinearizeResult& r, dou
       C += node.mass * (ri.dot(e) - ri.dot(a) * e.dot(a)) * node.G;
     }
   }
-  const MatrixXd Keff = F.K - Om * Om * S - Om * Om * C;
-  MatrixXd Z = MatrixXd::Zero(2 * n, 2 * n);
-  const Eigen::PartialPivLU<MatrixXd> lu(M);
-  Z.topRightCorner(n, n).setIdentity();
-  Z.bottomLeftCorner(n, n) = -lu.solve(Keff);
-  Z.bottomRightCorner(n, n) = -lu.solve(F.D + Gy);
-  Eigen::EigenSolver<MatrixXd> es(Z, false);
-  for (int k = 0; k < 2 * n; ++k) {
-    const cd expected = es.eigenvalues()(k);
-    if (expected.imag() < 0) continue;
-    for (const EngineLinearModel& m : r.engines) {
-      if (!m.failure.empty()) continue;
-      LinearCheck ch;
-      ch.kind = "analytic";
-      ch.what = "rotating-frame eigenvalue of the flexible body spinning at " + num(Om) + " rad/s (" +
-                (F.geometric_stiffening ? "with" : "without") + " geometric stiffening; modal Lagrangian)";
-      ch.engine_a = m.label;
-      ch.engine_b = "analytic";
-      ch.b = expected;
-      double best = std::numeric_limits<double>::infinity(), allowance = 0;
-      for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
-        if (std::abs(m.eigenvalues[q] - expected) < best) {
-          best = std::abs(m.eigenvalues[q] - expected);
-          ch.a = m.eigenvalues[q];
-          allowance = m.allowances[q];
-        }
-      ch.error = best;
-      ch.bound = rtol * std::abs(expected) + 1e-14 + allowance;
-      ch.passed = ch.error <= ch.bound;
-      r.checks.push_back(ch);
-    }
-  }
+  closed_form_checks(r, quadratic_eigenvalues(M, F.D + Gy, F.K - Om * Om * S - Om * Om * C),
+                     "rotating-frame eigenvalue of the flexible body spinning at " + num(Om) + " rad/s (" +
+                         (F.geometric_stiffening ? "with" : "without") + " geometric stiffening; modal Lagrangian)",
+                     rtol);
 }
 
 // A lone free flexible body at rest without loads: its modes with the rigid body's translation and
@@ -715,36 +710,8 @@ void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult&
   }
   const MatrixXd Meff = M - L.transpose() * L / s.bodies[0].mass -
                         R.transpose() * s.bodies[0].I_BBo_B.ldlt().solve(MatrixXd(R));
-  MatrixXd Z = MatrixXd::Zero(2 * n, 2 * n);
-  const Eigen::PartialPivLU<MatrixXd> lu(Meff);
-  Z.topRightCorner(n, n).setIdentity();
-  Z.bottomLeftCorner(n, n) = -lu.solve(F.K);
-  Z.bottomRightCorner(n, n) = -lu.solve(F.D);
-  Eigen::EigenSolver<MatrixXd> es(Z, false);
-  for (int k = 0; k < 2 * n; ++k) {
-    const cd expected = es.eigenvalues()(k);
-    if (expected.imag() < 0) continue;
-    for (const EngineLinearModel& m : r.engines) {
-      if (!m.failure.empty()) continue;
-      LinearCheck ch;
-      ch.kind = "analytic";
-      ch.what = "free flexible body at rest: its modes with the rigid motions condensed out";
-      ch.engine_a = m.label;
-      ch.engine_b = "analytic";
-      ch.b = expected;
-      double best = std::numeric_limits<double>::infinity(), allowance = 0;
-      for (std::size_t q = 0; q < m.eigenvalues.size(); ++q)
-        if (std::abs(m.eigenvalues[q] - expected) < best) {
-          best = std::abs(m.eigenvalues[q] - expected);
-          ch.a = m.eigenvalues[q];
-          allowance = m.allowances[q];
-        }
-      ch.error = best;
-      ch.bound = rtol * std::abs(expected) + 1e-14 + allowance;
-      ch.passed = ch.error <= ch.bound;
-      r.checks.push_back(ch);
-    }
-  }
+  closed_form_checks(r, quadratic_eigenvalues(Meff, F.D, F.K),
+                     "free flexible body at rest: its modes with the rigid motions condensed out", rtol);
 }
 
 // The joint and modal coordinates of an equilibrium near `op` (every rate kept: zero, and the

@@ -159,13 +159,7 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   if (o.vary.empty() || o.values.empty())
     throw InputError("--vary and --values go together (a root locus: the scene parameter and its values)");
   System system = scene;
-  for (std::size_t i = 0; i < o.settings.size(); ++i) {  // a knob set twice is refused
-    const std::string knob = o.settings[i].substr(0, o.settings[i].find('='));
-    for (std::size_t j = 0; j < i; ++j)
-      if (o.settings[j].substr(0, o.settings[j].find('=')) == knob)
-        throw InputError("--set: '" + knob + "' is set twice ('" + o.settings[j] + "', '" + o.settings[i] + "')");
-  }
-  for (const std::string& setting : o.settings) system = harness::apply_setting(system, setting);
+  system = harness::apply_settings(system, o.settings);
   const harness::Knob knob = harness::parse_knob(system, o.vary);
   const std::vector<double> values = harness::parse_parameter_values(o.values);
   for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first

@@ -281,6 +281,18 @@ System apply_knob(const System& s, const Knob& k, double v) {
   return c;
 }
 
+System apply_settings(const System& system, const std::vector<std::string>& settings) {
+  for (std::size_t i = 0; i < settings.size(); ++i) {  // a knob set twice is refused
+    const std::string knob = settings[i].substr(0, settings[i].find('='));
+    for (std::size_t j = 0; j < i; ++j)
+      if (settings[j].substr(0, settings[j].find('=')) == knob)
+        throw InputError("--set: '" + knob + "' is set twice ('" + settings[j] + "', '" + settings[i] + "')");
+  }
+  System out = system;
+  for (const std::string& setting : settings) out = apply_setting(out, setting);
+  return out;
+}
+
 System apply_setting(const System& system, const std::string& setting) {
   const std::size_t eq = setting.find('=');
   if (eq == std::string::npos || eq == 0 || eq + 1 == setting.size())

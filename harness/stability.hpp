@@ -172,6 +172,8 @@ std::vector<std::string> available_knobs(const System& system);
 // "--set KNOB=VALUE": the scene with that knob set before the sweep (several may be given, applied
 // in order). InputError naming the option for a malformed setting, an unknown knob or a bad value.
 System apply_setting(const System& system, const std::string& setting);
+// Every --set in order, a knob set twice refused.
+System apply_settings(const System& system, const std::vector<std::string>& settings);
 // --values: a list 1,10,100 or a range 1..1e4 (one per decade); InputError naming --values.
 // (harness/stability_command.cpp; linearize's --vary uses it too.)
 std::vector<double> parse_parameter_values(const std::string& text);

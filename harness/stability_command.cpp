@@ -126,13 +126,7 @@ int stability(const StabilityCliOptions& o) {
   // and draw (harness/scene_warnings.hpp) are theirs: a merge of this command's parts could not
   // repeat them.
   harness::print_warnings(warnings, std::cerr);
-  for (std::size_t i = 0; i < o.settings.size(); ++i) {  // a knob set twice is refused
-    const std::string knob = o.settings[i].substr(0, o.settings[i].find('='));
-    for (std::size_t j = 0; j < i; ++j)
-      if (o.settings[j].substr(0, o.settings[j].find('=')) == knob)
-        throw InputError("--set: '" + knob + "' is set twice ('" + o.settings[j] + "', '" + o.settings[i] + "')");
-  }
-  for (const std::string& setting : o.settings) system = harness::apply_setting(system, setting);
+  system = harness::apply_settings(system, o.settings);
   if (o.vary.empty()) {
     std::string list;
     for (const std::string& k : harness::available_knobs(system)) list += (list.empty() ? "" : ", ") + k;
