@@ -30,9 +30,12 @@ def chart_plane(lin, out_dir, name):
     fig, ax = plt.subplots(figsize=(7.5, 5.2))
     for k, e in enumerate(engines):
         ev = _eigs(e)
-        ax.scatter(ev.real, ev.imag, marker=MARKERS[k % len(MARKERS)], s=70 if k == 0 else 45,
-                   facecolors="none" if k == 0 else COLOURS[k % len(COLOURS)],
-                   edgecolors=COLOURS[k % len(COLOURS)], label=e["label"], linewidths=1.3)
+        if k == 0:  # hollow circles under the others' crosses
+            ax.scatter(ev.real, ev.imag, marker="o", s=70, facecolors="none", edgecolors=COLOURS[0],
+                       label=e["label"], linewidths=1.3)
+        else:
+            ax.scatter(ev.real, ev.imag, marker=MARKERS[k % len(MARKERS)], s=45, color=COLOURS[k % len(COLOURS)],
+                       label=e["label"], linewidths=1.3)
     ax.axvline(0, color="0.6", lw=0.8)
     ax.axhline(0, color="0.85", lw=0.8)
     ax.set_xlabel("Re lambda (1/s): right of the line grows")
@@ -103,8 +106,10 @@ def chart_locus(locus, out_dir, name):
                 continue
             ev = _eigs(es[0])
             col = cmap(norm(p["value"]))
-            axes[0].scatter(ev.real, ev.imag, marker=MARKERS[k % len(MARKERS)], s=40 if k == 0 else 25,
-                            facecolors="none" if k == 0 else col, edgecolors=col, linewidths=1.1)
+            if k == 0:
+                axes[0].scatter(ev.real, ev.imag, marker="o", s=40, facecolors="none", edgecolors=[col], linewidths=1.1)
+            else:
+                axes[0].scatter(ev.real, ev.imag, marker=MARKERS[k % len(MARKERS)], s=25, color=[col], linewidths=1.1)
             nz = ev[np.abs(ev) > 0]
             axes[1].scatter([p["value"]] * len(nz), np.abs(nz), marker=MARKERS[k % len(MARKERS)],
                             color=COLOURS[k % len(COLOURS)], s=25, label=label if p is pts[0] else None)
