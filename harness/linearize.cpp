@@ -504,8 +504,10 @@ void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol
   // kappa = |x| |y| / |y^H x| (y the left eigenvector, a row of V^-1; Golub and Van Loan,
   // Matrix Computations, 4th ed., Sec. 7.2.2) and |E|2 <= n max|E_ij| <= n a_error.
   const Eigen::MatrixXcd V = es.eigenvectors();
-  const Eigen::FullPivLU<Eigen::MatrixXcd> vlu(V);
-  const Eigen::MatrixXcd W = vlu.isInvertible() ? Eigen::MatrixXcd(vlu.inverse()) : Eigen::MatrixXcd();
+  // (One LU type for every complex solve here: each Eigen decomposition instantiated costs seconds
+  // of compile time.)
+  const Eigen::PartialPivLU<Eigen::MatrixXcd> vlu(V);
+  const Eigen::MatrixXcd W = vlu.rcond() > 1e-13 ? Eigen::MatrixXcd(vlu.inverse()) : Eigen::MatrixXcd();
   for (int i = 0; i < n; ++i) {
     const cd l = es.eigenvalues()(i);
     m.eigenvalues.push_back(l);
@@ -709,7 +711,7 @@ void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult&
     for (int k = 0; k < n; ++k) R.col(k) += node.mass * node.p_BoNi_B.cross(node.Phi_B.col(k));
   }
   const MatrixXd Meff = M - L.transpose() * L / s.bodies[0].mass -
-                        R.transpose() * s.bodies[0].I_BBo_B.ldlt().solve(MatrixXd(R));
+                        R.transpose() * (s.bodies[0].I_BBo_B.inverse() * R);
   closed_form_checks(r, quadratic_eigenvalues(Meff, F.D, F.K),
                      "free flexible body at rest: its modes with the rigid motions condensed out", rtol);
 }
@@ -748,7 +750,11 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
     }
     scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.head(nc).lpNorm<Eigen::Infinity>(), 1.0));
     if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) break;
-    const VectorXd step = J.completeOrthogonalDecomposition().solve(res);
+    // The minimum-norm step, nearly: Levenberg-Marquardt's (J^T J + mu 1)^-1 J^T r with a tiny mu,
+    // so that a coordinate the residual does not see (a joint without a spring) stays put.
+    MatrixXd JtJ = J.transpose() * J;
+    JtJ.diagonal().array() += 1e-12 * std::max(JtJ.trace(), 1e-300);
+    const VectorXd step = JtJ.partialPivLu().solve(J.transpose() * res);
     // Halve the step until the residual falls (at most 30 times).
     double a = 1;
     VectorXd next = z, next_res;
