@@ -4,6 +4,7 @@
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/rotation.hpp"
+#include "harness/cli.hpp"
 #include "harness/engines.hpp"
 #include "harness/scene_geometry.hpp"
 
@@ -826,9 +827,15 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
       auto it = std::find_if(known_inputs.begin(), known_inputs.end(), [&](const InputRef& u) { return u.name == name; });
       if (it == known_inputs.end()) {
         std::string list;
-        for (const InputRef& u : known_inputs) list += (list.empty() ? "" : ", ") + u.name;
-        throw InputError("--inputs: '" + name + "' is not an input of this scene (its inputs: " +
-                         (list.empty() ? std::string("none") : list) + ")");
+        std::vector<std::string> names;
+        for (const InputRef& u : known_inputs) {
+          list += (list.empty() ? "" : ", ") + u.name;
+          names.push_back(u.name);
+        }
+        const std::string near = closest_match(name, names);
+        throw InputError("--inputs: '" + name + "' is not an input of this scene" +
+                         (near.empty() ? "" : " (did you mean '" + near + "'?)") + "; its inputs: " +
+                         (list.empty() ? std::string("none") : list));
       }
       inputs.push_back(*it);
     }
@@ -850,9 +857,12 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
     for (const std::string& y : o.outputs) {
       const std::vector<std::string>& cols = engine->columns();
       auto it = std::find(cols.begin(), cols.end(), y);
-      if (it == cols.end() || y == "t")
-        throw InputError("--outputs: '" + y + "' is not an output column of this scene (see `crossdyn run " +
-                         system.name + "`'s header; the pinned columns of docs/conventions.md)");
+      if (it == cols.end() || y == "t") {
+        const std::string near = closest_match(y, cols);
+        throw InputError("--outputs: '" + y + "' is not an output column of this scene" +
+                         (near.empty() || near == "t" ? "" : " (did you mean '" + near + "'?)") + "; see `crossdyn run " +
+                         system.name + "`'s header, the pinned columns of docs/conventions.md");
+      }
       probe.output_columns.push_back(static_cast<int>(it - cols.begin()));
     }
     const int p = static_cast<int>(o.outputs.size());
