@@ -155,7 +155,8 @@ nlohmann::json locus_json(const System& system, const harness::Knob& knob, const
 
 // --vary KNOB --values LIST: the linearisation at every value (a root locus). A value whose
 // operating point is not an equilibrium is listed as refused, not an error of the sweep.
-int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOptions& options, const System& scene) {
+int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOptions& options, const System& scene,
+                  std::size_t warnings) {
   if (o.vary.empty() || o.values.empty())
     throw InputError("--vary and --values go together (a root locus: the scene parameter and its values)");
   System system = scene;
@@ -214,7 +215,7 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   if (report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
   bool passed = true;
   for (const LocusPoint& p : points) passed = passed && (!p.result || p.result->passed());
-  return passed ? kExitOk : kExitCheckFailed;
+  return harness::strict_status(passed ? kExitOk : kExitCheckFailed, o.strict, warnings);
 }
 
 int linearize_command(const LinearizeCommandOptions& o) {
@@ -282,7 +283,7 @@ int linearize_command(const LinearizeCommandOptions& o) {
   if (!o.json.empty() && o.json != "-" && std::filesystem::is_directory(o.json, ec))
     throw InputError("--json '" + o.json + "' is a folder; give a file name");
 
-  if (!o.vary.empty() || !o.values.empty() || !o.settings.empty()) return locus_command(o, options, system);
+  if (!o.vary.empty() || !o.values.empty() || !o.settings.empty()) return locus_command(o, options, system, checked.warnings.size());
   const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   // The linear models (may refuse a point that is not an equilibrium: exit 2, nothing written).
   const harness::LinearizeResult r = harness::linearize(system, options);
