@@ -211,9 +211,11 @@ std::optional<System> reslice(const System& system, int body, int slices,
   // normalisation. The beam's mass, inertia and modes are those of the new slicing.
   FlexBody& to = *out.bodies[b].flex;
   const FlexBody& from = *flex;
-  // The generator's nodes: bottom (0), slice1 .. sliceN (1 .. N), top (N + 1).
-  const int from_top = old_slices + 1;
-  const int to_top = slices + 1;
+  // The generator's ends: bottom (node 0) and top, found by name (the reader keeps only the
+  // stations joints use, core/flex/beam.hpp, so the index of top depends on the joints).
+  const int from_top = from.node_index("top");
+  const int to_top = to.node_index("top");
+  const std::size_t to_generated = to.nodes.size();  // the nodes below are added after these
   const std::vector<double> r = shape_ratios(from, from_top, to, to_top);
   std::vector<std::pair<int, int>> placed;  // (node of `from`, node of `to`)
   for (const Attachment& a : at) {
@@ -238,7 +240,7 @@ std::optional<System> reslice(const System& system, int body, int slices,
       node = static_cast<int>(to.nodes.size()) - 1;
       placed.emplace_back(a.node, node);
     }
-    if (node > to_top && kept)
+    if (static_cast<std::size_t>(node) >= to_generated && kept)
       kept->push_back("joint '" + system.joints[a.joint].name + "' (" +
                         (a.parent_side ? "parent" : "child") + " side) stays at node " +
                         original.name + " of the " + std::to_string(old_slices) +

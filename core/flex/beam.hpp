@@ -106,15 +106,26 @@ std::vector<SpecProblem> beam_spec_problems(const BeamSpec& spec);
 
 // Limits (docs/flexible-data.md): slices 1 .. kMaxSlices and at least 2 (k + 1) for a plane's
 // highest mode k (two nodes per half-wave); at most kMaxBeamModes modes per plane.
-inline constexpr int kMaxSlices = 100000;
+inline constexpr int kMaxSlices = 50000;  // 2 N + 2 nodes (beam.hpp "Nodes"), within kMaxNodes
 inline constexpr int kMaxBeamModes = 100;
 // Geometric stiffening stores an n x n matrix per node: at most this many entries in all.
-inline constexpr double kMaxStiffeningEntries = 4e6;
+inline constexpr double kMaxStiffeningEntries = 8e6;  // 64 MB
 
 // The beam's nodes, modes, K and D, with its rigid mass and inertia. Throws InputError
 // "<context>: <key>: <what>" for the first of beam_spec_problems(); validate_flex passes on the
 // result.
 FlexModel make_beam(const BeamSpec& spec, const std::string& context);
+
+// A station of a generated beam (beam.hpp "Nodes"): a massless `slice<i>` node of a body whose
+// origin is the beam generator. Stations exist so that joints attach where they always did; no
+// output depends on one that no joint uses (it carries no mass), but each costs the engines time
+// (geometric stiffening loops over every node per right-hand side).
+bool is_beam_station(const FlexBody& f, std::size_t node);
+
+// Removes the stations of `f` (is_beam_station) whose `used` entry is false (`used` has one
+// entry per node); every other node stays, in order. Returns each old node's new index, -1 for a
+// removed one. The scene reader calls it with the nodes its joints name.
+std::vector<int> drop_unused_stations(FlexBody& f, const std::vector<bool>& used);
 
 // The k-th root (k >= 1) lambda_k = b_k L of the frequency equation: free-free cos cosh = 1 (the
 // elastic roots, 0 excluded), clamped-free cos cosh = -1. Machine precision, any k.
