@@ -346,6 +346,24 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
     x[at(N + 1 + i)] = points.x[at(i)];
     mass[at(N + 1 + i)] = s.mass_per_length * points.w[at(i)];
   }
+  // The node sum of the masses (in node order, as rigid_properties adds them) rounds to rho A L
+  // as the equal slices' did: the rounding residual goes to the middle point or pair (a change of
+  // an ulp or so, which keeps the mirror pairs equal).
+  {
+    const double target = s.mass_per_length * L;
+    for (int pass = 0; pass < 4; ++pass) {
+      double total = 0;
+      for (double m : mass) total += m;
+      const double delta = target - total;
+      if (delta == 0) break;
+      if (N % 2 == 1) {
+        mass[at(N + 1 + N / 2)] += delta;
+      } else {
+        mass[at(N + N / 2)] += delta / 2;
+        mass[at(N + 1 + N / 2)] += delta / 2;
+      }
+    }
+  }
   // xi = s / L along the shape's coordinate (from the clamped end; from bottom for free-free), and
   // dxi/dx_a. The ends and the stations from their index (the stations' values as before the mass
   // points moved: their shapes are unchanged), the mass points from their position.
