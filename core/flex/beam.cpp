@@ -1,8 +1,9 @@
-// The beam generator (core/flex/beam.hpp): closed-form Euler-Bernoulli modes sampled at slice
-// centres and ends.
+// The beam generator (core/flex/beam.hpp): closed-form Euler-Bernoulli modes sampled at composite
+// Gauss-Legendre mass points, at massless slice-centre stations and at the ends.
 #include "core/flex/beam.hpp"
 
 #include <boost/math/quadrature/gauss.hpp>
+#include <boost/math/special_functions/legendre.hpp>
 #include <boost/math/tools/roots.hpp>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "core/errors.hpp"
@@ -115,7 +117,7 @@ void add_foreshortening(const BeamSpec& s, const std::array<int, 2>& across,
             for (int k : cols) d(k) = modes[static_cast<std::size_t>(k)].at(point).dphi;
           for (const auto& cols : plane_cols)
             for (int k : cols)
-              for (int l : cols) running(k, l) += w * d(k) * d(l);
+              for (int l : cols) running(k, l) += w * (d(k) * d(l));  // symmetric to the bit
         }
       prev = b;
     }
@@ -130,11 +132,99 @@ void add_foreshortening(const BeamSpec& s, const std::array<int, 2>& across,
   f.geometric_stiffening = true;
 }
 
+// The mass points (beam.hpp "Mass points"): N points on [-L/2, L/2] in B = ceil(N / 20) blocks
+// of equal length (one fewer when that is even and N odd), block sizes palindromic (differing by
+// at most one, the middle block taking an odd extra point), each block's points
+// and weights Gauss-Legendre: the zeros t of P_n and 2 / ((1 - t^2) P_n'(t)^2), scaled to the
+// block. Boost.Math gives the non-negative zeros; the negative ones are their mirror images, and
+// each block's centre (j + 1/2 - B/2) L/B is exactly the negative of its mirror block's, so the
+// positions are exactly antisymmetric about the CM and mirrored points have equal weights.
+// Returns positions x (ascending) and weights w in m (their sum is L to rounding).
+constexpr int kMaxBlockPoints = 20;
+
+struct MassPoints {
+  std::vector<double> x, w;
+};
+
+MassPoints mass_points(int N, double L) {
+  int B = (N + kMaxBlockPoints - 1) / kMaxBlockPoints;
+  // An even number of blocks holds an even count: for odd N one block fewer (larger blocks are
+  // more exact; at most 39 points, N = 39 in one block).
+  if (N % 2 == 1 && B % 2 == 0) --B;
+  std::vector<int> size(static_cast<std::size_t>(B), N / B);
+  int extra = N % B;  // even when B is even
+  if (extra % 2 == 1) {
+    ++size[static_cast<std::size_t>(B / 2)];  // B odd: the middle block
+    --extra;
+  }
+  for (int p = 0; p < extra / 2; ++p) {
+    ++size[static_cast<std::size_t>(p)];
+    ++size[static_cast<std::size_t>(B - 1 - p)];
+  }
+  const double block = L / B, half = block / 2;
+  MassPoints out;
+  out.x.reserve(static_cast<std::size_t>(N));
+  out.w.reserve(static_cast<std::size_t>(N));
+  int rule_n = 0;
+  std::vector<double> t, wt;  // the rule on [-1, 1], ascending
+  for (int j = 0; j < B; ++j) {
+    const int n = size[static_cast<std::size_t>(j)];
+    if (n != rule_n) {
+      rule_n = n;
+      std::vector<double> zeros = boost::math::legendre_p_zeros<double>(n);  // >= 0
+      std::sort(zeros.begin(), zeros.end());
+      std::vector<double> wz;
+      for (double z : zeros) {
+        const double dp = boost::math::legendre_p_prime(n, z);
+        wz.push_back(2 / ((1 - z * z) * dp * dp));
+      }
+      t.clear();
+      wt.clear();
+      for (std::size_t i = zeros.size(); i-- > 0;)
+        if (zeros[i] > 0) {
+          t.push_back(-zeros[i]);
+          wt.push_back(wz[i]);
+        }
+      for (std::size_t i = 0; i < zeros.size(); ++i) {
+        t.push_back(zeros[i]);
+        wt.push_back(wz[i]);
+      }
+    }
+    const double centre = (j + 0.5 - 0.5 * B) * block;
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      out.x.push_back(centre + half * t[i]);
+      out.w.push_back(half * wt[i]);
+    }
+  }
+  return out;
+}
+
 std::string join_problem(const SpecProblem& p) { return p.key + ": " + p.what; }
 
 using scene::shortest;
 
 }  // namespace
+
+bool is_beam_station(const FlexBody& f, std::size_t node) {
+  if (node >= f.nodes.size() || f.origin.rfind("beam generator:", 0) != 0) return false;
+  const FlexNode& n = f.nodes[node];
+  const std::string_view name = n.name;
+  return n.mass == 0 && name.size() > 5 && name.substr(0, 5) == "slice" &&
+         std::all_of(name.begin() + 5, name.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+std::vector<int> drop_unused_stations(FlexBody& f, const std::vector<bool>& used) {
+  std::vector<int> index(f.nodes.size(), -1);
+  std::vector<FlexNode> kept;
+  kept.reserve(f.nodes.size());
+  for (std::size_t i = 0; i < f.nodes.size(); ++i) {
+    if (is_beam_station(f, i) && !(i < used.size() && used[i])) continue;
+    index[i] = static_cast<int>(kept.size());
+    kept.push_back(std::move(f.nodes[i]));
+  }
+  f.nodes = std::move(kept);
+  return index;
+}
 
 double free_free_root(int k) { return root_near(1.0, (2 * k + 1) * std::numbers::pi / 2); }
 double clamped_root(int k) { return root_near(-1.0, (2 * k - 1) * std::numbers::pi / 2); }
@@ -216,7 +306,7 @@ std::vector<SpecProblem> beam_spec_problems(const BeamSpec& s) {
       bad("damping.beta", "Rayleigh beta must be >= 0, found " + shortest(dmp.beta) + " s");
   }
   if (s.geometric_stiffening) {
-    const double entries = static_cast<double>(s.slices + 2) * total_modes * total_modes;
+    const double entries = static_cast<double>(2 * s.slices + 2) * total_modes * total_modes;
     if (s.boundary == BeamBoundary::FreeFree)
       bad("geometric_stiffening",
           "geometric stiffening needs a clamped beam (boundary clamped-bottom or clamped-top): "
@@ -224,7 +314,7 @@ std::vector<SpecProblem> beam_spec_problems(const BeamSpec& s) {
     else if (total_modes == 0)
       bad("geometric_stiffening", "geometric stiffening needs bending modes");
     else if (entries > kMaxStiffeningEntries)
-      bad("geometric_stiffening", "geometric stiffening stores (slices + 2) x modes^2 = " +
+      bad("geometric_stiffening", "geometric stiffening stores (2 slices + 2) x modes^2 = " +
                                       shortest(entries) + " numbers, more than the limit " +
                                       shortest(kMaxStiffeningEntries) + ": use fewer slices or modes");
   }
@@ -236,54 +326,92 @@ FlexModel make_beam(const BeamSpec& s, const std::string& context) {
     throw InputError(context + ": " + join_problem(problems.front()));
 
   const int a = s.axis, N = s.slices;
-  const double L = s.length, h = L / N, m_slice = s.mass_per_length * h;
+  const double L = s.length, h = L / N;
   const Eigen::Vector3d e_a = Eigen::Vector3d::Unit(a);
   std::array<int, 2> across{};  // the transverse axes, alphabetical
   for (int d = 0, j = 0; d < 3; ++d)
     if (d != a) across[static_cast<std::size_t>(j++)] = d;
 
-  // Nodes: bottom, slice1 .. sliceN, top. Slice centres from the exact half-integers
-  // (i + 1/2 - N/2) h, so the positions are exactly antisymmetric about the CM.
-  const int n_nodes = N + 2;
-  std::vector<double> x(static_cast<std::size_t>(n_nodes)), mass(x.size(), 0.0);
+  // Nodes: bottom (0), the stations slice1 .. sliceN (1 .. N), the mass points gauss1 .. gaussN
+  // (N + 1 .. 2N), top (2N + 1). Slice centres from the exact half-integers (i + 1/2 - N/2) h and
+  // the mass points from mass_points(), so the positions are exactly antisymmetric about the CM.
+  const int n_nodes = 2 * N + 2;
+  const auto at = [](int j) { return static_cast<std::size_t>(j); };
+  std::vector<double> x(at(n_nodes)), mass(x.size(), 0.0);
   x.front() = -L / 2;
   x.back() = L / 2;
+  const MassPoints points = mass_points(N, L);
   for (int i = 0; i < N; ++i) {
-    x[static_cast<std::size_t>(i + 1)] = (i + 0.5 - 0.5 * N) * h;
-    mass[static_cast<std::size_t>(i + 1)] = m_slice;
+    x[at(i + 1)] = (i + 0.5 - 0.5 * N) * h;
+    x[at(N + 1 + i)] = points.x[at(i)];
+    mass[at(N + 1 + i)] = s.mass_per_length * points.w[at(i)];
   }
-  // xi = s / L along the shape's coordinate (from the clamped end; from bottom for free-free),
-  // computed from the node index, and dxi/dx_a.
+  // The node sum of the masses (in node order, as rigid_properties adds them) rounds to rho A L
+  // as the equal slices' did: the rounding residual goes to the middle point or pair (a change of
+  // an ulp or so, which keeps the mirror pairs equal).
+  {
+    const double target = s.mass_per_length * L;
+    for (int pass = 0; pass < 4; ++pass) {
+      double total = 0;
+      for (double m : mass) total += m;
+      const double delta = target - total;
+      if (delta == 0) break;
+      if (N % 2 == 1) {
+        mass[at(N + 1 + N / 2)] += delta;
+      } else {
+        mass[at(N + N / 2)] += delta / 2;
+        mass[at(N + 1 + N / 2)] += delta / 2;
+      }
+    }
+  }
+  // xi = s / L along the shape's coordinate (from the clamped end; from bottom for free-free), and
+  // dxi/dx_a. The ends and the stations from their index (the stations' values as before the mass
+  // points moved: their shapes are unchanged), the mass points from their position.
   const bool clamped = s.boundary != BeamBoundary::FreeFree;
   const bool from_top = s.boundary == BeamBoundary::ClampedTop;
   std::vector<double> xi(x.size());
   for (int j = 0; j < n_nodes; ++j) {
-    const double up = j == 0 ? 0.0 : j == n_nodes - 1 ? 1.0 : (j - 0.5) / N;  // from bottom
-    xi[static_cast<std::size_t>(j)] = from_top ? (j == 0 ? 1.0 : j == n_nodes - 1 ? 0.0 : (N - j + 0.5) / N)
-                                               : up;
+    double up;  // from bottom
+    if (j == 0) up = 0.0;
+    else if (j == n_nodes - 1) up = 1.0;
+    else if (j <= N) up = (j - 0.5) / N;
+    else up = 0.5 + x[at(j)] / L;
+    double down;  // from top
+    if (j == 0) down = 1.0;
+    else if (j == n_nodes - 1) down = 0.0;
+    else if (j <= N) down = (N - j + 0.5) / N;
+    else down = 0.5 - x[at(j)] / L;
+    xi[at(j)] = from_top ? down : up;
   }
   const double dxi_dx = (from_top ? -1.0 : 1.0) / L;
 
-  // Slice box inertia: sides h along a, section[d] across.
-  Eigen::Vector3d side;
-  for (int d = 0; d < 3; ++d) side(d) = d == a ? h : s.section[static_cast<std::size_t>(d)];
-  const Eigen::Vector3d sq = side.cwiseAbs2();
-  const Eigen::Matrix3d J_slice =
-      (m_slice / 12.0) * Eigen::Vector3d(sq(1) + sq(2), sq(0) + sq(2), sq(0) + sq(1)).asDiagonal();
+  // A mass point's own inertia: its section's (the box of sides section[d] across, none along a:
+  // the points' parallel-axis terms integrate x_a^2 exactly from 2 points per block on). One point
+  // (N = 1) at the centre cannot: it keeps the whole box's m L^2 / 12 along a.
+  Eigen::Vector3d sq;
+  for (int d = 0; d < 3; ++d) {
+    const double side = d == a ? (N == 1 ? L : 0.0) : s.section[at(d)];
+    sq(d) = side * side;
+  }
+  const Eigen::Vector3d J_per_kg = Eigen::Vector3d(sq(1) + sq(2), sq(0) + sq(2), sq(0) + sq(1)) / 12.0;
 
   int n_modes = 0;
-  for (int d : across) n_modes += s.bending[static_cast<std::size_t>(d)].modes;
+  for (int d : across) n_modes += s.bending[at(d)].modes;
 
   FlexModel out;
   FlexBody& f = out.flex;
-  f.nodes.resize(static_cast<std::size_t>(n_nodes));
+  f.nodes.resize(at(n_nodes));
   for (int j = 0; j < n_nodes; ++j) {
-    FlexNode& node = f.nodes[static_cast<std::size_t>(j)];
-    node.name = j == 0 ? "bottom" : j == n_nodes - 1 ? "top" : "slice" + std::to_string(j);
-    node.mass = mass[static_cast<std::size_t>(j)];
+    FlexNode& node = f.nodes[at(j)];
+    if (j == 0) node.name = "bottom";
+    else if (j == n_nodes - 1) node.name = "top";
+    else if (j <= N) node.name = "slice" + std::to_string(j);
+    else node.name = "gauss" + std::to_string(j - N);
+    node.mass = mass[at(j)];
     node.p_BoNi_B = Eigen::Vector3d::Zero();  // not x * e_a: no -0 across the axis
-    node.p_BoNi_B(a) = x[static_cast<std::size_t>(j)];
-    node.J_Ni_B = node.mass > 0 ? J_slice : Eigen::Matrix3d::Zero();
+    node.p_BoNi_B(a) = x[at(j)];
+    node.J_Ni_B = node.mass > 0 ? Eigen::Matrix3d((node.mass * J_per_kg).asDiagonal())
+                                : Eigen::Matrix3d::Zero();
     node.Phi_B = Eigen::Matrix3Xd::Zero(3, n_modes);
     node.Psi_B = Eigen::Matrix3Xd::Zero(3, n_modes);
   }

@@ -3,14 +3,31 @@
 //
 // Geometry. The beam lies along one body axis a (the long axis), centred on the body origin Bo
 // (its undeformed CM): it spans x_a in [-L/2, +L/2]. The end at +L/2 is the node `top`, the end at
-// -L/2 the node `bottom` (whatever the axis), both massless: joints attach there. Between them, N
-// slices of equal length h = L/N: slice node `slice<i>` (i = 1..N from bottom to top) sits at the
-// slice centre x_a = -L/2 + (i - 1/2) h, carries the slice's mass m_i = rho A h and its own box
-// inertia J_i = m_i/12 diag(...) (sides h along a and the section's sides across), so that the
-// node sums give exactly the uniform box's inertia about the CM (the parallel-axis terms
-// m_i x_i^2 sum to M L^2/12 - M h^2/12, the slices' own h^2 terms to M h^2/12).
-// The nodes are in that order: bottom, slice1 .. sliceN, top.
+// -L/2 the node `bottom` (whatever the axis). `slices` = N divides the beam into N slices of
+// length h = L/N, and the station `slice<i>` (i = 1..N from bottom to top) sits at the slice
+// centre x_a = -L/2 + (i - 1/2) h. The ends and the stations are massless: they are where joints
+// attach (a scene names them), at the same places as when the slices carried the mass.
 //
+// Mass points. The mass sits at N nodes `gauss<i>` (i = 1..N from bottom to top) placed and
+// weighted by composite Gauss-Legendre quadrature: B = ceil(N / 20) blocks of equal length (one
+// fewer when that is even and N odd), palindromic block sizes (so the layout is exactly
+// antisymmetric about the CM), in each block of n points the zeros t of P_n and the weights
+// 2 / ((1 - t^2) P_n'(t)^2) (Boost.Math), scaled to the block: m_i = rho A w_i. Every node sum
+// sum_i m_i f(x_i) is then the integral of rho A f over the beam to rounding for the smooth f of
+// the modal data (a block of n points is exact for polynomials of degree 2n - 1): the modal
+// masses rho A integral phi_k phi_l, the couplings integral phi_k and integral x phi_k (zero for
+// free-free modes), and the rigid mass and inertia. The beam's modal data are the continuum
+// beam's, not a sliced approximation, from about 10 points per half-wave of the highest mode
+// (tests/flex/test_beam.cpp: the free body's frequencies equal the closed form to 1e-12 from
+// N = 12 with two modes per plane; the modal masses equal rho A L / 4 to 1e-13 from N = 21).
+// Each mass point carries only its section's own inertia J_i = m_i/12 diag(...) (the box of the
+// section's sides across a, none along a: the points' parallel-axis terms m_i x_i^2 integrate
+// x_a^2 exactly from two points per block); one point (N = 1) keeps the whole box's m L^2/12
+// along a. The rounding residual of sum m_i against rho A L goes to the middle point (pair).
+// The nodes are in that order: bottom, slice1 .. sliceN, gauss1 .. gaussN, top. The scene reader
+// drops the stations no joint names (drop_unused_stations: they carry no mass, so nothing
+// depends on them, and each would cost the engines time).
+
 // Bending. The two transverse axes, in alphabetical order (a = z: x, y; a = y: x, z; a = x: y, z),
 // are the bending directions d: "the plane of d" is the plane spanned by d and a, and its modes
 // displace the centre line along d, named q<d><k> (qx1, qx2, ... then qy1, ...). Sections translate
@@ -39,11 +56,11 @@
 // Normalisation and modal mass. Each shape is scaled by c, by default to unit displacement along
 // +d at the `top` end (at `bottom` when clamped at the top): the paper's Example 2 convention, "a
 // modal coordinate is that end's deflection, in m". Or to unit modal mass (1 kg). The modal mass
-// is the NODE SUM M_k = sum_i m_i |Phi_ik|^2, not the continuous integral, and K_k = omega_k^2 M_k:
-// the engines simulate the discrete nodes, whose modal mass is that sum, so the discrete free
-// body then vibrates at omega_k up to O(h^4) (the mode/mode and mode/rigid couplings of the
-// sampled shapes are O(h^2) and enter the frequency squared), while the continuous integral would
-// shift it by O(h^2). tests/flex/test_beam.cpp measures both (1e-8 against 1e-4 at N = 100).
+// is the NODE SUM M_k = sum_i m_i |Phi_ik|^2 (the mass the engines integrate), which the mass
+// points make the continuum's integral (rho A L / 4 with a unit end value, |phi(end)| = 2), and
+// K_k = omega_k^2 M_k: the discrete free body vibrates at omega_k to rounding at any slicing
+// that resolves the modes (before issue 27 the slices' midpoint sums put it off by O(h^4), and
+// their mode/rigid couplings by O(h^2)).
 // K and D are diagonal; D_k = 2 zeta_k omega_k M_k (damping ratios) or D_k = alpha M_k + beta K_k
 // (Rayleigh).
 #pragma once
@@ -91,7 +108,8 @@ struct BeamSpec {
   //   planes), phi_k the normalised shape of mode k: the centre line's length is kept to second
   //   order, so a node moves towards the clamp by 1/2 integral_0^{s_i} |u'|^2 ds (Kane, Ryan and
   //   Banerjee 1987, Eq. (8)). Integrated by 16-point Gauss-Legendre (Boost.Math) between
-  //   consecutive nodes, to rounding.
+  //   consecutive nodes (ends, stations and mass points in order from the clamp), to rounding;
+  //   the sums are written w (d_k d_l), so each G_i is symmetric to the bit.
   bool geometric_stiffening = false;
 };
 
@@ -105,16 +123,29 @@ struct SpecProblem {
 std::vector<SpecProblem> beam_spec_problems(const BeamSpec& spec);
 
 // Limits (docs/flexible-data.md): slices 1 .. kMaxSlices and at least 2 (k + 1) for a plane's
-// highest mode k (two nodes per half-wave); at most kMaxBeamModes modes per plane.
-inline constexpr int kMaxSlices = 100000;
+// highest mode k (two nodes per half-wave; the integrals are exact to rounding only from about
+// ten per half-wave); at most kMaxBeamModes modes per plane.
+inline constexpr int kMaxSlices = 50000;  // 2 N + 2 nodes (beam.hpp "Nodes"), within kMaxNodes
 inline constexpr int kMaxBeamModes = 100;
-// Geometric stiffening stores an n x n matrix per node: at most this many entries in all.
-inline constexpr double kMaxStiffeningEntries = 4e6;
+// Geometric stiffening stores an n x n matrix per node (2 N + 2 nodes before the reader drops
+// unused stations): at most this many entries in all.
+inline constexpr double kMaxStiffeningEntries = 8e6;  // 64 MB
 
 // The beam's nodes, modes, K and D, with its rigid mass and inertia. Throws InputError
 // "<context>: <key>: <what>" for the first of beam_spec_problems(); validate_flex passes on the
 // result.
 FlexModel make_beam(const BeamSpec& spec, const std::string& context);
+
+// A station of a generated beam (beam.hpp "Nodes"): a massless `slice<i>` node of a body whose
+// origin is the beam generator. Stations exist so that joints attach where they always did; no
+// output depends on one that no joint uses (it carries no mass), but each costs the engines time
+// (geometric stiffening loops over every node per right-hand side).
+bool is_beam_station(const FlexBody& f, std::size_t node);
+
+// Removes the stations of `f` (is_beam_station) whose `used` entry is false (`used` has one
+// entry per node); every other node stays, in order. Returns each old node's new index, -1 for a
+// removed one. The scene reader calls it with the nodes its joints name.
+std::vector<int> drop_unused_stations(FlexBody& f, const std::vector<bool>& used);
 
 // The k-th root (k >= 1) lambda_k = b_k L of the frequency equation: free-free cos cosh = 1 (the
 // elastic roots, 0 excluded), clamped-free cos cosh = -1. Machine precision, any k.

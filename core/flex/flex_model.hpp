@@ -45,9 +45,9 @@ RigidProperties rigid_properties(const FlexBody& f);
 // (v, w, eta') (all in body components), (6 + n) x (6 + n). The node velocity is B_i (v, w, eta')
 // with B_i = [1, -[p_i x], Phi_i], so M = sum_i m_i B_i^T B_i + blockdiag(0, sum J_i, 0). Its
 // modal block is the discrete modal mass sum_i m_i Phi_i^T Phi_i; its coupling blocks
-// sum m_i Phi_i and sum m_i [p_i x] Phi_i vanish for free-free modes of a continuum (to the
-// slicing error). Used by validate_flex (a mode that is a rigid motion makes it singular) and by
-// tests (the small-motion frequencies of a free body: K x = omega^2 M x with K padded by zeros).
+// sum m_i Phi_i and sum m_i [p_i x] Phi_i vanish for free-free modes of a continuum (for the
+// beam generator to rounding: its mass points integrate exactly). Used by validate_flex (a mode
+// that is a rigid motion makes it singular) and by tests (the small-motion frequencies of a free body: K x = omega^2 M x with K padded by zeros).
 Eigen::MatrixXd rest_mass_matrix(const FlexBody& f);
 
 // Limits against hostile or mistaken input, shared by both sources (docs/flexible-data.md).

@@ -74,9 +74,12 @@ constexpr std::array kKeys = std::to_array<Key>({
         "are measured from its undeformed CM, the nodes' CM; a joint at a node names it with "
         "`parent_node`/`child_node`."},
 {.path = "bodies[].flexible.beam", .type = Map, .noun = "a beam",
- .doc = "A uniform beam along one body axis, centred on the body origin, sliced into `slices` "
-        "nodes plus the massless end nodes `bottom` (at -length/2) and `top` (+length/2); modes "
-        "`qx1, qx2, ...` displace it along x, `qy1, ...` along y (core/flex/beam.hpp)."},
+ .doc = "A uniform beam along one body axis, centred on the body origin: its mass at `slices` "
+        "Gauss-Legendre points `gauss1 ...` (its modal integrals the continuum beam's), the "
+        "massless end nodes `bottom` (at -length/2) and `top` (+length/2) and the massless "
+        "stations `slice1 ...` at the slice centres, where joints may attach (the reader keeps "
+        "those a joint names); modes `qx1, qx2, ...` displace it along x, `qy1, ...` along y "
+        "(core/flex/beam.hpp)."},
 {.path = "bodies[].flexible.beam.length", .type = Quantity, .dimension = Dimension::Length,
  .required = true,
  .doc = "The beam's length L, > 0."},
@@ -88,7 +91,7 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "bodies[].flexible.beam.section", .type = Vector, .dimension = Dimension::Length,
  .required = true, .noun = "the section's sides",
  .doc = "The box section's sides along x, y, z, 0 along the long axis: `[2, 2, 0]` for a beam "
-        "along z (for the slices' own inertia, so that the body's inertia is the box's)."},
+        "along z (for the mass points' own inertia, so that the body's inertia is the box's)."},
 {.path = "bodies[].flexible.beam.bending", .type = Map, .noun = "the bending planes",
  .doc = "Per displacement axis (the two axes across the beam): modes and stiffness. An axis not "
         "given has no modes."},
@@ -115,7 +118,8 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "Free-free, or clamped (cantilevered) at the `bottom` or `top` end: the clamp is the "
         "body frame itself, so a cantilever is attached to its hub at that end."},
 {.path = "bodies[].flexible.beam.slices", .type = Number, .default_value = "100",
- .doc = "The number of slices N (integer, 1 to 10000; at least 2 (k + 1) for mode k)."},
+ .doc = "The number of slices N (integer, 1 to 10000; at least 2 (k + 1) for mode k): N mass "
+        "points and N stations `slice<i>` at -length/2 + (i - 1/2) length/N."},
 {.path = "bodies[].flexible.beam.normalisation", .type = Word, .default_value = "auto",
  .words = "auto|top|bottom|mass", .noun = "normalisation",
  .doc = "Each shape scaled to unit displacement at the `top` end (`auto`: top, or bottom when "

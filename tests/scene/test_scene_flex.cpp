@@ -8,10 +8,12 @@
 #include "core/scene/scene.hpp"
 #include "tests/cross/flex_systems.hpp"
 #include "tests/scene/system_equal.hpp"
+#include "tests/support/linalg.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -244,5 +246,150 @@ TEST_CASE("scene flex: scenarios/pointing_flex.yaml is Scene 2 as the engines' t
   code.compare = file.compare;
   code.bodies[0].flex->scene_form = file.bodies[0].flex->scene_form;
   code.bodies[0].flex->origin = file.bodies[0].flex->origin;
+  // The reader keeps only the stations joints use (core/flex/beam.hpp): none of pointing_flex's.
+  CHECK(code.bodies[0].flex->nodes.size() == 202);
+  std::vector<bool> used(code.bodies[0].flex->nodes.size(), false);
+  const std::vector<int> index = flex::drop_unused_stations(*code.bodies[0].flex, used);
+  for (Joint& J : code.joints)
+    if (J.parent == 0 && J.parent_node >= 0) J.parent_node = index[static_cast<std::size_t>(J.parent_node)];
+  CHECK(code.bodies[0].flex->nodes.size() == 102);
   CHECK(test::system_difference(file, code) == "");
+}
+
+// ---- issue 27 item 5: the default beam is the continuum beam ---------------------------------
+
+TEST_CASE("class: a committed beam scene's flexible frequencies and modal integrals are the continuum's (pointing_flex in full, every beam scene's modal mass)") {
+  // pointing_flex, read by the scene reader: 10 m, 50 kg/m, EI = 100 N m^2 in both planes,
+  // free-free, two modes per plane with unit top displacement, 100 slices. Its flexible
+  // frequencies sqrt(K_k / M_k) and the small-motion frequencies of the free body (the rest mass
+  // matrix with the rigid motion) equal lambda_k^2 sqrt(EI / (rho A L^4)) to 1e-10 (they agree to
+  // about 1e-15), its modal masses are rho A L / 4, its cross modal masses and coupling sums zero.
+  const System s = read_scene(test::scene_path("pointing_flex"));
+  const FlexBody& f = *s.bodies[0].flex;
+  REQUIRE(f.modes() == 4);
+  const double rhoA = 50, L = 10, EI = 100, M = rhoA * L;
+  const Eigen::MatrixXd Mr = flex::rest_mass_matrix(f);
+  const Eigen::MatrixXd Mee = Mr.bottomRightCorner(4, 4);
+  Eigen::MatrixXd Kfull = Eigen::MatrixXd::Zero(10, 10);
+  Kfull.bottomRightCorner(4, 4) = f.K;
+  const Eigen::VectorXd w_free =
+      test::generalized_symmetric_eigenvalues(Kfull, Mr).tail(4).cwiseMax(0).cwiseSqrt();
+  for (int k = 0; k < 4; ++k) {
+    const double lambda = flex::free_free_root(k % 2 + 1);
+    const double w = lambda * lambda * std::sqrt(EI / (rhoA * std::pow(L, 4)));
+    CAPTURE(k, w);
+    CHECK(std::abs(std::sqrt(f.K(k, k) / Mee(k, k)) / w - 1) <= 1e-10);
+    CHECK(std::abs(w_free(k % 2 == 0 ? k / 2 : 2 + k / 2) / w - 1) <= 1e-10);  // ascending: w1 w1 w2 w2
+    CHECK(std::abs(Mee(k, k) / (M / 4) - 1) <= 1e-12);
+    for (int l = 0; l < 4; ++l)
+      if (l != k) CHECK(std::abs(Mee(k, l)) <= 1e-12 * M);
+    // The coupling blocks: sum m Phi (rows 3..5) and sum m p x Phi (rows 0..2).
+    CHECK(Mr.block(0, 6 + k, 6, 1).norm() <= 1e-12 * M * L);
+  }
+  // Every committed beam scene: the node-sum modal mass of each mode equals the continuum's
+  // (rho A L / 4 with a unit end value; the scenes normalise at an end), the cross masses vanish.
+  for (const char* name : {"free_beam_payload", "hub_flex_array", "spinup_beam", "spinup_beam_linear"}) {
+    const System t = read_scene(test::scene_path(name));
+    for (const Body& b : t.bodies) {
+      if (!b.flex) continue;
+      const Eigen::MatrixXd m = flex::rest_mass_matrix(*b.flex).bottomRightCorner(b.flex->modes(), b.flex->modes());
+      CAPTURE(name, b.name);
+      CHECK(b.flex->modes() > 0);
+      for (int k = 0; k < b.flex->modes(); ++k) {
+        CHECK(std::abs(m(k, k) / (b.mass / 4) - 1) <= 1e-12);
+        for (int l = 0; l < b.flex->modes(); ++l)
+          if (l != k) CHECK(std::abs(m(k, l)) <= 1e-12 * b.mass);
+      }
+    }
+  }
+}
+
+TEST_CASE("class: stations no joint uses are dropped when a scene is read; used ones stay at the slice centre, on either side, and nothing else changes") {
+  // The beam generator makes bottom, slice1..N (massless stations at the old slice centres),
+  // gauss1..N (the mass) and top; the reader keeps the ends, the mass points and the stations a
+  // joint names (parent_node or child_node), and drops the rest.
+  struct Case {
+    std::string label;
+    System system;
+    std::vector<std::string> stations;  // kept, in order
+  };
+  std::vector<Case> cases;
+  cases.push_back({"pointing_flex (ends only)", read_scene(test::scene_path("pointing_flex")), {}});
+  cases.push_back({"free_beam_payload (slice30, parent side)", read_scene(test::scene_path("free_beam_payload")), {"slice30"}});
+  cases.push_back({"hub_flex_array (bottom, child side)", read_scene(test::scene_path("hub_flex_array")), {}});
+  // Stations on both sides and two joints at one station.
+  cases.push_back({"kFlex with slice3 (child side) and slice17 twice (parent side)",
+                   read_scene_text(edit("    child_point: [-1, 0, 0]\n    axis: [0, 1, 0]\n",
+                                        "    child_point: [-1, 0, 0]\n    axis: [0, 1, 0]\n"
+                                        "  - {name: h2, type: revolute, parent: beam, parent_node: slice17, child: p2, child_point: [0, 0, 0], axis: [1, 0, 0]}\n"
+                                        "  - {name: h3, type: fixed, parent: beam, parent_node: slice17, child: p3, child_point: [0, 0, 0.1]}\n"
+                                        "  - {name: h4, type: spherical, parent: payload, parent_point: [1, 0, 0], child: tail, child_node: slice3}\n",
+                                        edit("    inertia: [12.5, 39.6, 39.6]\n",
+                                             "    inertia: [12.5, 39.6, 39.6]\n"
+                                             "  - {name: p2, mass: 1, inertia: [0.1, 0.1, 0.1]}\n"
+                                             "  - {name: p3, mass: 1, inertia: [0.1, 0.1, 0.1]}\n"
+                                             "  - name: tail\n    flexible: {beam: {length: 2, axis: x, mass_per_length: 1, section: [0, 0.1, 0.1], bending: {y: {modes: 1, EI: 10}}, slices: 8}}\n")),
+                                   "flex.yaml"),
+                   {"slice17"}});
+  for (const Case& c : cases) {
+    CAPTURE(c.label);
+    const System& s = c.system;
+    for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+      if (!s.bodies[b].flex) continue;
+      const FlexBody& f = *s.bodies[b].flex;
+      CAPTURE(s.bodies[b].name);
+      // The generator's full body, every station kept.
+      const int N = static_cast<int>(std::count_if(f.nodes.begin(), f.nodes.end(),
+                                                   [](const FlexNode& n) { return n.mass > 0; }));
+      std::vector<std::string> names;
+      for (const FlexNode& n : f.nodes)
+        if (n.name.rfind("slice", 0) == 0) names.push_back(n.name);
+      if (s.bodies[b].name == "tail") CHECK(names == std::vector<std::string>{"slice3"});
+      else CHECK(names == c.stations);
+      CHECK(f.nodes.front().name == "bottom");
+      CHECK(f.nodes.back().name == "top");
+      CHECK(f.nodes.size() == static_cast<std::size_t>(N + 2) + names.size());
+      // Every joint at a node: the node it names, at the exact slice centre or end.
+      for (const Joint& J : s.joints)
+        for (bool parent : {true, false}) {
+          if ((parent ? J.parent : J.child) != static_cast<int>(b)) continue;
+          const int node = parent ? J.parent_node : J.child_node;
+          if (node < 0) continue;
+          const FlexNode& n = f.nodes[static_cast<std::size_t>(node)];
+          CAPTURE(J.name, n.name);
+          CHECK((parent ? J.p_PoJ_P : J.p_CoJ_C) == n.p_BoNi_B);
+          CHECK(n.mass == 0.0);
+          const int a = n.p_BoNi_B.x() != 0 ? 0 : n.p_BoNi_B.y() != 0 ? 1 : 2;
+          const double half = std::abs(f.nodes.front().p_BoNi_B(a));
+          if (n.name.rfind("slice", 0) == 0) {
+            const int i = std::stoi(n.name.substr(5));
+            CHECK(std::abs(n.p_BoNi_B(a) - (-half + (i - 0.5) * 2 * half / N)) <= 1e-15 * half);
+          }
+        }
+      // Nothing depends on the dropped stations: the rigid properties, the rest mass matrix (every
+      // modal integral the engines use) and the mass points are those of the generator's full body.
+      const flex::RigidProperties r = flex::rigid_properties(f);
+      CHECK(r.mass == s.bodies[b].mass);
+      CHECK(r.I == s.bodies[b].I_BBo_B);
+    }
+  }
+  // The full body against the pruned one, bit for bit: pointing_flex built in code keeps all.
+  const System file = read_scene(test::scene_path("pointing_flex"));
+  const System code = test::pointing_flex_system();
+  const FlexBody& pruned = *file.bodies[0].flex;
+  const FlexBody& full = *code.bodies[0].flex;
+  REQUIRE(full.nodes.size() == 202);
+  CHECK(flex::rest_mass_matrix(pruned) == flex::rest_mass_matrix(full));
+  CHECK(flex::rigid_properties(pruned).I == flex::rigid_properties(full).I);
+  CHECK(pruned.K == full.K);
+  for (int i = 1; i <= 100; ++i) {
+    const FlexNode& a = pruned.nodes[static_cast<std::size_t>(pruned.node_index("gauss" + std::to_string(i)))];
+    const FlexNode& z = full.nodes[static_cast<std::size_t>(full.node_index("gauss" + std::to_string(i)))];
+    CHECK((a.mass == z.mass && a.p_BoNi_B == z.p_BoNi_B && a.Phi_B == z.Phi_B && a.Psi_B == z.Psi_B));
+  }
+  // A nodal data file's massless nodes are never dropped, whatever their names.
+  FlexBody csv = full;
+  csv.origin = "nodal data file n.csv";
+  CHECK(flex::drop_unused_stations(csv, {}).size() == 202);
+  CHECK(csv.nodes.size() == 202);
 }
