@@ -283,19 +283,20 @@ int linearize_command(const LinearizeCommandOptions& o) {
   if (!o.json.empty() && o.json != "-" && std::filesystem::is_directory(o.json, ec))
     throw InputError("--json '" + o.json + "' is a folder; give a file name");
 
-  if (!o.vary.empty() || !o.values.empty() || !o.settings.empty()) return locus_command(o, options, system, checked.warnings.size());
+  if (!o.vary.empty() || !o.values.empty()) return locus_command(o, options, system, checked.warnings.size());
+  const System set = harness::apply_settings(system, o.settings);
   const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   // The linear models (may refuse a point that is not an equilibrium: exit 2, nothing written).
-  const harness::LinearizeResult r = harness::linearize(system, options);
+  const harness::LinearizeResult r = harness::linearize(set, options);
   if (report) {
-    nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", system.name}};
+    nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", set.name}};
     s["linearization"] = nlohmann::json::parse(harness::linearization_json(r));
     s["mode_pictures"] = nlohmann::json::array();
     // The first engine's modes drawn (at most 12), each from its own output rows.
     for (std::size_t e = 0; e < r.engines.size(); ++e) {
       if (!r.engines[e].failure.empty() || !r.equilibrium) continue;
       for (std::size_t k = 0; k < r.engines[e].modes.size() && k < 12; ++k) {
-        const std::string geometry = harness::mode_geometry(system, options, r, e, k);
+        const std::string geometry = harness::mode_geometry(set, options, r, e, k);
         nlohmann::json pic{{"engine", r.engines[e].label}, {"mode", k + 1}, {"coordinate", r.engines[e].modes[k].coordinate}};
         if (!geometry.empty()) {
           const std::string name = "mode-" + std::to_string(k + 1) + ".json";
@@ -388,7 +389,7 @@ void add_linearize_command(CLI::App& app, int& exit_code) {
                   "`crossdyn stability --vary`: <joint>.stiffness, <joint>.rate, <joint>.wx/wy/wz, "
                   "<joint>.prescribed_rate, <body>.modal_stiffness, <body>.modal_damping, ...)");
   sub->add_option("--values", o->values, "With --vary: a list 1,10,100 or a range 1..1e4 (one per decade)");
-  sub->add_option("--set", o->settings, "With --vary: KNOB=VALUE set first (several allowed)");
+  sub->add_option("--set", o->settings, "KNOB=VALUE: a scene parameter set first (the knobs of --vary; several allowed)");
   // Test hook (hidden): a copy of ENGINE with its gyroscopic term's sign flipped.
   sub->add_option("--test-gyroscopic-sign", o->test_gyroscopic_sign,
                   "Add a copy of ENGINE with the sign of its gyroscopic term w x I w flipped; for tests")

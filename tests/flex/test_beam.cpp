@@ -158,7 +158,7 @@ TEST_CASE("the stable shapes equal the textbook form for low modes and stay exac
 }
 
 
-TEST_CASE("nodes: bottom, stations slice1..N at the slice centres, mass points gauss1..N, top; massless ends and stations") {
+TEST_CASE("nodes: bottom then stations slice1..N at the slice centres then mass points gauss1..N then top with massless ends and stations") {
   // N = 4 along x, L = 10: one block of the 4-point Gauss-Legendre rule (Abramowitz & Stegun
   // 25.4.29: +-0.339981043584856, weight 0.652145154862546; +-0.861136311594053, 0.347854845137454).
   const FlexModel b = make_beam(along(0, BeamBoundary::FreeFree, 4, 1), "beam");

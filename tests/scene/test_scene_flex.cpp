@@ -304,7 +304,7 @@ TEST_CASE("class: a committed beam scene's flexible frequencies and modal integr
   }
 }
 
-TEST_CASE("class: stations no joint uses are dropped when a scene is read; used ones stay at the slice centre, on either side, and nothing else changes") {
+TEST_CASE("class: stations no joint uses are dropped when a scene is read and used ones stay at the slice centre, on either side, and nothing else changes") {
   // The beam generator makes bottom, slice1..N (massless stations at the old slice centres),
   // gauss1..N (the mass) and top; the reader keeps the ends, the mass points and the stations a
   // joint names (parent_node or child_node), and drops the rest.
