@@ -53,6 +53,28 @@ struct Coordinate {
   std::string mode_name;  // the configuration it belongs to (a mode's coordinate name)
 };
 
+// A rotor whose angle is ignorable (a cyclic coordinate, like the base's attitude): a revolute
+// joint, not prescribed, without a spring, whose child is a rigid body carrying nothing else (no
+// joint outboard of it, no external torque), with its CM on the axis and its inertia symmetric
+// about it. Its angle is left out of z (its rate stays): a wheel spinning at a constant rate is
+// then a relative equilibrium, a gyrostat's (dual_spin).
+bool cyclic_rotor(const System& s, std::size_t j) {
+  const Joint& J = s.joints[j];
+  if (j == 0 || J.type != JointType::Revolute || J.prescribed || J.stiffness != 0 || J.child_node >= 0) return false;
+  const Body& C = s.bodies[static_cast<std::size_t>(J.child)];
+  if (C.flex || !C.torque.empty()) return false;
+  for (const Joint& K : s.joints)
+    if (K.parent == J.child) return false;
+  const Vector3d a_C = (J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P).normalized();
+  const double tol = 1e-12 * std::max(C.I_BBo_B.norm(), 1e-300);
+  const double Ia = a_C.dot(C.I_BBo_B * a_C);
+  const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - a_C * a_C.transpose();
+  const Eigen::Matrix3d It = P * C.I_BBo_B * P;  // transverse part: isotropic in the plane?
+  const double t = 0.5 * It.trace();
+  return (C.I_BBo_B * a_C - Ia * a_C).norm() <= tol && (It - t * P).norm() <= tol &&
+         J.p_CoJ_C.cross(a_C).norm() <= 1e-12 * std::max(J.p_CoJ_C.norm(), 1.0);
+}
+
 class ReducedMap {
  public:
   ReducedMap(const System& s, const TreeState& op) : system_(s), op_(op) {
@@ -64,7 +86,7 @@ class ReducedMap {
       if (joint.prescribed) continue;
       switch (joint.type) {
         case JointType::Revolute:
-          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle", joint.name + ".angle");
+          if (!cyclic_rotor(s, j)) add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle", joint.name + ".angle");
           break;
         case JointType::Prismatic:
           add(Coordinate::Kind::Angle, ji, 0, joint.name + ".position", joint.name + ".position");
@@ -249,10 +271,9 @@ class ReducedMap {
 // Turns the base's spin onto the whole spacecraft's principal axis nearest it, keeping |I w0|;
 // the inertia is the bodies' (flexible ones undeformed) placed at st's joint coordinates by
 // harness/scene_geometry. Returns the words for the operating point's description.
-std::string spin_about_principal_axis(const System& s, TreeState& st) {
-  // The whole spacecraft's inertia about its CM in that configuration (harness/scene_geometry's
-  // placement of the bodies), in the base frame; the principal axis nearest the initial base
-  // rate w0, at the rate that keeps |I w0|.
+// The whole spacecraft's inertia about its CM with its joints at st's coordinates
+// (harness/scene_geometry's placement of the bodies; flexible bodies undeformed), in the base frame.
+Eigen::Matrix3d composite_inertia_B(const System& s, const TreeState& st) {
   System n = s;
   for (std::size_t j = 0; j < s.joints.size(); ++j) {
     n.joints[j].angle0 = st.joints[j].angle;
@@ -276,7 +297,12 @@ std::string spin_about_principal_axis(const System& s, TreeState& st) {
            s.bodies[b].mass * (r.squaredNorm() * Eigen::Matrix3d::Identity() - r * r.transpose());
   }
   const Eigen::Matrix3d& R_NB = c.bodies[static_cast<std::size_t>(base)].R_NB;
-  const Eigen::Matrix3d I_B = R_NB.transpose() * I_N * R_NB;
+  return R_NB.transpose() * I_N * R_NB;
+}
+
+// The principal axis nearest the initial base rate w0, at the rate that keeps |I w0|.
+std::string spin_about_principal_axis(const System& s, TreeState& st) {
+  const Eigen::Matrix3d I_B = composite_inertia_B(s, st);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I_B);
   const Vector3d w0 = st.w_NB_B;
   int k = 0;
@@ -311,7 +337,7 @@ TreeState operating_state(const System& s, double t, OperatingPoint point, std::
       case JointType::Revolute:
       case JointType::Prismatic:
         js.angle = J.stiffness != 0 ? J.neutral_angle : J.angle0;
-        js.rate = 0;
+        if (J.type != JointType::Revolute || !cyclic_rotor(s, j)) js.rate = 0;  // a wheel keeps spinning
         break;
       case JointType::Universal:
         js.angle = J.stiffness != 0 ? J.neutral_angle : J.angle0;
@@ -634,6 +660,44 @@ void analytic_checks(const System& s, const TreeState& op, LinearizeResult& r, d
   const std::string axis = (Ip(k) >= Ip.maxCoeff()) ? "major" : (Ip(k) <= Ip.minCoeff()) ? "minor" : "intermediate";
   closed_form_checks(r, {expected}, std::string(l2 < 0 ? "nutation frequency" : "growth rate") + " of a spin about the " + axis +
                      " axis (Euler's equations)", rtol);
+}
+
+// A gyrostat: a free rigid platform carrying one wheel (cyclic_rotor) whose axis a is a principal
+// axis of the whole, the platform spinning at omega about a and the wheel at Omega_r relative to
+// it, h_r = J_s Omega_r (J_s the wheel's axial moment). Euler's equations of the whole,
+// d/dt (I w + h_r a) + w x (I w + h_r a) = 0, linearised about w = omega a:
+//   lambda^2 = -(omega (I_3 - I_1) + h_r)(omega (I_3 - I_2) + h_r) / (I_1 I_2)
+// (Hughes, Spacecraft Attitude Dynamics, 1986, Sec. 7.2, the gyrostat's nutation; I the whole
+// spacecraft's inertia about its CM, I_3 about a): a nutation frequency when both factors share a
+// sign, a growth rate otherwise (a minor-axis spin is stabilised by a fast enough wheel).
+void gyrostat_checks(const System& s, const TreeState& op, LinearizeResult& r, double rtol) {
+  if (s.bodies.size() != 2 || s.joints.size() != 2 || !s.base_is_free() || !cyclic_rotor(s, 1)) return;
+  for (const Body& b : s.bodies)
+    if (b.flex || !b.torque.empty()) return;
+  const Joint& J = s.joints[1];
+  if (J.has_motor() || J.has_damper()) return;
+  const Vector3d a = J.axis_P.normalized();  // in the platform's frame
+  const Eigen::Matrix3d I = composite_inertia_B(s, op);
+  const double I3 = a.dot(I * a);
+  if ((I * a - I3 * a).norm() > 1e-12 * I.norm()) return;  // a not principal: no steady spin
+  const Vector3d w = op.w_NB_B;
+  if ((w - w.dot(a) * a).norm() > 1e-12 * std::max(w.norm(), 1e-300)) return;
+  const double omega = w.dot(a);
+  // The transverse principal moments: the two eigenvalues of I whose eigenvectors are not a.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I);
+  int k3 = 0;
+  for (int q = 1; q < 3; ++q)
+    if (std::abs(es.eigenvectors().col(q).dot(a)) > std::abs(es.eigenvectors().col(k3).dot(a))) k3 = q;
+  const double I1 = es.eigenvalues()((k3 + 1) % 3), I2 = es.eigenvalues()((k3 + 2) % 3);
+  const Vector3d a_C = (J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P).normalized();
+  const double hr = a_C.dot(s.bodies[static_cast<std::size_t>(J.child)].I_BBo_B * a_C) * op.joints[1].rate;
+  const double l2 = -(omega * (I3 - I1) + hr) * (omega * (I3 - I2) + hr) / (I1 * I2);
+  if (l2 == 0) return;
+  const cd expected = l2 < 0 ? cd(0, std::sqrt(-l2)) : cd(std::sqrt(l2), 0);
+  closed_form_checks(r, {expected},
+                     std::string(l2 < 0 ? "nutation frequency" : "growth rate") + " of a gyrostat (h_r = " + num(hr, 6) +
+                         " N m s, platform spin " + num(omega, 6) + " rad/s; Euler's equations of the whole)",
+                     rtol);
 }
 
 // One flexible body rigidly carried by a prescribed base turning at a constant rate Omega about
@@ -1116,6 +1180,7 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
   }
 
   analytic_checks(system, op, r, 1e-10);
+  gyrostat_checks(system, op, r, 1e-10);
   spinning_flexible_checks(system, o.time, r, 1e-10);
   free_flexible_checks(system, op, r, 1e-10);
 

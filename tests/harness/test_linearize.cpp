@@ -461,3 +461,35 @@ TEST_CASE("linearize: --operating-point equilibrium solves for a spring against 
   CHECK(r.op.w_NB_B.z() > 0.1);  // |I w0| kept: a bit faster about z than 0.1
   CHECK_THAT(r.how, Catch::Contains("intermediate principal axis"));
 }
+
+TEST_CASE("linearize: a gyrostat (dual_spin) keeps its wheel spinning and nutates at the closed form's frequency") {
+  // The wheel's angle is cyclic (axisymmetric, CM on its axis, no spring): it is left out of z
+  // and its rate kept, so the spin with the wheel at 1000 rpm is a relative equilibrium.
+  for (const double rpm : {1000.0, 0.0, -300.0}) {
+    INFO("wheel " << rpm << " rpm");
+    System s = read_scene(test::scene_path("dual_spin"));
+    s.joints[1].rate0 = rpm * 2 * M_PI / 60;
+    LinearizeOptions o = every_engine();
+    o.point = OperatingPoint::Spin;
+    const LinearizeResult r = linearize(s, o);
+    CHECK(failed_checks(r) == "");
+    CHECK(std::find(r.states.begin(), r.states.end(), "bearing.angle") == r.states.end());
+    CHECK(std::find(r.states.begin(), r.states.end(), "bearing.rate") != r.states.end());
+    CHECK(r.op.joints[1].rate == Approx(rpm * 2 * M_PI / 60));
+    CHECK(count(r, "analytic") == 3);
+    for (const EngineLinearModel& m : r.engines) CHECK(m.zeros == 2);  // the spin and the wheel rate
+  }
+  // A wheel that is not axisymmetric keeps its angle in z, and its spin is no equilibrium: spin
+  // (like neutral) stops it; the scene's own spinning state is refused.
+  System lopsided = read_scene(test::scene_path("dual_spin"));
+  lopsided.bodies[1].I_BBo_B(0, 0) = 0.6;
+  LinearizeOptions o = every_engine();
+  o.point = OperatingPoint::Spin;
+  const LinearizeResult r = linearize(lopsided, o);
+  CHECK(failed_checks(r) == "");
+  CHECK(std::find(r.states.begin(), r.states.end(), "bearing.angle") != r.states.end());
+  CHECK(r.op.joints[1].rate == 0);
+  lopsided.joints[0].w_NB_B0 = Eigen::Vector3d(0, 0, 0.05);
+  o.point = OperatingPoint::Initial;
+  CHECK_THROWS_WITH(linearize(lopsided, o), Catch::Contains("bearing.angle = 104.7"));
+}
