@@ -6,6 +6,7 @@
 #include "core/rotation.hpp"
 #include "harness/cli.hpp"
 #include "harness/engines.hpp"
+#include "harness/report.hpp"
 #include "harness/scene_geometry.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -1384,18 +1385,18 @@ std::vector<std::pair<std::string, std::string>> linearization_csv(const Lineari
   files.emplace_back("inputs.csv", csv_names(r.inputs));
   files.emplace_back("outputs.csv", csv_names(r.outputs));
   for (const EngineLinearModel& m : r.engines) {
-    if (!m.failure.empty()) continue;
-    files.emplace_back(m.label + ".A.csv", csv_matrix(r.states, m.A));
-    files.emplace_back(m.label + ".B.csv", csv_matrix(r.inputs, m.B));
-    files.emplace_back(m.label + ".C.csv", csv_matrix(r.states, m.C));
-    files.emplace_back(m.label + ".D.csv", csv_matrix(r.inputs, m.D));
+    // A failed engine's files hold their header row only (the files are opened before the work).
+    files.emplace_back(file_safe(m.label + ".A.csv", true), csv_matrix(r.states, m.A));
+    files.emplace_back(file_safe(m.label + ".B.csv", true), csv_matrix(r.inputs, m.B));
+    files.emplace_back(file_safe(m.label + ".C.csv", true), csv_matrix(r.states, m.C));
+    files.emplace_back(file_safe(m.label + ".D.csv", true), csv_matrix(r.inputs, m.D));
     MatrixXd E(static_cast<Eigen::Index>(m.eigenvalues.size()), 2);
     for (std::size_t k = 0; k < m.eigenvalues.size(); ++k) {
       E(static_cast<Eigen::Index>(k), 0) = m.eigenvalues[k].real();
       E(static_cast<Eigen::Index>(k), 1) = m.eigenvalues[k].imag();
     }
-    files.emplace_back(m.label + ".eigenvalues.csv", csv_matrix({"re", "im"}, E));
-    files.emplace_back(m.label + ".own_A.csv", csv_matrix(m.own_states, m.own_A));
+    files.emplace_back(file_safe(m.label + ".eigenvalues.csv", true), csv_matrix({"re", "im"}, E));
+    files.emplace_back(file_safe(m.label + ".own_A.csv", true), csv_matrix(m.own_states, m.own_A));
   }
   return files;
 }

@@ -135,6 +135,50 @@ void write_report(harness::StagedFolder& staged, const std::string& python, cons
   harness::run_python(python, {harness::installed_report_script(), summary_path.string(), staged.path().string()});
 }
 
+// Every output of the command, opened (and so refused when unusable: exit 2) before the work:
+// --json FILE, --csv DIR's files (their names are known from the engines), --report DIR.
+struct Outputs {
+  std::optional<AtomicFile> json;
+  std::vector<std::pair<std::string, std::unique_ptr<AtomicFile>>> csv;  // file name => file
+  std::unique_ptr<harness::StagedFolder> report;
+
+  std::ostream* csv_stream(const std::string& name) {
+    for (auto& [n, f] : csv)
+      if (n == name) return &f->stream();
+    return nullptr;
+  }
+  void commit() {
+    std::vector<AtomicFile*> files;
+    if (json) files.push_back(&*json);
+    for (auto& f : csv) files.push_back(f.second.get());
+    commit_together(files, {report.get()});
+  }
+};
+
+// The CSV files --csv DIR gets (harness::linearization_csv's names; a root locus: one file).
+std::vector<std::string> csv_names(const harness::LinearizeOptions& options, bool locus) {
+  if (locus) return {"root_locus.csv"};
+  std::vector<std::string> n{"states.csv", "inputs.csv", "outputs.csv"};
+  for (const harness::LinearEngineChoice& e : options.engines)
+    for (const char* m : {"A", "B", "C", "D", "eigenvalues", "own_A"})
+      n.push_back(harness::file_safe(e.label + "." + m + ".csv", true));
+  return n;
+}
+
+void open_outputs(Outputs& out, const LinearizeCommandOptions& o, const std::vector<std::string>& csv) {
+  // The report folder first and --csv's folder last: a refused output leaves no folder behind.
+  out.report = open_report(o);
+  if (!o.json.empty()) {
+    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
+    out.json.emplace(o.json, "--json");
+  }
+  if (!o.csv.empty()) {
+    harness::make_directories(o.csv);
+    for (const std::string& name : csv)
+      out.csv.emplace_back(name, std::make_unique<AtomicFile>((std::filesystem::path(o.csv) / name).string(), "--csv"));
+  }
+}
+
 nlohmann::json locus_json(const System& system, const harness::Knob& knob, const std::vector<LocusPoint>& points) {
   nlohmann::json j;
   j["scene"] = system.name;
@@ -156,7 +200,7 @@ nlohmann::json locus_json(const System& system, const harness::Knob& knob, const
 // --vary KNOB --values LIST: the linearisation at every value (a root locus). A value whose
 // operating point is not an equilibrium is listed as refused, not an error of the sweep.
 int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOptions& options, const System& scene,
-                  std::size_t warnings) {
+                  std::size_t warnings, Outputs& out) {
   if (o.vary.empty() || o.values.empty())
     throw InputError("--vary and --values go together (a root locus: the scene parameter and its values)");
   System system = scene;
@@ -164,7 +208,6 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
   const harness::Knob knob = harness::parse_knob(system, o.vary);
   const std::vector<double> values = harness::parse_parameter_values(o.values);
   for (double v : values) (void)harness::apply_knob(system, knob, v);  // refuse bad values first
-  const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   std::vector<LocusPoint> points;
   for (double v : values) {
     LocusPoint p;
@@ -178,41 +221,28 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
     }
     points.push_back(std::move(p));
   }
-  std::optional<AtomicFile> json;
-  std::vector<std::unique_ptr<AtomicFile>> csv;
-  if (!o.json.empty()) {
-    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
-    json.emplace(o.json, "--json");
-    json->stream() << locus_json(system, knob, points).dump(1) << "\n";
-  }
-  if (report) {
+  if (out.json) out.json->stream() << locus_json(system, knob, points).dump(1) << "\n";
+  if (out.report) {
     nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", system.name}};
     s["locus"] = locus_json(system, knob, points);
     s["locus"]["description"] = knob.description;
-    write_report(*report, o.python, s);
+    write_report(*out.report, o.python, s);
   }
-  if (!o.csv.empty()) {
-    harness::make_directories(o.csv);
-    std::ostringstream t;
-    t << "value,engine,re,im,frequency,damping_ratio\n";
+  if (std::ostream* f = out.csv_stream("root_locus.csv")) {
+    *f << "value,engine,re,im,frequency,damping_ratio\n";
     for (const LocusPoint& p : points) {
       if (!p.result) continue;
       for (const harness::EngineLinearModel& m : p.result->engines)
         for (const std::complex<double>& l : m.eigenvalues)
-          t << format_value(p.value) << ',' << m.label << ',' << format_value(l.real()) << ',' << format_value(l.imag())
-            << ',' << format_value(std::abs(l)) << ',' << format_value(std::abs(l) > 0 ? -l.real() / std::abs(l) : 0.0)
-            << "\n";
+          *f << format_value(p.value) << ',' << m.label << ',' << format_value(l.real()) << ',' << format_value(l.imag())
+             << ',' << format_value(std::abs(l)) << ',' << format_value(std::abs(l) > 0 ? -l.real() / std::abs(l) : 0.0)
+             << "\n";
     }
-    csv.push_back(std::make_unique<AtomicFile>((std::filesystem::path(o.csv) / "root_locus.csv").string(), "--csv"));
-    csv.back()->stream() << t.str();
   }
   std::cout << format_locus(knob, points, options.rtol);
   check_written(std::cout);
-  std::vector<AtomicFile*> files;
-  if (json) files.push_back(&*json);
-  for (auto& f : csv) files.push_back(f.get());
-  commit_together(files, {report.get()});
-  if (report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
+  out.commit();
+  if (out.report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
   bool passed = true;
   for (const LocusPoint& p : points) passed = passed && (!p.result || p.result->passed());
   return harness::strict_status(passed ? kExitOk : kExitCheckFailed, o.strict, warnings);
@@ -269,26 +299,30 @@ int linearize_command(const LinearizeCommandOptions& o) {
   const harness::CheckedScene checked = harness::read_checked_scene(scene);
   const System& system = checked.system;
   harness::print_warnings(checked.warnings, std::cerr);
+  // Every output against every input, and each opened before the work (exit 2 when unusable).
+  const bool locus = !o.vary.empty() || !o.values.empty();
+  const std::vector<std::string> csv = csv_names(options, locus);
   std::vector<NamedPath> outputs{{"standard output", "-"}};
   if (!o.json.empty()) outputs.push_back({"--json", o.json});
+  std::error_code ec;
+  if (!o.csv.empty()) {
+    if (std::filesystem::exists(o.csv, ec) && !std::filesystem::is_directory(o.csv, ec))
+      throw InputError("--csv '" + o.csv + "': a folder is needed (it gets one CSV file per matrix)");
+    for (const std::string& name : csv) outputs.push_back({"--csv", (std::filesystem::path(o.csv) / name).string()});
+  }
   std::vector<NamedPath> folders;
-  if (!o.csv.empty()) folders.push_back({"--csv", o.csv});
   if (!o.report.empty()) folders.push_back({"--report", o.report});
   std::vector<NamedPath> inputs = harness::scene_inputs(system);
   if (!o.report.empty()) inputs.push_back({"the report script", harness::installed_report_script()});
   check_outputs_are_not_inputs(outputs, inputs, folders);
-  std::error_code ec;
-  if (!o.csv.empty() && std::filesystem::exists(o.csv, ec) && !std::filesystem::is_directory(o.csv, ec))
-    throw InputError("--csv '" + o.csv + "': a folder is needed (it gets one CSV file per matrix)");
-  if (!o.json.empty() && o.json != "-" && std::filesystem::is_directory(o.json, ec))
-    throw InputError("--json '" + o.json + "' is a folder; give a file name");
+  Outputs out;
+  open_outputs(out, o, csv);
 
-  if (!o.vary.empty() || !o.values.empty()) return locus_command(o, options, system, checked.warnings.size());
+  if (locus) return locus_command(o, options, system, checked.warnings.size(), out);
   const System set = harness::apply_settings(system, o.settings);
-  const std::unique_ptr<harness::StagedFolder> report = open_report(o);
   // The linear models (may refuse a point that is not an equilibrium: exit 2, nothing written).
   const harness::LinearizeResult r = harness::linearize(set, options);
-  if (report) {
+  if (out.report) {
     nlohmann::json s{{"tool", "crossdyn"}, {"kind", "linearize"}, {"scene", set.name}};
     s["linearization"] = nlohmann::json::parse(harness::linearization_json(r));
     s["mode_pictures"] = nlohmann::json::array();
@@ -300,38 +334,22 @@ int linearize_command(const LinearizeCommandOptions& o) {
         nlohmann::json pic{{"engine", r.engines[e].label}, {"mode", k + 1}, {"coordinate", r.engines[e].modes[k].coordinate}};
         if (!geometry.empty()) {
           const std::string name = "mode-" + std::to_string(k + 1) + ".json";
-          write_file_atomic((report->path() / name).string(), geometry);
+          write_file_atomic((out.report->path() / name).string(), geometry);
           pic["geometry"] = name;
         }
         s["mode_pictures"].push_back(pic);
       }
       break;
     }
-    write_report(*report, o.python, s);
+    write_report(*out.report, o.python, s);
   }
-
-  std::optional<AtomicFile> json;
-  std::vector<std::unique_ptr<AtomicFile>> csv;
-  if (!o.json.empty()) {
-    if (o.json != "-") harness::make_directories(std::filesystem::path(o.json).parent_path().string());
-    json.emplace(o.json, "--json");
-    json->stream() << harness::linearization_json(r);
-  }
-  if (!o.csv.empty()) {
-    harness::make_directories(o.csv);
-    for (const auto& [name, content] : harness::linearization_csv(r)) {
-      const std::string path = (std::filesystem::path(o.csv) / harness::file_safe(name, true)).string();
-      csv.push_back(std::make_unique<AtomicFile>(path, "--csv"));
-      csv.back()->stream() << content;
-    }
-  }
+  if (out.json) out.json->stream() << harness::linearization_json(r);
+  for (const auto& [name, content] : harness::linearization_csv(r))
+    if (std::ostream* f = out.csv_stream(name)) *f << content;
   std::cout << harness::format_linearization(r);
   check_written(std::cout);
-  std::vector<AtomicFile*> files;
-  if (json) files.push_back(&*json);
-  for (auto& f : csv) files.push_back(f.get());
-  commit_together(files, {report.get()});
-  if (report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
+  out.commit();
+  if (out.report) std::cout << "report: " << (std::filesystem::path(o.report) / "index.html").string() << "\n";
   return harness::strict_status(r.passed() ? kExitOk : kExitCheckFailed, o.strict, checked.warnings.size());
 }
 
@@ -358,12 +376,12 @@ void add_linearize_command(CLI::App& app, int& exit_code) {
                   "equilibrium); spin (equilibrium about the whole spacecraft's principal axis "
                   "nearest the initial base rate, |I w0| kept)");
   sub->add_option("--time", o->time, "Operating time, s (prescribed joints' profiles and motors at it; default 0)");
-  sub->add_option("--inputs", o->inputs,
+  list_option(sub->add_option("--inputs", o->inputs,
                   "Comma-separated inputs: <joint>.motor, .motor1/.motor2 (universal), .motorx/y/z "
                   "(spherical), <body>.Tx/Ty/Tz; `none` for none (default: every motor and body "
-                  "torque the scene names)")
+                  "torque the scene names)"))
       ->each([o](const std::string&) { o->inputs_given = true; });
-  sub->add_option("--outputs", o->outputs, "Comma-separated pinned output columns (C and D; default none)");
+  list_option(sub->add_option("--outputs", o->outputs, "Comma-separated pinned output columns (C and D; default none)"));
   sub->add_option("--rtol", o->rtol, "Eigenvalue agreement: |l_a - l_b| <= rtol |l_a| + 1e-12 |l|max (default 1e-8)");
   sub->add_option("--tf-rtol", o->tf_rtol, "Transfer-function agreement, relative to the largest |G| (default 1e-7)");
   sub->add_option("--residual-tol", o->residual_tol,
@@ -388,7 +406,7 @@ void add_linearize_command(CLI::App& app, int& exit_code) {
                   "A root locus: linearise at every value of this scene parameter (the knobs of "
                   "`crossdyn stability --vary`: <joint>.stiffness, <joint>.rate, <joint>.wx/wy/wz, "
                   "<joint>.prescribed_rate, <body>.modal_stiffness, <body>.modal_damping, ...)");
-  sub->add_option("--values", o->values, "With --vary: a list 1,10,100 or a range 1..1e4 (one per decade)");
+  list_option(sub->add_option("--values", o->values, "With --vary: a list 1,10,100 or a range 1..1e4 (one per decade)"));
   sub->add_option("--set", o->settings, "KNOB=VALUE: a scene parameter set first (the knobs of --vary; several allowed)");
   // Test hook (hidden): a copy of ENGINE with its gyroscopic term's sign flipped.
   sub->add_option("--test-gyroscopic-sign", o->test_gyroscopic_sign,

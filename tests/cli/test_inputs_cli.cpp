@@ -84,7 +84,8 @@ TEST_CASE("class 3, nothing blocks on a special file: scenes named on the comman
       {"folder.yaml", ":1:1: cannot open the scene file: it is a directory, not a scene file"}};
   if (have_socket) cases.push_back({"sock.yaml", ":1:1: cannot open the scene file: it is a socket, not a regular file"});
   for (const char* command : {"run", "compare", "verify", "draw", "converge", "study --tolerances 1e-6",
-                              "stability --vary hub.mass --values 1,2"})
+                              "stability --vary hub.mass --values 1,2", "linearize",
+                              "linearize --vary hub.mass --values 1,2"})
     for (const auto& [path, why] : cases) {
       const Run r = timed(s.dir().string(), std::string(command) + " " + path);
       INFO(command << " " << path << ": " << r.err);
@@ -242,7 +243,8 @@ TEST_CASE("class 8, a value is refused where it is given: empty and repeated lis
   std::vector<Case> cases;
   const std::vector<std::pair<std::string, std::string>> commands{
       {"compare scene.yaml", ""}, {"verify scene.yaml", ""},
-      {"study scene.yaml", ""}, {"stability scene.yaml --vary hub.mass", " --values 1,2"}};
+      {"study scene.yaml", ""}, {"stability scene.yaml --vary hub.mass", " --values 1,2"},
+      {"linearize scene.yaml", ""}, {"linearize scene.yaml --vary hub.mass", " --values 1,2"}};
   for (const auto& [command, needed] : commands) {
     cases.push_back({command + needed + " --engines ''", "--engines: the list is empty"});
     cases.push_back({command + needed + " --engines kane,kane", "--engines: 'kane' is listed twice"});
@@ -259,6 +261,12 @@ TEST_CASE("class 8, a value is refused where it is given: empty and repeated lis
     cases.push_back({command + " --tolerances 1e-6,,1e-8", "--tolerances: an empty item"});
   }
   cases.push_back({"stability scene.yaml --vary hub.mass --values ''", "--values: the list is empty"});
+  cases.push_back({"linearize scene.yaml --vary hub.mass --values ''", "--values: the list is empty"});
+  cases.push_back({"linearize scene.yaml --vary hub.mass --values 1,1", "--values: '1' is listed twice"});
+  cases.push_back({"linearize scene.yaml --set panel.mass=2 --set panel.mass=3", "--set: 'panel.mass' is set twice"});
+  cases.push_back({"linearize scene.yaml --inputs hinge.motor,hinge.motor", "--inputs: 'hinge.motor' is listed twice"});
+  cases.push_back({"linearize scene.yaml --outputs hub.wx,", "--outputs: an empty item"});
+  cases.push_back({"linearize scene.yaml --outputs ''", "--outputs: "});
   cases.push_back({"stability scene.yaml --vary hub.mass --values 1,1", "--values: '1' is listed twice"});
   cases.push_back({"stability scene.yaml --vary hinge.stiffness --values 10,1e1", "--values: the value 1e+01 is listed twice"});
   cases.push_back({"stability scene.yaml --vary hub.mass --values 1,2 --set ''", "--set: an empty value"});
@@ -435,7 +443,9 @@ TEST_CASE("class 10, every error is a sentence about the user's input: numbers o
       {"draw scene.yaml --panels 1e3", "--panels: '1e3' is not a whole number"},
       {"run scene.yaml --duration abc", "--duration: 'abc' is not a number this option takes"},
       {"compare scene.yaml --timeout 1x", "--timeout: '1x' is not a number this option takes"},
-      {"study scene.yaml --budget two", "--budget: 'two' is not a number this option takes"}};
+      {"study scene.yaml --budget two", "--budget: 'two' is not a number this option takes"},
+      {"linearize scene.yaml --time abc", "--time: 'abc' is not a number this option takes"},
+      {"linearize scene.yaml --rtol 1x", "--rtol: '1x' is not a number this option takes"}};
   for (const auto& [args, message] : cases) {
     const Run r = timed(s.dir().string(), args);
     INFO(args << ": " << r.err);

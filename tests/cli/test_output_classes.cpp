@@ -112,6 +112,9 @@ TEST_CASE("class 1, an input is never overwritten, whatever names it: every comm
       "stability s.yaml -q --vary hinge.stiffness --values 10,20 --shard 0/1 --part modes.csv",
       "stability s.yaml -q --vary hinge.stiffness --values 10,20 --report .",
       "verify s.yaml -q --report .",
+      "linearize s.yaml --jacobian-only --json nodes.csv",
+      "linearize s.yaml --jacobian-only --report .",
+      "linearize s.yaml --jacobian-only --vary hinge.stiffness --values 10,20 --json modes.csv",
   };
   for (const std::string& args : cases) {
     INFO(args);
@@ -140,6 +143,7 @@ TEST_CASE("class 1, an input is never overwritten, whatever names it: every comm
       {"study s.yaml -q --engines kane --integrators rk4 --dts 0.05", ">> modes.csv"},
       {"stability s.yaml -q --vary hinge.stiffness --values 10,20", ">> nodes.csv"},
       {"draw s.yaml --no-motion -o ok.png", ">> s.yaml"},
+      {"linearize s.yaml --jacobian-only --json ok.json", ">> nodes.csv"},
   };
   for (const auto& [args, redirect] : redirected) {
     INFO(args << " " << redirect);
@@ -169,6 +173,24 @@ TEST_CASE("class 1, an input is never overwritten, whatever names it: every comm
     CHECK(read_file(d.path("panel_modes.png")) == pp);
     CHECK(!fs::exists(d.path("x.png")));
   }
+
+  // linearize --csv DIR writes files of known names into DIR: a data file named like one of them.
+  Scratch l("class1linearize");
+  flex_files(l, "kane.A.csv", "states.csv");
+  const std::string ka = read_file(l.path("kane.A.csv")), st = read_file(l.path("states.csv"));
+  for (const std::string args : {"linearize s.yaml --jacobian-only --csv .",
+                                  "linearize s.yaml --jacobian-only --engines kane --csv . --json ok.json"}) {
+    INFO(args);
+    const Run r = run_in(l.dir(), args);
+    INFO(r.err);
+    CHECK(r.status == 2);
+    CHECK(contains(r.err, "input"));
+    CHECK(read_file(l.path("kane.A.csv")) == ka);
+    CHECK(read_file(l.path("states.csv")) == st);
+    CHECK(!fs::exists(l.path("ok.json")));
+    CHECK(!fs::exists(l.path("inputs.csv")));
+  }
+  CHECK(no_leftovers(l));
 
   // merge: its outputs against its part files.
   Scratch m("class1merge");
@@ -258,6 +280,15 @@ TEST_CASE("class 2, a bad output is refused before the work: every command and o
       stab + "--csv ok.csv --report ok.csv", stab + "--csv ok/a/x.csv --report ok",
       "merge q.json --csv ok/x.csv --report=ok", "merge r.json --csv ok.csv --report=ok.csv",
       "merge p.json --json ok/summary.json --report=ok",
+      "linearize long.yaml --jacobian-only --json dir",
+      "linearize long.yaml --jacobian-only --json ro.json",
+      "linearize long.yaml --jacobian-only --csv file",
+      "linearize long.yaml --jacobian-only --csv ok --json ro.json",
+      "linearize long.yaml --jacobian-only --csv ok --report file",
+      "linearize long.yaml --jacobian-only --json ok.json --report file",
+      "linearize long.yaml --jacobian-only --json ok/x.json --report ok",
+      "linearize long.yaml --jacobian-only --vary hinge.rate --values 0.1,0.2 --csv file",
+      "linearize long.yaml --jacobian-only --vary hinge.rate --values 0.1,0.2 --json ro.json",
   };
   for (const std::string& args : cases) {
     INFO(args);
@@ -446,6 +477,10 @@ TEST_CASE("class 2, an interrupted command leaves the old outputs or the new, ne
       {stab + "--shard 0/1 --part o.part", {"o.part"}, {}, ""},
       {study + "--shard 0/1 --part o.part", {"o.part"}, {}, ""},
       {"draw a.yaml --no-motion -o o.png --geometry o.geometry.json", {"o.png", "o.geometry.json"}, {}, ""},
+      {"linearize a.yaml --jacobian-only --json o.json --csv O --report R",
+       {"o.json", "O/states.csv", "O/kane.A.csv", "O/newton-euler.own_A.csv"}, {"R"}, "linearize"},
+      {"linearize a.yaml --jacobian-only --vary hinge.rate --values 0.1,0.2 --json o.json --csv O --report R",
+       {"o.json", "O/root_locus.csv"}, {"R"}, "linearize"},
   };
   for (const Case& c : cases) {
     INFO(c.args);
