@@ -52,7 +52,13 @@ struct Coordinate {
   int component = 0;  // x/y/z, or mode
   std::string name;
   std::string mode_name;  // the configuration it belongs to (a mode's coordinate name)
+  int rate = -1;          // a configuration coordinate whose rate is in z: that rate's index
 };
+
+// A revolute joint's axis in the child frame: axis_C = R_PJ0^T axis_P (core/system.hpp).
+Vector3d axis_in_child(const Joint& J) {
+  return (J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P).normalized();
+}
 
 // A rotor whose angle is ignorable (a cyclic coordinate, like the base's attitude): a revolute
 // joint, not prescribed, without a spring, whose child is a rigid body carrying nothing else (no
@@ -66,7 +72,7 @@ bool cyclic_rotor(const System& s, std::size_t j) {
   if (C.flex || !C.torque.empty()) return false;
   for (const Joint& K : s.joints)
     if (K.parent == J.child) return false;
-  const Vector3d a_C = (J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P).normalized();
+  const Vector3d a_C = axis_in_child(J);
   const double tol = 1e-12 * std::max(C.I_BBo_B.norm(), 1e-300);
   const double Ia = a_C.dot(C.I_BBo_B * a_C);
   const Eigen::Matrix3d P = Eigen::Matrix3d::Identity() - a_C * a_C.transpose();
@@ -78,63 +84,42 @@ bool cyclic_rotor(const System& s, std::size_t j) {
 
 class ReducedMap {
  public:
+  // One pass over the joints and bodies: each degree of freedom's configuration coordinates go
+  // to the first half of z, its velocities to the second (a free base's w first).
   ReducedMap(const System& s, const TreeState& op) : system_(s), op_(op) {
-    const std::vector<Joint>& J = s.joints;
-    // Configuration coordinates.
-    for (std::size_t j = 0; j < J.size(); ++j) {
-      const Joint& joint = J[j];
-      const int ji = static_cast<int>(j);
-      if (joint.prescribed) continue;
-      switch (joint.type) {
-        case JointType::Revolute:
-          if (!cyclic_rotor(s, j)) add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle", joint.name + ".angle");
-          break;
-        case JointType::Prismatic:
-          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".position", joint.name + ".position");
-          break;
-        case JointType::Universal:
-          add(Coordinate::Kind::Angle, ji, 0, joint.name + ".angle1", joint.name + ".angle1");
-          add(Coordinate::Kind::Angle2, ji, 0, joint.name + ".angle2", joint.name + ".angle2");
-          break;
-        case JointType::Spherical:
-          for (int c = 0; c < 3; ++c)
-            add(Coordinate::Kind::Phi, ji, c, joint.name + ".phi" + "xyz"[c], joint.name + ".phi");
-          break;
-        case JointType::Free:
-        case JointType::Fixed: break;
-      }
-    }
-    for (std::size_t b = 0; b < s.bodies.size(); ++b)
-      if (s.bodies[b].flex)
-        for (int k = 0; k < s.bodies[b].flex->modes(); ++k) {
-          const std::string n = s.bodies[b].name + "." + s.bodies[b].flex->mode_names[static_cast<std::size_t>(k)];
-          add(Coordinate::Kind::Eta, static_cast<int>(b), k, n, n);
-        }
-    configuration_ = static_cast<int>(coords_.size());
-    // Velocity coordinates.
+    using K = Coordinate::Kind;
+    std::vector<Coordinate> q, v;
+    // One degree of freedom: its configuration coordinate, its velocity, the mode name of both.
+    auto dof = [&](K qk, K vk, int index, int component, const std::string& qname, const std::string& vname,
+                   const std::string& mode) {
+      v.push_back({vk, index, component, vname, mode});
+      q.push_back({qk, index, component, qname, mode, static_cast<int>(v.size()) - 1});  // its rate, in v
+    };
     if (s.base_is_free()) {
       const std::string base = s.bodies[static_cast<std::size_t>(s.base_body())].name;
-      for (int c = 0; c < 3; ++c)
-        add(Coordinate::Kind::BaseW, 0, c, base + ".w" + "xyz"[c], base + ".w");
+      for (int c = 0; c < 3; ++c) v.push_back({K::BaseW, 0, c, base + ".w" + "xyz"[c], base + ".w"});
     }
-    for (std::size_t j = 0; j < J.size(); ++j) {
-      const Joint& joint = J[j];
+    for (std::size_t j = 0; j < s.joints.size(); ++j) {
+      const Joint& J = s.joints[j];
       const int ji = static_cast<int>(j);
-      if (joint.prescribed) continue;
-      switch (joint.type) {
+      if (J.prescribed) continue;
+      switch (J.type) {
         case JointType::Revolute:
-          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate", joint.name + ".angle");
+          if (cyclic_rotor(s, j))
+            v.push_back({K::Rate, ji, 0, J.name + ".rate", J.name + ".angle"});  // its angle is ignorable
+          else
+            dof(K::Angle, K::Rate, ji, 0, J.name + ".angle", J.name + ".rate", J.name + ".angle");
           break;
         case JointType::Prismatic:
-          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate", joint.name + ".position");
+          dof(K::Angle, K::Rate, ji, 0, J.name + ".position", J.name + ".rate", J.name + ".position");
           break;
         case JointType::Universal:
-          add(Coordinate::Kind::Rate, ji, 0, joint.name + ".rate1", joint.name + ".angle1");
-          add(Coordinate::Kind::Rate2, ji, 0, joint.name + ".rate2", joint.name + ".angle2");
+          dof(K::Angle, K::Rate, ji, 0, J.name + ".angle1", J.name + ".rate1", J.name + ".angle1");
+          dof(K::Angle2, K::Rate2, ji, 0, J.name + ".angle2", J.name + ".rate2", J.name + ".angle2");
           break;
         case JointType::Spherical:
           for (int c = 0; c < 3; ++c)
-            add(Coordinate::Kind::W, ji, c, joint.name + ".w" + "xyz"[c], joint.name + ".phi");
+            dof(K::Phi, K::W, ji, c, J.name + ".phi" + "xyz"[c], J.name + ".w" + "xyz"[c], J.name + ".phi");
           break;
         case JointType::Free:
         case JointType::Fixed: break;
@@ -144,8 +129,13 @@ class ReducedMap {
       if (s.bodies[b].flex)
         for (int k = 0; k < s.bodies[b].flex->modes(); ++k) {
           const std::string n = s.bodies[b].name + "." + s.bodies[b].flex->mode_names[static_cast<std::size_t>(k)];
-          add(Coordinate::Kind::EtaRate, static_cast<int>(b), k, n + "_rate", n);
+          dof(K::Eta, K::EtaRate, static_cast<int>(b), k, n, n + "_rate", n);
         }
+    // z = (q, v): each configuration coordinate's rate index moves past q.
+    configuration_ = static_cast<int>(q.size());
+    for (Coordinate& c : q) c.rate += configuration_;
+    coords_ = q;
+    coords_.insert(coords_.end(), v.begin(), v.end());
   }
 
   int size() const { return static_cast<int>(coords_.size()); }
@@ -198,7 +188,7 @@ class ReducedMap {
     }
     for (std::size_t j = 0; j < phi.size(); ++j)
       if (system_.joints[j].type == JointType::Spherical && !system_.joints[j].prescribed)
-        s.joints[j].q_J = (op_.joints[j].q_J * exp_rotation(phi[j])).normalized();
+        s.joints[j].q_J = (op_.joints[j].q_J * rot::from_rotation_vector(phi[j])).normalized();
     return s;
   }
 
@@ -217,10 +207,10 @@ class ReducedMap {
       const auto j = static_cast<std::size_t>(c.index);
       switch (c.kind) {
         case Coordinate::Kind::BaseW: zd(i) = a.wdot_NB_B[static_cast<std::size_t>(base)](c.component); break;
-        case Coordinate::Kind::Angle: zd(i) = z(index_of(Coordinate::Kind::Rate, c.index, 0)); break;
-        case Coordinate::Kind::Angle2: zd(i) = z(index_of(Coordinate::Kind::Rate2, c.index, 0)); break;
+        case Coordinate::Kind::Angle:
+        case Coordinate::Kind::Angle2:
+        case Coordinate::Kind::Eta: zd(i) = z(c.rate); break;
         case Coordinate::Kind::Phi: zd(i) = (right_jacobian_inverse(phi[j]) * w[j])(c.component); break;
-        case Coordinate::Kind::Eta: zd(i) = z(index_of(Coordinate::Kind::EtaRate, c.index, c.component)); break;
         case Coordinate::Kind::Rate: zd(i) = a.angle_ddot[j]; break;
         case Coordinate::Kind::Rate2: zd(i) = a.angle2_ddot[j]; break;
         case Coordinate::Kind::W: zd(i) = a.wdot_PC_C[j](c.component); break;
@@ -234,25 +224,11 @@ class ReducedMap {
   void add(Coordinate::Kind k, int index, int component, std::string name, std::string mode) {
     coords_.push_back({k, index, component, std::move(name), std::move(mode)});
   }
-  int index_of(Coordinate::Kind k, int index, int component) const {
-    for (int i = 0; i < size(); ++i) {
-      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
-      if (c.kind == k && c.index == index && c.component == component) return i;
-    }
-    throw std::logic_error("linearize: a coordinate's rate is missing");
-  }
-  // exp([phi x]) as a quaternion.
-  static Eigen::Quaterniond exp_rotation(const Vector3d& phi) {
-    const double a = phi.norm();
-    if (a == 0) return Eigen::Quaterniond::Identity();
-    return Eigen::Quaterniond(Eigen::AngleAxisd(a, phi / a));
-  }
   // J_r(phi)^-1 = 1 + [phi x]/2 + (1/a^2 - (1 + cos a) / (2 a sin a)) [phi x]^2, a = |phi|
   // (Sola, Deray and Atchuthan 2018, Eq. (144)); w = J_r(phi) phi' for R = R* exp([phi x]) and
   // R' = R [w x].
   static Eigen::Matrix3d right_jacobian_inverse(const Vector3d& phi) {
-    Eigen::Matrix3d P;
-    P << 0, -phi.z(), phi.y(), phi.z(), 0, -phi.x(), -phi.y(), phi.x(), 0;
+    const Eigen::Matrix3d P = rot::skew(phi);
     const double a = phi.norm();
     // Series below 1e-4 rad: 1/12 + a^2/720 + ...
     const double c = a < 1e-4 ? 1.0 / 12.0 + a * a / 720.0
@@ -269,9 +245,6 @@ class ReducedMap {
 // ------------------------------------------------------------------------------------------------
 // The operating point.
 
-// Turns the base's spin onto the whole spacecraft's principal axis nearest it, keeping |I w0|;
-// the inertia is the bodies' (flexible ones undeformed) placed at st's joint coordinates by
-// harness/scene_geometry. Returns the words for the operating point's description.
 // The whole spacecraft's inertia about its CM with its joints at st's coordinates
 // (harness/scene_geometry's placement of the bodies; flexible bodies undeformed), in the base frame.
 Eigen::Matrix3d composite_inertia_B(const System& s, const TreeState& st) {
@@ -301,7 +274,8 @@ Eigen::Matrix3d composite_inertia_B(const System& s, const TreeState& st) {
   return R_NB.transpose() * I_N * R_NB;
 }
 
-// The principal axis nearest the initial base rate w0, at the rate that keeps |I w0|.
+// Turns the base's spin onto the whole spacecraft's principal axis nearest it, at the rate that
+// keeps |I w0|. Returns the words for the operating point's description.
 std::string spin_about_principal_axis(const System& s, TreeState& st) {
   const Eigen::Matrix3d I_B = composite_inertia_B(s, st);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(I_B);
@@ -317,7 +291,7 @@ std::string spin_about_principal_axis(const System& s, TreeState& st) {
     << (es.eigenvalues()(k) >= Imax ? "major" : es.eigenvalues()(k) <= Imin ? "minor" : "intermediate")
     << " principal axis nearest the initial rate (moments " << num(es.eigenvalues()(0), 5) << ", "
     << num(es.eigenvalues()(1), 5) << ", " << num(es.eigenvalues()(2), 5) << " kg m^2 there), keeping |I w0|";
-    return o.str();
+  return o.str();
 }
 
 TreeState operating_state(const System& s, double t, OperatingPoint point, std::string& how) {
@@ -378,8 +352,8 @@ TreeState operating_state(const System& s, double t, OperatingPoint point, std::
 // ------------------------------------------------------------------------------------------------
 // Finite differences with two Richardson extrapolations.
 
-// f(z) => (value, derivative estimate along e_j). `eval` writes f at a point; returns false when
-// the engine failed there.
+// A column of a Jacobian and its estimated error per entry. `eval(z, f)` writes f at a point (an
+// engine that fails there throws RunFailure).
 struct Derivative {
   VectorXd d, error;
 };
@@ -425,7 +399,8 @@ Derivative best_derivative(const F& eval, const VectorXd& z, int j, double fixed
   return best;
 }
 
-
+// One engine evaluated at a point of z: dz/dt through its pack() and accelerations(), and the
+// chosen output columns through its output_row().
 struct Probe {
   Engine* engine = nullptr;
   const ReducedMap* map = nullptr;
@@ -447,7 +422,7 @@ struct Probe {
   }
 };
 
-// A copy of the scene with input k's load at the operating time set to its value + delta.
+// An input: a component of a joint's motor or of a body's external torque.
 struct InputRef {
   std::string name;
   enum class Kind { Revolute, Universal, Spherical, Body } kind;
@@ -529,19 +504,22 @@ void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol
   for (int i = 0; i < n; ++i) rho = std::max(rho, std::abs(es.eigenvalues()(i)));
   m.zero_bound = zero_tol * rho;
   // The finite differences' error carried to each eigenvalue: |d lambda| <~ kappa |E|2 with
-  // kappa = |x| |y| / |y^H x| (y the left eigenvector, a row of V^-1; Golub and Van Loan,
-  // Matrix Computations, 4th ed., Sec. 7.2.2) and |E|2 <= n max|E_ij| <= n a_error.
+  // kappa = |x| |y| / |y^T x| (x, y its right and left eigenvectors, y one of A^T's; Golub and Van
+  // Loan, Matrix Computations, 4th ed., Sec. 7.2.2) and |E|2 <= n max|E_ij| <= n a_error. Each
+  // eigenvalue's own: a defective one (a joint turning freely: the zero of a 2 x 2 Jordan block)
+  // gets an infinite kappa alone, and it is grouped with the zeros, never compared. (Taking y from
+  // V^-1 made every kappa infinite as soon as one eigenvalue was defective, and every bound with it.)
   const Eigen::MatrixXcd V = es.eigenvectors();
-  // (One LU type for every complex solve here: each Eigen decomposition instantiated costs seconds
-  // of compile time.)
-  const Eigen::PartialPivLU<Eigen::MatrixXcd> vlu(V);
-  const Eigen::MatrixXcd W = vlu.rcond() > 1e-13 ? Eigen::MatrixXcd(vlu.inverse()) : Eigen::MatrixXcd();
+  const Eigen::EigenSolver<MatrixXd> left(m.A.transpose(), true);
   for (int i = 0; i < n; ++i) {
     const cd l = es.eigenvalues()(i);
     m.eigenvalues.push_back(l);
-    // A defective eigenvalue (a Jordan block, V singular): no first-order bound; its zeros are
-    // grouped, not compared.
-    const double kappa = W.size() ? V.col(i).norm() * W.row(i).norm() : std::numeric_limits<double>::infinity();
+    int k = 0;
+    for (int q = 1; q < n; ++q)
+      if (std::abs(left.eigenvalues()(q) - l) < std::abs(left.eigenvalues()(k) - l)) k = q;
+    const Eigen::VectorXcd y = left.eigenvectors().col(k);
+    const double overlap = std::abs(y.dot(V.col(i).conjugate()));  // |y^T x| (dot conjugates its left side)
+    const double kappa = overlap > 0 ? V.col(i).norm() * y.norm() / overlap : std::numeric_limits<double>::infinity();
     // Times 10: the extrapolation's error is an estimate, not a bound (newton-euler's, whose
     // accelerations carry its constrained solve's rounding, was exceeded 2.7-fold at a mode
     // near a double zero: spinup_beam_linear at 3.7 rad/s).
@@ -584,11 +562,9 @@ void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol
 
 // Transfer matrix C (i w - A)^-1 B + D.
 Eigen::MatrixXcd transfer(const EngineLinearModel& m, double w) {
-  const auto n = m.A.rows();
   Eigen::MatrixXcd Z = -m.A.cast<cd>();
   Z.diagonal().array() += cd(0, w);
   const Eigen::MatrixXcd X = Z.partialPivLu().solve(m.B.cast<cd>());
-  (void)n;
   return m.C.cast<cd>() * X + m.D.cast<cd>();
 }
 
@@ -690,7 +666,7 @@ void gyrostat_checks(const System& s, const TreeState& op, LinearizeResult& r, d
   for (int q = 1; q < 3; ++q)
     if (std::abs(es.eigenvectors().col(q).dot(a)) > std::abs(es.eigenvectors().col(k3).dot(a))) k3 = q;
   const double I1 = es.eigenvalues()((k3 + 1) % 3), I2 = es.eigenvalues()((k3 + 2) % 3);
-  const Vector3d a_C = (J.q_PJ0.normalized().toRotationMatrix().transpose() * J.axis_P).normalized();
+  const Vector3d a_C = axis_in_child(J);
   const double hr = a_C.dot(s.bodies[static_cast<std::size_t>(J.child)].I_BBo_B * a_C) * op.joints[1].rate;
   const double l2 = -(omega * (I3 - I1) + hr) * (omega * (I3 - I2) + hr) / (I1 * I2);
   if (l2 == 0) return;
@@ -735,8 +711,7 @@ void spinning_flexible_checks(const System& s, double t, LinearizeResult& r, dou
   const geometry::Configuration c = geometry::initial_configuration(s);
   const Eigen::Matrix3d R = c.bodies[static_cast<std::size_t>(flex)].R_NB;
   const Vector3d a = base.axis_P.normalized(), o = base.p_PoJ_P;
-  Eigen::Matrix3d ax;
-  ax << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  const Eigen::Matrix3d ax = rot::skew(a);
   const int n = F.modes();
   MatrixXd M = MatrixXd::Zero(n, n), Gy = MatrixXd::Zero(n, n), S = MatrixXd::Zero(n, n), C = MatrixXd::Zero(n, n);
   for (std::size_t i = 0; i < F.nodes.size(); ++i) {

@@ -13,6 +13,7 @@
 #include "harness/report.hpp"
 #include "harness/scene_warnings.hpp"
 #include "harness/stability.hpp"
+#include "harness/study.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -96,17 +97,12 @@ std::string format_locus(const harness::Knob& knob, const std::vector<LocusPoint
   return o.str();
 }
 
-std::vector<std::string> split_list(const std::string& text, const std::string& option) {
+// The items of a list option (empty and repeated items are refused when the command line is
+// parsed: list_option, harness/cli.hpp).
+std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> items;
   std::stringstream in(text);
-  std::string item;
-  while (std::getline(in, item, ',')) {
-    if (item.empty()) throw InputError(option + ": empty name in '" + text + "'");
-    if (std::find(items.begin(), items.end(), item) != items.end())
-      throw InputError(option + ": '" + item + "' is listed twice");
-    items.push_back(item);
-  }
-  if (!text.empty() && text.back() == ',') throw InputError(option + ": empty name in '" + text + "'");
+  for (std::string item; std::getline(in, item, ',');) items.push_back(item);
   return items;
 }
 
@@ -251,19 +247,10 @@ int locus_command(const LinearizeCommandOptions& o, const harness::LinearizeOpti
 int linearize_command(const LinearizeCommandOptions& o) {
   harness::LinearizeOptions options;
   const std::vector<std::string> known = engine_names();
-  auto check_name = [&known](const std::string& name, const std::string& option) {
-    if (std::find(known.begin(), known.end(), name) == known.end()) {
-      std::string list;
-      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-      throw InputError(option + ": unknown engine '" + name + "' (known: " + list + ")");
-    }
-  };
-  for (const std::string& name : o.engines.empty() ? known : split_list(o.engines, "--engines")) {
-    check_name(name, "--engines");
+  for (const std::string& name : o.engines.empty() ? known : harness::parse_names(o.engines, "--engines", known, "engine"))
     options.engines.push_back({name, name, {}});
-  }
-  for (const std::string& name : o.test_gyroscopic_sign) {
-    check_name(name, "--test-gyroscopic-sign");
+  for (const std::string& spec : o.test_gyroscopic_sign) {
+    const std::string name = harness::parse_names(spec, "--test-gyroscopic-sign", known, "engine").at(0);
     harness::LinearEngineChoice c{name + "*gyro", name, {}};
     c.options.test_gyroscopic_sign = -1.0;
     options.engines.push_back(c);
@@ -292,8 +279,8 @@ int linearize_command(const LinearizeCommandOptions& o) {
   if (o.fd_step != 0) positive(o.fd_step, "--fd-step");
   options.fd_step = o.fd_step;
   options.inputs_given = o.inputs_given;
-  if (o.inputs_given && o.inputs != "none") options.inputs = split_list(o.inputs, "--inputs");
-  if (!o.outputs.empty()) options.outputs = split_list(o.outputs, "--outputs");
+  if (o.inputs_given && o.inputs != "none") options.inputs = split_list(o.inputs);
+  if (!o.outputs.empty()) options.outputs = split_list(o.outputs);
 
   const std::string scene = harness::resolve_scene(o.scene);
   const harness::CheckedScene checked = harness::read_checked_scene(scene);

@@ -183,6 +183,8 @@ TEST_CASE("linearize: every committed scene at an equilibrium or steady spin: th
     double t;
   };
   const Point points[] = {{"spear1_case1", OperatingPoint::Neutral, 0},
+                          {"chain5", OperatingPoint::Spin, 0},
+                          {"dual_spin", OperatingPoint::Spin, 0},
                           {"spear1_case2", OperatingPoint::Neutral, 0},
                           {"spear1_case1_spherical", OperatingPoint::Neutral, 0},
                           {"pointing_flex", OperatingPoint::Neutral, 10},
@@ -201,6 +203,9 @@ TEST_CASE("linearize: every committed scene at an equilibrium or steady spin: th
       if (c.kind == "eigenvalue") {
         INFO(c.what << " " << c.engine_a << " vs " << c.engine_b);
         CHECK(c.error <= 1e-8 * std::abs(c.a));
+        // A bound the check can fail: the finite differences' allowance is each eigenvalue's own (a
+        // freely turning joint's defective zero once made every bound infinite: pointing_flex, chain5).
+        CHECK(c.bound < 1e-6 * std::abs(c.a));
       }
   }
 }
