@@ -760,14 +760,22 @@ void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult&
                      "free flexible body at rest: its modes with the rigid motions condensed out", rtol);
 }
 
-// The joint and modal coordinates of an equilibrium near `op` (every rate kept: zero, and the
-// base's spin): Gauss-Newton on the velocity rows of dz/dt (accelerations) of the first engine's
-// equations, minimum-norm steps (a joint without a spring, free to turn, stays where it is);
-// the other engines' residuals are checked afterwards like any operating point's.
-TreeState settle(const System& system, const TreeState& op, const LinearizeOptions& o, std::string& how) {
+// The joint and modal coordinates of an equilibrium near `op` (every joint rate kept), and with
+// `free_spin` the base's w too (a steady spin: w x (I w + h) = 0 with a wheel's momentum h, which
+// need not be along a principal axis): Gauss-Newton on the velocity rows of dz/dt
+// (accelerations) of the first engine's equations, minimum-norm steps (a joint without a spring,
+// free to turn, stays where it is; the spin keeps its rate, a direction the residual does not
+// see); the other engines' residuals are checked afterwards like any operating point's.
+TreeState settle(const System& system, const TreeState& op, const LinearizeOptions& o, bool free_spin,
+                 std::string& how) {
   const ReducedMap map(system, op);
   const int n = map.size(), nc = map.configuration_size(), nv = n - nc;
-  if (nc == 0 || nv == 0) return op;
+  // The unknowns: the configuration coordinates, and the base's w when free.
+  std::vector<int> unknowns;
+  for (int i = 0; i < n; ++i)
+    if (i < nc || (free_spin && map.coordinate(i).kind == Coordinate::Kind::BaseW)) unknowns.push_back(i);
+  const int nu = static_cast<int>(unknowns.size());
+  if (nu == 0 || nv == 0) return op;
   const LinearEngineChoice& choice = o.engines.front();
   const std::unique_ptr<Engine> engine = make_engine(choice.engine, system, choice.options);
   Probe probe;
@@ -784,15 +792,16 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
   int iterations = 0;
   double scale = 0;
   for (; iterations < 40; ++iterations) {
-    MatrixXd J(nv, nc);
-    for (int j = 0; j < nc; ++j) {
+    MatrixXd J(nv, nu);
+    for (int k = 0; k < nu; ++k) {
+      const int j = unknowns[static_cast<std::size_t>(k)];
       const double h = 1e-6 * std::max(std::abs(z(j)), 1.0);
       VectorXd zp = z, zm = z;
       zp(j) += h;
       zm(j) -= h;
-      J.col(j) = (residual(zp) - residual(zm)) / (2 * h);
+      J.col(k) = (residual(zp) - residual(zm)) / (2 * h);
     }
-    scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.head(nc).lpNorm<Eigen::Infinity>(), 1.0));
+    scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.lpNorm<Eigen::Infinity>(), 1.0));
     if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) break;
     // The minimum-norm step, nearly: Levenberg-Marquardt's (J^T J + mu 1)^-1 J^T r with a tiny mu,
     // so that a coordinate the residual does not see (a joint without a spring) stays put.
@@ -803,7 +812,7 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
     double a = 1;
     VectorXd next = z, next_res;
     for (int k = 0; k < 30; ++k, a /= 2) {
-      next.head(nc) = z.head(nc) - a * step;
+      for (int k = 0; k < nu; ++k) next(unknowns[static_cast<std::size_t>(k)]) = z(unknowns[static_cast<std::size_t>(k)]) - a * step(k);
       next_res = residual(next);
       if (next_res.norm() < res.norm()) break;
     }
@@ -811,7 +820,8 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
     z = next;
     res = next_res;
   }
-  how += "; its joint and modal coordinates solved for an equilibrium with " + choice.label + "'s equations (" +
+  how += std::string("; its joint and modal coordinates") + (free_spin ? " and the spin" : "") +
+         " solved for an equilibrium with " + choice.label + "'s equations (" +
          std::to_string(iterations) + " Gauss-Newton step" + (iterations == 1 ? "" : "s") +
          ", acceleration residual " + num(res.lpNorm<Eigen::Infinity>(), 3) + ")";
   return map.state(z);
@@ -840,18 +850,10 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
   r.time = o.time;
   TreeState op = operating_state(system, o.time, o.point, r.how);
   if ((o.point == OperatingPoint::Equilibrium || o.point == OperatingPoint::Spin) && !o.engines.empty()) {
-    // Spin: the principal axis moves with the settled joints; alternate until the spin stops
-    // changing (a fixed point; at most 10 rounds).
-    std::string settled;
-    for (int round = 0; round < 10; ++round) {
-      settled.clear();
-      op = settle(system, op, o, settled);
-      if (o.point != OperatingPoint::Spin || !system.base_is_free() || op.w_NB_B.norm() == 0) break;
-      const Vector3d before = op.w_NB_B;
-      spin_about_principal_axis(system, op);
-      if ((op.w_NB_B - before).norm() <= 1e-15 * before.norm()) break;
-    }
-    r.how += settled;
+    // Spin: from the principal axis nearest the initial rate (operating_state), the joints and the
+    // spin are solved together (the axis moves as the joints settle, and a wheel tilts it).
+    const bool free_spin = o.point == OperatingPoint::Spin && system.base_is_free() && op.w_NB_B.norm() > 0;
+    op = settle(system, op, o, free_spin, r.how);
   }
   r.op = op;
   const ReducedMap map(system, op);
