@@ -88,6 +88,11 @@ struct EngineOptions {
   // implements it (kane), so that `crossdyn linearize` can be shown to catch a wrong gyroscopic
   // sign at a steady spin. 1 in every real run.
   double test_gyroscopic_sign = 1.0;
+  // Test-only hook (issue 28): +1, or -1 to flip the sign of the gravity-gradient torque
+  // 3 n^2 zhat x (I_N zhat) on every rigid body (and on every flexible node's own inertia J_i) in the
+  // equations of motion of an engine that implements it (lagrange), but not in E or J, so that the
+  // harness can be shown to catch it. 1 in every real run.
+  double test_gravity_gradient_sign = 1.0;
 };
 
 class Engine {

@@ -1,6 +1,8 @@
 // The output layout (see output_layout.hpp).
 #include "core/output_layout.hpp"
 
+#include "core/orbit.hpp"
+
 #include <limits>
 
 namespace crossdyn {
@@ -88,6 +90,18 @@ OutputLayout::OutputLayout(const System& s)
   M_ = static_cast<int>(columns_.size());
   for (int i = 0; i < 3; ++i)
     push({std::string("M") + "xyz"[i], ColumnKind::ExternalMoment, -1, -1, i, "N m"});
+  // Issue 28: the attitude relative to the orbit frame and the Jacobi integral, on an orbit only.
+  environment_ = s.environment;
+  if (s.environment.orbit()) {
+    lvlh_.assign(s.bodies.size(), -1);
+    static const char* const kAngles[3] = {".roll", ".pitch", ".yaw"};
+    for (std::size_t b = 0; b < s.bodies.size(); ++b) {
+      lvlh_[b] = static_cast<int>(columns_.size());
+      for (int i = 0; i < 3; ++i)
+        push({s.bodies[b].name + kAngles[i], ColumnKind::LvlhAngle, static_cast<int>(b), -1, i, "rad"});
+    }
+    J_ = push({"J", ColumnKind::Jacobi, -1, -1, -1, "J"});
+  }
   pinned_ = columns_.size();
 }
 
@@ -108,6 +122,12 @@ void RowWriter::body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterni
   w[4] = s * q_NB.x();
   w[5] = s * q_NB.y();
   w[6] = s * q_NB.z();
+  if (layout_.lvlh(b) >= 0) {
+    // R_OB = R_NO^T R_NB at the row's time (core/orbit.hpp).
+    const OrbitFrame o = orbit_frame(layout_.environment(), row_[0]);
+    const Eigen::Vector3d a = roll_pitch_yaw(o.R_NO.transpose() * q_NB.toRotationMatrix());
+    for (int i = 0; i < 3; ++i) row_[layout_.lvlh(b) + i] = a(i);
+  }
 }
 
 void RowWriter::revolute(int joint, double angle, double rate) {

@@ -30,7 +30,13 @@
 //   P                             power of the non-conservative loads (motors, dampers, drives of
 //                                   prescribed joints, external torques), W: dE/dt = P
 //   Mx My Mz                      M_Scm_N, external moment about the system CM (external torques;
-//                                   a prescribed base's reaction), N m: dH_N/dt = M_N
+//                                   a prescribed base's reaction; gravity), N m: dH_N/dt = M_N
+// and, in a scene on an orbit only (issue 28; core/orbit.hpp, docs/environment.md):
+//   per body                      <body>.roll .pitch .yaw  B's attitude relative to the orbit frame
+//                                   O (LVLH), R_OB = Rz(yaw) Ry(pitch) Rx(roll), rad (written by
+//                                   RowWriter::body from q_NB and the row's time)
+//   J                             the Jacobi integral E - w_NO_N . H_O_N, J (conserved without
+//                                   non-conservative loads; E then holds the gravity potential)
 // then the engine's extra columns in the order it adds them (add_extra).
 //
 // Each column carries its kind and the body or joint it belongs to, so that the harness can group
@@ -70,6 +76,8 @@ enum class ColumnKind {
   JointMoment,     // <joint>.Mx/My/Mz      component 0..2
   Power,           // P
   ExternalMoment,  // Mx/My/Mz              component 0..2
+  LvlhAngle,       // <body>.roll/pitch/yaw component 0..2 (orbit scenes)
+  Jacobi,          // J                     (orbit scenes)
   Extra            // engine-specific
 };
 
@@ -109,14 +117,19 @@ class OutputLayout {
   int joint_load(int joint) const { return load_[static_cast<std::size_t>(joint)]; }
   int P() const { return P_; }
   int external_moment() const { return M_; }
+  // Orbit scenes only (-1 otherwise): body b's roll, pitch, yaw; the Jacobi integral.
+  int lvlh(int body) const { return lvlh_.empty() ? -1 : lvlh_[static_cast<std::size_t>(body)]; }
+  int J() const { return J_; }
+  const Environment& environment() const { return environment_; }
 
  private:
   int push(Column c);
   std::vector<Column> columns_;
   std::vector<std::string> names_;
   std::size_t pinned_ = 0;
-  std::vector<int> body_w_, joint_, modal_, body_p_, load_;
-  int H_ = -1, E_ = -1, cm_ = -1, Hv_ = -1, P_ = -1, M_ = -1;
+  std::vector<int> body_w_, joint_, modal_, body_p_, load_, lvlh_;
+  int H_ = -1, E_ = -1, cm_ = -1, Hv_ = -1, P_ = -1, M_ = -1, J_ = -1;
+  Environment environment_;
 };
 
 // Fills one row of an OutputLayout. Every pinned value must be written once per row; the writer
@@ -128,7 +141,8 @@ class RowWriter {
 
   void time(double t) { row_[0] = t; }
   // Body b's angular velocity w_NB_B and attitude q_NB (written with qw >= 0: q and -q are the
-  // same attitude, and one sign makes engines' columns directly comparable).
+  // same attitude, and one sign makes engines' columns directly comparable). On an orbit also its
+  // roll, pitch and yaw relative to the orbit frame at the row's time: call time() first.
   void body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterniond& q_NB);
   void revolute(int joint, double angle, double rate);
   // A prescribed revolute joint's torque about its axis on the child (N m); a prescribed
@@ -154,6 +168,8 @@ class RowWriter {
   // (N m): dE/dt = P, dH_Scm_N/dt = M_Scm_N.
   void power(double P) { row_[layout_.P()] = P; }
   void external_moment(const Eigen::Vector3d& M_Scm_N);
+  // Orbit scenes: the Jacobi integral J = E - w_NO_N . H_O_N (H about the reference point O).
+  void jacobi(double J) { row_[layout_.J()] = J; }
   void extra(int column, double value) { row_[column] = value; }
 
  private:

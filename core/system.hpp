@@ -285,6 +285,53 @@ struct RunSpec {
                                 // first step: core/integrate.hpp, IntegratorSettings::first_step)
 };
 
+// The spacecraft's environment (issue 28; docs/environment.md). Without one (Kind::None) N is an
+// inertial frame with no gravity. Every engine evaluates the loads below from its own state, in its
+// own code (no engine calls another's, and none calls a shared load formula).
+//
+//   Uniform   gravity g_N (m/s^2, N components) on every mass: the force m g on each rigid body's CM
+//             and on each flexible node (exact for a uniform field: no moment about any body's CM).
+//             Potential V = -sum m g . p_NoX_N (part of E).
+//   Orbit     a central body's point-mass field (mu = G M, m^3/s^2) seen from a reference point O
+//             on a circular orbit of radius R about it (core/orbit.hpp: O's position, the orbit
+//             frame, n = sqrt(mu / R^3)). N is then the non-rotating frame whose origin moves with
+//             O (axes those of the central body's inertial frame); O is the system's CM at t = 0
+//             (each engine computes it from its own initial state). The field is expanded to second
+//             order about O (Hughes 2004, "Spacecraft Attitude Dynamics", Sec. 8.1; Schaub and
+//             Junkins 2018, Sec. 4.3.2): with r the position from O and zhat the unit vector from the
+//             central body to O, the tidal acceleration is
+//               a(r) = T r,  T = n^2 (3 zhat zhat^T - 1)                (the gravity gradient)
+//             on every mass: force m T r_c on each rigid body's CM (r_c from O) and the torque about
+//             its CM  tau = 3 n^2 zhat x (I_N zhat)  (I_N the body's inertia in N); on each flexible
+//             node the force m_i T r_i and, with a node inertia J_i, 3 n^2 zhat x (J_i,N zhat).
+//             Potential (per body, about its CM; per node likewise)
+//               V = -1/2 m r_c^T T r_c + 3/2 n^2 zhat^T I_N zhat - 1/2 n^2 tr(I)
+//             so E = T + V(t) is not conserved (zhat turns with the orbit) but the Jacobi integral
+//               J = E - w_NO_N . H_O_N   (H_O_N the angular momentum about O, in N)
+//             is, without non-conservative loads. The third-order terms dropped are (|r| / R) of the
+//             second-order ones (1.5e-6 for a 10 m spacecraft at 7000 km). O's motion is prescribed
+//             (a circular orbit): the system's attitude and shape change its orbit only at third
+//             order, and a CM that leaves O (zero_linear_momentum: false) moves under T (Hill's
+//             equations, non-rotating form).
+struct Environment {
+  enum class Kind { None, Uniform, Orbit };
+  Kind kind = Kind::None;
+  Eigen::Vector3d g_N = Eigen::Vector3d::Zero();  // Uniform: m/s^2, N components
+  // Orbit: the central body and the circular orbit of O (angles in N = the central body's
+  // inertial axes: inclination i and right ascension of the ascending node raan of the orbit
+  // plane, argument of latitude u0 of O at t = 0 measured from the ascending node).
+  double mu = 0;           // m^3/s^2
+  double body_radius = 0;  // m (0: not given; only for `altitude` and the report)
+  double radius = 0;       // R, m, > body_radius
+  double inclination = 0, raan = 0, latitude0 = 0;  // rad
+
+  bool none() const { return kind == Kind::None; }
+  bool uniform() const { return kind == Kind::Uniform; }
+  bool orbit() const { return kind == Kind::Orbit; }
+  // The orbit's mean motion n = sqrt(mu / R^3), rad/s (0 without an orbit).
+  double mean_motion() const;
+};
+
 struct System {
   std::string name;             // scene name (file stem)
   std::string file;             // path the scene was read from ("" when built in code)
@@ -297,6 +344,7 @@ struct System {
   std::vector<Joint> joints;
   bool zero_linear_momentum = true;  // base CM velocity chosen so total linear momentum is zero
   std::string analytic;              // "" or "torque-free" (single free rigid body, no loads)
+  Environment environment;           // gravity; none by default
   RunSpec run;
   CompareSpec compare;
 

@@ -95,6 +95,11 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       case ColumnKind::JointMoment:
         q.push_back({c.name, "load", joint + ".M", {c.name}, false, xyz(joint + ".M")});
         break;
+      // Issue 28: the Jacobi integral with E; roll, pitch and yaw relative to the orbit frame are
+      // q_NB seen from the orbit frame (RowWriter::body), compared as <body>.attitude already (and
+      // an angle that wraps at +-pi would not compare as a number).
+      case ColumnKind::Jacobi: q.push_back({"J", "E", "", {"J"}, false}); break;
+      case ColumnKind::LvlhAngle:
       case ColumnKind::Time:
       case ColumnKind::Extra: break;
     }
