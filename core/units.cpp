@@ -12,7 +12,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;  // rad per degree
 // 1 rpm = 2 pi rad / 60 s, 1 min = 60 s, 1 mN = 1e-3 N. Per degree is per pi/180 rad:
 // 1 N m/deg = 180/pi N m/rad. The first unit of a dimension is its SI unit.
 constexpr double kPerDeg = 180.0 / std::numbers::pi;  // (per degree) / (per radian)
-constexpr std::array<Unit, 48> kUnits{{
+constexpr std::array<Unit, 52> kUnits{{
     {"rad", Dimension::Angle, 1.0},
     {"deg", Dimension::Angle, kDeg},
     {"rad/s", Dimension::AngularRate, 1.0},
@@ -51,6 +51,10 @@ constexpr std::array<Unit, 48> kUnits{{
     {"kN/m", Dimension::LinearStiffness, 1e3},
     {"N s/m", Dimension::LinearDamping, 1.0},
     {"Ns/m", Dimension::LinearDamping, 1.0},
+    {"m/s^2", Dimension::Acceleration, 1.0},
+    {"g0", Dimension::Acceleration, 9.80665},  // standard gravity (CGPM 1901), exact
+    {"m^3/s^2", Dimension::GravitationalParameter, 1.0},
+    {"km^3/s^2", Dimension::GravitationalParameter, 1e9},
     // Accepted alternative spellings (same factors).
     {"Nm", Dimension::Torque, 1.0},
     {"mNm", Dimension::Torque, 1e-3},
@@ -135,6 +139,10 @@ std::string dimension_name(Dimension d) {
       return "a linear stiffness";
     case Dimension::LinearDamping:
       return "a linear damping";
+    case Dimension::Acceleration:
+      return "an acceleration";
+    case Dimension::GravitationalParameter:
+      return "a gravitational parameter";
   }
   return "?";
 }

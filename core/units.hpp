@@ -30,6 +30,8 @@ enum class Dimension {
   Force,            // N (a prismatic joint's motor)
   LinearStiffness,  // N/m (a prismatic joint's spring)
   LinearDamping,    // N s/m (a prismatic joint's damper)
+  Acceleration,     // m/s^2 (uniform gravity)
+  GravitationalParameter,  // m^3/s^2 (a central body's mu = G M)
 };
 
 // Every dimension with a unit, in the order the documentation lists them.
@@ -38,6 +40,7 @@ inline constexpr Dimension kDimensions[] = {
     Dimension::Time,    Dimension::Inertia,     Dimension::Torque,  Dimension::Stiffness,
     Dimension::Damping, Dimension::Velocity,    Dimension::AngularAcceleration,
     Dimension::Force,   Dimension::LinearStiffness, Dimension::LinearDamping,
+    Dimension::Acceleration, Dimension::GravitationalParameter,
 };
 
 struct Unit {

@@ -192,6 +192,8 @@ std::vector<double> output_times(const IntegratorSettings& settings);
 // Why a scene's E (or H) is not conserved, or "" when it is.
 std::string energy_not_conserved_reason(const System& system);
 std::string momentum_not_conserved_reason(const System& system);
+// On an orbit (issue 28): why the Jacobi integral J is not conserved, or "" when it is.
+std::string jacobi_not_conserved_reason(const System& system);
 
 // Human-readable table of every check (compare's output).
 std::string format_comparison(const SceneComparison& c, bool failures_only = false);

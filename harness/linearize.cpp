@@ -845,6 +845,15 @@ bool LinearizeResult::passed() const {
 }
 
 LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
+  // On an orbit the base's attitude relative to the orbit frame is not ignorable (the gravity
+  // gradient depends on it) and the equilibria turn with the orbit frame: z would need that
+  // attitude and the orbit frame's rates. Not yet (issue 28): refused, rather than a model that
+  // leaves the gravity-gradient stiffness out. Uniform gravity is fine (the base's attitude
+  // matters only for a prescribed base, which is not in z, or for a free one in free fall).
+  if (system.environment.orbit())
+    throw InputError(system.file + ": linearize does not yet take a scene on an orbit (the "
+                     "attitude relative to the orbit frame would be a coordinate); use `run` and "
+                     "the <body>.roll/pitch/yaw columns");
   LinearizeResult r;
   r.scene = system.name;
   r.time = o.time;

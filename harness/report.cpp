@@ -340,7 +340,7 @@ const std::vector<std::string>& group_order() {
   static const std::vector<std::string> order{
       "run", "t",    "w",       "attitude", "rate",      "angle",     "position", "modal",
       "torque", "load", "H",    "E",        "H.drift",   "E.drift",   "H.balance", "E.balance",
-      "extra"};
+      "J.drift", "extra"};
   return order;
 }
 

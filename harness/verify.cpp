@@ -216,7 +216,7 @@ const std::vector<TableColumn>& table_columns() {
       {"att", {"attitude"}}, {"rate", {"rate"}},   {"angle", {"angle"}},
       {"pos", {"position"}}, {"modal", {"modal"}}, {"load", {"torque", "load"}},
       {"H", {"H"}},        {"E", {"E"}},           {"dH", {"H.drift", "H.balance"}},
-      {"dE", {"E.drift", "E.balance"}},           {"extra", {"extra"}}};
+      {"dE", {"E.drift", "E.balance", "J.drift"}},           {"extra", {"extra"}}};
   return columns;
 }
 

@@ -39,6 +39,7 @@
 
 #include "core/errors.hpp"
 #include "core/flex/beam.hpp"
+#include "core/orbit.hpp"
 #include "core/run_limits.hpp"
 #include "core/scene/flex_block.hpp"
 
@@ -255,6 +256,67 @@ Val parse_yaml(const Reader& r, const std::string& text) {
 
 // ---------------------------------------------------------------------------------------------
 // The scene's own keys
+
+// The environment block (issue 28; docs/environment.md): uniform gravity, or a central body and
+// the circular orbit of the system's CM.
+void read_environment(const Reader& r, const MapView& top, System& s) {
+  const auto f = top.get("environment");
+  if (!f) return;
+  const MapView m(r, f->val, "environment");
+  Environment& e = s.environment;
+  const auto g = m.get("gravity");
+  const auto body = m.get("central_body");
+  const auto orbit = m.get("orbit");
+  if (g && body)
+    r.fail(body->val, "give uniform `gravity` or a `central_body` with its `orbit`, not both");
+  if (g) {
+    e.kind = Environment::Kind::Uniform;
+    e.g_N = r.vector(*g);
+    if (orbit) r.fail(orbit->val, "an orbit needs a `central_body`, not uniform `gravity`");
+    return;
+  }
+  if (!body && !orbit)
+    r.fail(f->val, "the environment block is empty: give `gravity` (uniform), or `central_body` "
+                   "and `orbit`");
+  if (!body) r.fail(orbit->val, "an orbit needs a `central_body` (its mu) beside it");
+  if (!orbit) m.missing("orbit", "a central body needs the `orbit` of the system's CM about it");
+  e.kind = Environment::Kind::Orbit;
+  const MapView b(r, body->val, "environment.central_body");
+  const Field mu = b.at("mu");
+  e.mu = r.number(mu);
+  if (!(e.mu > 0)) r.fail(mu.val, "mu must be > 0 (Earth: 3.986004418e14 m^3/s^2)");
+  if (auto x = b.get("radius")) {
+    e.body_radius = r.number(*x);
+    if (!(e.body_radius > 0)) r.fail(x->val, "the central body's radius must be > 0");
+  }
+  const MapView o(r, orbit->val, "environment.orbit");
+  const auto radius = o.get("radius");
+  const auto altitude = o.get("altitude");
+  if (radius && altitude) r.fail(altitude->val, "give the orbit's `radius` or its `altitude`, not both");
+  if (radius) {
+    e.radius = r.number(*radius);
+    if (!(e.radius > e.body_radius))
+      r.fail(radius->val, e.body_radius > 0 ? "the orbit's radius must exceed the central body's "
+                                              "radius (" + std::to_string(e.body_radius) + " m)"
+                                            : std::string("the orbit's radius must be > 0"));
+  } else if (altitude) {
+    if (!(e.body_radius > 0))
+      r.fail(altitude->val, "an altitude needs the central body's `radius` (or give the orbit's "
+                            "`radius`)");
+    const double h = r.number(*altitude);
+    if (!(h > 0)) r.fail(altitude->val, "the altitude must be > 0");
+    e.radius = e.body_radius + h;
+  } else {
+    o.missing("radius", "the orbit needs its `radius` (or `altitude`)");
+  }
+  if (auto x = o.get("inclination")) {
+    e.inclination = r.number(*x);
+    if (!(e.inclination >= 0 && e.inclination <= std::numbers::pi))
+      r.fail(x->val, "the inclination must be between 0 and 180 deg");
+  }
+  if (auto x = o.get("raan")) e.raan = r.number(*x);
+  if (auto x = o.get("argument_of_latitude")) e.latitude0 = r.number(*x);
+}
 
 void read_header(const Reader& r, const MapView& top, System& s) {
   r.attempt([&] { s.name = r.name(top.at("name")); });
@@ -570,7 +632,8 @@ void read_prescribed(const Reader& r, const MapView& m, const Field& f, const st
   J.prescribed = p;
 }
 
-void read_initial(const Reader& r, const MapView& m, const std::string& type, RawJoint& raw) {
+void read_initial(const Reader& r, const MapView& m, const std::string& type, const System& s,
+                  RawJoint& raw) {
   Joint& J = raw.joint;
   const auto f = m.get("initial");
   if (!f) return;
@@ -583,6 +646,17 @@ void read_initial(const Reader& r, const MapView& m, const std::string& type, Ra
       if (auto x = ic.get("velocity")) {
         J.v_NBo_N0 = r.vector(*x);
         raw.velocity_val = x->val;
+      }
+      if (auto x = ic.get("frame"); x && r.word(*x) == "lvlh") {
+        // Given relative to the orbit frame O at t = 0 (core/orbit.hpp): q_OB and w_OB_B.
+        if (!s.environment.orbit())
+          r.fail(x->val,
+                 "frame: lvlh gives the attitude relative to the orbit frame, but the scene has "
+                 "no orbit (environment.central_body and environment.orbit)");
+        const OrbitFrame o = orbit_frame(s.environment, 0.0);
+        const Eigen::Matrix3d R_NB = o.R_NO * J.q_NB0.toRotationMatrix();
+        J.q_NB0 = Eigen::Quaterniond(R_NB).normalized();
+        J.w_NB_B0 += R_NB.transpose() * o.w_NO_N;  // w_NB = w_NO + w_OB
       }
       break;
     case JointType::Revolute:
@@ -707,7 +781,7 @@ void read_joint(const Reader& r, const Val& item, const System& s, const BodyInd
     });
   if (prescribed) r.attempt([&] { read_prescribed(r, m, *prescribed, type_word, j); });
   if (j.type != JointType::Free && j.type != JointType::Fixed) read_loads(r, m, type_word, j);
-  r.attempt([&] { read_initial(r, m, type_word, raw); });
+  r.attempt([&] { read_initial(r, m, type_word, s, raw); });
 }
 
 // Each joint is read on its own; one with errors keeps its place, unread parts left default.
@@ -905,6 +979,9 @@ void check_analytic(const Reader& r, const MapView& top, const System& s) {
                    std::to_string(s.bodies.size()) + " bodies");
   if (!s.bodies[0].torque.empty())
     r.fail(av, "the torque-free reference needs a body without external torque");
+  if (!s.environment.none())
+    r.fail(av, "the torque-free reference needs a body without gravity (the scene has an "
+               "environment block)");
 }
 
 // A generated beam's stations (massless slice-centre nodes, core/flex/beam.hpp) that no joint
@@ -944,6 +1021,7 @@ System read(const Reader& r, const std::string& text) {
   // Errors are recorded where they are independent (reader.hpp); a pass that needs all before it
   // runs only when nothing was recorded.
   read_header(r, top, s);
+  r.attempt([&] { read_environment(r, top, s); });
   const BodyIndex bodies = read_bodies(r, top, s);
   std::vector<RawJoint> raw = read_joints(r, top, s, bodies);
   if (!r.failed()) {

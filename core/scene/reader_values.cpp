@@ -453,8 +453,14 @@ double Reader::unit_factor(const Val& v, const std::string& unit, Dimension d) c
 
 double Reader::sane(const Val& v, double si, Dimension d) const {
   if (!std::isfinite(si)) fail(v, "value is not finite after unit conversion");
-  if (std::abs(si) > kAbsurd)
-    fail(v, "absurd value " + shortest(si) + " (magnitude above 1e12 in SI units)");
+  // A gravitational parameter is large in SI (Earth 3.986e14, the Sun 1.327e20 m^3/s^2): its own
+  // cap, 1e22 (above every star a spacecraft orbits; mu / R^3 stays a normal double).
+  const double absurd = d == Dimension::GravitationalParameter ? 1e22 : kAbsurd;
+  if (std::abs(si) > absurd)
+    fail(v, "absurd value " + shortest(si) +
+                (d == Dimension::GravitationalParameter
+                     ? std::string(" (a gravitational parameter above 1e22 m^3/s^2)")
+                     : std::string(" (magnitude above 1e12 in SI units)")));
   // A tiny nonzero value (1e-320, subnormal; 1e-200) would be read and then make the run
   // non-finite (ramp_time: 1e-320 gave NaN at t = 0): refused here, at its key. Between
   // kTiny and kAbsurd, a product or quotient of three values stays a normal double.

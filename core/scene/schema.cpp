@@ -35,6 +35,10 @@ constexpr std::array kKeys = std::to_array<Key>({
  .doc = "true: the base's initial velocity is computed so that the total linear momentum is zero "
         "(the system's centre of mass stays at rest). false: the free joint's `initial.velocity` "
         "gives it (default zero). It changes no rotational result."},
+{.path = "environment", .type = Map, .default_value = "none", .noun = "the environment block",
+ .doc = "Gravity (docs/environment.md): `gravity` (uniform), or `central_body` with `orbit` (the "
+        "gravity gradient of a central body, the system's CM on a circular orbit). Without it N "
+        "is inertial and nothing pulls."},
 {.path = "bodies", .type = List, .required = true, .noun = "a list of bodies",
  .doc = "The bodies, at least one. Their order is the order of the output columns."},
 {.path = "joints", .type = List, .required = true, .noun = "a list of joints",
@@ -324,6 +328,12 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "joints[].initial.angular_velocity", .type = Vector, .dimension = Dimension::AngularRate,
  .default_value = "[0, 0, 0]", .joints = kSpherical, .noun = "an angular velocity",
  .doc = "The child's angular velocity relative to the parent, in the child frame, w_PC_C."},
+{.path = "joints[].initial.frame", .type = Word, .default_value = "inertial",
+ .joints = kFree, .words = "inertial|lvlh", .noun = "a frame", .written = false,
+ .doc = "`lvlh` (on an orbit): `attitude` is q_OB, the base's attitude relative to the orbit frame "
+        "O at t = 0, and `angular_velocity` is w_OB_B, its rate relative to O (zero: turning "
+        "with the orbit); the reader converts both to N (the writer writes them in N). "
+        "`inertial`: q_NB and w_NB_B."},
 {.path = "joints[].initial.velocity", .type = Vector, .dimension = Dimension::Velocity,
  .default_value = "[0, 0, 0]", .joints = kFree, .noun = "a velocity",
  .doc = "The base CM's velocity in N, v_NBo_N; only with `zero_linear_momentum: false` (else it is "
@@ -346,6 +356,40 @@ constexpr std::array kKeys = std::to_array<Key>({
 {.path = "joints[].initial.rate", .type = Pair, .dimension = Dimension::AngularRate,
  .default_value = "[0, 0]", .joints = kUniversal, .noun = "a pair of rates",
  .doc = "[rate1, rate2], the gimbal angles' rates."},
+
+// ----- environment ----------------------------------------------------------------------------
+{.path = "environment.gravity", .type = Vector, .dimension = Dimension::Acceleration,
+ .noun = "an acceleration",
+ .doc = "Uniform gravity g in N (m/s^2; `g0` is 9.80665 m/s^2): the force m g on every mass. Not "
+        "with `central_body`."},
+{.path = "environment.central_body", .type = Map, .noun = "the central body",
+ .doc = "A point-mass central body (a planet); needs `orbit`. Not with `gravity`."},
+{.path = "environment.central_body.mu", .type = Quantity,
+ .dimension = Dimension::GravitationalParameter, .required = true,
+ .doc = "mu = G M, > 0 (Earth: 3.986004418e14 m^3/s^2)."},
+{.path = "environment.central_body.radius", .type = Quantity, .dimension = Dimension::Length,
+ .default_value = "not given",
+ .doc = "The body's radius, > 0 (Earth: 6378137 m); needed for `orbit.altitude`."},
+{.path = "environment.orbit", .type = Map, .noun = "the orbit",
+ .doc = "The circular orbit of the system's CM at t = 0 (the reference point O), in the central "
+        "body's inertial axes (N's axes): `radius` or `altitude`, and the plane's angles."},
+{.path = "environment.orbit.radius", .type = Quantity, .dimension = Dimension::Length,
+ .default_value = "from altitude",
+ .doc = "The orbit's radius R from the central body's centre, > its radius. Give this or "
+        "`altitude`."},
+{.path = "environment.orbit.altitude", .type = Quantity, .dimension = Dimension::Length,
+ .default_value = "from radius", .written = false,
+ .doc = "R minus `central_body.radius`, > 0. Give this or `radius`."},
+{.path = "environment.orbit.inclination", .type = Quantity, .dimension = Dimension::Angle,
+ .default_value = "0",
+ .doc = "The orbit plane's inclination i to N's x-y plane, 0 to 180 deg."},
+{.path = "environment.orbit.raan", .type = Quantity, .dimension = Dimension::Angle,
+ .default_value = "0",
+ .doc = "Right ascension of the ascending node: the angle from N's x axis to the node line."},
+{.path = "environment.orbit.argument_of_latitude", .type = Quantity,
+ .dimension = Dimension::Angle, .default_value = "0",
+ .doc = "Where O is at t = 0: the angle from the ascending node along the orbit (0: O on the "
+        "node line, at x_N when raan and i are 0)."},
 
 // ----- run ------------------------------------------------------------------------------------
 {.path = "run.duration", .type = Quantity, .dimension = Dimension::Time, .required = true,

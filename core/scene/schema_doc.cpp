@@ -105,6 +105,7 @@ std::string markdown_reference() {
   table(md, "The scene", {""}, false);
   table(md, "Bodies: `bodies[]`", {"bodies"}, false);
   table(md, "Joints: `joints[]`", {"joints"}, true);
+  table(md, "Environment: `environment`", {"environment"}, false);
   table(md, "Run: `run`", {"run"}, false);
   table(md, "Compare: `compare`", {"compare"}, false);
   table(md, "Value forms", {"(list with unit)", "(axis-angle)"}, false);

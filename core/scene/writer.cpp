@@ -267,6 +267,29 @@ void write_joint(Out& o, const System& s, const Joint& j) {
   y << YAML::EndMap;
 }
 
+// The environment (issue 28): the orbit by its radius (SI), every angle written.
+void write_environment(Out& o, const Environment& e) {
+  if (e.none()) return;
+  YAML::Emitter& y = o.yaml();
+  o.key("environment") << YAML::BeginMap;
+  if (e.uniform()) {
+    o.key("environment.gravity");
+    o.flow(e.g_N);
+  } else {
+    o.key("environment.central_body") << YAML::BeginMap;
+    o.number("environment.central_body.mu", e.mu);
+    if (e.body_radius > 0) o.number("environment.central_body.radius", e.body_radius);
+    y << YAML::EndMap;
+    o.key("environment.orbit") << YAML::BeginMap;
+    o.number("environment.orbit.radius", e.radius);
+    o.number("environment.orbit.inclination", e.inclination);
+    o.number("environment.orbit.raan", e.raan);
+    o.number("environment.orbit.argument_of_latitude", e.latitude0);
+    y << YAML::EndMap;
+  }
+  y << YAML::EndMap;
+}
+
 void write_run(Out& o, const RunSpec& run) {
   o.key("run") << YAML::BeginMap;
   o.number("run.duration", run.duration);
@@ -319,6 +342,7 @@ std::string write_scene_text(const System& s) {
   o.key("source") << YAML::DoubleQuoted << s.source;
   if (!s.analytic.empty()) o.key("analytic") << s.analytic;
   o.key("zero_linear_momentum") << (s.zero_linear_momentum ? "true" : "false");
+  write_environment(o, s.environment);
   o.key("bodies") << YAML::BeginSeq;
   for (const Body& b : s.bodies) write_body(o, b);
   y << YAML::EndSeq;

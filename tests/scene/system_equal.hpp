@@ -36,6 +36,14 @@ inline std::string system_difference(const System& a, const System& b) {
   eq("source", a.source == b.source);
   eq("zero_linear_momentum", a.zero_linear_momentum == b.zero_linear_momentum);
   eq("analytic", a.analytic == b.analytic);
+  {
+    const Environment& x = a.environment;
+    const Environment& y = b.environment;
+    eq("environment", x.kind == y.kind && x.g_N == y.g_N && x.mu == y.mu &&
+                          x.body_radius == y.body_radius && x.radius == y.radius &&
+                          x.inclination == y.inclination && x.raan == y.raan &&
+                          x.latitude0 == y.latitude0);
+  }
   if (eq("bodies.size", a.bodies.size() == b.bodies.size()))
     for (std::size_t i = 0; i < a.bodies.size(); ++i) {
       const Body& x = a.bodies[i];

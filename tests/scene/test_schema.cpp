@@ -212,6 +212,38 @@ joints: [{name: base, type: free, child: b}]
 run: {duration: 1, output_step: 0.1}
 )";
 
+// The environment's keys (issue 28): uniform gravity; a central body with an orbit by altitude
+// and a base given relative to the orbit frame; an orbit by its radius.
+const char* kUniform = R"(
+name: pendulum
+environment: {gravity: {value: [0, 0, -1], unit: g0}}
+bodies: [{name: b, mass: 1, inertia: [1, 2, 2.5]}]
+joints: [{name: base, type: free, child: b}]
+run: {duration: 1, output_step: 0.1}
+)";
+const char* kOrbitAltitude = R"(
+name: on_orbit
+environment:
+  central_body: {mu: 398600.4418 km^3/s^2, radius: 6378.137 km}
+  orbit: {altitude: 500 km, inclination: 98 deg, raan: 10 deg, argument_of_latitude: 30 deg}
+bodies: [{name: b, mass: 1, inertia: [1, 2, 2.5]}]
+joints:
+  - name: base
+    type: free
+    child: b
+    initial: {frame: lvlh, attitude: {axis: [0, 1, 0], angle: 1 deg}, angular_velocity: [0, 0, 0]}
+run: {duration: 1, output_step: 0.1}
+)";
+const char* kOrbitRadius = R"(
+name: on_orbit2
+environment:
+  central_body: {mu: 3.986004418e14}
+  orbit: {radius: 7000 km}
+bodies: [{name: b, mass: 1, inertia: [1, 2, 2.5]}]
+joints: [{name: base, type: free, child: b}]
+run: {duration: 1, output_step: 0.1}
+)";
+
 // The schema rows a scene text uses, found by walking its YAML as the schema describes it
 // (rows of each joint by that joint's type; value forms where a value is written as a mapping).
 void collect(const YAML::Node& n, const std::string& path, unsigned joints,
@@ -309,7 +341,7 @@ TEST_CASE("schema: joint types and integrators agree with the rest of the code")
 TEST_CASE("schema: the reader accepts every key of the schema, and the writer writes each one "
           "it may") {
   std::set<const Key*> read, written;
-  for (const char* text : {kRich, kAnalytic}) {
+  for (const char* text : {kRich, kAnalytic, kUniform, kOrbitAltitude, kOrbitRadius}) {
     const System s = read_scene_text(text, "all.yaml");
     const std::set<const Key*> r = rows_used(text);
     const std::set<const Key*> w = rows_used(write_scene_text(s));
