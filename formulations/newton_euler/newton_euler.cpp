@@ -19,6 +19,7 @@
 #include "formulations/newton_euler/newton_euler.hpp"
 
 #include "core/errors.hpp"
+#include "core/orbit.hpp"
 #include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
@@ -112,6 +113,15 @@ class NewtonEulerEngine final : public Engine {
   }
   double torque(int j) const;  // a prescribed joint's torque about its axis on the child
   void force_pass(double t);
+  // The environment's loads on body b (issue 28; core/system.hpp "Environment"): added to f_ and
+  // kept in F_grav_N_, M_grav_B_ (force_pass(); equations at gravity_on_body()).
+  struct GravityField {
+    double n2 = 0;                                   // n^2 (orbit), 1/s^2
+    Vector3d zhat_N = Vector3d::Zero();              // unit, central body to O (orbit)
+  };
+  GravityField gravity_field(double t) const;
+  void gravity_on_body(int b, const GravityField& gf);
+  double gravity_potential(double t) const;          // V of every mass (valid after mass_pass)
   void load_kkt();  // J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
   // (t, x) => the KKT system in kkt_ and f_: the passes up to the solve (dynamics(),
@@ -157,6 +167,11 @@ class NewtonEulerEngine final : public Engine {
   // same solve as every other multiplier, and a flexible base keeps its modal coordinates.
   bool prescribed_base_ = false;
   BodyKinematics ground_;                // N: identity attitude, at rest
+  // The environment (System::environment): its kind (Kind::None: nothing computed), the uniform
+  // field g_N, and on an orbit the reference point O, the system's CM in the initial state
+  // (computed once, by the constructor, from TreeState::initial: a point fixed in N).
+  Environment env_;
+  Vector3d p_NoO_N_ = Vector3d::Zero();
   OutputLayout layout_;          // pinned columns, then the constraint violations
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
@@ -172,6 +187,10 @@ class NewtonEulerEngine final : public Engine {
   VectorXd f_, nu_dot_;                  // stacked per body (KKT order)
   std::vector<Vector6d> gamma_, y_;      // per KKT link (joint j is link j - 1)
   TreeKkt kkt_;
+  // Per body, the environment's load at the last force_pass: the force F_grav_N (N components,
+  // the resultant, through Bo for a rigid body) and the moment about Bo in B components, M_grav_B
+  // (for the external moment column Mx My Mz).
+  std::vector<Vector3d> F_grav_N_, M_grav_B_;
 };
 
 NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& options)
@@ -319,6 +338,24 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
     if (joints_[at(j)].has_angle)
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
+
+  // The environment. On an orbit, O = the system's CM at t = 0 (core/system.hpp "Environment"),
+  // from this engine's own placement of the scene's initial state (pack(): the tree kinematics;
+  // system_cm(): the deformed CM of every body), once; the workspace's joint coordinates are
+  // restored afterwards (pack() sets them; the run's own pack() will again).
+  env_ = system.environment;
+  F_grav_N_.assign(at(nb_), Vector3d::Zero());
+  M_grav_B_.assign(at(nb_), Vector3d::Zero());
+  if (env_.orbit()) {
+    const std::vector<JointCoords> coords = coords_, coords_ref = coords_ref_;
+    std::vector<double> x0(at(nx_));
+    pack(TreeState::initial(system), x0.data());
+    body_pass(0.0, x0.data());
+    mass_pass(0.0);
+    p_NoO_N_ = system_cm();
+    coords_ = coords;
+    coords_ref_ = coords_ref;
+  }
 }
 
 // A flexible body: consistent sizes, finite data, non-negative node masses, mass and rigid
@@ -477,7 +514,7 @@ void NewtonEulerEngine::force_pass(double t) {
     if (fi >= 0) {
       f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
     } else {
-      f_.segment<3>(nu(b)).setZero();  // the model has no external forces (no gravity)
+      f_.segment<3>(nu(b)).setZero();  // external forces: the environment's, below
       f_.segment<3>(nu(b) + 3) = -k.w_NB_B.cross(I_B_[at(b)] * k.w_NB_B);
     }
     if (!body.torque.empty()) {  // on the body frame: no work on eta
@@ -485,6 +522,10 @@ void NewtonEulerEngine::force_pass(double t) {
       if (body.torque_frame == Body::Frame::Body) f_.segment<3>(nu(b) + 3) += T;
       else f_.segment<3>(nu(b) + 3) += k.R_NB.transpose() * T;
     }
+  }
+  if (!env_.none()) {  // gravity (issue 28): nothing computed without an environment
+    const GravityField gf = gravity_field(t);
+    for (int b = 0; b < nb_; ++b) gravity_on_body(b, gf);
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
@@ -504,6 +545,134 @@ void NewtonEulerEngine::force_pass(double t) {
     f_.segment<3>(nu(m.parent)) -= F_N;
     f_.segment<3>(nu(m.parent) + 3) -= jk.r_PoJ_F.cross(F_P);
   }
+}
+
+// ---- the environment's loads (issue 28) -------------------------------------------------------
+//
+// Every mass element of the model feels the field at its own position (core/system.hpp
+// "Environment"): a rigid body is its CM with its inertia, a flexible body its nodes
+// x_i = p + R r_i, r_i = p_i + u_i (B components; modal_body.hpp) with their inertias J_i.
+// In this engine an applied load enters body b's Newton and Euler equations as its generalised
+// force on b's unknowns [a_N; alpha_B; eta''] (the reference paper's Eqs. (1), (2), (7); for a
+// flexible body the virtual displacement of node i, delta x_i = delta p + R (delta theta x r_i +
+// Phi~_i delta eta), modal_body.hpp; Kane & Levinson 1985, "Dynamics: Theory and Applications",
+// Ch. 4, generalised active forces): a node force F_i (N components) gives
+//   [ sum F_i ;  sum r_i x R^T F_i ;  sum Phi~_i^T R^T F_i ]
+// and a torque on a node's inertia (fixed in B: it does not turn with the deformation) only the
+// moment row. The sums over nodes are done with the body's mass-weighted invariants and per-state
+// terms (terms_, after mass_pass): S = sum m_i r_i, I(eta) = J_sum + tr(Q) 1 - Q with
+// Q = sum m_i r_i r_i^T, R Phi~_bar (the mass matrix's block M(0:3, 6:)), B_k = sum m_i Phi_ik r_i^T
+// (the linear model; a stiffened body is summed node by node, as its mass matrix is).
+//
+// Uniform field g_N: F_i = m_i g. Per body
+//   F_grav_N = m g;  M_grav_B = S x R^T g  (zero for a rigid body: no moment about its CM);
+//   modal  (R Phi~_bar)^T g.
+//   V = -g . (m p + R S)  (-sum m_i g . x_i).
+// Orbit (second-order tidal field about O; Hughes 2004, "Spacecraft Attitude Dynamics", Sec. 8.1;
+// Schaub & Junkins 2018, "Analytical Mechanics of Space Systems", Sec. 4.3):
+// T = n^2 (3 zhat zhat^T - 1) (N components; T_B = R^T T R = n^2 (3 z_B z_B^T - 1), z_B = R^T zhat),
+// d = p - p_NoO_N, F_i = m_i T (d + R r_i); node inertia torque 3 n^2 z_B x (J_i z_B). Per body
+//   F_grav_N = T (m d + R S);
+//   M_grav_B = S x (T_B d_B) + sum m_i r_i x (T_B r_i) + 3 n^2 z_B x (J_sum z_B)
+//            = S x (T_B d_B) + 3 n^2 z_B x (I(eta) z_B)
+//     (sum m_i r_i x T_B r_i = 3 n^2 (Q z_B) x z_B and z_B x I z_B = (Q z_B) x z_B + z_B x J_sum z_B);
+//     a rigid body (S = 0, I = I_B): the gravity-gradient torque tau_gg_B = 3 n^2 z_B x (I_B z_B)
+//     (Hughes Sec. 8.1);
+//   modal  (R Phi~_bar)^T T d + [sum m_i Phi~_ik . T_B r_i]_k,
+//     linear model: sum m_i Phi_ik . T_B r_i = tr(T_B B_k) = 3 n^2 z_B^T B_k z_B - n^2 tr B_k;
+//   V = sum_i (-1/2 m_i x_i^T T x_i + 3/2 n^2 zhat^T J_i,N zhat - 1/2 n^2 tr J_i), x_i from O,
+//     = -1/2 m d^T T d - d^T T R S + 3/2 n^2 z_B^T I(eta) z_B - 1/2 n^2 tr I(eta)
+//     (with sum m_i r_i^T T_B r_i = 3 n^2 z_B^T Q z_B - n^2 tr Q, Q = tr(Q) 1 - (I - J_sum) and
+//     tr Q = (tr I - tr J_sum) / 2), for a rigid body the per-body formula of core/system.hpp.
+// EngineOptions::test_gravity_gradient_sign is not implemented here (core/engine.hpp: lagrange's).
+NewtonEulerEngine::GravityField NewtonEulerEngine::gravity_field(double t) const {
+  GravityField gf;
+  if (!env_.orbit()) return gf;
+  const OrbitFrame of = orbit_frame(env_, t);
+  gf.n2 = of.n * of.n;
+  gf.zhat_N = of.zenith_N;
+  return gf;
+}
+
+void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
+  const BodyKinematics& k = bk_[at(b)];
+  const int fi = flex_[at(b)];
+  const double m = mass_[at(b)];
+  const int n = modes(b);
+  Vector3d F_grav_N, M_grav_B;
+  if (env_.uniform()) {
+    F_grav_N = m * env_.g_N;
+    M_grav_B.setZero();
+    if (fi >= 0) {
+      const ModalTerms& mt = terms_[at(fi)];
+      M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
+      if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
+    }
+  } else {
+    const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
+    const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
+    const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);  // T d
+    F_grav_N = m * Td_N;
+    if (fi < 0) {
+      M_grav_B = 3.0 * gf.n2 * z_B.cross(I_B_[at(b)] * z_B);  // tau_gg_B
+    } else {
+      ModalTerms& mt = terms_[at(fi)];
+      const Vector3d S_N = k.R_NB * mt.S;
+      F_grav_N += gf.n2 * (3.0 * gf.zhat_N.dot(S_N) * gf.zhat_N - S_N);
+      M_grav_B = mt.S.cross(k.R_NB.transpose() * Td_N) + 3.0 * gf.n2 * z_B.cross(mt.I * z_B);
+      if (n > 0) {
+        auto f_modal = f_.segment(nu(b) + 6, n);
+        f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
+        const ModalInvariants& inv = inv_[at(fi)];
+        if (!inv.stiffening) {
+          for (int c = 0; c < n; ++c) {
+            const Matrix3d& Bk = mt.B[at(c)];
+            f_modal(c) += gf.n2 * (3.0 * z_B.dot(Bk * z_B) - Bk.trace());
+          }
+        } else {  // node by node (mt.g, mt.Phit: mass_pass's scratch, free again)
+          const VectorXd& eta = k.eta;
+          for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
+            mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
+            Vector3d r = inv.node_p[i] + 0.5 * eta.dot(mt.g) * inv.node_e[i];
+            r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
+            mt.Phit = inv.node_Phi[i];
+            mt.Phit.noalias() += inv.node_e[i] * mt.g.transpose();  // Phi~_i
+            const Vector3d TBr = gf.n2 * (3.0 * z_B.dot(r) * z_B - r);
+            f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
+          }
+        }
+      }
+    }
+  }
+  f_.segment<3>(nu(b)) += F_grav_N;
+  f_.segment<3>(nu(b) + 3) += M_grav_B;
+  F_grav_N_[at(b)] = F_grav_N;
+  M_grav_B_[at(b)] = M_grav_B;
+}
+
+// The environment's potential V (equations above gravity_field()); 0 without one. Valid after
+// mass_pass (a flexible body's S and I(eta) in terms_).
+double NewtonEulerEngine::gravity_potential(double t) const {
+  if (env_.none()) return 0.0;
+  const GravityField gf = gravity_field(t);
+  double V = 0;
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematics& k = bk_[at(b)];
+    const int fi = flex_[at(b)];
+    const double m = mass_[at(b)];
+    const Vector3d S_N = fi < 0 ? Vector3d::Zero() : Vector3d(k.R_NB * terms_[at(fi)].S);
+    if (env_.uniform()) {
+      V -= env_.g_N.dot(m * k.p_NoBo_N + S_N);
+      continue;
+    }
+    const Matrix3d& I_B = fi < 0 ? I_B_[at(b)] : terms_[at(fi)].I;
+    const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
+    const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
+    const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);
+    V += -0.5 * m * d_N.dot(Td_N) - Td_N.dot(S_N) + 1.5 * gf.n2 * z_B.dot(I_B * z_B) -
+         0.5 * gf.n2 * I_B.trace();
+  }
+  return V;
 }
 
 // (constraint rows) => J and gamma_s of the KKT system (kkt_): gamma_s = gamma, or with
@@ -1031,8 +1200,19 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
                      m.prescribed ? torque(j) : 0.0, t);
   }
   const Vector3d p_NoScm_N = system_cm();
-  out.momentum(angular_momentum(p_NoScm_N));
-  out.energy(energy());
+  const Vector3d H_Scm_N = angular_momentum(p_NoScm_N);
+  out.momentum(H_Scm_N);
+  const double E = energy() + gravity_potential(t);  // kinetic, strain, springs; gravity's V
+  out.energy(E);
+  if (env_.orbit()) {
+    // The Jacobi integral J = E - w_NO_N . H_O_N (core/system.hpp "Environment"; Schaub &
+    // Junkins 2018, Sec. 4.3), H about O: H_O_N = H_Scm_N + M (p_cm - p_NoO_N) x v_cm
+    // [KLL83 Sec. 4.5], v_cm the system CM's velocity (linear momentum / M).
+    const double M = total_mass();
+    const Vector3d v_cm_N = linear_momentum() / M;
+    const Vector3d H_O_N = H_Scm_N + M * (p_NoScm_N - p_NoO_N_).cross(v_cm_N);
+    out.jacobi(E - orbit_frame(env_, t).w_NO_N.dot(H_O_N));
+  }
   for (int b = 0; b < nb_; ++b) out.body_position(b, bk_[at(b)].p_NoBo_N);
   out.system_cm(p_NoScm_N);
 
@@ -1057,6 +1237,10 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   for (int b = 0; b < nb_; ++b) {
     const Body& body = system_.bodies[at(b)];
     const BodyKinematics& k = bk_[at(b)];
+    // Gravity (force_pass() of this dynamics() call): its resultant F_grav_N through Bo and its
+    // moment about Bo, moved to the system CM [Feath08 Eq. 2.26]. Conservative: not in P.
+    if (!env_.none())
+      M_Scm_N += (k.p_NoBo_N - p_NoScm_N).cross(F_grav_N_[at(b)]) + k.R_NB * M_grav_B_[at(b)];
     if (!body.torque.empty()) {  // external torque: power T . w_NB (on the body frame), moment T
       const Vector3d T = body.torque.value(t);
       const bool in_B = body.torque_frame == Body::Frame::Body;

@@ -19,11 +19,19 @@
 //                  relative joint kinematics, constraint rows g, J, gamma with columns in the modal
 //                  rates of flexible sides (joint_constraints.hpp); what depends on the joint
 //                  type is in the type's unit (joints/joint_unit.hpp, one file per type)
-//   force_pass     t => f_b = [F_ext (zero: no external forces in the model);
+//   force_pass     t => f_b = [F_ext (gravity's, below; else zero);
 //                              M_ext + spring/damper/motor torques - w x I w]   (Eqs. (1), (7));
 //                  flexible: the velocity terms, -K eta - D eta', the body torque (on the body
 //                  frame: no work on eta) and the joint torques on node frames with their modal
-//                  generalised forces (Jl Psi)^T T
+//                  generalised forces (Jl Psi)^T T; then the environment's loads (issue 28;
+//                  core/system.hpp "Environment"; nothing computed without one): uniform gravity
+//                  m g, or on an orbit the tidal force T (m d + R S) (T = n^2 (3 zhat zhat^T - 1),
+//                  d = p - p_NoO_N, O the system's CM in the initial state) and the moment about Bo
+//                  S x T_B d_B + 3 n^2 z_B x (I z_B) (the gravity-gradient torque, Hughes 2004,
+//                  "Spacecraft Attitude Dynamics", Sec. 8.1); a flexible body's nodes add their
+//                  modal generalised forces (R Phi~_bar)^T g, or (R Phi~_bar)^T T d +
+//                  [tr(T_B B_k)]_k, from the mass-weighted node sums (newton_euler.cpp,
+//                  gravity_on_body(), for the derivation)
 //   solve_pass     [M J^T; J 0] [nu'; -lambda] = [f; gamma_s], factorised in O(bodies) with blocks
 //                  of size 6 or 6 + n_b (tree_kkt.hpp): M nu' = f + J^T lambda, J nu' = gamma_s;
 //                  the constraint wrench on body b is J_b^T lambda. gamma_s = gamma (stabilisation
@@ -69,6 +77,12 @@
 //   CMx CMy CMz     p_NoScm_N = sum_b (m_b p_b + R_NB S_b) / sum_b m_b, S_b = sum_i m_i (p_i + u_i)
 //                   (modal_body.hpp; zero for a rigid body) [KLL83 Sec. 4.5].
 //   Hx Hy Hz, H     H_Scm_N = sum_b h_b + (p_b - x_c) x L_b (angular_momentum(), H its norm).
+//   E               kinetic + strain + joint springs, plus gravity's potential (uniform:
+//                   -g . (m p + R S) per body; orbit: -1/2 m d^T T d - d^T T R S +
+//                   3/2 n^2 z_B^T I z_B - 1/2 n^2 tr I per body, the node sums of core/system.hpp's
+//                   per-mass formula).
+//   J               (orbit only) the Jacobi integral E - w_NO_N . H_O_N, H_O_N = H_Scm_N +
+//                   M (p_cm - p_NoO_N) x v_cm [KLL83 Sec. 4.5].
 //   <joint>.Fx..Mz  joint j's total load on its child (joint_load()): the constraint part is the
 //                   generalised force J_C^T lambda of the joint's multipliers (lambda = -y) on the
 //                   child's [v_NCo_N; w_NC_C] columns, i.e. the force F_N and the moment about Co
@@ -88,7 +102,10 @@
 //                   = lambda_5 theta' for the prescribed rows only) and springs and the strain
 //                   energy are in E.
 //   Mx My Mz        M_Scm_N: external torques in N, plus a prescribed base's load moved to the CM,
-//                   R_NB M_J_C + (p_NoJ_N - p_NoScm_N) x R_NB F_C (Featherstone 2008, Eq. 2.26).
+//                   R_NB M_J_C + (p_NoJ_N - p_NoScm_N) x R_NB F_C (Featherstone 2008, Eq. 2.26),
+//                   plus gravity's, sum_b (p_b - p_NoScm_N) x F_grav_N + R_NB M_grav_B (zero for
+//                   uniform gravity; the tidal forces and gravity-gradient torques on an orbit).
+//                   Joint loads include gravity through the multipliers; P does not (conservative).
 // EngineOptions::test_damper_scale s multiplies the dampers of the equations of motion (each
 // JointModel's damping, damping2 and a flexible body's Dmp, at construction, skipped when s = 1);
 // P keeps the scene's dampers, so a wrong damper in the equations shows in E(t) - E(0) = int P.
@@ -128,7 +145,8 @@ namespace crossdyn {
 // flexible body's mass or inertia different from its node sums, a singular undeformed mass matrix
 // (a mode with no mass, or a rigid-body or dependent mode), K or D not symmetric positive
 // semi-definite, an unknown stabilisation name, negative Baumgarte gains or a non-positive
-// test_inertia_scale, or a non-finite test_damper_scale.
+// test_inertia_scale, or a non-finite test_damper_scale. EngineOptions::test_gravity_gradient_sign
+// is ignored (core/engine.hpp: only the lagrange engine implements it).
 std::unique_ptr<Engine> make_newton_euler_engine(const System& system, const EngineOptions& options);
 
 }  // namespace crossdyn

@@ -107,6 +107,34 @@ TEST_CASE("newton-euler: rhs and after_step do not allocate", "[newton_euler][al
     INFO(s.name);
     CHECK(allocations == 0);
   }
+  // Gravity (issue 28): uniform and orbit, on the flexible tree and a geometrically stiffened
+  // body (its orbit loads are node sums per state).
+  for (const Environment::Kind kind : {Environment::Kind::Uniform, Environment::Kind::Orbit}) {
+    for (System s : {test::ne::flexible_tree(),
+                     read_scene_text(test::ne::free_spinning_beam_text(), "allocation")}) {
+      s.environment.kind = kind;
+      s.environment.g_N = Eigen::Vector3d(0.3, -9.81, 1.0);
+      s.environment.mu = 3.986004418e14;
+      s.environment.radius = 7.0e6;
+      s.environment.inclination = 0.5;
+      auto e = make_newton_euler_engine(s, {});
+      std::vector<double> x(static_cast<std::size_t>(e->state_size())), xdot(x.size());
+      TreeState ts = TreeState::initial(s);
+      std::mt19937 rng(4);
+      test::ne::deform(s, ts, rng, 0.1, 0.3);
+      e->pack(ts, x.data());
+      std::normal_distribution<double> noise(0.0, 1e-6);
+      const long before = g_allocations.load();
+      for (int k = 0; k < 100; ++k) {
+        e->rhs(0.01 * k, x.data(), xdot.data());
+        for (double& v : x) v += noise(rng);
+        e->after_step(0.01 * k, x.data());
+      }
+      const long allocations = g_allocations.load() - before;
+      INFO(s.name << (kind == Environment::Kind::Orbit ? " on an orbit" : " under uniform gravity"));
+      CHECK(allocations == 0);
+    }
+  }
   // Control: the counter does see allocations.
   const long before = g_allocations.load();
   std::vector<double> v(10);
