@@ -5,6 +5,7 @@
 #include <cmath>
 #include <memory>
 #include <utility>
+#include <vector>
 
 #include "core/cancel.hpp"
 #include "core/errors.hpp"
@@ -40,6 +41,14 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
     throw InputError(where + "engine option test_damper_scale must be finite and >= 0, got " +
                      format_number(damper_scale));
   validate_flex(system, where);
+  // The environment (issue 28; gravity.cpp) and the test hook on the gravity-gradient torques.
+  if (!std::isfinite(options.test_gravity_gradient_sign))
+    throw InputError(where + "engine option test_gravity_gradient_sign must be finite, got " +
+                     format_number(options.test_gravity_gradient_sign));
+  m->environment = system.environment;
+  m->gravity = !system.environment.none();
+  m->orbit = system.environment.orbit();
+  m->gg_sign = options.test_gravity_gradient_sign;
   for (const Body& b : system.bodies) {
     Model::BodyM bm;
     bm.name = b.name;
@@ -280,8 +289,37 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->bf = Eigen::VectorXd::Zero(m->nf);
   w->inv_diag_f = w->bf;
   w->torque = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(m->prescribed_joints.size()));
+  if (m->gravity) {
+    for (auto* v : {&w->p_g_N, &w->F_g_N, &w->M_g_N})
+      v->assign(static_cast<std::size_t>(nb), Eigen::Vector3d::Zero());
+    w->Q_g = Eigen::VectorXd::Zero(m->max_modes);
+    if (m->orbit) {
+      w->fi_g.resize(static_cast<std::size_t>(nb));
+      for (std::size_t b = 0; b < m->bodies.size(); ++b)
+        w->fi_g[b].resize(m->bodies[b].nm,
+                          m->bodies[b].flex >= 0 &&
+                              m->flex[static_cast<std::size_t>(m->bodies[b].flex)].stiff);
+      w->eta_g.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
+    }
+  }
+  Model* const model = m.get();
   model_ = std::move(m);
   ws_ = std::move(w);
+  if (model->orbit) {
+    // O, the system's CM at t = 0 (core/system.hpp, Environment), from the scene's initial state in
+    // this engine's own coordinates: the double pose pass and the first mass moments, as the
+    // output column p_NoScm_N (outputs.cpp). Set once, here; the Model is immutable after.
+    std::vector<double> x0(static_cast<std::size_t>(state_size()));
+    pack(TreeState::initial(system), x0.data());
+    kinetic_energy_full(expand(0.0, x0.data()));  // the pose pass into k0
+    const Kin<double>& k = ws_->k0;
+    Eigen::Vector3d s = Eigen::Vector3d::Zero();
+    for (std::size_t b = 0; b < model->bodies.size(); ++b) {
+      s += model->bodies[b].mass * k.p_NoBo_N[b];
+      if (model->bodies[b].flex >= 0) s += k.R_NB[b] * k.fi[b].s;
+    }
+    model->p_NoO_N = s / model->total_mass;
+  }
 }
 
 }  // namespace crossdyn::lagrange

@@ -1,5 +1,6 @@
 // The Lagrange engine's generalised forces N for the quasi-velocities (virtual power N . pi'): body
-// torques, modal damping, joint dampers and motors (README.md, "Generalised forces").
+// torques, modal damping, joint dampers and motors, gravity (gravity.cpp) (README.md, "Generalised
+// forces").
 #include <cstddef>
 #include <vector>
 
@@ -53,6 +54,9 @@ void generalised_forces(const Model& m, Workspace& w, double t) {
     for (int a = 0; a < J.loaded; ++a)
       w.N(J.i0 + a) += -J.damping[static_cast<std::size_t>(a)] * w.u(J.i0 + a) + motor(a);
   }
+
+  // The environment's gravity (gravity.cpp): nothing without one.
+  if (m.gravity) gravity_forces(m, w, t);
 }
 
 }  // namespace crossdyn::lagrange

@@ -72,7 +72,10 @@ class LagrangeEngine final : public Engine {
   // Terms are over every coordinate, prescribed ones included (udot: theta'' there).
   Terms terms(double t, const double* x);
   double kinetic_energy(const double* x, double t = 0.0);
+  // The springs', the flexible bodies' elastic and the environment's potential at t (gravity.cpp).
   double potential_energy(const double* x, double t = 0.0);
+  // On an orbit: O, the system's CM at t = 0 from the scene's initial state (N, fixed in N).
+  Eigen::Vector3d orbit_reference_N() const;
   Eigen::Vector3d angular_momentum_N(const double* x, double t = 0.0);  // about the system CM, N
   Eigen::Vector3d linear_momentum_N(const double* x, double t = 0.0);
   // Torques of the prescribed revolute joints at (t, x), System::joints order (0 for the others).

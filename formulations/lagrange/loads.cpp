@@ -9,11 +9,12 @@
 // internal forces summed over the particles, the internal forces cancelling in equal, opposite and
 // collinear pairs, for the force and for the moment about a point; Meirovitch, "Methods of
 // Analytical Dynamics", 1970, Ch. 1, the momentum principles of a system of particles). The only
-// loads from outside a joint's child subtree are the joint's (from the parent) and the external
-// body torques (scenes carry no external forces), so
+// loads from outside a joint's child subtree are the joint's (from the parent), the external
+// body torques T_b and gravity (issue 28: per body the resultant F_g at Bo and its moment M_g about
+// Bo, gravity.cpp, as the equations of motion use them), so
 //
-//   F_N   = sum_{b in subtree} dP_b/dt
-//   M_J_N = sum_{b in subtree} [ (p_Bo - r_J) x dP_b/dt + dK_b ] - sum_{b in subtree} T_b
+//   F_N   = sum_{b in subtree} [ dP_b/dt - F_g_b ]
+//   M_J_N = sum_{b in subtree} [ (p_Bo - r_J) x (dP_b/dt - F_g_b) + dK_b - T_b - M_g_b ]
 //
 // with P_b the body's linear momentum and dK_b = sum_i (r_i - p_Bo) x m_i a_i + d/dt(R_NB J_i w)
 // its moment of the mass-acceleration about its origin Bo.
@@ -101,6 +102,12 @@ void joint_loads(const Model& m, Workspace& w, double t) {
       const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(jj)].child);
       F += w.dP_N[b];
       M += (k.p_NoBo_N[b] - r_J).cross(w.dP_N[b]) + w.dK_N[b] - w.T_N[b];
+      if (m.gravity) {
+        // Gravity on the subtree (gravity.cpp, evaluate() at this state): the resultant F_g at
+        // Bo and its moment M_g about Bo are external loads too, so the joint carries the rest.
+        F -= w.F_g_N[b];
+        M -= (k.p_NoBo_N[b] - r_J).cross(w.F_g_N[b]) + w.M_g_N[b];
+      }
     }
     w.F_N[j] = F;
     w.M_J_N[j] = M;

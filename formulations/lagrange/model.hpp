@@ -125,6 +125,18 @@ struct LagrangeEngine::Model {
   std::vector<int> state_of;           // per q* index: its state coordinate, -1 when prescribed
   std::vector<int> prescribed_joints;  // joint indices of the prescribed joints
   double total_mass = 0;
+  // The environment (issue 28; core/system.hpp Environment, core/orbit.hpp; README.md "Gravity"):
+  // its loads enter N as generalised active forces (gravity.cpp). `gravity` is false without one,
+  // and rhs() then computes nothing for it.
+  Environment environment;
+  bool gravity = false;
+  bool orbit = false;
+  // EngineOptions::test_gravity_gradient_sign: multiplies the torques 3 n^2 zhat x (I_N zhat) (and
+  // the flexible bodies' share of them) in the equations of motion only, not in E or J.
+  double gg_sign = 1.0;
+  // On an orbit: O, the system's CM at t = 0 from the scene's initial state (a point fixed in N),
+  // set once by the constructor.
+  Eigen::Vector3d p_NoO_N = Eigen::Vector3d::Zero();
   bool zero_linear_momentum = true;
   bool rechart = true;
   std::vector<std::string> labels;   // state labels, size 2n

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "core/orbit.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/energy.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
@@ -30,7 +31,16 @@ double LagrangeEngine::kinetic_energy(const double* x, double t) {
   return kinetic_energy_full(expand(t, x));
 }
 double LagrangeEngine::potential_energy(const double* x, double t) {
-  return potential_energy_full(expand(t, x));
+  const double* xf = expand(t, x);
+  double V = potential_energy_full(xf);
+  if (model_->gravity) {
+    kinetic_energy_full(xf);  // the double pose pass into k0
+    V += gravity_potential(*model_, ws_->k0, t);
+  }
+  return V;
+}
+Eigen::Vector3d LagrangeEngine::orbit_reference_N() const {
+  return model_->p_NoO_N;
 }
 Eigen::Vector3d LagrangeEngine::angular_momentum_N(const double* x, double t) {
   return angular_momentum_full(expand(t, x));
@@ -114,7 +124,9 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   // The accelerations pi'' at (t, x) (the joint loads) and the prescribed joints' torques.
   evaluate(t, x);
   const double* u = x + n;
-  const double E = kinetic_energy_full(x) + potential_energy_full(x);
+  double E = kinetic_energy_full(x) + potential_energy_full(x);
+  // The environment's potential (gravity.cpp) on the pose pass just made into k0.
+  if (m.gravity) E += gravity_potential(m, w.k0, t);
   const Eigen::Vector3d H_Scm_N = angular_momentum_full(x);  // leaves the pose and twist passes
                                                              // in k0
   // Attitude quaternions: q_NC = q_NP q(psi_P) q_PJ0 q_J q(psi_C)^*, q_J from the joint's own
@@ -178,6 +190,17 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   const Eigen::Vector3d p_NoScm_N = s / m.total_mass;
   out.system_cm(p_NoScm_N);
 
+  // On an orbit, the Jacobi integral J = E - w_NO_N . H_O_N (core/system.hpp, Environment), with
+  // the angular momentum about O (fixed in N) H_O_N = H_Scm_N + M (p_cm - p_NoO_N) x v_cm
+  // (Greenwood 2003, Ch. 1, the angular momentum about another point), M v_cm the total linear
+  // momentum.
+  if (m.orbit) {
+    Eigen::Vector3d P_N = Eigen::Vector3d::Zero();
+    for (std::size_t b = 0; b < m.bodies.size(); ++b) P_N += body_momenta(m, w.k0, u, b).P;
+    const Eigen::Vector3d H_O_N = H_Scm_N + (p_NoScm_N - m.p_NoO_N).cross(P_N);
+    out.jacobi(E - orbit_frame(m.environment, t).w_NO_N.dot(H_O_N));
+  }
+
   // Joint loads from each child subtree's momentum balance (loads.cpp), in the child body frame.
   joint_loads(m, w, t);
   for (std::size_t j = 0; j < m.joints.size(); ++j) {
@@ -217,12 +240,17 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   }
   out.power(P);
 
-  // External moment about the system CM in N: the external torques and, for a prescribed base,
-  // its joint's load on the base moved to the CM, M_J + (r_J - r_cm) x F (the moment of a force
-  // about another point; Greenwood 2003, Ch. 1).
+  // External moment about the system CM in N: the external torques, gravity's and, for a
+  // prescribed base, its joint's load on the base moved to the CM, M_J + (r_J - r_cm) x F (the
+  // moment of a force about another point; Greenwood 2003, Ch. 1).
   Eigen::Vector3d M_Scm_N = Eigen::Vector3d::Zero();
   for (std::size_t b = 0; b < m.bodies.size(); ++b) M_Scm_N += w.T_N[b];
   if (!m.base_free) M_Scm_N += w.M_J_N[0] + (w.r_J_N[0] - p_NoScm_N).cross(w.F_N[0]);
+  // Gravity's moment about the system CM: per body its resultant at Bo and moment about Bo
+  // (gravity.cpp), sum (p_Bo - p_cm) x F_g + M_g.
+  if (m.gravity)
+    for (std::size_t b = 0; b < m.bodies.size(); ++b)
+      M_Scm_N += (k.p_NoBo_N[b] - p_NoScm_N).cross(w.F_g_N[b]) + w.M_g_N[b];
   out.external_moment(M_Scm_N);
 
   out.extra(m.recharts_column, static_cast<double>(w.recharts));

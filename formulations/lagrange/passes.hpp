@@ -10,12 +10,22 @@
 
 namespace crossdyn::lagrange {
 
+template <class S>
+struct Kin;  // kinematics.hpp
+
 // mass_matrix.cpp: M (upper triangle), p = dT/dpi', (dM/dt) pi', the seed twists Xi and their rates
 // Xi_dot, the base's R_NB0 and the Dual<1> pose in w.k1. Needs the charts (w.B, w.qdot).
 void mass_pass(const Model& m, Workspace& w, const double* x);
 // generalised_forces.cpp: N, the generalised forces of body torques, modal damping and joint
 // dampers and motors. Needs the mass pass (w.Xi, w.k1.R_NB).
 void generalised_forces(const Model& m, Workspace& w, double t);
+// gravity.cpp (generalised_forces calls it when Model::gravity): the environment's loads, added to
+// N as generalised active forces; per body w.p_g_N, w.F_g_N, w.M_g_N (the equations of motion's).
+// Needs the mass pass (w.k1 pose, w.Xi, w.fi0).
+void gravity_forces(const Model& m, Workspace& w, double t);
+// gravity.cpp: the environment's potential at time t (0 without one), from the double pose pass in
+// k (p_NoBo_N, R_NB, the flexible bodies' fi).
+double gravity_potential(const Model& m, const Kin<double>& k, double t);
 // lagrangian_gradient.cpp: B^T d(T - V)/dq* at fixed pi' (w.dL), in chunks of Dual<K <= 8>. Needs
 // the charts (w.B) and the mass pass (w.R_NB0).
 void lagrangian_gradient(const Model& m, Workspace& w, const double* x);

@@ -59,6 +59,16 @@ struct LagrangeEngine::Workspace {
   // the spin rates), and its external torque T_N, all N components; per joint the force F_N and
   // moment about the joint point M_J_N the parent exerts on the child, and the point r_J_N.
   std::vector<Eigen::Vector3d> dP_N, dK_N, T_N, F_N, M_J_N, r_J_N;
+  // Gravity (gravity.cpp; sized only with an environment): per body its origin p_NoBo_N at the
+  // evaluated state, the gravity force F_g_N (the resultant, N components) and its moment about
+  // Bo M_g_N, as the equations of motion use them (test_gravity_gradient_sign included); per
+  // flexible body the modal generalised force of gravity (max_modes values, gravity.cpp scratch)
+  // and, on an orbit, the Dual<1> inertia
+  // and modal coordinates of the modal forces' derivatives.
+  std::vector<Eigen::Vector3d> p_g_N, F_g_N, M_g_N;
+  Eigen::VectorXd Q_g;
+  std::vector<FlexInertia<Dual<1>>> fi_g;  // per body (orbit, flexible bodies)
+  std::vector<Dual<1>> eta_g;              // max_modes: eta seeded on one mode
   // Prescribed joints: the full (q*, pi') at t (expand), the free block of M, its factor and
   // right-hand side, and the joints' torques (per Model::prescribed_joints).
   Eigen::VectorXd xf;

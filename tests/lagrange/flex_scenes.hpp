@@ -161,6 +161,27 @@ inline System flex_tree(bool loads, unsigned seed = 7) {
   return s;
 }
 
+// The same system with geometric stiffening on every flexible body (system.hpp FlexBody): each node
+// gets a random unit direction e_i and a random symmetric G_i of order one.
+inline System with_stiffening(System s, unsigned seed = 3) {
+  std::mt19937 g(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (Body& b : s.bodies) {
+    if (!b.flex) continue;
+    b.flex->geometric_stiffening = true;
+    const int n = b.flex->modes();
+    for (FlexNode& nd : b.flex->nodes) {
+      nd.e_B = Eigen::Vector3d(u(g), u(g), u(g)).normalized();
+      Eigen::MatrixXd G(n, n);
+      for (int k = 0; k < n; ++k)
+        for (int l = 0; l < n; ++l) G(k, l) = u(g);
+      nd.G = 0.5 * (G + G.transpose());
+    }
+  }
+  s.name += "_stiffening";
+  return s;
+}
+
 // Random modal coordinates up to eta_max (so that node displacements reach about eta_max metres
 // and node rotations about eta_max radians) and rates up to rate_max, on top of random_state().
 inline TreeState random_flex_state(const System& system, std::mt19937& g, double eta_max = 0.1,

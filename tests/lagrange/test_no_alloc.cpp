@@ -187,4 +187,39 @@ TEST_CASE("lagrange: output_row() does not allocate", "[lagrange][alloc][loads]"
     CHECK(g_allocations.load() == 0);
   }
 }
+// With an environment (issue 28; gravity.cpp): rhs() and output_row() still allocate nothing,
+// uniform gravity and an orbit, rigid, flexible and stiffened flexible bodies.
+TEST_CASE("lagrange: rhs() and output_row() do not allocate under gravity",
+          "[lagrange][alloc][gravity]") {
+  using crossdyn::lagrange::LagrangeEngine;
+  std::mt19937 g(33);
+  crossdyn::Environment uniform, orbit;
+  uniform.kind = crossdyn::Environment::Kind::Uniform;
+  uniform.g_N = {0.1, -9.8, 0.3};
+  orbit.kind = crossdyn::Environment::Kind::Orbit;
+  orbit.radius = 7.0e6;
+  orbit.mu = 3.986e14;
+  orbit.inclination = 0.5;
+  for (const crossdyn::Environment& env : {uniform, orbit})
+    for (crossdyn::System s :
+         {crossdyn::test::spear1(), crossdyn::test::flex_tree(true),
+          crossdyn::test::with_stiffening(crossdyn::test::flex_tree(true))}) {
+      s.environment = env;
+      LagrangeEngine e(s, {});
+      std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());
+      std::vector<double> row(e.layout().size());
+      e.pack(crossdyn::test::random_flex_state(s, g), x.data());
+      e.rhs(0.0, x.data(), xdot.data());  // warm-up
+      e.output_row(0.0, x.data(), row.data());
+      g_allocations = 0;
+      g_counting = true;
+      for (int k = 0; k < 10; ++k) {
+        e.rhs(0.1 * k, x.data(), xdot.data());
+        e.output_row(0.1 * k, x.data(), row.data());
+      }
+      g_counting = false;
+      INFO("scene " << s.name << (env.orbit() ? " on an orbit" : " under uniform gravity"));
+      CHECK(g_allocations.load() == 0);
+    }
+}
 #endif
