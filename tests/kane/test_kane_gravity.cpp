@@ -458,3 +458,69 @@ TEST_CASE("kane gravity: the order-N, fused and composite solvers agree under gr
     }
   }
 }
+
+TEST_CASE("kane gravity: flexible trees, the external moment is dH/dt and a prescribed base's "
+          "load is dP/dt - M g (uniform and orbit)",
+          "[kane][gravity][flex]") {
+  // A free flexible tree on an orbit (gravity's moment about the CM, tidal terms of the
+  // deformed bodies), and a stiffened flexible tree on a prescribed base under each field.
+  System free_tree = flex_tree();
+  free_tree.environment = orbit(0.3, 0.5, 0.1);
+  System driven = stiffened(flex_tree());
+  driven.joints[0].type = JointType::Revolute;
+  driven.joints[0].axis_P = Vector3d(0.3, 0.2, 1.0).normalized();
+  driven.joints[0].prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.0, 1.0, 0.0};
+  driven.zero_linear_momentum = false;
+  System driven_orbit = driven;
+  driven.environment = uniform();
+  driven_orbit.environment = orbit(1.1, 0.4, 0.2);
+  for (const System* s : {&free_tree, &driven, &driven_orbit}) {
+    KaneEngine e(*s, EngineOptions{});
+    TreeState st = flex_state(*s, 0.08, 0.3);
+    if (s->base_is_free()) st.w_NB_B = Vector3d(0.3, -0.5, 0.8);
+    const std::vector<double> x = packed(e, st);
+    const double t = 0.4;
+    const std::vector<double> row = row_of(e, t, x);
+    const OutputLayout& L = e.layout();
+    int Pc = -1;
+    for (std::size_t c = 0; c < L.names().size(); ++c)
+      if (L.names()[c] == "kane.P_N.x") Pc = static_cast<int>(c);
+    REQUIRE(Pc >= 0);
+    auto column3 = [&](double h, int c) {
+      const std::vector<double> r = row_of(e, t + h, rk4_step(e, t, x, h));
+      return Vector3d(r[static_cast<std::size_t>(c)], r[static_cast<std::size_t>(c + 1)],
+                      r[static_cast<std::size_t>(c + 2)]);
+    };
+    const Vector3d dH = derivative([&](double h) { return column3(h, L.H_vector()); }, 1e-3);
+    const int M = L.external_moment();
+    const Vector3d M_ext(row[M], row[M + 1], row[M + 2]);
+    INFO(s->name << ", orbit " << s->environment.orbit() << ": M " << M_ext.transpose()
+                 << ", dH/dt " << dH.transpose());
+    CHECK((M_ext - dH).norm() < 1e-7 * (1.0 + dH.norm()));
+    if (s->base_is_free()) {
+      // Gravity's moment about the CM on an orbit is not zero (the check is not vacuous).
+      CHECK(M_ext.norm() > 1e-3);
+      continue;
+    }
+    // N's load on the base (joint 0), in N: F_N = dP/dt - (the field's resultant).
+    const Vector3d dP = derivative([&](double h) { return column3(h, Pc); }, 1e-3);
+    const int J0 = L.joint_load(0);
+    e.set_time(t);  // body_motion and mass_points take the prescribed angle at the last set_time
+    const Matrix3d R_NB = e.body_motion(x.data())[0].R_NB;
+    const Vector3d F_N = R_NB * Vector3d(row[J0], row[J0 + 1], row[J0 + 2]);
+    Vector3d F_field = Vector3d::Zero();
+    for (const kane::MassPoint& p : e.mass_points(x.data())) {
+      if (s->environment.uniform()) {
+        F_field += p.mass * kG;
+      } else {
+        const OrbitFrame o = orbit_frame(s->environment, t);
+        const Matrix3d T =
+            o.n * o.n * (3.0 * o.zenith_N * o.zenith_N.transpose() - Matrix3d::Identity());
+        F_field += p.mass * T * (p.p_NoP_N - e.orbit_origin_N());
+      }
+    }
+    INFO("F_N " << F_N.transpose() << ", dP/dt - F_field " << (dP - F_field).transpose());
+    CHECK((F_N - (dP - F_field)).norm() < 1e-7 * (1.0 + dP.norm() + F_field.norm()));
+    CHECK(F_field.norm() > 1e-3);
+  }
+}
