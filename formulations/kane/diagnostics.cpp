@@ -218,6 +218,7 @@ Eigen::MatrixXd KaneEngine::mass_matrix(const double* x) {
 Eigen::VectorXd KaneEngine::generalized_forces(double t, const double* x) {
   set_time(t);
   position_pass(x);
+  if (gravity_) gravity_pass(t, base_origin(x));
   velocity_pass(x + n_q_);
   remainder_pass();
   subtree_pass(t);
@@ -299,7 +300,9 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
   const Momenta m = sum_momenta(u);  // also w_NB_B of every body
   const Vector3d& H = m.H;
   const Vector3d& P = m.P;
-  const double T = m.T, V = potential_energy(x);
+  const Vector3d p_NoB0o_N = base_origin(x);
+  // Hinge springs, strain energy and the environment's potential (gravity.cpp).
+  const double T = m.T, V = potential_energy(x) + gravity_potential(t, p_NoB0o_N);
   RowWriter out(layout_, row);
   out.time(t);
   for (std::size_t b = 0; b < system_.bodies.size(); ++b) {
@@ -317,10 +320,8 @@ void KaneEngine::output_row(double t, const double* x, double* row) {
   out.energy(T + V);
   // Issue 26: positions (a free base's origin is in x; a prescribed base's tree is measured
   // from No), the system CM, joint loads, P and the external moment (loads.cpp).
-  const Vector3d p_NoB0o_N = nodes_[0].shape == JointShape::Base6
-                                 ? Vector3d(Eigen::Map<const Vector3d>(x + nodes_[0].q0))
-                                 : Vector3d::Zero();
   write_issue26_columns(t, x, p_NoB0o_N, p_NoB0o_N + m.cm, out);
+  if (orbit_) out.jacobi(jacobi(t, T + V, H, P, p_NoB0o_N + m.cm));  // issue 28 (gravity.cpp)
   // Extras: kane.H_N.x/y/z repeat Hx, Hy, Hz (kept; superseded by the pinned columns).
   int c = extra0_;
   out.extra(c++, T);

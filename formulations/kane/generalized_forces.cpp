@@ -83,6 +83,7 @@ void KaneEngine::generalized_force_pass(double t, const double* x) {
       double g = -(S.col(l).dot(a_B) + alpha_B.dot(fw.A_B.col(l)) + w_B.dot(N * w_B) -
                    w2 * N.trace() + 2.0 * w_B.dot(fw.Ce_B.col(l)));
       if (F.stiff) g -= fw.bgen(l);  // -sum m_i Phi~_il . b_i
+      if (gravity_) g += fw.Q_grav(l);  // sum_i R Phi~_il . F_i of gravity (gravity.cpp)
       if (n.child_attach) g += w.Wm_N.col(l).dot(w.M_sub_N) + w.Vm_N.col(l).dot(w.F_sub_N);
       for (int c : n.attached_children) {
         const NodeWork& cw = work_[static_cast<std::size_t>(c)];

@@ -37,6 +37,7 @@ Quaterniond KaneEngine::read_quat(const double* x, int i) const {
 void KaneEngine::dynamics(double t, const double* x) {
   set_time(t);
   position_pass(x);
+  if (gravity_) gravity_pass(t, base_origin(x));  // the environment's loads (gravity.cpp)
   velocity_pass(x + n_q_);
   remainder_pass();
   if (solver_ == KaneSolver::OrderN) {

@@ -224,6 +224,10 @@ struct FlexWork {
   std::vector<Eigen::VectorXd> g;      // per node: G_i eta
   Eigen::Vector3d bsum_N = Eigen::Vector3d::Zero(), bmom_N = Eigen::Vector3d::Zero();
   Eigen::VectorXd bgen;
+  // The environment's loads (gravity.cpp; Kane's generalised active forces of the node forces
+  // through the nodes' elastic partial velocities R Phi~_il): Q_grav_l = sum_i R Phi~_il . F_i
+  // (n entries; only with an environment).
+  Eigen::VectorXd Q_grav;
 };
 
 // Per-node workspace of the order-N solver (kane_order_n.cpp); N components, about Ok.
@@ -290,6 +294,13 @@ struct KaneModel {
   bool has_prescribed_ = false;
   bool rigid_fast_ = false;     // rhs() takes rigid_rhs(), output_row() rigid_output_row()
   bool has_potential_ = false;  // a hinge spring or a flexible body (potential_energy() not 0)
+  // The environment (System::environment, issue 28; gravity.cpp, README.md "Gravity"): gravity_
+  // is false without one, and then no pass computes or adds anything for it.
+  bool gravity_ = false, orbit_ = false;
+  Eigen::Vector3d g_N_ = Eigen::Vector3d::Zero();  // uniform field, m/s^2
+  // Orbit: O, the system's CM at t = 0 from the scene's initial state (TreeState::initial, packed
+  // as a run packs it), a point fixed in N, computed once by the constructor.
+  Eigen::Vector3d p_NoO_N_ = Eigen::Vector3d::Zero();
 };
 
 // The engine's workspace: sized by the constructor, overwritten by every rhs() (which never
@@ -306,6 +317,10 @@ struct KaneWorkspace {
   // output_row (load_pass, loads.cpp): per node the loads its joint passes from the parent to
   // the child, F_C and M_J_C (child body frame; the free base's stay zero), and the same in N.
   std::vector<Eigen::Vector3d> F_C_, M_J_C_, F_N_, M_J_N_;
+  // The environment's loads at the state of the last gravity_pass (gravity.cpp), per node: the
+  // resultant F_grav_N on the child body, applied at its frame origin Bo, and the moment of the
+  // body's gravity forces about Bo, tau_grav_N (N components; sized only with an environment).
+  std::vector<Eigen::Vector3d> F_grav_N_, tau_grav_N_;
 };
 
 // The engine: its model and its workspace (private bases, so that the passes name their members
@@ -360,6 +375,12 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   // at run time: tests check that the two agree.
   Eigen::VectorXd composite_udot(double t, const double* x, bool fixed_base_block);
   KaneSolver solver() const { return solver_; }  // the path in use (never Automatic)
+  // The environment (gravity.cpp): its potential energy at (t, x) (uniform: -sum m g . p; orbit:
+  // the tidal potential; 0 without one), the orbit's reference point O (the system CM at t = 0),
+  // and the Jacobi integral J = E - w_NO_N . H_O_N at (t, x) (E with every potential).
+  double gravity_potential_energy(double t, const double* x);
+  const Eigen::Vector3d& orbit_origin_N() const { return p_NoO_N_; }
+  double jacobi_integral(double t, const double* x);
   int max_speed_depth() const { return max_speed_depth_; }  // speeds on the deepest path
 
  private:
@@ -390,6 +411,24 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   void write_issue26_columns(double t, const double* x, const Eigen::Vector3d& p_NoB0o_N,
                              const Eigen::Vector3d& p_NoScm_N, RowWriter& out) const;
   void mass_matrix_pass();                                 // subtree sums => M_ (lower triangle)
+  // The environment's loads (gravity.cpp), after the position pass (R_NB, p_B0oBo_N, the
+  // flexible bodies' integrals at eta): => F_grav_N_, tau_grav_N_, FlexWork::Q_grav.  Only when
+  // gravity_.  p_NoB0o_N: the base's body-frame origin from No (base_origin).
+  void gravity_pass(double t, const Eigen::Vector3d& p_NoB0o_N);
+  // Their potential at the positions of the last position pass (flexible bodies: c_N, I_B).
+  double gravity_potential(double t, const Eigen::Vector3d& p_NoB0o_N) const;
+  // J = E - w_NO_N . H_O_N, H_O_N = H_Scm_N + (p_cm - p_NoO_N) x P_N (orbit only).
+  double jacobi(double t, double E, const Eigen::Vector3d& H_Scm_N, const Eigen::Vector3d& P_N,
+                const Eigen::Vector3d& p_NoScm_N) const;
+  // Gravity's moment about the system CM (for the external moment column), after gravity_pass
+  // and a position pass at the same x.
+  Eigen::Vector3d gravity_moment(const Eigen::Vector3d& p_NoB0o_N,
+                                 const Eigen::Vector3d& p_NoScm_N) const;
+  // The base's body-frame origin B0o from No: a free base's from x, a prescribed base's tree is
+  // measured from No (zero).
+  Eigen::Vector3d base_origin(const double* x) const;
+  // Constructor, last: O from the initial state.
+  void init_environment();
   void generalized_force_pass(double t, const double* x);  // subtree sums, hinges, K, D => f_
   // (M_, f_) => udot_ (false: M not positive definite).  fixed_base_block: a rigid base's 6 x 6
   // block with constant loop bounds (every real run); false: its size read at run time (tests).

@@ -169,9 +169,13 @@ void KaneEngine::articulated_pass(double t, const double* x) {
     a.Iww_N.diagonal().array() += s.dot(d);
     a.Iwv_N += rot::skew(s);
     a.Ivv_N.diagonal().array() += n.mass;
-    const Vector3d R_B = -n.mass * w.a_t_N;
+    Vector3d R_B = -n.mass * w.a_t_N;
     Vector3d T_B = rigid_residual_torque(n, w, w.alpha_t_N);
     if (n.body_torque) add_body_torque(n, w, t, T_B);
+    if (gravity_) {  // the environment's loads (gravity.cpp)
+      R_B += F_grav_N_[kk];
+      T_B += tau_grav_N_[kk];
+    }
     a.Z_M_N += T_B + d.cross(R_B);
     a.Z_F_N += R_B;
     if (n.parent < 0) continue;

@@ -122,6 +122,8 @@ void KaneEngine::write_issue26_columns(double t, const double* x, const Vector3d
     const NodeWork& w = work_[0];
     M_ext_N += M_J_N_[0] + (p_NoB0o_N + w.p_B0oOk_N - p_NoScm_N).cross(F_N_[0]);
   }
+  // The environment's loads (issue 28; gravity.cpp): sum over bodies (p_Bo - p_cm) x F + tau.
+  if (gravity_) M_ext_N += gravity_moment(p_NoB0o_N, p_NoScm_N);
   out.system_cm(p_NoScm_N);
   out.power(P);
   out.external_moment(M_ext_N);

@@ -343,6 +343,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       for (Vector3d* v : {&a.Z_M_N, &a.Z_F_N, &a.g, &a.dalpha_N, &a.da_Ok_N}) v->setZero();
     }
   }
+  // The environment (gravity.cpp): last, since an orbit's O is the CM of the packed initial state.
+  init_environment();
 }
 
 const char* kane_solver_name(KaneSolver s) {

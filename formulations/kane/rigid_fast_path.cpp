@@ -125,6 +125,8 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
     w.a_t_N = a_Ok + alpha_C.cross(p_OkCo_N) + w.w_NB_N.cross(w.w_NB_N.cross(p_OkCo_N));
     w.alpha_t_N = alpha_C;
   }
+  // The environment's loads (gravity.cpp), from the positions just formed.
+  if (gravity_) gravity_pass(t, Eigen::Map<const Vector3d>(x + nodes_[0].q0));
 
   // Backward, leaves first: S(k)'s sums (Pass 4), then k's rows of M (Pass 5) and its f_r
   // (Pass 6), then the sums moved to the parent's point.
@@ -137,9 +139,13 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
     put(start, w.m_sub, n.mass);
     put(start, w.s_sub_N, n.mass * d);
     if (!n.leaf_rigid) add_shifted_inertia(w.J_sub_N, w.I_BBo_N, n.mass, d, start);
-    const Vector3d R_B = -n.mass * w.a_t_N;
+    Vector3d R_B = -n.mass * w.a_t_N;
     Vector3d T_B = rigid_residual_torque(n, w, w.alpha_t_N);
     if (n.body_torque) add_body_torque(n, w, t, T_B);
+    if (gravity_) {  // as Pass 4 (subtree_sums.cpp)
+      R_B += F_grav_N_[kk];
+      T_B += tau_grav_N_[kk];
+    }
     put(start, w.F_sub_N, R_B);
     put(start, w.M_sub_N, T_B + d.cross(R_B));
 
@@ -221,6 +227,7 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
       if (n.inertia != Node::Inertia::Isotropic)
         T_B.noalias() -= gyro_sign_ * w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
       if (n.body_torque) add_body_torque(n, w, t, T_B);
+      if (gravity_) T_B += tau_grav_N_[0];
       Matrix3d JR;
       JR.noalias() = w.I_BBo_N * R;
       for (int j = 0; j < 3; ++j)
@@ -232,11 +239,13 @@ void KaneEngine::rigid_rhs(double t, const double* x, double* xdot) {
       for (int j = 0; j < 3; ++j)
         for (int i = j; i < 3; ++i) M_(r0 + i, r0 + j) = R.col(i).dot(JR.col(j)) + n.I_BBo_B(i, j);
       f_w.noalias() += R.transpose() * w.M_sub_N;
+      if (gravity_) f_w.noalias() += R.transpose() * tau_grav_N_[0];
     }
     for (int j = 0; j < 3; ++j) M_.block<3, 1>(r0 + 3, r0 + j) = R.col(j).cross(w.s_sub_N);
     M_.block<3, 3>(r0 + 3, r0 + 3) = Matrix3d::Identity() * w.m_sub;
     f_.segment<3>(r0) = f_w;
     f_.segment<3>(r0 + 3) = w.F_sub_N;
+    if (gravity_) f_.segment<3>(r0 + 3) += F_grav_N_[0];
   }
   if (!ltdl_solve_base6(M_.data(), M_.outerStride(), lambda_.data(), n_u_, f_.data(),
                         xdot + n_q_))
@@ -368,12 +377,14 @@ void KaneEngine::rigid_output_row(double t, const double* x, double* row) {
   const double T = 0.5 * T2;
   const Vector3d cm = first_moment / total_mass_;  // from the base's origin B0o
   H -= cm.cross(P);
-  const double V = has_potential_ ? potential_energy(x) : 0.0;
+  const Vector3d p_NoB0o_N(Eigen::Map<const Vector3d>(x + nodes_[0].q0));
+  double V = has_potential_ ? potential_energy(x) : 0.0;
+  if (gravity_) V += gravity_potential(t, p_NoB0o_N);  // gravity.cpp
   out.momentum(H);  // H = |H_N| and Hx, Hy, Hz
   out.energy(T + V);
   // Issue 26: positions, the system CM, joint loads, P, the external moment (loads.cpp).
-  const Vector3d p_NoB0o_N(Eigen::Map<const Vector3d>(x + nodes_[0].q0));
   write_issue26_columns(t, x, p_NoB0o_N, p_NoB0o_N + cm, out);
+  if (orbit_) out.jacobi(jacobi(t, T + V, H, P, p_NoB0o_N + cm));  // issue 28 (gravity.cpp)
   int c = extra0_;
   out.extra(c++, T);
   out.extra(c++, V);

@@ -51,6 +51,10 @@ void KaneEngine::subtree_pass(double t, bool full) {
           T_B.noalias() -= gyro_sign_ * w.w_NB_N.cross(w.I_BBo_N * w.w_NB_N);
       }
       if (n.body_torque) add_body_torque(n, w, t, T_B);
+      if (gravity_) {  // the environment's loads at Bo = Ok (gravity.cpp)
+        R_B += F_grav_N_[kk];
+        T_B += tau_grav_N_[kk];
+      }
       put(start, w.F_sub_N, R_B);
       put(start, w.M_sub_N, T_B);
       continue;  // the root
@@ -84,6 +88,10 @@ void KaneEngine::subtree_pass(double t, bool full) {
       }
     }
     if (n.body_torque) add_body_torque(n, w, t, T_B);
+    if (gravity_) {  // the environment's loads: resultant at Bo, moment about Bo (gravity.cpp)
+      R_B += F_grav_N_[kk];
+      T_B += tau_grav_N_[kk];
+    }
     put(start, w.F_sub_N, R_B);
     put(start, w.M_sub_N, T_B + d.cross(R_B));
 

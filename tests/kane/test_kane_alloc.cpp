@@ -105,6 +105,19 @@ TEST_CASE("kane: rhs performs no heap allocation") {
   System driven_base = stiffened(flex_tree(false));
   driven_base.joints[0].type = JointType::Revolute;
   driven_base.joints[0].prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.0, 1.0};
+  // Issue 28: the environment's loads (gravity.cpp) on the fused rigid path, order-N and the
+  // flexible composite path.
+  Environment uniform_env, orbit_env;
+  uniform_env.kind = Environment::Kind::Uniform;
+  uniform_env.g_N = Eigen::Vector3d(0.1, -9.8, 0.3);
+  orbit_env.kind = Environment::Kind::Orbit;
+  orbit_env.mu = 3.986e14;
+  orbit_env.radius = 7.0e6;
+  orbit_env.inclination = 0.5;
+  auto with_env = [](System s, const Environment& env) {
+    s.environment = env;
+    return s;
+  };
   struct Case {
     System system;
     kane::KaneSolver solver;
@@ -114,7 +127,11 @@ TEST_CASE("kane: rhs performs no heap allocation") {
       {loaded, kane::KaneSolver::Composite},         {flexible, kane::KaneSolver::Composite},
       {spear1_case1(), kane::KaneSolver::OrderN},    {chain(30), kane::KaneSolver::OrderN},
       {loaded, kane::KaneSolver::OrderN},            {driven, kane::KaneSolver::Composite},
-      {driven_base, kane::KaneSolver::Composite}};
+      {driven_base, kane::KaneSolver::Composite},
+      {with_env(spear1_case1(), orbit_env), kane::KaneSolver::Composite},
+      {with_env(loaded, uniform_env), kane::KaneSolver::OrderN},
+      {with_env(flexible, orbit_env), kane::KaneSolver::Composite},
+      {with_env(driven, uniform_env), kane::KaneSolver::Composite}};
   for (const auto& [s, solver] : cases) {
     kane::KaneEngine e(s, {}, solver);
     std::vector<double> x(static_cast<std::size_t>(e.state_size())), xdot(x.size());
