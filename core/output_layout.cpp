@@ -99,6 +99,8 @@ OutputLayout::OutputLayout(const System& s)
       lvlh_[b] = static_cast<int>(columns_.size());
       for (int i = 0; i < 3; ++i)
         push({s.bodies[b].name + kAngles[i], ColumnKind::LvlhAngle, static_cast<int>(b), -1, i, "rad"});
+      for (int i = 0; i < 3; ++i)
+        push({s.bodies[b].name + ".wo" + "xyz"[i], ColumnKind::LvlhRate, static_cast<int>(b), -1, i, "rad/s"});
     }
     J_ = push({"J", ColumnKind::Jacobi, -1, -1, -1, "J"});
   }
@@ -125,8 +127,13 @@ void RowWriter::body(int b, const Eigen::Vector3d& w_NB_B, const Eigen::Quaterni
   if (layout_.lvlh(b) >= 0) {
     // R_OB = R_NO^T R_NB at the row's time (core/orbit.hpp).
     const OrbitFrame o = orbit_frame(layout_.environment(), row_[0]);
-    const Eigen::Vector3d a = roll_pitch_yaw(o.R_NO.transpose() * q_NB.toRotationMatrix());
-    for (int i = 0; i < 3; ++i) row_[layout_.lvlh(b) + i] = a(i);
+    const Eigen::Matrix3d R_NB = q_NB.toRotationMatrix();
+    const Eigen::Vector3d a = roll_pitch_yaw(o.R_NO.transpose() * R_NB);
+    const Eigen::Vector3d w_OB_B = w_NB_B - R_NB.transpose() * o.w_NO_N;
+    for (int i = 0; i < 3; ++i) {
+      row_[layout_.lvlh(b) + i] = a(i);
+      row_[layout_.lvlh(b) + 3 + i] = w_OB_B(i);
+    }
   }
 }
 

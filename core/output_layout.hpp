@@ -33,8 +33,11 @@
 //                                   a prescribed base's reaction; gravity), N m: dH_N/dt = M_N
 // and, in a scene on an orbit only (issue 28; core/orbit.hpp, docs/environment.md):
 //   per body                      <body>.roll .pitch .yaw  B's attitude relative to the orbit frame
-//                                   O (LVLH), R_OB = Rz(yaw) Ry(pitch) Rx(roll), rad (written by
-//                                   RowWriter::body from q_NB and the row's time)
+//                                   O (LVLH), R_OB = Rz(yaw) Ry(pitch) Rx(roll), rad
+//                                 <body>.wox .woy .woz  w_OB_B = w_NB_B - R_BN w_NO_N, B's angular
+//                                   velocity relative to the orbit frame, B components, rad/s
+//                                   (both written by RowWriter::body from w_NB_B, q_NB and the
+//                                   row's time)
 //   J                             the Jacobi integral E - w_NO_N . H_O_N, J (conserved without
 //                                   non-conservative loads; E then holds the gravity potential)
 // then the engine's extra columns in the order it adds them (add_extra).
@@ -77,6 +80,7 @@ enum class ColumnKind {
   Power,           // P
   ExternalMoment,  // Mx/My/Mz              component 0..2
   LvlhAngle,       // <body>.roll/pitch/yaw component 0..2 (orbit scenes)
+  LvlhRate,        // <body>.wox/woy/woz    component 0..2 (orbit scenes)
   Jacobi,          // J                     (orbit scenes)
   Extra            // engine-specific
 };

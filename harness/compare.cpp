@@ -100,6 +100,7 @@ std::vector<Quantity> pinned_quantities(const System& s) {
       // an angle that wraps at +-pi would not compare as a number).
       case ColumnKind::Jacobi: q.push_back({"J", "E", "", {"J"}, false}); break;
       case ColumnKind::LvlhAngle:
+      case ColumnKind::LvlhRate:
       case ColumnKind::Time:
       case ColumnKind::Extra: break;
     }

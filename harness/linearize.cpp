@@ -783,47 +783,97 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
   probe.map = &map;
   probe.t = o.time;
   probe.x.resize(static_cast<std::size_t>(engine->state_size()));
-  VectorXd z = map.z0(), f;
+  VectorXd f;
   auto residual = [&](const VectorXd& zz) {
     probe.eval(zz, f, nullptr);
     return VectorXd(f.tail(nv));
   };
-  VectorXd res = residual(z);
-  int iterations = 0;
-  double scale = 0;
-  for (; iterations < 40; ++iterations) {
-    MatrixXd J(nv, nu);
-    for (int k = 0; k < nu; ++k) {
-      const int j = unknowns[static_cast<std::size_t>(k)];
-      const double h = 1e-6 * std::max(std::abs(z(j)), 1.0);
-      VectorXd zp = z, zm = z;
-      zp(j) += h;
-      zm(j) -= h;
-      J.col(k) = (residual(zp) - residual(zm)) / (2 * h);
+  struct Solved {
+    VectorXd z, res;
+    int iterations = 0;
+    bool converged = false;
+  };
+  // Gauss-Newton (Levenberg-Marquardt with a tiny mu) from z.
+  auto solve = [&](VectorXd z) {
+    VectorXd res = residual(z);
+    int iterations = 0;
+    double scale = 0;
+    bool converged = false;
+    for (; iterations < 40; ++iterations) {
+      MatrixXd J(nv, nu);
+      for (int k = 0; k < nu; ++k) {
+        const int j = unknowns[static_cast<std::size_t>(k)];
+        const double h = 1e-6 * std::max(std::abs(z(j)), 1.0);
+        VectorXd zp = z, zm = z;
+        zp(j) += h;
+        zm(j) -= h;
+        J.col(k) = (residual(zp) - residual(zm)) / (2 * h);
+      }
+      scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.lpNorm<Eigen::Infinity>(), 1.0));
+      if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) {
+        converged = true;
+        break;
+      }
+      // The minimum-norm step, nearly: Levenberg-Marquardt's (J^T J + mu 1)^-1 J^T r with a tiny
+      // mu, so that a coordinate the residual does not see (a joint without a spring) stays put.
+      MatrixXd JtJ = J.transpose() * J;
+      JtJ.diagonal().array() += 1e-12 * std::max(JtJ.trace(), 1e-300);
+      const VectorXd step = JtJ.partialPivLu().solve(J.transpose() * res);
+      // Halve the step until the residual falls (at most 30 times).
+      double a = 1;
+      VectorXd next = z, next_res;
+      for (int k = 0; k < 30; ++k, a /= 2) {
+        for (int k = 0; k < nu; ++k) next(unknowns[static_cast<std::size_t>(k)]) = z(unknowns[static_cast<std::size_t>(k)]) - a * step(k);
+        next_res = residual(next);
+        if (next_res.norm() < res.norm()) break;
+      }
+      if (!(next_res.norm() < res.norm())) break;
+      z = next;
+      res = next_res;
     }
-    scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.lpNorm<Eigen::Infinity>(), 1.0));
-    if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) break;
-    // The minimum-norm step, nearly: Levenberg-Marquardt's (J^T J + mu 1)^-1 J^T r with a tiny mu,
-    // so that a coordinate the residual does not see (a joint without a spring) stays put.
-    MatrixXd JtJ = J.transpose() * J;
-    JtJ.diagonal().array() += 1e-12 * std::max(JtJ.trace(), 1e-300);
-    const VectorXd step = JtJ.partialPivLu().solve(J.transpose() * res);
-    // Halve the step until the residual falls (at most 30 times).
-    double a = 1;
-    VectorXd next = z, next_res;
-    for (int k = 0; k < 30; ++k, a /= 2) {
-      for (int k = 0; k < nu; ++k) next(unknowns[static_cast<std::size_t>(k)]) = z(unknowns[static_cast<std::size_t>(k)]) - a * step(k);
-      next_res = residual(next);
-      if (next_res.norm() < res.norm()) break;
-    }
-    if (!(next_res.norm() < res.norm())) break;
-    z = next;
-    res = next_res;
+    return Solved{z, res, iterations, converged};
+  };
+  Solved best = solve(map.z0());
+  std::string restarts;
+  if (!best.converged && nc > 0) {
+    // Stalled: the start is a stationary point of the residual's norm (a pendulum released
+    // horizontal under gravity: no first-order change of its torque there), or too far. Restart
+    // from each configuration coordinate moved by -0.5 and +0.5 (rad or m) and keep, of the
+    // equilibria found, the one of least energy E (the engine's own output): a hanging pendulum,
+    // not the inverted one.
+    std::vector<double> row(engine->layout().size());
+    std::vector<double> x(static_cast<std::size_t>(engine->state_size()));
+    auto energy = [&](const VectorXd& zz) {
+      engine->pack(map.state(zz), x.data());
+      engine->output_row(o.time, x.data(), row.data());
+      return row[static_cast<std::size_t>(engine->layout().E())];
+    };
+    int found = 0;
+    double best_E = INFINITY;
+    for (int k = 0; k < nc; ++k)
+      for (double d : {-0.5, 0.5}) {
+        VectorXd z = map.z0();
+        z(k) += d;
+        Solved s = solve(z);
+        if (!s.converged) continue;
+        ++found;
+        const double E = energy(s.z);
+        if (E < best_E) {
+          best_E = E;
+          best = s;
+        }
+      }
+    restarts = found == 0 ? "; restarted from each configuration coordinate moved by -0.5 and +0.5: "
+                            "no equilibrium found"
+                          : "; from the initial state the solve stalled, so it restarted from each "
+                            "configuration coordinate moved by -0.5 and +0.5 and kept, of the " +
+                                std::to_string(found) + " solutions, the one of least energy E";
   }
   how += std::string("; its joint and modal coordinates") + (free_spin ? " and the spin" : "") +
          " solved for an equilibrium with " + choice.label + "'s equations (" +
-         std::to_string(iterations) + " Gauss-Newton step" + (iterations == 1 ? "" : "s") +
-         ", acceleration residual " + num(res.lpNorm<Eigen::Infinity>(), 3) + ")";
+         std::to_string(best.iterations) + " Gauss-Newton step" + (best.iterations == 1 ? "" : "s") +
+         ", acceleration residual " + num(best.res.lpNorm<Eigen::Infinity>(), 3) + restarts + ")";
+  const VectorXd& z = best.z;
   return map.state(z);
 }
 

@@ -265,6 +265,9 @@ json summary_document(const std::vector<SceneOutcome>& scenes,
     j["notes"] = c.notes;
     j["energy_not_conserved"] = s.system ? energy_not_conserved_reason(*s.system) : "";
     j["momentum_not_conserved"] = s.system ? momentum_not_conserved_reason(*s.system) : "";
+    // Issue 28: on an orbit the Jacobi integral J is the conserved one (E changes).
+    j["orbit"] = s.system && s.system->environment.orbit();
+    j["jacobi_not_conserved"] = s.system ? jacobi_not_conserved_reason(*s.system) : "";
     // Where the loads switch: a balance's quadrature keeps its pieces apart there (compare.cpp).
     j["breakpoints"] = s.system ? s.system->breakpoints() : std::vector<double>{};
     n_checks += static_cast<int>(c.checks.size());

@@ -240,7 +240,8 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
       case ColumnKind::JointMoment:
       case ColumnKind::Power:
       case ColumnKind::ExternalMoment:
-      case ColumnKind::LvlhAngle:  // issue 28: q_NB seen from the orbit frame
+      case ColumnKind::LvlhAngle:  // issue 28: q_NB and w_NB_B seen from the orbit frame
+      case ColumnKind::LvlhRate:
       case ColumnKind::Jacobi:
       case ColumnKind::Time:
       case ColumnKind::Extra: continue;

@@ -5,8 +5,7 @@
 // Kane's generalised active forces ([KL85] Ch. 4: the generalised active force of a force F
 // applied at a point Q is V_r^Q . F, of a couple of torque T on a body B W_r^B . T, summed over
 // every force; a set of forces on a rigid body contributes V_r^P . R + W_r^B . M_P for its
-// resultant R placed at any point P of the body and its moment M_P about P; section numbers from
-// memory, not checked here).  Here each body's gravity forces are replaced by their resultant
+// resultant R placed at any point P of the body and its moment M_P about P).  Here each body's gravity forces are replaced by their resultant
 // F_grav_N at the body frame's origin Bo and their moment tau_grav_N about Bo (gravity_pass);
 // Pass 4 adds them to the body's residual loads (R_B, T_B of subtree_sums.cpp), so that every
 // speed's twist part W_r . M_k + V_r . F_k (Pass 6, generalized_forces.cpp; the order-N
@@ -37,8 +36,8 @@
 //   V = sum_i [-1/2 m_i (r_c + rho_i)^T T (r_c + rho_i)] + sum_i [3/2 n^2 z^T J_i z - 1/2 n^2 tr J_i]
 //     = -1/2 m r_c^T T r_c - r_c^T T c_N + 3/2 n^2 z^T I_N z - 1/2 n^2 tr(I)
 //   (-1/2 sum m rho^T T rho = -1/2 n^2 (3 z^T Sigma z - tr Sigma) = 3/2 n^2 z^T I_m z - 1/2 n^2
-//   tr I_m, with z^T I_m z = tr Sigma - z^T Sigma z and tr I_m = 2 tr Sigma), the potential of the
-//   brief per rigid body and per node, whose gradient gives the forces above.
+//   tr I_m, with z^T I_m z = tr Sigma - z^T Sigma z and tr I_m = 2 tr Sigma), the potential of
+//   docs/environment.md per rigid body and per node, whose gradient gives the forces above.
 // EngineOptions::test_gravity_gradient_sign is the Lagrange engine's hook: this engine ignores it.
 #include "formulations/kane/kane_internal.hpp"
 

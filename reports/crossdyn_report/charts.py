@@ -526,8 +526,18 @@ def chart_drift(scene, runs, out_dir, sid):
     checks = {(c["quantity"], c["a"]): c for c in scene.get("checks", [])
               if c["group"].endswith(".drift") or c["group"].endswith(".balance")}
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.4), sharex=True)
-    reasons = {"H": scene.get("momentum_not_conserved", ""), "E": scene.get("energy_not_conserved", "")}
-    for ax, x in zip(axes, ("H", "E")):
+    reasons = {"H": scene.get("momentum_not_conserved", ""), "E": scene.get("energy_not_conserved", ""),
+               "J": scene.get("jacobi_not_conserved", "")}
+    # On an orbit E changes as the gravity-gradient potential turns with the orbit frame: its panel
+    # shows the Jacobi integral J, the conserved one (docs/environment.md), when nothing else changes it.
+    orbit = bool(scene.get("orbit")) and all(r.has("J") for r in engines)
+    second = "J" if orbit else "E"
+    for ax, x in zip(axes, ("H", second)):
+        if x == "J" and reasons["J"]:
+            ax.text(0.5, 0.5, "J is not conserved: %s" % reasons["J"].replace("scene has ", "the scene has "),
+                    ha="center", va="center", transform=ax.transAxes)
+            ax.set_title("the Jacobi integral J", fontsize="medium")
+            continue
         balanced = bool(reasons[x])
         names = (["E"], ["P"]) if x == "E" else (["Hx", "Hy", "Hz"], ["Mx", "My", "Mz"])
         relative = True
@@ -564,11 +574,13 @@ def chart_drift(scene, runs, out_dir, sid):
         else:
             ax.set_ylabel(("|%s(t) - %s(0)| / |%s(0)|" % (x, x, x)) if relative else ("|%s(t) - %s(0)|%s" % (x, x, unit)))
             title = "drift of %s from its initial value" % x
+            if x == "J":
+                title = "drift of the Jacobi integral J = E - w_NO . H_O (E itself changes on an orbit)"
         ax.set_title(title, fontsize="medium")
         ax.grid(True, which="both", alpha=0.3)
     outside_legend(fig, axes[0], title="engine")
     axes[-1].set_xlabel("time t (s)")
-    fig.suptitle("Conservation and balance of H and E of each engine (log scale)\n"
+    fig.suptitle("Conservation and balance of H and %s of each engine (log scale)\n" % second +
                  "dashed lines: each engine's check bound (drift: atol + rtol |X(0)|; balance: see the pass rule)")
     name = finish(fig, "%s-drift.png" % sid, out_dir)
     return name, ("Where the scene conserves them: the relative drift |X(t) - X(0)| / |X(0)| of the "
@@ -578,6 +590,59 @@ def chart_drift(scene, runs, out_dir, sid):
                   "system CM (for H, as a vector), relative to the check's scale. Either measures "
                   "integration and formulation error; a load whose power is wrong in one engine's "
                   "equations of motion shows as that engine's balance growing.")
+
+
+def chart_orbit(scene, runs, out_dir, sid):
+    """Orbit scenes (issue 28): every body's attitude relative to the orbit frame (LVLH roll, pitch,
+    yaw), runs overlaid, and the Jacobi integral's drift on a log scale."""
+    if not scene.get("orbit"):
+        return None
+    engines = [r for r in runs if r.info.get("engine") != "analytic"]
+    bodies = [b["name"] for b in scene.get("system", {}).get("bodies", [])]
+    bodies = [b for b in bodies if any(r.has(b + ".pitch") for r in engines)]
+    if not bodies:
+        return None
+    fig, axes = plt.subplots(4, 1, figsize=(10, 9.5), sharex=True)
+    for bi, body in enumerate(bodies):
+        colour = JOINT_COLOURS[bi % len(JOINT_COLOURS)]
+        for r in engines:
+            for ax, angle in zip(axes[:3], ("roll", "pitch", "yaw")):
+                if r.has(body + "." + angle):
+                    ax.plot(r.t, r.col(body + "." + angle), color=colour, linestyle=r.dash)
+    for ax, angle, about in zip(axes[:3], ("roll", "pitch", "yaw"),
+                                ("o1, along-track", "o2, the negative orbit normal", "o3, nadir")):
+        ax.set_ylabel("%s (rad)\nabout %s" % (angle, about))
+        rad_axis(ax, "rad")
+        ax.grid(True, alpha=0.3)
+    checks = {c["a"]: c for c in scene.get("checks", []) if c["quantity"] == "J.drift"}
+    ax = axes[3]
+    for r in engines:
+        if not r.has("J"):
+            continue
+        J = r.col("J")
+        scale = abs(J[0]) if abs(J[0]) > 0 else 1.0
+        ax.semilogy(r.t, np.maximum(np.abs(J - J[0]) / scale, TINY), label=r.label,
+                    **{k: s for k, s in r.style.items() if k != "alpha"})
+        c = checks.get(r.label)
+        if c and c["status"] in ("PASS", "FAIL") and c["bound"]:
+            ax.axhline(c["bound"] / scale, color=r.style["color"], linestyle="--", linewidth=0.9, alpha=0.7)
+    ax.set_ylabel("|J(t) - J(0)| / |J(0)|")
+    ax.grid(True, which="both", alpha=0.3)
+    axes[-1].set_xlabel("time t (s)")
+    from matplotlib.lines import Line2D
+    sections = [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
+                                   for i in range(len(bodies))], bodies),
+                ("run (line style)", [Line2D([], [], color="0.3", linestyle=r.dash) for r in engines],
+                 [r.label for r in engines])]
+    outside_legend(fig, sections=sections)
+    fig.suptitle("Attitude relative to the orbit frame (LVLH: R_OB = Rz(yaw) Ry(pitch) Rx(roll))\n"
+                 "and the drift of the Jacobi integral J (log scale; dashed: each engine's check bound)")
+    name = finish(fig, "%s-orbit.png" % sid, out_dir)
+    return name, ("Each body's roll, pitch and yaw relative to the local orbit frame (x along-track, y "
+                  "the negative orbit normal, z nadir; docs/environment.md), every engine overlaid "
+                  "(colour: body; line style: engine), and the relative drift of each engine's Jacobi "
+                  "integral J = E - w_NO . H_O, which a circular orbit conserves where nothing else "
+                  "adds or removes energy.")
 
 
 def _quat_rotate_inverse(q, v):
@@ -870,7 +935,7 @@ def chart_conditioning(scaling, out_dir):
                   "of that kind (exact agreement drawn at 1e-17): the digits actually lost.")
 
 
-CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_modal, chart_H_E, chart_loads, chart_differences,
-          chart_drift]
+CHARTS = [chart_base_w, chart_joints, chart_attitudes, chart_orbit, chart_modal, chart_H_E, chart_loads,
+          chart_differences, chart_drift]
 
 __all__ = ["CHARTS", "GROUP_TITLES", "DASHES", "gfmt"]

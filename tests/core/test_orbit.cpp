@@ -1,6 +1,7 @@
 // The orbit frame (core/orbit.hpp): its kinematics against closed forms and derivatives taken
 // here, roll/pitch/yaw both ways, and the reader's `frame: lvlh` conversion (issue 28).
 #include "core/orbit.hpp"
+#include "core/output_layout.hpp"
 #include "core/scene/scene.hpp"
 
 #include <catch2/catch.hpp>
@@ -114,4 +115,36 @@ run: {duration: 1, output_step: 0.1}
   CHECK_THAT(rpy(0), WithinAbs(0, 1e-14));
   // w_NB_B = w_OB_B + R_BN w_NO_N: about body y, -n + 0.001 (the body's y is o2 turned by the pitch).
   CHECK((J.w_NB_B0 - Eigen::Vector3d(0, 0.001 - e.mean_motion(), 0)).norm() < 1e-15);
+}
+
+TEST_CASE("orbit: the row writer gives each body's roll, pitch, yaw and rate relative to the orbit "
+          "frame at the row's time") {
+  System s = read_scene_text(R"(
+name: rows
+environment:
+  central_body: {mu: 3.986004418e14}
+  orbit: {radius: 7000 km, inclination: 30 deg}
+bodies: [{name: b, mass: 1, inertia: [1, 2, 3]}]
+joints: [{name: base, type: free, child: b}]
+run: {duration: 1, output_step: 0.1}
+)",
+                             "rows.yaml");
+  const OutputLayout layout(s);
+  REQUIRE(layout.lvlh(0) >= 0);
+  CHECK(layout.names()[static_cast<std::size_t>(layout.lvlh(0))] == "b.roll");
+  CHECK(layout.names()[static_cast<std::size_t>(layout.lvlh(0) + 5)] == "b.woz");
+  CHECK(layout.J() >= 0);
+  const double t = 1234.5;
+  const OrbitFrame f = orbit_frame(s.environment, t);
+  const Eigen::Vector3d rpy(0.01, -0.2, 0.3), w_OB_B(0.001, 0.02, -0.003);
+  const Eigen::Matrix3d R_NB = f.R_NO * from_roll_pitch_yaw(rpy);
+  const Eigen::Vector3d w_NB_B = w_OB_B + R_NB.transpose() * f.w_NO_N;
+  std::vector<double> row(layout.size());
+  RowWriter w(layout, row.data());
+  w.time(t);
+  w.body(0, w_NB_B, Eigen::Quaterniond(R_NB));
+  for (int i = 0; i < 3; ++i) {
+    CHECK_THAT(row[static_cast<std::size_t>(layout.lvlh(0) + i)], WithinAbs(rpy(i), 1e-14));
+    CHECK_THAT(row[static_cast<std::size_t>(layout.lvlh(0) + 3 + i)], WithinAbs(w_OB_B(i), 1e-17));
+  }
 }
