@@ -69,6 +69,20 @@ json schedule(const PiecewiseConstant<D>& f) {
 }
 
 // The scene's data and assumptions, in SI, for the report page.
+// The environment (issue 28) in words for the scene page: kind, field, orbit.
+json environment_json(const Environment& e) {
+  if (e.uniform()) return {{"kind", "uniform"}, {"g_N", {e.g_N.x(), e.g_N.y(), e.g_N.z()}}};
+  if (e.orbit())
+    return {{"kind", "orbit"},
+            {"mu", e.mu},
+            {"radius_m", e.radius},
+            {"inclination_rad", e.inclination},
+            {"raan_rad", e.raan},
+            {"latitude0_rad", e.latitude0},
+            {"mean_motion", e.mean_motion()}};
+  return {{"kind", "none"}};
+}
+
 json system_json(const System& s) {
   json bodies = json::array();
   for (const Body& b : s.bodies) {
@@ -142,6 +156,7 @@ json system_json(const System& s) {
           {"bodies", bodies},
           {"joints", joints},
           {"zero_linear_momentum", s.zero_linear_momentum},
+          {"environment", environment_json(s.environment)},
           {"analytic", s.analytic},
           {"run", {{"duration_s", s.run.duration},
                    {"output_step_s", s.run.output_step},

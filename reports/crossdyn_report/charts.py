@@ -363,7 +363,7 @@ def chart_H_E(scene, runs, out_dir, sid):
         return None
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True)
     for ax, x, unit, what in ((axes[0], "H", "kg m^2/s", "angular momentum about the system CM"),
-                              (axes[1], "E", "J", "mechanical energy (kinetic + elastic)")):
+                              (axes[1], "E", "J", "mechanical energy (kinetic + elastic + gravity potential)")):
         values = [r.col(x) for r in runs if r.has(x)]
         plot_lines(ax, runs, x)
         if values:
@@ -628,6 +628,7 @@ def chart_orbit(scene, runs, out_dir, sid):
             ax.axhline(c["bound"] / scale, color=r.style["color"], linestyle="--", linewidth=0.9, alpha=0.7)
     ax.set_ylabel("|J(t) - J(0)| / |J(0)|")
     ax.grid(True, which="both", alpha=0.3)
+    ax.legend(title="engine (J)", fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1].set_xlabel("time t (s)")
     from matplotlib.lines import Line2D
     sections = [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)

@@ -46,6 +46,26 @@ GROUP_ABSENT = {
 }
 # The index shows a conserved quantity's drift and a balanced one's balance in one column (a scene
 # has one or the other): the table stays narrow enough to read without scrolling.
+def environment_text(e):
+    """The scene's environment in one sentence (docs/environment.md), or "" without one."""
+    kind = e.get("kind", "none")
+    if kind == "uniform":
+        g = e.get("g_N", [0, 0, 0])
+        return "Uniform gravity g = (%s) m/s^2 in N, on every mass." % ", ".join(gfmt(x) for x in g)
+    if kind == "orbit":
+        import math
+        n = e.get("mean_motion", 0.0)
+        return ("A central body (mu = %s m^3/s^2) and the system's CM on a circular orbit of radius %s km "
+                "(inclination %s deg, raan %s deg, argument of latitude %s deg at t = 0): mean motion "
+                "n = %s rad/s, orbit period %s s. The gravity gradient to second order about the "
+                "system's CM; attitudes relative to the orbit frame (LVLH) and the Jacobi integral J in "
+                "the output." % (gfmt(e.get("mu")), gfmt(e.get("radius_m", 0) / 1e3),
+                                 gfmt(math.degrees(e.get("inclination_rad", 0))), gfmt(math.degrees(e.get("raan_rad", 0))),
+                                 gfmt(math.degrees(e.get("latitude0_rad", 0))), gfmt(n),
+                                 gfmt(2 * math.pi / n) if n > 0 else "-"))
+    return ""
+
+
 MERGED_COLUMNS = {"H.balance": "H.drift", "E.balance": "E.drift"}
 COLUMN_TITLES = {"H.drift": "H drift or balance", "E.drift": "E drift or balance"}
 
@@ -311,7 +331,7 @@ def scene_context(scene, pictures, charts, motion_note, converge=None):
                      gfmt(settings.get("output_step_s", run.get("output_step_s"))),
                      settings.get("integrator", run.get("integrator")), gfmt(settings.get("rtol")),
                      gfmt(settings.get("atol")), "zero" if system.get("zero_linear_momentum") else "as given")),
-        analytic=system.get("analytic", ""),
+        analytic=system.get("analytic", ""), environment_text=environment_text(system.get("environment", {})),
         tolerances=tolerances, runs=run_rows(scene), charts=charts, checks=check_rows(scene),
         notes=scene.get("notes", []), pass_rule=PASS_RULE, converge=converge,
         groups=[dict(title=GROUP_TITLES.get(g["group"], g["group"]), help=GROUP_HELP.get(g["group"], ""))
