@@ -1,6 +1,8 @@
 // Linear models of every engine about one operating point (harness/linearize.hpp; issue 27).
 #include "harness/linearize.hpp"
 
+#include "core/orbit.hpp"
+
 #include "core/errors.hpp"
 #include "core/output.hpp"
 #include "core/rotation.hpp"
@@ -46,7 +48,9 @@ std::string num(cd v, int digits = 10) {
 // The reduced coordinates.
 
 struct Coordinate {
-  enum class Kind { BaseW, Angle, Angle2, Phi, Eta, Rate, Rate2, W, EtaRate };
+  // BasePhi: on an orbit, the base's attitude relative to the orbit frame (R_OB = R_OB* exp([phi
+  // x])), whose rate BaseW is then w_OB_B, the base's angular velocity relative to that frame.
+  enum class Kind { BaseW, BasePhi, Angle, Angle2, Phi, Eta, Rate, Rate2, W, EtaRate };
   Kind kind;
   int index = 0;      // joint (Angle .. W) or body (Eta, EtaRate)
   int component = 0;  // x/y/z, or mode
@@ -86,8 +90,16 @@ class ReducedMap {
  public:
   // One pass over the joints and bodies: each degree of freedom's configuration coordinates go
   // to the first half of z, its velocities to the second (a free base's w first).
-  ReducedMap(const System& s, const TreeState& op) : system_(s), op_(op) {
+  // t: the operating time (on an orbit, where the orbit frame is then).
+  ReducedMap(const System& s, const TreeState& op, double t) : system_(s), op_(op) {
     using K = Coordinate::Kind;
+    orbit_ = s.environment.orbit() && s.base_is_free();
+    if (orbit_) {
+      const OrbitFrame f = orbit_frame(s.environment, t);
+      R_NO_ = f.R_NO;
+      w_NO_N_ = f.w_NO_N;
+      R_OB_op_ = R_NO_.transpose() * op.q_NB.normalized().toRotationMatrix();
+    }
     std::vector<Coordinate> q, v;
     // One degree of freedom: its configuration coordinate, its velocity, the mode name of both.
     auto dof = [&](K qk, K vk, int index, int component, const std::string& qname, const std::string& vname,
@@ -95,7 +107,15 @@ class ReducedMap {
       v.push_back({vk, index, component, vname, mode});
       q.push_back({qk, index, component, qname, mode, static_cast<int>(v.size()) - 1});  // its rate, in v
     };
-    if (s.base_is_free()) {
+    if (orbit_) {
+      // On an orbit the base's attitude relative to the orbit frame is a coordinate (the gravity
+      // gradient depends on it), and its rate the angular velocity relative to that frame, w_OB_B
+      // (the output's <base>.wox/woy/woz): a body turning with the orbit is at rest in z.
+      const std::string base = s.bodies[static_cast<std::size_t>(s.base_body())].name;
+      for (int c = 0; c < 3; ++c)
+        dof(K::BasePhi, K::BaseW, 0, c, base + ".phi" + "xyz"[c], base + ".wo" + "xyz"[c],
+            base + ".phi" + "xyz"[c]);
+    } else if (s.base_is_free()) {
       const std::string base = s.bodies[static_cast<std::size_t>(s.base_body())].name;
       for (int c = 0; c < 3; ++c) v.push_back({K::BaseW, 0, c, base + ".w" + "xyz"[c], base + ".w"});
     }
@@ -154,7 +174,10 @@ class ReducedMap {
       const Coordinate& c = coords_[static_cast<std::size_t>(i)];
       const auto j = static_cast<std::size_t>(c.index);
       switch (c.kind) {
-        case Coordinate::Kind::BaseW: z(i) = op_.w_NB_B(c.component); break;
+        case Coordinate::Kind::BaseW:
+          z(i) = orbit_ ? w_OB_B_op()(c.component) : op_.w_NB_B(c.component);
+          break;
+        case Coordinate::Kind::BasePhi: z(i) = 0; break;
         case Coordinate::Kind::Angle: z(i) = op_.joints[j].angle; break;
         case Coordinate::Kind::Angle2: z(i) = op_.joints[j].angle2; break;
         case Coordinate::Kind::Phi: z(i) = 0; break;
@@ -176,6 +199,7 @@ class ReducedMap {
       const auto j = static_cast<std::size_t>(c.index);
       switch (c.kind) {
         case Coordinate::Kind::BaseW: s.w_NB_B(c.component) = z(i); break;
+        case Coordinate::Kind::BasePhi: break;  // below
         case Coordinate::Kind::Angle: s.joints[j].angle = z(i); break;
         case Coordinate::Kind::Angle2: s.joints[j].angle2 = z(i); break;
         case Coordinate::Kind::Phi: phi[j](c.component) = z(i); break;
@@ -189,6 +213,14 @@ class ReducedMap {
     for (std::size_t j = 0; j < phi.size(); ++j)
       if (system_.joints[j].type == JointType::Spherical && !system_.joints[j].prescribed)
         s.joints[j].q_J = (op_.joints[j].q_J * rot::from_rotation_vector(phi[j])).normalized();
+    if (orbit_) {
+      // R_NB = R_NO R_OB* exp([phi x]), w_NB_B = w_OB_B + R_BN w_NO_N (s.w_NB_B holds w_OB_B here).
+      Eigen::Matrix3d R_NB;
+      Vector3d w_OB_B;
+      base_pose(z, R_NB, w_OB_B);
+      s.q_NB = Eigen::Quaterniond(R_NB).normalized();
+      s.w_NB_B = w_OB_B + R_NB.transpose() * w_NO_N_;
+    }
     return s;
   }
 
@@ -202,11 +234,26 @@ class ReducedMap {
       if (c.kind == Coordinate::Kind::W) w[static_cast<std::size_t>(c.index)](c.component) = z(i);
     }
     const int base = system_.base_body();
+    // On an orbit: d/dt w_OB_B = w_NB_B' + w_NB_B x (R_BN w_NO_N) (w_NO_N constant on a circular
+    // orbit, R_BN' = -[w_NB_B x] R_BN), and phi' = J_r(phi)^-1 w_OB_B.
+    Vector3d wdot_OB_B = Vector3d::Zero(), phi_dot = Vector3d::Zero();
+    if (orbit_) {
+      Eigen::Matrix3d R_NB;
+      Vector3d w_OB_B;
+      base_pose(z, R_NB, w_OB_B);
+      const Vector3d w_NO_B = R_NB.transpose() * w_NO_N_;
+      const Vector3d w_NB_B = w_OB_B + w_NO_B;
+      wdot_OB_B = a.wdot_NB_B[static_cast<std::size_t>(base)] + w_NB_B.cross(w_NO_B);
+      phi_dot = right_jacobian_inverse(base_phi(z)) * w_OB_B;
+    }
     for (int i = 0; i < size(); ++i) {
       const Coordinate& c = coords_[static_cast<std::size_t>(i)];
       const auto j = static_cast<std::size_t>(c.index);
       switch (c.kind) {
-        case Coordinate::Kind::BaseW: zd(i) = a.wdot_NB_B[static_cast<std::size_t>(base)](c.component); break;
+        case Coordinate::Kind::BaseW:
+          zd(i) = orbit_ ? wdot_OB_B(c.component) : a.wdot_NB_B[static_cast<std::size_t>(base)](c.component);
+          break;
+        case Coordinate::Kind::BasePhi: zd(i) = phi_dot(c.component); break;
         case Coordinate::Kind::Angle:
         case Coordinate::Kind::Angle2:
         case Coordinate::Kind::Eta: zd(i) = z(c.rate); break;
@@ -221,6 +268,24 @@ class ReducedMap {
   }
 
  private:
+  // On an orbit: the base's phi and w_OB_B in z, and its attitude R_NB = R_NO R_OB* exp([phi x]).
+  Vector3d base_phi(const VectorXd& z) const {
+    Vector3d phi = Vector3d::Zero();
+    for (int i = 0; i < size(); ++i)
+      if (coords_[static_cast<std::size_t>(i)].kind == Coordinate::Kind::BasePhi)
+        phi(coords_[static_cast<std::size_t>(i)].component) = z(i);
+    return phi;
+  }
+  void base_pose(const VectorXd& z, Eigen::Matrix3d& R_NB, Vector3d& w_OB_B) const {
+    w_OB_B.setZero();
+    for (int i = 0; i < size(); ++i)
+      if (coords_[static_cast<std::size_t>(i)].kind == Coordinate::Kind::BaseW)
+        w_OB_B(coords_[static_cast<std::size_t>(i)].component) = z(i);
+    R_NB = R_NO_ * R_OB_op_ * rot::from_rotation_vector(base_phi(z)).toRotationMatrix();
+  }
+  Vector3d w_OB_B_op() const {
+    return op_.w_NB_B - op_.q_NB.normalized().toRotationMatrix().transpose() * w_NO_N_;
+  }
   void add(Coordinate::Kind k, int index, int component, std::string name, std::string mode) {
     coords_.push_back({k, index, component, std::move(name), std::move(mode)});
   }
@@ -240,6 +305,9 @@ class ReducedMap {
   TreeState op_;
   std::vector<Coordinate> coords_;
   int configuration_ = 0;
+  bool orbit_ = false;  // a free base on an orbit: BasePhi and w_OB_B
+  Eigen::Matrix3d R_NO_ = Eigen::Matrix3d::Identity(), R_OB_op_ = Eigen::Matrix3d::Identity();
+  Vector3d w_NO_N_ = Vector3d::Zero();
 };
 
 // ------------------------------------------------------------------------------------------------
@@ -326,6 +394,12 @@ TreeState operating_state(const System& s, double t, OperatingPoint point, std::
       case JointType::Free:
       case JointType::Fixed: break;
     }
+  }
+  if (s.environment.orbit() && s.base_is_free() && t != 0) {
+    // The base keeps its attitude and its rate relative to the orbit frame: R_NB(t) = R_NO(t)
+    // R_NO(0)^T R_NB(0) (w_NB_B is then unchanged: w_OB_B and R_BO are).
+    const Eigen::Matrix3d R = orbit_frame(s.environment, t).R_NO * orbit_frame(s.environment, 0).R_NO.transpose();
+    st.q_NB = (Eigen::Quaterniond(R) * st.q_NB).normalized();
   }
   if (point != OperatingPoint::Initial)
     for (std::size_t b = 0; b < s.bodies.size(); ++b)
@@ -639,6 +713,41 @@ void analytic_checks(const System& s, const TreeState& op, LinearizeResult& r, d
                      " axis (Euler's equations)", rtol);
 }
 
+// A lone free rigid body on a circular orbit, turning with the orbit frame with its principal
+// axes along the orbit frame's (x along-track, y the negative orbit normal, z nadir): its pitch
+// libration lambda^2 = -3 n^2 (Ix - Iz) / Iy and its coupled roll-yaw motion
+//   lambda^4 + n^2 (1 + 3 k1 + k1 k3) lambda^2 + 4 k1 k3 n^4 = 0,  k1 = (Iy - Iz) / Ix,
+//   k3 = (Iy - Ix) / Iz  (Wie 2008, "Space Vehicle Dynamics and Control", 2nd ed., Sec. 6.4.2;
+// Hughes 2004, Sec. 9.3: stable in the Lagrange region Iy > Ix > Iz).
+void gravity_gradient_checks(const System& s, const TreeState& op, double t, LinearizeResult& r, double rtol) {
+  if (s.bodies.size() != 1 || !s.base_is_free() || s.bodies[0].flex || !s.bodies[0].torque.empty()) return;
+  const Eigen::Matrix3d& I = s.bodies[0].I_BBo_B;
+  const OrbitFrame f = orbit_frame(s.environment, t);
+  const Eigen::Matrix3d R_OB = f.R_NO.transpose() * op.q_NB.normalized().toRotationMatrix();
+  const Vector3d w_OB_B = op.w_NB_B - op.q_NB.normalized().toRotationMatrix().transpose() * f.w_NO_N;
+  const double off = (I - Eigen::Matrix3d(I.diagonal().asDiagonal())).cwiseAbs().maxCoeff();
+  if ((R_OB - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-12 || off > 1e-12 * I.norm() ||
+      w_OB_B.norm() > 1e-12 * f.n) {
+    r.findings.push_back("the lone body on the orbit is not at rest in the orbit frame with its principal "
+                         "axes along it: no analytic libration eigenvalues");
+    return;
+  }
+  const double n = f.n, Ix = I(0, 0), Iy = I(1, 1), Iz = I(2, 2);
+  auto root = [](cd l2) { return std::sqrt(l2); };
+  std::vector<cd> pitch{root(cd(-3 * n * n * (Ix - Iz) / Iy, 0))};
+  pitch.push_back(-pitch[0]);
+  const double k1 = (Iy - Iz) / Ix, k3 = (Iy - Ix) / Iz;
+  const double b = n * n * (1 + 3 * k1 + k1 * k3), c = 4 * k1 * k3 * n * n * n * n;
+  const cd disc = std::sqrt(cd(b * b - 4 * c, 0));
+  std::vector<cd> roll_yaw;
+  for (const cd l2 : {(-b + disc) / 2.0, (-b - disc) / 2.0}) {
+    roll_yaw.push_back(root(l2));
+    roll_yaw.push_back(-root(l2));
+  }
+  closed_form_checks(r, pitch, "gravity-gradient pitch libration, n sqrt(3 (Ix - Iz) / Iy)", rtol);
+  closed_form_checks(r, roll_yaw, "gravity-gradient roll-yaw libration", rtol);
+}
+
 // A gyrostat: a free rigid platform carrying one wheel (cyclic_rotor) whose axis a is a principal
 // axis of the whole, the platform spinning at omega about a and the wheel at Omega_r relative to
 // it, h_r = J_s Omega_r (J_s the wheel's axial moment). Euler's equations of the whole,
@@ -768,7 +877,7 @@ void free_flexible_checks(const System& s, const TreeState& op, LinearizeResult&
 // see); the other engines' residuals are checked afterwards like any operating point's.
 TreeState settle(const System& system, const TreeState& op, const LinearizeOptions& o, bool free_spin,
                  std::string& how) {
-  const ReducedMap map(system, op);
+  const ReducedMap map(system, op, o.time);
   const int n = map.size(), nc = map.configuration_size(), nv = n - nc;
   // The unknowns: the configuration coordinates, and the base's w when free.
   std::vector<int> unknowns;
@@ -895,15 +1004,13 @@ bool LinearizeResult::passed() const {
 }
 
 LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
-  // On an orbit the base's attitude relative to the orbit frame is not ignorable (the gravity
-  // gradient depends on it) and the equilibria turn with the orbit frame: z would need that
-  // attitude and the orbit frame's rates. Not yet (issue 28): refused, rather than a model that
-  // leaves the gravity-gradient stiffness out. Uniform gravity is fine (the base's attitude
-  // matters only for a prescribed base, which is not in z, or for a free one in free fall).
-  if (system.environment.orbit())
-    throw InputError(system.file + ": linearize does not yet take a scene on an orbit (the "
-                     "attitude relative to the orbit frame would be a coordinate); use `run` and "
-                     "the <body>.roll/pitch/yaw columns");
+  // On an orbit the base's attitude relative to the orbit frame is a coordinate (ReducedMap), and
+  // a relative equilibrium turns with the orbit frame, not about a principal axis: `spin` does
+  // not apply there.
+  if (system.environment.orbit() && o.point == OperatingPoint::Spin)
+    throw InputError(system.file + ": --operating-point spin is a torque-free steady spin; on an orbit "
+                     "use neutral or equilibrium (the attitude and the rate relative to the orbit "
+                     "frame are in z: a body turning with the orbit is at rest there)");
   LinearizeResult r;
   r.scene = system.name;
   r.time = o.time;
@@ -915,7 +1022,7 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
     op = settle(system, op, o, free_spin, r.how);
   }
   r.op = op;
-  const ReducedMap map(system, op);
+  const ReducedMap map(system, op, o.time);
   r.states = map.names();
   r.z0 = map.z0();
   const int n = map.size();
@@ -1216,10 +1323,15 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
     }
   }
 
-  analytic_checks(system, op, r, 1e-10);
-  gyrostat_checks(system, op, r, 1e-10);
-  spinning_flexible_checks(system, o.time, r, 1e-10);
-  free_flexible_checks(system, op, r, 1e-10);
+  // The closed forms below are for a scene without gravity; on an orbit, a lone rigid body's
+  // libration (gravity_gradient_checks).
+  if (system.environment.none()) {
+    analytic_checks(system, op, r, 1e-10);
+    gyrostat_checks(system, op, r, 1e-10);
+    spinning_flexible_checks(system, o.time, r, 1e-10);
+    free_flexible_checks(system, op, r, 1e-10);
+  }
+  if (system.environment.orbit()) gravity_gradient_checks(system, op, o.time, r, 1e-10);
 
   // Unstable modes are findings (each engine's own, so a disagreement shows).
   for (const EngineLinearModel& m : r.engines) {
@@ -1445,7 +1557,7 @@ std::string mode_geometry(const System& system, const LinearizeOptions& o, const
                           std::size_t engine, std::size_t mode) {
   const EngineLinearModel& m = r.engines.at(engine);
   const LinearMode& md = m.modes.at(mode);
-  const ReducedMap map(system, r.op);
+  const ReducedMap map(system, r.op, r.time);
   const int nc = map.configuration_size();
   double largest = 0;
   for (int i = 0; i < nc; ++i) largest = std::max(largest, std::abs(md.shape(i)));
