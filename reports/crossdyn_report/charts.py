@@ -279,6 +279,15 @@ def chart_joints(scene, runs, out_dir, sid):
     return name, caption + "Colour tells the joints apart; the line style tells the runs apart."
 
 
+def body_run_sections(bodies, runs):
+    """Legend sections of a chart whose colour is the body and line style the run."""
+    from matplotlib.lines import Line2D
+    return [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
+                               for i in range(len(bodies))], bodies),
+            ("run (line style)", [Line2D([], [], color="0.3", linestyle=r.dash) for r in runs],
+             [r.label for r in runs])]
+
+
 def chart_attitudes(scene, runs, out_dir, sid):
     """Flexible scenes (the paper's Fig. 11 for Example 2): every body's attitude as the three
     components of its rotation vector (log map of q_NB, rad, inertial axes), runs overlaid. For a
@@ -308,12 +317,7 @@ def chart_attitudes(scene, runs, out_dir, sid):
         rad_axis(ax, "rad")
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("time t (s)")
-    from matplotlib.lines import Line2D
-    sections = [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
-                                   for i in range(len(bodies))], bodies),
-                ("run (line style)", [Line2D([], [], color="0.3", linestyle=r.dash) for r in runs],
-                 [r.label for r in runs])]
-    outside_legend(fig, sections=sections)
+    outside_legend(fig, sections=body_run_sections(bodies, runs))
     figs = flexible_paper_figures(scene)
     fig.suptitle("Attitude of every body: rotation vector of q_NB in inertial axes%s"
                  % ("\n(the rotation about y is the attitude angle of the paper's Fig. %s)" % figs[0]
@@ -630,12 +634,7 @@ def chart_orbit(scene, runs, out_dir, sid):
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(title="engine (J)", fontsize="small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
     axes[-1].set_xlabel("time t (s)")
-    from matplotlib.lines import Line2D
-    sections = [("body (colour)", [Line2D([], [], color=JOINT_COLOURS[i % len(JOINT_COLOURS)], lw=2.2)
-                                   for i in range(len(bodies))], bodies),
-                ("run (line style)", [Line2D([], [], color="0.3", linestyle=r.dash) for r in engines],
-                 [r.label for r in engines])]
-    outside_legend(fig, sections=sections)
+    outside_legend(fig, sections=body_run_sections(bodies, engines))
     fig.suptitle("Attitude relative to the orbit frame (LVLH: R_OB = Rz(yaw) Ry(pitch) Rx(roll))\n"
                  "and the drift of the Jacobi integral J (log scale; dashed: each engine's check bound)")
     name = finish(fig, "%s-orbit.png" % sid, out_dir)

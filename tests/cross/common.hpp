@@ -56,6 +56,19 @@ inline void follow_profile(const System& system, TreeState& s, double t) {
   }
 }
 
+// random_state with small modal coordinates and rates (0.05) and the prescribed joints on their
+// profiles at t.
+inline TreeState random_tree_state(const System& system, std::mt19937& g, double t) {
+  TreeState s = random_state(system, g);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+    for (int k = 0; k < s.eta[b].size(); ++k) s.eta[b](k) = 0.05 * u(g);
+    for (int k = 0; k < s.eta_rate[b].size(); ++k) s.eta_rate[b](k) = 0.05 * u(g);
+  }
+  follow_profile(system, s, t);
+  return s;
+}
+
 // One engine at (t, s): its engine-neutral accelerations and its output row.
 struct EngineAt {
   TreeAccel accel;

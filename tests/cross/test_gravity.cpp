@@ -43,17 +43,6 @@ Environment orbit(double radius, double inclination = 0.7, double raan = 0.4, do
   return e;
 }
 
-TreeState random_tree_state(const System& system, std::mt19937& g, double t) {
-  TreeState s = random_state(system, g);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
-    for (int k = 0; k < s.eta[b].size(); ++k) s.eta[b](k) = 0.05 * u(g);
-    for (int k = 0; k < s.eta_rate[b].size(); ++k) s.eta_rate[b](k) = 0.05 * u(g);
-  }
-  follow_profile(system, s, t);
-  return s;
-}
-
 // The largest difference of two engines' accelerations, relative to the largest of them (per
 // kind: angular, linear, joint, modal).
 double accel_difference(const TreeAccel& a, const TreeAccel& b) {

@@ -22,17 +22,6 @@ namespace {
 
 const std::vector<std::string> kEngines{"kane", "lagrange", "newton-euler"};
 
-TreeState random_tree_state(const System& system, std::mt19937& g, double t) {
-  TreeState s = random_state(system, g);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
-    for (int k = 0; k < s.eta[b].size(); ++k) s.eta[b](k) = 0.05 * u(g);
-    for (int k = 0; k < s.eta_rate[b].size(); ++k) s.eta_rate[b](k) = 0.05 * u(g);
-  }
-  follow_profile(system, s, t);
-  return s;
-}
-
 }  // namespace
 
 TEST_CASE("loads, positions, H, P and M: at random states every engine agrees with Kane's on every "
