@@ -879,3 +879,36 @@ TEST_CASE("errors: prismatic and universal joints name the key and what is wrong
     expect_error(no_rate, line_of(no_rate, "travel: 2 m"), "travel", "angle");
   }
 }
+
+// Issue 28: the environment block's bad values, each refused at its key with what is wrong.
+TEST_CASE("errors: the environment block (gravity, central body, orbit, frame: lvlh)") {
+  const std::string env = "name: tiny\nenvironment:\n";
+  auto with = [&](const std::string& block) { return edit("name: tiny\n", env + block); };
+  // Both fields; an orbit without a body; a body without an orbit; an empty block.
+  expect_error(with("  gravity: [0, 0, -9.81]\n  central_body: {mu: 4e14}\n"), 4,
+               "environment.central_body", "not both");
+  expect_error(with("  orbit: {radius: 7000 km}\n"), 3, "environment.orbit", "needs a `central_body`");
+  expect_error(with("  central_body: {mu: 4e14}\n"), 3, "environment", "orbit");
+  expect_error(edit("name: tiny\n", "name: tiny\nenvironment: {}\n"), 2, "environment", "empty");
+  // Values: mu, radii, altitude, inclination; a unit of the wrong kind.
+  expect_error(with("  central_body: {mu: -4e14}\n  orbit: {radius: 7000 km}\n"), 3,
+               "environment.central_body.mu", "must be > 0");
+  expect_error(with("  central_body: {mu: 4e14, radius: 6378 km}\n  orbit: {radius: 6000 km}\n"), 4,
+               "environment.orbit.radius", "exceed the central body's radius");
+  expect_error(with("  central_body: {mu: 4e14}\n  orbit: {altitude: 500 km}\n"), 4,
+               "environment.orbit.altitude", "needs the central body's `radius`");
+  expect_error(with("  central_body: {mu: 4e14, radius: 6378 km}\n  orbit: {altitude: 500 km, radius: 7000 km}\n"),
+               4, "environment.orbit.altitude", "not both");
+  expect_error(with("  central_body: {mu: 4e14}\n  orbit: {radius: 7000 km, inclination: 200 deg}\n"), 4,
+               "environment.orbit.inclination", "between 0 and 180 deg");
+  expect_error(with("  central_body: {mu: 4e14}\n  orbit: {inclination: 10 deg}\n"), 4, "environment.orbit",
+               "radius");
+  expect_error(with("  gravity: {value: [0, 0, -9.81], unit: m/s}\n"), 3, "environment.gravity",
+               "this key expects an acceleration");
+  expect_error(with("  central_body: {mu: 4e14 kg}\n  orbit: {radius: 7000 km}\n"), 3,
+               "environment.central_body.mu", "gravitational parameter");
+  expect_error(with("  gravity: [0, 0, -9.81]\n  orbitt: {}\n"), 4, "environment.orbitt", "did you mean 'orbit'");
+  // frame: lvlh needs an orbit.
+  expect_edit_error("      angular_velocity: [0, 0, 1]", "      angular_velocity: [0, 0, 1]\n      frame: lvlh",
+                    "joints[0].initial.frame", "no orbit", "      frame: lvlh");
+}
