@@ -91,7 +91,8 @@ Classified classify(const CellFacts& f, const ClassLimits& lim) {
   if (drift_H || drift_E) {
     std::string why;
     if (drift_H) why += "H drifts by " + sci(f.drift_H, 2);
-    if (drift_E) why += std::string(why.empty() ? "" : ", ") + "E drifts by " + sci(f.drift_E, 2);
+    if (drift_E)
+      why += std::string(why.empty() ? "" : ", ") + (f.orbit ? "J" : "E") + " drifts by " + sci(f.drift_E, 2);
     return {StabilityClass::Drift, why + " (relative) > " + sci(lim.drift_limit, 2)};
   }
   if (e <= lim.tolerance)
@@ -702,7 +703,9 @@ std::vector<StabilityValue> stability_values(const System& system, const Knob& k
     const std::size_t c = 0;  // add_stability_value sets the map's column
     if (!w.refused) {
       const bool H_conserved = momentum_not_conserved_reason(s).empty();
-      const bool E_conserved = energy_not_conserved_reason(s).empty();
+      // On an orbit the conserved energy-like quantity is the Jacobi integral (StudyRow::drift_E).
+      const bool orbit = s.environment.orbit();
+      const bool E_conserved = orbit ? jacobi_not_conserved_reason(s).empty() : energy_not_conserved_reason(s).empty();
       col.reference_note = w.baseline->reference.description;
       sv.study_notes = u.notes;
       if (!u.analytic) {
@@ -736,6 +739,7 @@ std::vector<StabilityValue> stability_values(const System& system, const Knob& k
         f.drift_E = r.drift_E;
         f.H_conserved = H_conserved;
         f.E_conserved = E_conserved;
+        f.orbit = orbit;
         cell.facts = f;
         cell.result = classify(f, m.limits);
         sv.cells.push_back(cell);

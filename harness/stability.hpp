@@ -116,6 +116,7 @@ struct CellFacts {
   double drift_H = std::numeric_limits<double>::quiet_NaN();
   double drift_E = std::numeric_limits<double>::quiet_NaN();
   bool H_conserved = false, E_conserved = false;  // by the scene (compare.hpp's reasons empty)
+  bool orbit = false;  // drift_E is the Jacobi integral J's (E_conserved: J's, on an orbit)
 };
 
 // The default of `stability --accuracy`: a history error of 1e-6 of each quantity's scale. Tighter

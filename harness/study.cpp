@@ -518,7 +518,9 @@ StudySetup study_setup(const System& system, const StudyOptions& options) {
   const OutputLayout layout(system);
   u.pinned = layout.pinned_size();
   u.H = layout.H();
-  u.E = layout.E();
+  // On an orbit E changes (the gravity-gradient potential turns with the orbit frame): the
+  // energy-like quantity a run must keep is the Jacobi integral J (docs/environment.md).
+  u.E = system.environment.orbit() ? layout.J() : layout.E();
   Progress progress{options.progress};
   if (options.progress) options.progress->start(system.name, base.duration);
 

@@ -190,7 +190,7 @@ struct StudyRow {
   // Conservation drift of the run itself: max_t |X(t) - X(0)| / max(|X(0)|, 1e-300) for X = H
   // and E (NaN when the run failed). Meaningful only where the scene conserves X.
   double drift_H = std::numeric_limits<double>::quiet_NaN();
-  double drift_E = std::numeric_limits<double>::quiet_NaN();
+  double drift_E = std::numeric_limits<double>::quiet_NaN();  // on an orbit: of J (the Jacobi integral)
   bool front_end = false, front_history = false;  // on the Pareto front (cpu, error)
   std::string setting() const;  // "rtol 1e-08" or "dt 0.0125"
 };

@@ -57,6 +57,9 @@ TEST_CASE("stability: the classifier, one constructed case per class and the ord
   d.drift_E = 1e-4;
   CHECK(classify(d, lim).cls == StabilityClass::Drift);
   CHECK(classify(d, lim).why.find("E drifts by 1.0e-04") != std::string::npos);
+  d.orbit = true;  // on an orbit the energy-like quantity is the Jacobi integral (issue 28)
+  CHECK(classify(d, lim).why.find("J drifts by 1.0e-04") != std::string::npos);
+  d.orbit = false;
   d.E_conserved = false;
   CHECK(classify(d, lim).cls == StabilityClass::Accurate);
   d = finished(1e-9);
