@@ -273,15 +273,22 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
   // position columns' differences over the output times: a pendulum's energy is mostly its bob's
   // translation, and a conserved E that starts at zero (kinetic + a potential zero at the start,
   // iftomm_pendulum) has max_t |E| at integration-noise level (1e-11 J against m g L = 9.81 J).
+  // The reference's time column, and each body's w and position columns (here and for the
+  // angles' travel below).
+  int time_column = -1;
+  std::vector<std::array<int, 3>> w_columns(system.bodies.size(), {-1, -1, -1});
+  std::vector<int> p_columns(system.bodies.size(), -1);  // <body>.x (then .y, .z)
+  for (std::size_t c = 0; c < cols.size() && c < reference.columns; ++c) {
+    if (cols[c].kind == ColumnKind::Time) time_column = static_cast<int>(c);
+    if (cols[c].body < 0 || static_cast<std::size_t>(cols[c].body) >= w_columns.size()) continue;
+    const auto b = static_cast<std::size_t>(cols[c].body);
+    if (cols[c].kind == ColumnKind::BodyW && cols[c].component >= 0 && cols[c].component < 3)
+      w_columns[b][static_cast<std::size_t>(cols[c].component)] = static_cast<int>(c);
+    if (cols[c].kind == ColumnKind::BodyPosition && cols[c].component == 0) p_columns[b] = static_cast<int>(c);
+  }
   {
-    int tc = -1;
-    std::vector<int> pc(system.bodies.size(), -1);
-    for (std::size_t c = 0; c < cols.size() && c < reference.columns; ++c) {
-      if (cols[c].kind == ColumnKind::Time) tc = static_cast<int>(c);
-      if (cols[c].kind == ColumnKind::BodyPosition && cols[c].component == 0 && cols[c].body >= 0 &&
-          static_cast<std::size_t>(cols[c].body) < pc.size())
-        pc[static_cast<std::size_t>(cols[c].body)] = static_cast<int>(c);
-    }
+    const int tc = time_column;
+    const std::vector<int>& pc = p_columns;
     for (std::size_t b = 0; b < system.bodies.size() && tc >= 0; ++b) {
       if (pc[b] < 0) continue;
       double v2 = 0;
@@ -333,16 +340,6 @@ ErrorMetric::ErrorMetric(const System& system, const History& reference) : refer
   // measure. Travel: a joint angle's max_t |theta(t) - theta(0)|; a body's integral of |w_NB|
   // over the run (trapezoidal rule on the output times: |w| is smooth where the angle is not
   // sampled finely enough to be unwrapped).
-  int time_column = -1;
-  std::vector<std::array<int, 3>> w_columns(system.bodies.size(), {-1, -1, -1});
-  for (std::size_t c = 0; c < cols.size() && c < reference.columns; ++c) {
-    if (cols[c].kind == ColumnKind::Time) time_column = static_cast<int>(c);
-    if (cols[c].kind == ColumnKind::BodyW && cols[c].body >= 0 &&
-        static_cast<std::size_t>(cols[c].body) < w_columns.size() && cols[c].component >= 0 &&
-        cols[c].component < 3)
-      w_columns[static_cast<std::size_t>(cols[c].body)][static_cast<std::size_t>(cols[c].component)] =
-          static_cast<int>(c);
-  }
   for (Quantity& q : quantities_) {
     const Column& col = cols[static_cast<std::size_t>(q.columns[0])];
     double travel = 0;
