@@ -31,6 +31,7 @@ GROUP_TITLES = {
     "E.drift": "drift of E",
     "H.balance": "balance of H",
     "E.balance": "balance of E",
+    "J.drift": "drift of the Jacobi integral J",
     "extra": "extra columns",
 }
 JOINT_COLOURS = ["tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown",

@@ -29,6 +29,8 @@ GROUP_HELP = {
                "H(t) - H(0) - integral of M; and dH/dt against M at every output time",
     "E.drift": "each engine's drift of E from E(0) where E is conserved, else its balance "
                "E(t) - E(0) - integral of P; and dE/dt against P at every output time",
+    "J.drift": "on an orbit, each engine's drift of the Jacobi integral J from J(0) (E changes "
+               "there as the gravity-gradient potential turns with the orbit)",
     "extra": "extra columns named in the scene's tolerances",
 }
 # Why a scene has no check of a kind: the feature does not exist in it.
@@ -43,6 +45,7 @@ GROUP_ABSENT = {
     "E.drift": "E not checked",
     "H.drift": "H not checked",
     "load": "no joints but the free one",
+    "J.drift": "not on an orbit",
 }
 # The index shows a conserved quantity's drift and a balanced one's balance in one column (a scene
 # has one or the other): the table stays narrow enough to read without scrolling.
@@ -67,7 +70,8 @@ def environment_text(e):
 
 
 MERGED_COLUMNS = {"H.balance": "H.drift", "E.balance": "E.drift"}
-COLUMN_TITLES = {"H.drift": "H drift or balance", "E.drift": "E drift or balance"}
+COLUMN_TITLES = {"H.drift": "H drift or balance", "E.drift": "E drift or balance",
+                 "J.drift": "Jacobi integral J drift"}
 
 PASS_RULE = ("pass when  max over the run of |a(t) - b(t)|  <=  atol + rtol * max over the run of |b(t)|")
 
