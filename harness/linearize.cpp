@@ -908,6 +908,7 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
     int iterations = 0;
     double scale = 0;
     bool converged = false;
+    int polish = 0;
     for (; iterations < 40; ++iterations) {
       MatrixXd J(nv, nu);
       for (int k = 0; k < nu; ++k) {
@@ -919,14 +920,19 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
         J.col(k) = (residual(zp) - residual(zm)) / (2 * h);
       }
       scale = std::max(scale, J.lpNorm<Eigen::Infinity>() * std::max(z.lpNorm<Eigen::Infinity>(), 1.0));
+      // Converged: then up to three more steps while the residual still falls (to rounding).
       if (res.lpNorm<Eigen::Infinity>() <= 1e-3 * o.residual_tol * scale) {
         converged = true;
-        break;
+        if (++polish > 3 || res.lpNorm<Eigen::Infinity>() == 0) break;
       }
-      // The minimum-norm step, nearly: Levenberg-Marquardt's (J^T J + mu 1)^-1 J^T r with a tiny
-      // mu, so that a coordinate the residual does not see (a joint without a spring) stays put.
+      // Levenberg-Marquardt's (J^T J + mu D)^-1 J^T r with a tiny mu and Marquardt's scaling D =
+      // diag(J^T J) (each coordinate damped against its own stiffness: on an orbit the attitude's
+      // gravity-gradient stiffness, n^2 ~ 1e-6, sits beside a spring's 20, and damping against
+      // the trace stalled the attitude 1 deg from its equilibrium), floored at 1e-30 of the trace
+      // so that a coordinate the residual does not see (a joint without a spring) stays put.
       MatrixXd JtJ = J.transpose() * J;
-      JtJ.diagonal().array() += 1e-12 * std::max(JtJ.trace(), 1e-300);
+      const double floor = 1e-30 * std::max(JtJ.trace(), 1e-300);
+      for (Eigen::Index d = 0; d < JtJ.rows(); ++d) JtJ(d, d) += 1e-12 * std::max(JtJ(d, d), floor);
       const VectorXd step = JtJ.partialPivLu().solve(J.transpose() * res);
       // Halve the step until the residual falls (at most 30 times).
       double a = 1;
