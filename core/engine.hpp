@@ -56,6 +56,34 @@ struct TreeState {
   void place_prescribed_base(const Joint& base, double angle, double rate);
 };
 
+// A first-order variation (tangent) of a TreeState, the direction of an exact linearisation
+// (issue 27, harness/linearize.hpp): the state s + e ds for a small e, with
+//   p_NoBo_N + e dp_NoBo_N, v_NBo_N + e dv_NBo_N, w_NB_B + e dw_NB_B (components as in TreeState),
+//   R_NB exp(e [dtheta_B x])     the base's attitude turned about body-frame axes (a right
+//                                 perturbation: Sola, Deray and Atchuthan 2018, "A micro Lie
+//                                 theory", Eq. (25)),
+//   R_J exp(e [dtheta_J x])      a spherical joint's rotation, likewise in its child frame,
+// and every other field of TreeState plus e times the field of the same name here. Sized by
+// zero(system); a prescribed joint's (and a prescribed base's) fields are ignored: it follows its
+// profile. When System::zero_linear_momentum is set, dv_NBo_N is ignored like v_NBo_N: the base
+// velocity is the one pack() derives, and so is its variation.
+struct TreeTangent {
+  Eigen::Vector3d dp_NoBo_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dtheta_B = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dv_NBo_N = Eigen::Vector3d::Zero();
+  Eigen::Vector3d dw_NB_B = Eigen::Vector3d::Zero();
+  struct JointTangent {
+    double angle = 0, rate = 0, angle2 = 0, rate2 = 0;
+    Eigen::Vector3d dtheta_J = Eigen::Vector3d::Zero();
+    Eigen::Vector3d w_PC_C = Eigen::Vector3d::Zero();
+  };
+  std::vector<JointTangent> joints;
+  std::vector<Eigen::VectorXd> eta, eta_rate;
+
+  // Every field zero, sized for the system (joints, and per body its modes).
+  static TreeTangent zero(const System& system);
+};
+
 // Engine-neutral accelerations at one state, for cross-checking engines (STYLE item 6).
 struct TreeAccel {
   std::vector<Eigen::Vector3d> wdot_NB_B;  // per body: d/dt of w_NB_B components (rad/s^2)
@@ -127,6 +155,24 @@ class Engine {
   const std::vector<std::string>& columns() const { return layout().names(); }
   // (t, x) => one row of layout().size() values, written through a RowWriter on layout().
   virtual void output_row(double t, const double* x, double* row) = 0;
+
+  // The exact first-order variation of accelerations() along a tangent (issue 27): with
+  // x(e) = pack(s + e ds) (TreeTangent),
+  //   a  = accelerations(t, x(0)),   da = d/de accelerations(t, x(e)) at e = 0, every field,
+  // differentiated by the engine's own means through its own pack() and equations of motion
+  // (automatic differentiation or complex step, never differences), so that its linear model
+  // carries only rounding. Returns false when the engine offers none (the caller then differentiates
+  // numerically and says so). Allocates; for linearisation and tests, never the hot path. May throw
+  // RunFailure like accelerations().
+  virtual bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
+                                     TreeAccel& da) {
+    (void)t;
+    (void)s;
+    (void)ds;
+    (void)a;
+    (void)da;
+    return false;
+  }
 
   // The linear system the engine solves for its accelerations at (t, x), written out dense:
   // A z = b, A square and symmetric (a mass matrix, or a KKT matrix [M J^T; J 0]), so that its

@@ -60,6 +60,19 @@ void TreeState::place_prescribed_base(const Joint& J, double angle, double rate)
   v_NBo_N = (q_NB * w_NB_B).cross(p_JBo_N);
 }
 
+TreeTangent TreeTangent::zero(const System& system) {
+  TreeTangent d;
+  d.joints.resize(system.joints.size());
+  d.eta.resize(system.bodies.size());
+  d.eta_rate.resize(system.bodies.size());
+  for (std::size_t b = 0; b < system.bodies.size(); ++b) {
+    const auto n = system.bodies[b].flex ? static_cast<Eigen::Index>(system.bodies[b].flex->modes()) : 0;
+    d.eta[b] = Eigen::VectorXd::Zero(n);
+    d.eta_rate[b] = Eigen::VectorXd::Zero(n);
+  }
+  return d;
+}
+
 TreeState TreeState::initial(const System& system) {
   TreeState s;
   s.joints.resize(system.joints.size());
