@@ -267,6 +267,83 @@ class ReducedMap {
     return zd;
   }
 
+  // The variation of state(z) at z0 along dz (exact: every phi is zero at z0, where
+  // d/de R* exp(e [dphi x]) = R* [dphi x], a right perturbation dtheta = dphi; TreeTangent).
+  // On an orbit w_NB_B = w_OB_B + R_NB^T w_NO_N, so d w_NB_B = dw_OB_B + (R_NB^T w_NO_N) x dphi.
+  TreeTangent tangent(const VectorXd& dz) const {
+    TreeTangent d = TreeTangent::zero(system_);
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      switch (c.kind) {
+        case Coordinate::Kind::BaseW: d.dw_NB_B(c.component) = dz(i); break;
+        case Coordinate::Kind::BasePhi: d.dtheta_B(c.component) = dz(i); break;
+        case Coordinate::Kind::Angle: d.joints[j].angle = dz(i); break;
+        case Coordinate::Kind::Angle2: d.joints[j].angle2 = dz(i); break;
+        case Coordinate::Kind::Phi: d.joints[j].dtheta_J(c.component) = dz(i); break;
+        case Coordinate::Kind::Eta: d.eta[j](c.component) = dz(i); break;
+        case Coordinate::Kind::Rate: d.joints[j].rate = dz(i); break;
+        case Coordinate::Kind::Rate2: d.joints[j].rate2 = dz(i); break;
+        case Coordinate::Kind::W: d.joints[j].w_PC_C(c.component) = dz(i); break;
+        case Coordinate::Kind::EtaRate: d.eta_rate[j](c.component) = dz(i); break;
+      }
+    }
+    if (orbit_) d.dw_NB_B += w_NO_B_op().cross(d.dtheta_B);
+    return d;
+  }
+
+  // The variation of rate(z, a) at z0 along dz, given the accelerations a at z0 and their variation
+  // da (Engine::accelerations_tangent). At phi = 0, J_r(phi)^-1 = 1 + [phi x]/2 + O(|phi|^2), so
+  // d(J_r^-1 w) = dw + dphi x w / 2; on an orbit d/dt w_OB_B = w_NB_B' + w_NB_B x w_NO_B with
+  // w_NO_B = R_NB^T w_NO_N, d w_NO_B = w_NO_B x dphi (rate()).
+  VectorXd rate_tangent(const VectorXd& dz, const TreeAccel& da) const {
+    const VectorXd z = z0();
+    VectorXd dzd(size());
+    std::vector<Vector3d> dphi(system_.joints.size(), Vector3d::Zero()), w(system_.joints.size(), Vector3d::Zero()),
+        dw(system_.joints.size(), Vector3d::Zero());
+    Vector3d dphi_B = Vector3d::Zero(), w_OB_B = Vector3d::Zero(), dw_OB_B = Vector3d::Zero();
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      if (c.kind == Coordinate::Kind::Phi) dphi[j](c.component) = dz(i);
+      if (c.kind == Coordinate::Kind::W) {
+        w[j](c.component) = z(i);
+        dw[j](c.component) = dz(i);
+      }
+      if (c.kind == Coordinate::Kind::BasePhi) dphi_B(c.component) = dz(i);
+      if (c.kind == Coordinate::Kind::BaseW) {
+        w_OB_B(c.component) = z(i);
+        dw_OB_B(c.component) = dz(i);
+      }
+    }
+    const auto base = static_cast<std::size_t>(system_.base_body());
+    Vector3d dwdot_OB_B = Vector3d::Zero(), dphi_dot_B = Vector3d::Zero();
+    if (orbit_) {
+      const Vector3d w_NO_B = w_NO_B_op();
+      const Vector3d dw_NO_B = w_NO_B.cross(dphi_B);
+      const Vector3d w_NB_B = w_OB_B + w_NO_B, dw_NB_B = dw_OB_B + dw_NO_B;
+      dwdot_OB_B = da.wdot_NB_B[base] + dw_NB_B.cross(w_NO_B) + w_NB_B.cross(dw_NO_B);
+      dphi_dot_B = dw_OB_B + 0.5 * dphi_B.cross(w_OB_B);
+    }
+    for (int i = 0; i < size(); ++i) {
+      const Coordinate& c = coords_[static_cast<std::size_t>(i)];
+      const auto j = static_cast<std::size_t>(c.index);
+      switch (c.kind) {
+        case Coordinate::Kind::BaseW: dzd(i) = orbit_ ? dwdot_OB_B(c.component) : da.wdot_NB_B[base](c.component); break;
+        case Coordinate::Kind::BasePhi: dzd(i) = dphi_dot_B(c.component); break;
+        case Coordinate::Kind::Angle:
+        case Coordinate::Kind::Angle2:
+        case Coordinate::Kind::Eta: dzd(i) = dz(c.rate); break;
+        case Coordinate::Kind::Phi: dzd(i) = (dw[j] + 0.5 * dphi[j].cross(w[j]))(c.component); break;
+        case Coordinate::Kind::Rate: dzd(i) = da.angle_ddot[j]; break;
+        case Coordinate::Kind::Rate2: dzd(i) = da.angle2_ddot[j]; break;
+        case Coordinate::Kind::W: dzd(i) = da.wdot_PC_C[j](c.component); break;
+        case Coordinate::Kind::EtaRate: dzd(i) = da.eta_ddot[j](c.component); break;
+      }
+    }
+    return dzd;
+  }
+
  private:
   // On an orbit: the base's phi and w_OB_B in z, and its attitude R_NB = R_NO R_OB* exp([phi x]).
   Vector3d base_phi(const VectorXd& z) const {
@@ -283,6 +360,7 @@ class ReducedMap {
         w_OB_B(coords_[static_cast<std::size_t>(i)].component) = z(i);
     R_NB = R_NO_ * R_OB_op_ * rot::from_rotation_vector(base_phi(z)).toRotationMatrix();
   }
+  Vector3d w_NO_B_op() const { return R_OB_op_.transpose() * R_NO_.transpose() * w_NO_N_; }
   Vector3d w_OB_B_op() const {
     return op_.w_NB_B - op_.q_NB.normalized().toRotationMatrix().transpose() * w_NO_N_;
   }
@@ -1113,6 +1191,28 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
       const double fscale = std::max(zd0.lpNorm<Eigen::Infinity>(), m.A.lpNorm<Eigen::Infinity>() * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0));
       m.a_error = (n ? Aerr.maxCoeff() : 0.0) + 8 * eps * fscale;
       m.c_error = p && n ? Cerr.maxCoeff() + 8 * eps * std::max(y0.lpNorm<Eigen::Infinity>(), 1.0) : 0.0;
+      // Exact: the engine's own tangent, column by column; the differences above its cross-check.
+      {
+        const TreeState s0 = map.state(r.z0);
+        MatrixXd Ax(n, n);
+        TreeAccel a0, da;
+        bool exact = n > 0;
+        for (int j = 0; j < n && exact; ++j) {
+          const VectorXd e = VectorXd::Unit(n, j);
+          exact = engine->accelerations_tangent(o.time, s0, map.tangent(e), a0, da);
+          if (exact) Ax.col(j) = map.rate_tangent(e, da);
+        }
+        if (exact && Ax.allFinite()) {
+          m.a_exact = true;
+          m.fd_error = m.a_error;
+          Eigen::Index wi = 0, wj = 0;
+          m.fd_difference = (Ax - m.A).cwiseAbs().maxCoeff(&wi, &wj);
+          m.fd_worst = {wi, wj, Ax(wi, wj), m.A(wi, wj)};
+          m.A = Ax;
+          // Rounding of the engine's own evaluation: a few eps of the scale of its terms.
+          m.a_error = 16 * eps * fscale;
+        }
+      }
       const double denom = (n ? m.A.lpNorm<Eigen::Infinity>() : 0.0) * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0);
       const double res = n ? zd0.lpNorm<Eigen::Infinity>() : 0.0;
       m.relative_residual = denom > 0 ? res / denom : (res > 0 ? std::numeric_limits<double>::infinity() : 0.0);
@@ -1200,6 +1300,23 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
     throw InputError(msg.str());
   }
   if (!r.equilibrium) return r;  // Jacobians only, nothing compared
+
+  // Each exact A against its own finite differences (the cross-check that the tangent is right).
+  for (const EngineLinearModel& m : r.engines) {
+    if (!m.failure.empty() || !m.a_exact) continue;
+    LinearCheck c;
+    c.kind = "jacobian";
+    c.what = "A exact vs its finite differences, entry d/dt " + r.states[static_cast<std::size_t>(m.fd_worst.row)] +
+             " / d " + r.states[static_cast<std::size_t>(m.fd_worst.col)] + " (the largest difference)";
+    c.engine_a = m.label;
+    c.engine_b = m.label + " differences";
+    c.a = m.fd_worst.exact;
+    c.b = m.fd_worst.differences;
+    c.error = m.fd_difference;
+    c.bound = 10 * m.fd_error;
+    c.passed = c.error <= c.bound;
+    r.checks.push_back(c);
+  }
 
   // Eigenvalues: each engine against the first that ran.
   const EngineLinearModel* ref = nullptr;
@@ -1373,7 +1490,10 @@ std::string format_linearization(const LinearizeResult& r) {
     }
     o << m.label << ": residual |dz/dt| " << num(m.residual.size() ? m.residual.lpNorm<Eigen::Infinity>() : 0.0, 3)
       << " (" << num(m.relative_residual, 3) << " relative); A's error <= " << num(m.a_error, 2) << " (|A| "
-      << num(m.A.size() ? m.A.lpNorm<Eigen::Infinity>() : 0.0, 3) << "); " << m.zeros << " zero eigenvalue"
+      << num(m.A.size() ? m.A.lpNorm<Eigen::Infinity>() : 0.0, 3) << ", "
+      << (m.a_exact ? "exact: the engine's own tangent, its differences within " + num(m.fd_difference, 2)
+                    : std::string("finite differences: the engine offers no exact tangent here"))
+      << "); " << m.zeros << " zero eigenvalue"
       << (m.zeros == 1 ? "" : "s") << " (|lambda| <= " << num(m.zero_bound, 2) << "); own state " << m.own_states.size()
       << "\n";
   }
@@ -1495,6 +1615,8 @@ std::string linearization_json(const LinearizeResult& r) {
     e["C"] = matrix_json(m.C);
     e["D"] = matrix_json(m.D);
     e["A_error"] = m.a_error;
+    e["A_method"] = m.a_exact ? "exact" : "finite differences";
+    if (m.a_exact) e["A_cross_check"] = {{"max_difference", m.fd_difference}, {"differences_error", m.fd_error}};
     e["C_error"] = m.c_error;
     std::vector<double> res(m.residual.data(), m.residual.data() + m.residual.size());
     e["residual"] = res;

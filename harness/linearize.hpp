@@ -27,6 +27,14 @@
 // B and D from the inputs, on which the equations are linear (a central difference is exact to
 // rounding). Each engine's Jacobian in its own state coordinates (rhs) is given too, marked
 // coordinate-dependent, never compared.
+//
+// Exact linearisation: where an engine offers its own tangent (Engine::accelerations_tangent: its
+// own automatic differentiation through its pack() and equations of motion), A is that, exact to
+// rounding, column by column along the variations of z at the operating point (ReducedMap::tangent,
+// rate_tangent: every phi is zero there, so exp and J_r^-1 are differentiated in closed form);
+// the differences above are then its cross-check, a "jacobian" check per engine
+// (|A - A_fd| <= 10 x the differences' own error). An engine without one keeps the differences, said
+// in every output. C (the output columns) stays differentiated numerically, with its error stated.
 #pragma once
 
 #include "core/engine.hpp"
@@ -88,7 +96,14 @@ struct EngineLinearModel {
   std::string label;
   std::string failure;         // "" or why the engine could not be linearised (RunFailure)
   Eigen::MatrixXd A, B, C, D;  // dz/dt = A dz + B du, dy = C dz + D du
-  double a_error = 0;          // estimated max error of A's entries (finite differences)
+  double a_error = 0;          // estimated max error of A's entries (rounding when exact, else the differences')
+  bool a_exact = false;        // A from the engine's own tangent (Engine::accelerations_tangent)
+  double fd_difference = 0;    // exact A: max |A - A_fd| against its finite differences (the cross-check)
+  double fd_error = 0;         // the finite differences' own estimated error (the cross-check's bound / 10)
+  struct Entry {
+    Eigen::Index row = 0, col = 0;
+    double exact = 0, differences = 0;
+  } fd_worst;                  // the entry where they differ most
   double c_error = 0;          // of C's
   Eigen::VectorXd residual;    // dz/dt at the operating point
   double relative_residual = 0;
