@@ -394,6 +394,24 @@ TEST_CASE("kane tangent: a flipped gyroscopic sign (EngineOptions::test_gyroscop
   CHECK((flat(da) - flat(daf)).cwiseAbs().maxCoeff() > 1e-3 * flat(da).cwiseAbs().maxCoeff());
 }
 
+TEST_CASE("kane tangent: the run's path is undisturbed: rhs() gives the same xdot before and "
+          "after a tangent",
+          "[kane][tangent]") {
+  for (const System& s : {loaded_tree(), prescribed_base_tree(), chain(6)}) {
+    std::mt19937 rng(14);
+    KaneEngine e(s, {});
+    const TreeState st = random_new_state(s, rng);
+    const std::vector<double> x = packed(e, random_new_state(s, rng));
+    std::vector<double> before(x.size()), after(x.size());
+    e.rhs(0.3, x.data(), before.data());
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.3, st, random_tangent(s, rng), a, da));
+    e.rhs(0.3, x.data(), after.data());
+    INFO(s.name);
+    CHECK(before == after);
+  }
+}
+
 TEST_CASE("kane tangent: da is linear in ds", "[kane][tangent]") {
   for (const System& s : {loaded_tree(), prescribed_base_tree()}) {
     std::mt19937 rng(12);
