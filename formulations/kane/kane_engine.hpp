@@ -288,6 +288,9 @@ struct KaneModel {
   // term (rigid_fast_path.cpp, subtree_sums.cpp); 1 in every real run (an exact product).
   double gyro_sign_ = 1.0;
   int max_speed_depth_ = 0;
+  // accelerations_tangent covers this System (tangent.cpp): decided once by the constructor
+  // (rigid trees: no flexible body).
+  bool tangent_ = false;
   std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
   NodeWork ground_;
@@ -352,6 +355,12 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   // speed_index = n_q .. n_q + n_u - 1 (joint and modal speeds; a prescribed joint has none).
   // Formed by the composite passes whichever solver rhs() takes (order-N never forms M).
   LinearSystem linear_system(double t, const double* x) override;
+  // The exact tangent of accelerations() (Engine::accelerations_tangent; tangent.cpp): forward-
+  // mode automatic differentiation (a dual number, dual.hpp) through a templated twin of the
+  // composite passes for rigid trees; false (a and da untouched) for a System with a flexible
+  // body.
+  bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
+                             TreeAccel& da) override;
 
   // Introspection for tests (allocate; not for the hot path).  Prescribed joints take their
   // angle, rate and acceleration at the time of the last set_time() (rhs, accelerations,
@@ -382,6 +391,9 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   const Eigen::Vector3d& orbit_origin_N() const { return p_NoO_N_; }
   double jacobi_integral(double t, const double* x);
   int max_speed_depth() const { return max_speed_depth_; }  // speeds on the deepest path
+  bool has_tangent() const { return tangent_; }  // accelerations_tangent covers the System
+
+  friend struct TangentTwin;  // tangent.cpp
 
  private:
   // Named passes; "=>" reads inputs => writes outputs (all into work_ / M_ / f_).

@@ -62,6 +62,9 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     if (options.test_damper_scale != 1.0) F.D *= options.test_damper_scale;
   }
 
+  // The exact tangent (tangent.cpp) covers rigid trees only (issue 27).
+  tangent_ = flex_.empty();
+
   nodes_.resize(nj);
   std::vector<int> node_of_body(nb, -1);
   int nq = 0, nu = 0;

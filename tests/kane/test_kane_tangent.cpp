@@ -1,0 +1,478 @@
+// Issue 27 in the Kane engine: the exact tangent of the accelerations (KaneEngine::
+// accelerations_tangent, formulations/kane/tangent.cpp; forward-mode automatic differentiation,
+// Griewank and Walther 2008, "Evaluating Derivatives", 2nd ed., Ch. 3).
+//
+// Each test can fail: da is checked against central differences of the engine's own
+// accelerations(pack(s +- h ds)) (rotations perturbed on the right, R exp(h [dtheta x]), as
+// TreeTangent defines), to the difference's accuracy, and against a twice Richardson-extrapolated
+// difference to ~1e-11 relative (which only an exact derivative meets); a against
+// accelerations() itself; da's linearity in ds; a closed form (Euler's equations' Jacobian);
+// the refusal of what is not covered (flexible bodies).
+#include "core/engine.hpp"
+#include "core/errors.hpp"
+#include "core/rotation.hpp"
+#include "core/system.hpp"
+#include "formulations/kane/kane_engine.hpp"
+#include "tests/kane/kane_flex_systems.hpp"
+#include "tests/kane/kane_systems.hpp"
+
+#include <catch2/catch.hpp>
+
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace crossdyn;
+using namespace crossdyn::test::kane;
+using crossdyn::kane::KaneEngine;
+using Eigen::Matrix3d;
+using Eigen::Vector3d;
+using Eigen::VectorXd;
+
+namespace {
+
+// A random state (random_state of kane_systems.hpp) with the second universal angle and rate.
+TreeState random_new_state(const System& s, std::mt19937& g) {
+  std::normal_distribution<double> n;
+  TreeState st = random_state(s, g);
+  for (std::size_t j = 1; j < s.joints.size(); ++j) {
+    st.joints[j].angle2 = n(g);
+    st.joints[j].rate2 = n(g);
+  }
+  return st;
+}
+
+// Every field of a TreeAccel, one vector.
+VectorXd flat(const TreeAccel& a) {
+  std::vector<double> v;
+  for (const Vector3d& x : a.wdot_NB_B) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const Vector3d& x : a.a_NBo_N) v.insert(v.end(), x.data(), x.data() + 3);
+  v.insert(v.end(), a.angle_ddot.begin(), a.angle_ddot.end());
+  v.insert(v.end(), a.angle2_ddot.begin(), a.angle2_ddot.end());
+  for (const Vector3d& x : a.wdot_PC_C) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const VectorXd& x : a.eta_ddot) v.insert(v.end(), x.data(), x.data() + x.size());
+  return Eigen::Map<const VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+// s + h ds (TreeTangent's definition: rotations turned on the right).
+TreeState moved(const TreeState& s, const TreeTangent& ds, double h) {
+  TreeState m = s;
+  m.p_NoBo_N += h * ds.dp_NoBo_N;
+  m.q_NB = s.q_NB * rot::from_rotation_vector(h * ds.dtheta_B);
+  m.v_NBo_N += h * ds.dv_NBo_N;
+  m.w_NB_B += h * ds.dw_NB_B;
+  for (std::size_t j = 0; j < s.joints.size(); ++j) {
+    const TreeTangent::JointTangent& d = ds.joints[j];
+    TreeState::JointState& js = m.joints[j];
+    js.angle += h * d.angle;
+    js.rate += h * d.rate;
+    js.angle2 += h * d.angle2;
+    js.rate2 += h * d.rate2;
+    js.q_J = s.joints[j].q_J * rot::from_rotation_vector(h * d.dtheta_J);
+    js.w_PC_C += h * d.w_PC_C;
+  }
+  return m;
+}
+
+VectorXd accel_at(KaneEngine& e, double t, const TreeState& s) {
+  const std::vector<double> x = packed(e, s);
+  TreeAccel a;
+  e.accelerations(t, x.data(), a);
+  return flat(a);
+}
+
+TreeTangent random_tangent(const System& system, std::mt19937& g) {
+  std::normal_distribution<double> n;
+  auto vec = [&] { return Vector3d(n(g), n(g), n(g)); };
+  TreeTangent d = TreeTangent::zero(system);
+  d.dp_NoBo_N = vec();
+  d.dtheta_B = vec();
+  d.dv_NBo_N = vec();
+  d.dw_NB_B = vec();
+  for (TreeTangent::JointTangent& j : d.joints) {
+    j.angle = n(g);
+    j.rate = n(g);
+    j.angle2 = n(g);
+    j.rate2 = n(g);
+    j.dtheta_J = vec();
+    j.w_PC_C = vec();
+  }
+  return d;
+}
+
+TreeTangent combined(const TreeTangent& a, double c, const TreeTangent& b) {
+  TreeTangent r = a;
+  r.dp_NoBo_N += c * b.dp_NoBo_N;
+  r.dtheta_B += c * b.dtheta_B;
+  r.dv_NBo_N += c * b.dv_NBo_N;
+  r.dw_NB_B += c * b.dw_NB_B;
+  for (std::size_t j = 0; j < r.joints.size(); ++j) {
+    r.joints[j].angle += c * b.joints[j].angle;
+    r.joints[j].rate += c * b.joints[j].rate;
+    r.joints[j].angle2 += c * b.joints[j].angle2;
+    r.joints[j].rate2 += c * b.joints[j].rate2;
+    r.joints[j].dtheta_J += c * b.joints[j].dtheta_J;
+    r.joints[j].w_PC_C += c * b.joints[j].w_PC_C;
+  }
+  return r;
+}
+
+// The central difference (f(h) - f(-h)) / 2h and its Richardson extrapolation twice
+// (errors O(h^2), then O(h^4), then O(h^6)).
+VectorXd central(KaneEngine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
+  return (accel_at(e, t, moved(s, ds, h)) - accel_at(e, t, moved(s, ds, -h))) / (2 * h);
+}
+VectorXd richardson(KaneEngine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
+  const VectorXd d1 = central(e, t, s, ds, h), d2 = central(e, t, s, ds, h / 2),
+                 d4 = central(e, t, s, ds, h / 4);
+  const VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d4 - d2) / 3;
+  return (16 * r2 - r1) / 15;
+}
+
+// Largest relative differences seen per system (printed for the report).
+struct Worst {
+  double value = 0, central = 0, richardson = 0;
+};
+
+// The checks on `trials` random states and tangents of one system; returns the worst ratios.
+Worst check_system(const System& system, double t, int trials, unsigned seed,
+                   const EngineOptions& options = {},
+                   kane::KaneSolver solver = kane::KaneSolver::Automatic) {
+  std::mt19937 rng(seed);
+  KaneEngine e(system, options, solver);
+  // The engine's own rounding at each state, for an ill-conditioned system (chain(6): cond(M)
+  // ~ 1e5): its two solvers' accelerations differ by it (where the order-N solver applies: no
+  // prescribed joint).
+  KaneEngine composite(system, options, kane::KaneSolver::Composite);
+  std::unique_ptr<KaneEngine> order_n;
+  try {
+    order_n = std::make_unique<KaneEngine>(system, options, kane::KaneSolver::OrderN);
+  } catch (const InputError&) {
+  }
+  REQUIRE(e.has_tangent());
+  Worst worst;
+  for (int trial = 0; trial < trials; ++trial) {
+    const TreeState s = random_new_state(system, rng);
+    const TreeTangent ds = random_tangent(system, rng);
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(t, s, ds, a, da));
+    const VectorXd A = flat(a), dA = flat(da);
+    const VectorXd A_ref = accel_at(e, t, s);
+    REQUIRE(A.size() == A_ref.size());
+    const double scale_a = A_ref.cwiseAbs().maxCoeff(), scale = dA.cwiseAbs().maxCoeff();
+    REQUIRE(scale > 0);
+    const double value_err = (A - A_ref).cwiseAbs().maxCoeff() / scale_a;
+    const double central_err = (dA - central(e, t, s, ds, 1e-5)).cwiseAbs().maxCoeff() / scale;
+    const double rich_err = (dA - richardson(e, t, s, ds, 2e-3)).cwiseAbs().maxCoeff() / scale;
+    const double gap =
+        order_n ? (accel_at(composite, t, s) - accel_at(*order_n, t, s)).cwiseAbs().maxCoeff() / scale_a
+                : 0.0;
+    // The tolerances: the brief's (1e-14, 1e-8, 1e-11), or the engine's own noise floor where
+    // it is higher (floor: its rounding relative to max|da|; a central difference divides it by
+    // h = 1e-5, the extrapolation's weights make it ~6 / 2e-3 = 3e3 times).
+    const double floor = gap * scale_a / scale;
+    const double value_tol = std::max(1e-14, 10 * gap);
+    const double central_tol = std::max(1e-8, 1e5 * floor);
+    const double rich_tol = std::max(1e-11, 3e3 * floor);
+    INFO(system.name << " trial " << trial << ": |a - accelerations()| " << value_err
+                     << ", |da - central| " << central_err << ", |da - Richardson| " << rich_err
+                     << " (relative to max|a| " << scale_a << ", max|da| " << scale
+                     << "); solvers' gap " << gap << ", tolerances " << value_tol << ", "
+                     << central_tol << ", " << rich_tol);
+    CHECK(value_err <= value_tol);
+    CHECK(central_err <= central_tol);
+    CHECK(rich_err <= rich_tol);
+    worst.value = std::max(worst.value, value_err);
+    worst.central = std::max(worst.central, central_err);
+    worst.richardson = std::max(worst.richardson, rich_err);
+  }
+  WARN(system.name << ": worst relative |a - accelerations()| " << worst.value
+                   << ", |da - central (h 1e-5)| " << worst.central << ", |da - Richardson| "
+                   << worst.richardson);
+  return worst;
+}
+
+// Every joint type in one tree, with offsets, off-axis points, springs, dampers, motors and body
+// torques (the loads of the scope: none is left at zero):
+//   hub (free) -+- boom (prismatic) -- arm (universal) -- tip (revolute) -- clamp (fixed)
+//               +- mast (spherical) -- probe (prismatic, off-axis)
+System loaded_tree() {
+  System s;
+  s.name = "loaded_tree";
+  s.bodies.push_back(rigid_body("hub", 150, turned_inertia(80, 95, 120, quat_from_axis(0.3, {1, 2, 0}))));
+  s.bodies.push_back(rigid_body("boom", 6, turned_inertia(0.4, 1.1, 1.2, quat_from_axis(0.8, {0, 1, 1}))));
+  s.bodies.push_back(rigid_body("arm", 4, turned_inertia(0.2, 0.5, 0.6, quat_from_axis(-0.4, {1, 0, 1}))));
+  s.bodies.push_back(rigid_body("tip", 1.5, turned_inertia(0.05, 0.08, 0.1, quat_from_axis(1.0, {2, 1, 0}))));
+  s.bodies.push_back(rigid_body("mast", 5, turned_inertia(0.6, 0.7, 0.3, quat_from_axis(0.2, {0, 0, 1}))));
+  s.bodies.push_back(rigid_body("probe", 2, turned_inertia(0.1, 0.12, 0.15, quat_from_axis(0.7, {1, 1, 1}))));
+  s.bodies.push_back(rigid_body("clamp", 0.7, diag(0.02, 0.02, 0.02)));  // isotropic
+  s.joints.push_back(free_joint("base", 0, Vector3d(0.1, -0.2, 0.6), quat_from_axis(0.5, {1, -1, 2})));
+
+  Joint boom = joint("rail", JointType::Prismatic, 0, 1, {1.0, 0.3, -0.2}, {-0.4, 0.1, 0.05});
+  boom.axis_P = Vector3d(1, 0.2, -0.1);
+  boom.q_PJ0 = quat_from_axis(0.3, {0, 1, 1});
+  boom.stiffness = 30;
+  boom.neutral_angle = 0.5;
+  boom.damping = 2;
+  boom.motor_revolute.times = {0.0};
+  boom.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(1.5)};
+  s.joints.push_back(boom);
+
+  Joint arm = joint("cardan", JointType::Universal, 1, 2, {0.5, 0.1, 0.0}, {-0.3, 0.0, 0.1});
+  arm.axis_P = Vector3d(0, 0, 1);
+  arm.axis2_P = Vector3d(0.2, 1, 0.3);  // not perpendicular to the first
+  arm.q_PJ0 = quat_from_axis(-0.5, {1, 0, 1});
+  arm.stiffness = 4;
+  arm.neutral_angle = 0.1;
+  arm.stiffness2 = 6;
+  arm.neutral_angle2 = -0.2;
+  arm.damping = 0.3;
+  arm.damping2 = 0.5;
+  arm.motor_universal.times = {0.0};
+  arm.motor_universal.values = {Eigen::Vector2d(0.2, -0.4)};
+  s.joints.push_back(arm);
+
+  Joint tip = joint("wrist", JointType::Revolute, 2, 3, {0.3, -0.1, 0.2}, {-0.2, 0.0, 0.1});
+  tip.axis_P = Vector3d(1, -1, 0.5);
+  tip.stiffness = 2;
+  tip.neutral_angle = 0.3;
+  tip.damping = 0.1;
+  tip.motor_revolute.times = {0.0};
+  tip.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(-0.3)};
+  s.joints.push_back(tip);
+
+  Joint clamp = joint("clampj", JointType::Fixed, 3, 6, {0.1, 0.2, -0.1}, {0.0, -0.1, 0.05});
+  clamp.q_PJ0 = quat_from_axis(0.9, {1, 1, -1});
+  s.joints.push_back(clamp);
+
+  Joint mast = joint("ball", JointType::Spherical, 0, 4, {-0.8, 0.5, 0.6}, {0.0, 0.1, -0.7});
+  mast.q_PJ0 = quat_from_axis(0.2, {0, 1, 0});
+  mast.stiffness = 8;
+  mast.damping = 0.4;
+  mast.motor_spherical.times = {0.0};
+  mast.motor_spherical.values = {Vector3d(0.1, 0.2, -0.3)};
+  s.joints.push_back(mast);
+
+  Joint probe = joint("slot", JointType::Prismatic, 4, 5, {0.2, -0.3, 0.4}, {0.1, 0.2, -0.3});
+  probe.axis_P = Vector3d(-0.3, 1, 0.4);
+  probe.stiffness = 12;
+  s.joints.push_back(probe);
+
+  s.bodies[0].torque.times = {0.0};
+  s.bodies[0].torque.values = {Vector3d(2, -1, 0.5)};
+  s.bodies[2].torque.times = {0.0};
+  s.bodies[2].torque.values = {Vector3d(-0.2, 0.1, 0.3)};
+  s.bodies[4].torque_frame = Body::Frame::Inertial;
+  s.bodies[4].torque.times = {0.0};
+  s.bodies[4].torque.values = {Vector3d(0.1, 0.4, -0.2)};
+  return s;
+}
+
+// A prescribed base (revolute to N, spin-up) carrying a hinge, a ball and a prescribed slider.
+System prescribed_base_tree() {
+  System s;
+  s.name = "prescribed_base_tree";
+  s.bodies.push_back(rigid_body("rotor", 20, turned_inertia(4, 5, 7, quat_from_axis(0.4, {1, 0, 2}))));
+  s.bodies.push_back(rigid_body("flap", 3, turned_inertia(0.3, 0.4, 0.5, quat_from_axis(0.9, {0, 1, 1}))));
+  s.bodies.push_back(rigid_body("bob", 2, turned_inertia(0.1, 0.2, 0.15, quat_from_axis(-0.3, {1, 1, 0}))));
+  s.bodies.push_back(rigid_body("slider", 1, turned_inertia(0.05, 0.06, 0.07, quat_from_axis(0.5, {2, 1, 1}))));
+  Joint drive = joint("drive", JointType::Revolute, -1, 0, Vector3d(0.5, -0.2, 0.1), Vector3d(0.1, 0.3, 0.0));
+  drive.axis_P = Vector3d(0.2, 0.3, 1).normalized();
+  drive.q_PJ0 = quat_from_axis(0.3, {1, 0, 0});
+  drive.prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 2.0, 1.5, 0.0};
+  drive.angle0 = 0.2;
+  s.joints.push_back(drive);
+  Joint flap = joint("flapj", JointType::Revolute, 0, 1, {1.0, 0.2, 0.0}, {-0.4, 0.0, 0.1});
+  flap.axis_P = Vector3d(0, 1, 0.3);
+  flap.stiffness = 5;
+  flap.damping = 0.2;
+  s.joints.push_back(flap);
+  Joint ball = joint("ballj", JointType::Spherical, 1, 2, {0.5, 0.0, 0.1}, {0.0, 0.0, -0.4});
+  ball.stiffness = 1.5;
+  s.joints.push_back(ball);
+  Joint slide = joint("slidej", JointType::Prismatic, 0, 3, {-0.5, 0.4, 0.2}, {0.0, 0.1, 0.0});
+  slide.axis_P = Vector3d(1, 0.5, 0);
+  slide.prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 0.3, 2.0, 0.0};
+  slide.angle0 = 0.1;
+  s.joints.push_back(slide);
+  return s;
+}
+
+// A free base with an internal prescribed hinge (the rest free), zero linear momentum on.
+System internal_prescribed_tree() {
+  System s = mixed_tree();
+  s.name = "internal_prescribed_tree";
+  Joint& finger = s.joints[3];
+  finger.prescribed = PrescribedMotion{PrescribedMotion::Profile::SpinUp, 1.2, 2.5, 0.0};
+  return s;
+}
+
+Environment uniform_field() {
+  Environment e;
+  e.kind = Environment::Kind::Uniform;
+  e.g_N = Vector3d(0.3, -9.81, 0.2);
+  return e;
+}
+
+Environment orbit_field() {
+  Environment e;
+  e.kind = Environment::Kind::Orbit;
+  e.mu = 1.0;
+  e.radius = 1.0;
+  e.inclination = 0.7;
+  e.raan = 0.2;
+  e.latitude0 = 0.4;
+  return e;
+}
+
+}  // namespace
+
+TEST_CASE("kane tangent: rigid trees, every joint type and load: da is the derivative of "
+          "accelerations() (central difference and Richardson), a is accelerations()",
+          "[kane][tangent]") {
+  SECTION("mixed_tree (revolute, spherical, fixed; springs; zero linear momentum)") {
+    check_system(mixed_tree(), 0.4, 4, 1);
+  }
+  SECTION("loaded_tree (prismatic, universal, revolute, spherical, fixed; dampers, motors, body "
+          "torques)") {
+    check_system(loaded_tree(), 0.4, 4, 2);
+  }
+  SECTION("loaded_tree without zero linear momentum") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_no_zlm";
+    s.zero_linear_momentum = false;
+    check_system(s, 0.4, 3, 3);
+  }
+  SECTION("chain of 6 spherical links (order-N solver; cond(M) ~ 4e4 to 8e4)") {
+    check_system(chain(6), 0.0, 3, 4);
+  }
+  SECTION("prescribed base (revolute spin-up to N) with a prescribed slider, mid-ramp") {
+    check_system(prescribed_base_tree(), 0.7, 4, 5);
+  }
+  SECTION("internal prescribed hinge on a free base") {
+    check_system(internal_prescribed_tree(), 1.1, 3, 6);
+  }
+  SECTION("uniform gravity") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_uniform_gravity";
+    s.environment = uniform_field();
+    check_system(s, 0.3, 3, 7);
+  }
+  SECTION("orbit (gravity gradient)") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_orbit";
+    s.environment = orbit_field();
+    check_system(s, 0.9, 3, 8);
+  }
+  SECTION("orbit, prescribed base") {
+    System s = prescribed_base_tree();
+    s.name = "prescribed_base_tree_orbit";
+    s.environment = orbit_field();
+    check_system(s, 0.5, 3, 9);
+  }
+}
+
+TEST_CASE("kane tangent: a flipped gyroscopic sign (EngineOptions::test_gyroscopic_sign) is "
+          "differentiated as the engine computes it, and changes da",
+          "[kane][tangent]") {
+  System s = loaded_tree();
+  s.name = "loaded_tree_gyro_flipped";
+  EngineOptions flipped;
+  flipped.test_gyroscopic_sign = -1.0;
+  check_system(s, 0.2, 3, 10, flipped);
+  std::mt19937 rng(11);
+  const TreeState st = random_new_state(s, rng);
+  const TreeTangent ds = random_tangent(s, rng);
+  KaneEngine e(s, {}), f(s, flipped);
+  TreeAccel a, da, af, daf;
+  REQUIRE(e.accelerations_tangent(0.2, st, ds, a, da));
+  REQUIRE(f.accelerations_tangent(0.2, st, ds, af, daf));
+  CHECK((flat(da) - flat(daf)).cwiseAbs().maxCoeff() > 1e-3 * flat(da).cwiseAbs().maxCoeff());
+}
+
+TEST_CASE("kane tangent: the run's path is undisturbed: rhs() gives the same xdot before and "
+          "after a tangent",
+          "[kane][tangent]") {
+  for (const System& s : {loaded_tree(), prescribed_base_tree(), chain(6)}) {
+    std::mt19937 rng(14);
+    KaneEngine e(s, {});
+    const TreeState st = random_new_state(s, rng);
+    const std::vector<double> x = packed(e, random_new_state(s, rng));
+    std::vector<double> before(x.size()), after(x.size());
+    e.rhs(0.3, x.data(), before.data());
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.3, st, random_tangent(s, rng), a, da));
+    e.rhs(0.3, x.data(), after.data());
+    INFO(s.name);
+    CHECK(before == after);
+  }
+}
+
+TEST_CASE("kane tangent: da is linear in ds", "[kane][tangent]") {
+  for (const System& s : {loaded_tree(), prescribed_base_tree()}) {
+    std::mt19937 rng(12);
+    KaneEngine e(s, {});
+    const TreeState st = random_new_state(s, rng);
+    const TreeTangent d1 = random_tangent(s, rng), d2 = random_tangent(s, rng);
+    TreeAccel a, da1, da2, da12;
+    REQUIRE(e.accelerations_tangent(0.6, st, d1, a, da1));
+    REQUIRE(e.accelerations_tangent(0.6, st, d2, a, da2));
+    REQUIRE(e.accelerations_tangent(0.6, st, combined(d1, 2.0, d2), a, da12));
+    const VectorXd sum = flat(da1) + 2.0 * flat(da2);
+    const double err = (flat(da12) - sum).cwiseAbs().maxCoeff() / sum.cwiseAbs().maxCoeff();
+    INFO(s.name << ": relative |da(ds1 + 2 ds2) - da(ds1) - 2 da(ds2)| " << err);
+    CHECK(err <= 1e-14);
+  }
+}
+
+TEST_CASE("kane tangent: one torque-free rigid body, d(wdot)/dw is the Jacobian of Euler's "
+          "equations I^-1 ([I w x] - [w x] I)",
+          "[kane][tangent]") {
+  auto skew = [](const Vector3d& v) {
+    Matrix3d S;
+    S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+    return S;
+  };
+  const Matrix3d I = turned_inertia(3, 5, 8, quat_from_axis(0.6, Vector3d(0.2, 1, -0.4)));
+  std::mt19937 rng(13);
+  for (int trial = 0; trial < 4; ++trial) {
+    const System s = single_body(I, Vector3d::Zero(), 6.0);
+    KaneEngine e(s, {});
+    const TreeState st = random_state(s, rng);
+    const Vector3d w = st.w_NB_B;
+    const Matrix3d expected = I.inverse() * (skew(I * w) - skew(w) * I);
+    Matrix3d jac;
+    for (int i = 0; i < 3; ++i) {
+      TreeTangent ds = TreeTangent::zero(s);
+      ds.dw_NB_B = Vector3d::Unit(i);
+      TreeAccel a, da;
+      REQUIRE(e.accelerations_tangent(0.0, st, ds, a, da));
+      jac.col(i) = da.wdot_NB_B[0];
+      // The CM does not accelerate (no force), nor does its acceleration vary.
+      CHECK(da.a_NBo_N[0].norm() == 0.0);
+    }
+    const double err = (jac - expected).cwiseAbs().maxCoeff() / expected.cwiseAbs().maxCoeff();
+    INFO("trial " << trial << ": relative |Jacobian - I^-1([I w x] - [w x] I)| " << err);
+    CHECK(err <= 1e-14);
+  }
+}
+
+TEST_CASE("kane tangent: flexible bodies are not covered: false, a and da untouched",
+          "[kane][tangent]") {
+  for (const System& s : {flex_tree(), stiffened(flex_tree())}) {
+    KaneEngine e(s, {});
+    CHECK_FALSE(e.has_tangent());
+    TreeAccel a, da;
+    a.angle_ddot = {42.0};
+    da.angle_ddot = {-42.0};
+    CHECK_FALSE(e.accelerations_tangent(0.0, TreeState::initial(s), TreeTangent::zero(s), a, da));
+    CHECK(a.angle_ddot == std::vector<double>{42.0});
+    CHECK(da.angle_ddot == std::vector<double>{-42.0});
+    CHECK(a.wdot_NB_B.empty());
+    CHECK(da.wdot_NB_B.empty());
+  }
+}
