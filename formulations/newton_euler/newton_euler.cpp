@@ -32,8 +32,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -70,6 +72,83 @@ std::string where(const System& system) {
   return system.file.empty() ? std::string("scene '") + system.name + "'" : system.file;
 }
 
+// ---- the rigid body's equations on a scalar S (issue 27) ---------------------------------------
+// The pieces of the right-hand side that the exact tangent (accelerations_tangent(), below) runs
+// on S = std::complex<double> as well as on double (the run's path): written once, as templates
+// instantiated in this file only. On the complex instantiation nothing may take |.| or conjugate
+// (the complex step, Martins, Sturdza & Alonso 2003, ACM TOMS 29(3), needs every operation
+// analytic): norms are square roots of sums of squares, dot and cross products are written out
+// (Eigen's conjugate a complex argument or result), and
+// branches read the real part. On double these helpers are the calls the engine always made
+// (bit-for-bit the same arithmetic).
+using Cx = std::complex<double>;
+template <class S> using V3 = Eigen::Matrix<S, 3, 1>;
+template <class S> using M3 = Eigen::Matrix<S, 3, 3>;
+
+inline double real_part(double v) { return v; }
+inline double real_part(const Cx& v) { return v.real(); }
+
+// a . b without conjugation.
+template <class S, class A, class B>
+S tdot(const A& a, const B& b) {
+  if constexpr (std::is_same_v<S, double>) return a.dot(b);
+  else return (a.transpose() * b).value();
+}
+
+// a x b without conjugation (Eigen's cross() conjugates a complex result).
+template <class S, class A, class B>
+V3<S> tcross(const A& a, const B& b) {
+  if constexpr (std::is_same_v<S, double>) {
+    return a.cross(b);
+  } else {
+    return V3<S>(a(1) * b(2) - a(2) * b(1), a(2) * b(0) - a(0) * b(2), a(0) * b(1) - a(1) * b(0));
+  }
+}
+
+// q / |q| (the attitude of the state; the norm is a free direction of the state) and |q|.
+template <class S>
+Eigen::Quaternion<S> unit_quaternion(const Eigen::Quaternion<S>& q, S& norm) {
+  if constexpr (std::is_same_v<S, double>) {
+    norm = q.norm();
+  } else {
+    using std::sqrt;
+    norm = sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+  }
+  return Eigen::Quaternion<S>(q.coeffs() / norm);
+}
+
+// A rigid body's moment row before the environment's loads (force_pass, [Paper] Eqs. (1), (2)):
+// -w x I w plus its external torque (body frame, or N components turned into B).
+template <class S>
+V3<S> rigid_moment(const Body& body, const Matrix3d& I_B, double t, const M3<S>& R_NB,
+                   const V3<S>& w_NB_B) {
+  V3<S> M = -tcross<S>(w_NB_B, V3<S>(I_B * w_NB_B));
+  if (!body.torque.empty()) {
+    const Vector3d T = body.torque.value(t);
+    if (body.torque_frame == Body::Frame::Body) M += T;
+    else M += R_NB.transpose() * T;
+  }
+  return M;
+}
+
+// The environment's load on a rigid body (gravity_on_body(): equations there): the force in N
+// components and the moment about its CM in B components. n2, zhat_N: the orbit's field at t.
+template <class S>
+void rigid_gravity(const Environment& env, double m, const Matrix3d& I_B, const Vector3d& p_NoO_N,
+                   double n2, const Vector3d& zhat_N, const M3<S>& R_NB, const V3<S>& p_NoBo_N,
+                   V3<S>& F_grav_N, V3<S>& M_grav_B) {
+  if (env.uniform()) {
+    F_grav_N = (m * env.g_N).template cast<S>();
+    M_grav_B.setZero();
+    return;
+  }
+  const V3<S> d_N = p_NoBo_N - p_NoO_N;
+  const V3<S> z_B = R_NB.transpose() * zhat_N;
+  const V3<S> Td_N = n2 * (3.0 * tdot<S>(zhat_N, d_N) * zhat_N - d_N);  // T d
+  F_grav_N = m * Td_N;
+  M_grav_B = 3.0 * n2 * tcross<S>(z_B, V3<S>(I_B * z_B));  // tau_gg_B
+}
+
 class NewtonEulerEngine final : public Engine {
  public:
   NewtonEulerEngine(const System& system, const EngineOptions& options);
@@ -91,6 +170,8 @@ class NewtonEulerEngine final : public Engine {
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
   LinearSystem linear_system(double t, const double* x) override;
+  bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
+                             TreeAccel& da) override;
 
  private:
   // State layout (newton_euler.hpp): body b's positions at pos(b), its velocities at vel(b); the
@@ -175,6 +256,9 @@ class NewtonEulerEngine final : public Engine {
   OutputLayout layout_;          // pinned columns, then the constraint violations
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
+  // accelerations_tangent() covers this system (decided by the constructor): one free rigid body
+  // (no other joint, no modes); any environment and body torque.
+  bool tangent_covered_ = false;
 
   // ---- workspace (mutable, preallocated) ----
   std::vector<BodyKinematics> bk_;
@@ -339,6 +423,8 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 
+  tangent_covered_ = nb_ == 1 && nj_ == 1 && !prescribed_base_ && flex_[0] < 0;
+
   // The environment. On an orbit, O = the system's CM at t = 0 (core/system.hpp "Environment"),
   // from this engine's own placement of the scene's initial state (pack(): the tree kinematics;
   // system_cm(): the deformed CM of every body), once; the workspace's joint coordinates are
@@ -445,10 +531,10 @@ void NewtonEulerEngine::body_pass(double t, const double* x) {
     BodyKinematics& k = bk_[at(b)];
     const double* xp = x + pos(b);
     const double* xv = x + vel(b);
-    const Quaterniond q(xp[3], xp[4], xp[5], xp[6]);
-    const double n = q.norm();
+    double n = 0;
+    const Quaterniond q_unit = unit_quaternion(Quaterniond(xp[3], xp[4], xp[5], xp[6]), n);
     if (!(n > 1e-6) || !std::isfinite(n)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
-    k.q_NB = Quaterniond(q.coeffs() / n);
+    k.q_NB = q_unit;
     k.R_NB = k.q_NB.toRotationMatrix();
     k.p_NoBo_N = Vector3d(xp[0], xp[1], xp[2]);
     k.v_NBo_N = Vector3d(xv[0], xv[1], xv[2]);
@@ -511,12 +597,12 @@ void NewtonEulerEngine::force_pass(double t) {
     const BodyKinematics& k = bk_[at(b)];
     const Body& body = system_.bodies[at(b)];
     const int fi = flex_[at(b)];
-    if (fi >= 0) {
-      f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
-    } else {
+    if (fi < 0) {
       f_.segment<3>(nu(b)).setZero();  // external forces: the environment's, below
-      f_.segment<3>(nu(b) + 3) = -k.w_NB_B.cross(I_B_[at(b)] * k.w_NB_B);
+      f_.segment<3>(nu(b) + 3) = rigid_moment(body, I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+      continue;
     }
+    f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
     if (!body.torque.empty()) {  // on the body frame: no work on eta
       const Vector3d T = body.torque.value(t);
       if (body.torque_frame == Body::Frame::Body) f_.segment<3>(nu(b) + 3) += T;
@@ -600,22 +686,19 @@ void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
   const double m = mass_[at(b)];
   const int n = modes(b);
   Vector3d F_grav_N, M_grav_B;
-  if (env_.uniform()) {
+  if (fi < 0) {
+    rigid_gravity(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
+  } else if (env_.uniform()) {
     F_grav_N = m * env_.g_N;
-    M_grav_B.setZero();
-    if (fi >= 0) {
-      const ModalTerms& mt = terms_[at(fi)];
-      M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
-      if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
-    }
+    const ModalTerms& mt = terms_[at(fi)];
+    M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
+    if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
   } else {
     const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
     const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
     const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);  // T d
     F_grav_N = m * Td_N;
-    if (fi < 0) {
-      M_grav_B = 3.0 * gf.n2 * z_B.cross(I_B_[at(b)] * z_B);  // tau_gg_B
-    } else {
+    {
       ModalTerms& mt = terms_[at(fi)];
       const Vector3d S_N = k.R_NB * mt.S;
       F_grav_N += gf.n2 * (3.0 * gf.zhat_N.dot(S_N) * gf.zhat_N - S_N);
@@ -849,7 +932,8 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   }
   const int base = joints_[0].child;
   BodyKinematics& B = bk_[at(base)];
-  B.q_NB = s.q_NB.normalized();
+  double q_norm = 0;
+  B.q_NB = unit_quaternion(s.q_NB, q_norm);
   B.R_NB = B.q_NB.toRotationMatrix();
   B.p_NoBo_N = s.p_NoBo_N;
   B.v_NBo_N = s.v_NBo_N;
@@ -1074,6 +1158,80 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
                               nu_dot_.segment<6>(nu(m.child))};
     m.unit->accelerations(system_.joints[at(j)], m, in, t, a, j);
   }
+}
+
+// ---- the exact tangent (issue 27; core/engine.hpp) ---------------------------------------------
+//
+// The complex step (Martins, Sturdza & Alonso 2003, "The complex-step derivative approximation",
+// ACM TOMS 29(3); the tangent mode of Griewank & Walther 2008, "Evaluating Derivatives", 2nd ed.,
+// Ch. 3): the state is s + i h ds with h = 1e-30, the engine's own pack() and equations run on
+// std::complex<double> (the templates above, which the double path runs too), and
+// da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction: the O(h^2) error is 1e-60 relative).
+// The base's attitude is turned on the right, q (1, i h dtheta_B / 2) (TreeTangent), and the
+// engine's normalisation divides by sqrt(q_w^2 + q_x^2 + q_y^2 + q_z^2), analytic (never |.|).
+// The solve: a rigid body's mass block M = diag(m 1, I_B) is constant (no tangent), so M nu' = f
+// is linear in f and its complex solution is the engine's own factorisation (TreeKkt, the one
+// accelerations() uses) applied to Re f and to Im f.
+// Covered (tangent_covered_, decided by the constructor): one free rigid body with any
+// environment (uniform gravity; an orbit's tidal force and gravity-gradient torque) and body
+// torques; zero_linear_momentum's base velocity is derived on the complex state as pack() derives
+// it (for one body it is zero, and so is its variation). Anything else returns false (joints,
+// flexible bodies, a prescribed base): the caller differentiates numerically and says so.
+bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                              TreeAccel& a, TreeAccel& da) {
+  if (!tangent_covered_) return false;
+  const int b = joints_[0].child;
+  // a: the run's own path, at x(0) = pack(s).
+  std::vector<double> x0(at(nx_));
+  pack(s, x0.data());
+  accelerations(t, x0.data(), a);
+
+  constexpr double h = 1e-30;
+  const Cx ih(0.0, h);
+  // pack() on the complex state: the base's placement, then zero_linear_momentum's shift
+  // (shift_all(0, -linear_momentum() / total_mass()): for one rigid body m v / m).
+  double unused_norm = 0;
+  const Quaterniond q_s = unit_quaternion(s.q_NB, unused_norm);
+  const Eigen::Quaternion<Cx> dq(Cx(1.0), 0.5 * ih * ds.dtheta_B.x(), 0.5 * ih * ds.dtheta_B.y(),
+                                 0.5 * ih * ds.dtheta_B.z());
+  Cx qn;
+  const Eigen::Quaternion<Cx> q_pack = unit_quaternion<Cx>(q_s.cast<Cx>() * dq, qn);
+  V3<Cx> p = s.p_NoBo_N.cast<Cx>() + ih * ds.dp_NoBo_N.cast<Cx>();
+  V3<Cx> v = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
+  const V3<Cx> w = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
+  const double m = mass_[at(b)];
+  if (system_.zero_linear_momentum) v += -(m * v) / m;
+  // body_pass() on the packed state: the stored quaternion normalised again.
+  const Eigen::Quaternion<Cx> q = unit_quaternion<Cx>(q_pack, qn);
+  if (!(real_part(qn) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
+  const M3<Cx> R = q.toRotationMatrix();
+  // force_pass(): -w x I w, the body torque, the environment's load.
+  Eigen::Matrix<Cx, 6, 1> f;
+  f.head<3>().setZero();
+  f.tail<3>() = rigid_moment<Cx>(system_.bodies[at(b)], I_B_[at(b)], t, R, w);
+  if (!env_.none()) {
+    const GravityField gf = gravity_field(t);
+    V3<Cx> F_grav_N, M_grav_B;
+    rigid_gravity<Cx>(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, R, p, F_grav_N, M_grav_B);
+    f.head<3>() += F_grav_N;
+    f.tail<3>() += M_grav_B;
+  }
+  // solve_pass(): the engine's factorisation of the constant M, on Re f (the value) and Im f.
+  if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
+  const VectorXd f_im = f.imag();
+  VectorXd nu_im = VectorXd::Zero(nv_);
+  kkt_.solve(f_im, gamma_, nu_im, y_);
+  if (!nu_im.allFinite()) fail(t, labels_[at(vel(b))], "non-finite acceleration tangent");
+  // accelerations(): the entries of body b (no joint coordinates but the free base's: zero).
+  da.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
+  da.a_NBo_N.assign(at(nb_), Vector3d::Zero());
+  da.angle_ddot.assign(at(nj_), 0.0);
+  da.angle2_ddot.assign(at(nj_), 0.0);
+  da.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
+  da.eta_ddot.assign(at(nb_), VectorXd());
+  da.a_NBo_N[at(b)] = nu_im.segment<3>(nu(b)) / h;
+  da.wdot_NB_B[at(b)] = nu_im.segment<3>(nu(b) + 3) / h;
+  return true;
 }
 
 // The system's CM x_c = sum_i m_i x_i / sum_i m_i over every mass element, deformed [KLL83
