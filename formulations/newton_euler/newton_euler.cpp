@@ -25,6 +25,7 @@
 #include "formulations/newton_euler/joint_constraints.hpp"
 #include "formulations/newton_euler/joints/joint_unit.hpp"
 #include "formulations/newton_euler/modal_body.hpp"
+#include "formulations/newton_euler/scalar.hpp"
 #include "formulations/newton_euler/tree_kkt.hpp"
 
 #include <Eigen/Cholesky>
@@ -81,41 +82,8 @@ std::string where(const System& system) {
 // (Eigen's conjugate a complex argument or result), and
 // branches read the real part. On double these helpers are the calls the engine always made
 // (bit-for-bit the same arithmetic).
-using Cx = std::complex<double>;
-template <class S> using V3 = Eigen::Matrix<S, 3, 1>;
-template <class S> using M3 = Eigen::Matrix<S, 3, 3>;
-
-inline double real_part(double v) { return v; }
-inline double real_part(const Cx& v) { return v.real(); }
-
-// a . b without conjugation.
-template <class S, class A, class B>
-S tdot(const A& a, const B& b) {
-  if constexpr (std::is_same_v<S, double>) return a.dot(b);
-  else return (a.transpose() * b).value();
-}
-
-// a x b without conjugation (Eigen's cross() conjugates a complex result).
-template <class S, class A, class B>
-V3<S> tcross(const A& a, const B& b) {
-  if constexpr (std::is_same_v<S, double>) {
-    return a.cross(b);
-  } else {
-    return V3<S>(a(1) * b(2) - a(2) * b(1), a(2) * b(0) - a(0) * b(2), a(0) * b(1) - a(1) * b(0));
-  }
-}
-
-// q / |q| (the attitude of the state; the norm is a free direction of the state) and |q|.
-template <class S>
-Eigen::Quaternion<S> unit_quaternion(const Eigen::Quaternion<S>& q, S& norm) {
-  if constexpr (std::is_same_v<S, double>) {
-    norm = q.norm();
-  } else {
-    using std::sqrt;
-    norm = sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
-  }
-  return Eigen::Quaternion<S>(q.coeffs() / norm);
-}
+template <class S> using V3 = Vec3<S>;
+template <class S> using M3 = Mat3<S>;
 
 // A rigid body's moment row before the environment's loads (force_pass, [Paper] Eqs. (1), (2)):
 // -w x I w plus its external torque (body frame, or N components turned into B).
@@ -147,6 +115,27 @@ void rigid_gravity(const Environment& env, double m, const Matrix3d& I_B, const 
   const V3<S> Td_N = n2 * (3.0 * tdot<S>(zhat_N, d_N) * zhat_N - d_N);  // T d
   F_grav_N = m * Td_N;
   M_grav_B = 3.0 * n2 * tcross<S>(z_B, V3<S>(I_B * z_B));  // tau_gg_B
+}
+
+// pack(): a child body placed from its parent, the joint's node frames F, G and the joint's
+// coordinates (q_J, w_FG_G, and r_F, v_F along a translation; the equations at pack()).
+template <class S>
+void place_child(const JointModel& m, const BodyKinematicsT<S>& P, const NodeFrameT<S>& F,
+                 const NodeFrameT<S>& G, const Quat<S>& q_J, const V3<S>& w_FG_G, const V3<S>& r_F,
+                 const V3<S>& v_F, BodyKinematicsT<S>& C) {
+  S norm;
+  const Quat<S> q_NF = P.q_NB * F.q_E;
+  C.q_NB = unit_quaternion(Quat<S>(q_NF * m.q_PJ0.template cast<S>() * q_J * G.q_E.conjugate()), norm);
+  C.R_NB = C.q_NB.toRotationMatrix();
+  const M3<S> R_NF = P.R_NB * F.E;
+  const M3<S> R_FG = R_NF.transpose() * C.R_NB * G.E;
+  const V3<S> w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
+  const V3<S> w_G = R_FG.transpose() * w_F + w_FG_G;
+  C.w_NB_B = G.E * w_G - G.w_rel_B;
+  const V3<S> s_F = F.s_B + r_F;
+  C.p_NoBo_N = P.p_NoBo_N + P.R_NB * s_F - C.R_NB * G.s_B;
+  C.v_NBo_N = P.v_NBo_N + P.R_NB * (tcross<S>(P.w_NB_B, s_F) + F.sdot_B + v_F) -
+              C.R_NB * (tcross<S>(C.w_NB_B, G.s_B) + G.sdot_B);
 }
 
 class NewtonEulerEngine final : public Engine {
@@ -256,8 +245,8 @@ class NewtonEulerEngine final : public Engine {
   OutputLayout layout_;          // pinned columns, then the constraint violations
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
-  // accelerations_tangent() covers this system (decided by the constructor): one free rigid body
-  // (no other joint, no modes); any environment and body torque.
+  // accelerations_tangent() covers this system (decided by the constructor): rigid bodies, a
+  // free base, joints covered by their unit's Cx verbs; any environment and body torques.
   bool tangent_covered_ = false;
 
   // ---- workspace (mutable, preallocated) ----
@@ -423,7 +412,14 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 
-  tangent_covered_ = nb_ == 1 && nj_ == 1 && !prescribed_base_ && flex_[0] < 0;
+  // accelerations_tangent(): rigid bodies, a free base, joints whose unit has verbs on Cx that
+  // cover them (joints/joint_unit.hpp, JointVerbsCx::covers).
+  tangent_covered_ = !prescribed_base_;
+  for (int b = 0; b < nb_; ++b) tangent_covered_ = tangent_covered_ && flex_[at(b)] < 0;
+  for (int j = 1; j < nj_; ++j) {
+    const JointUnit& u = *joints_[at(j)].unit;
+    tangent_covered_ = tangent_covered_ && u.cx && u.cx->covers(system.joints[at(j)]);
+  }
 
   // The environment. On an orbit, O = the system's CM at t = 0 (core/system.hpp "Environment"),
   // from this engine's own placement of the scene's initial state (pack(): the tree kinematics;
@@ -953,18 +949,7 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     Vector3d w_FG_G = Vector3d::Zero();
     Vector3d r_F = Vector3d::Zero(), v_F = Vector3d::Zero();
     if (m.unit->pack) m.unit->pack(m, js, q_J, w_FG_G, r_F, v_F, coords_ref_[at(j)]);
-    const Quaterniond q_NF = P.q_NB * F.q_E;
-    C.q_NB = (q_NF * m.q_PJ0 * q_J * G.q_E.conjugate()).normalized();
-    C.R_NB = C.q_NB.toRotationMatrix();
-    const Matrix3d R_NF = P.R_NB * F.E;
-    const Matrix3d R_FG = R_NF.transpose() * C.R_NB * G.E;
-    const Vector3d w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
-    const Vector3d w_G = R_FG.transpose() * w_F + w_FG_G;
-    C.w_NB_B = G.E * w_G - G.w_rel_B;
-    const Vector3d s_F = F.s_B + r_F;
-    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * s_F - C.R_NB * G.s_B;
-    C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(s_F) + F.sdot_B + v_F) -
-                C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
+    place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
   }
   if (system_.zero_linear_momentum && !prescribed_base_) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
@@ -1164,23 +1149,37 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 //
 // The complex step (Martins, Sturdza & Alonso 2003, "The complex-step derivative approximation",
 // ACM TOMS 29(3); the tangent mode of Griewank & Walther 2008, "Evaluating Derivatives", 2nd ed.,
-// Ch. 3): the state is s + i h ds with h = 1e-30, the engine's own pack() and equations run on
-// std::complex<double> (the templates above, which the double path runs too), and
-// da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction: the O(h^2) error is 1e-60 relative).
-// The base's attitude is turned on the right, q (1, i h dtheta_B / 2) (TreeTangent), and the
-// engine's normalisation divides by sqrt(q_w^2 + q_x^2 + q_y^2 + q_z^2), analytic (never |.|).
-// The solve: a rigid body's mass block M = diag(m 1, I_B) is constant (no tangent), so M nu' = f
-// is linear in f and its complex solution is the engine's own factorisation (TreeKkt, the one
-// accelerations() uses) applied to Re f and to Im f.
-// Covered (tangent_covered_, decided by the constructor): one free rigid body with any
-// environment (uniform gravity; an orbit's tidal force and gravity-gradient torque) and body
-// torques; zero_linear_momentum's base velocity is derived on the complex state as pack() derives
-// it (for one body it is zero, and so is its variation). Anything else returns false (joints,
-// flexible bodies, a prescribed base): the caller differentiates numerically and says so.
+// Ch. 3): the state is s + i h ds with h = 1e-30, and the engine's own pack() and equations run on
+// Cx = std::complex<double>: the templates shared with the double path (scalar.hpp; the joint
+// kinematics and constraint rows, joint_constraints.hpp; the units' verbs, joints/*.cpp; the
+// rigid body's moment and gravity and the placement of pack(), above), with the passes below
+// mirroring body_pass, joint_pass, force_pass, load_kkt, solve_pass and accelerations() for rigid
+// bodies. da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
+// Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent), normalised by
+// sqrt(w^2 + x^2 + y^2 + z^2) (analytic, never |.|). A prescribed joint has no tangent (its
+// profile at t).
+// The solve: K z = b with K = [M J^T; J 0] = K_r + i K_i (M real and constant: rigid bodies),
+// z = z_r + i z_i, b = b_r + i b_i: to O(h^2), K_r z_r = b_r and K_r z_i = b_i - K_i z_r, two
+// solves with the engine's own factorisation (TreeKkt) of the real KKT matrix (which is the run's:
+// K_r equals the double path's to rounding); no complex factorisation, so nothing conjugates.
+// Covered (tangent_covered_, decided by the constructor): rigid bodies with a free base and
+// revolute, prismatic, universal, fixed and spherical (without a spring) joints, any environment,
+// body torques, joint springs, dampers, motors, prescribed joints, any stabilisation.
+// Anything else returns false before writing anything (a flexible body, a prescribed base, a
+// spherical joint's spring): the caller differentiates numerically and says so.
 bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
                                               TreeAccel& a, TreeAccel& da) {
   if (!tangent_covered_) return false;
-  const int b = joints_[0].child;
+  // pack() resets the joints' continuous-angle references: the run's are restored on the way out.
+  struct Restore {
+    NewtonEulerEngine& e;
+    std::vector<JointCoords> coords, coords_ref;
+    ~Restore() {
+      e.coords_ = coords;
+      e.coords_ref_ = coords_ref;
+    }
+  } restore{*this, coords_, coords_ref_};
+
   // a: the run's own path, at x(0) = pack(s).
   std::vector<double> x0(at(nx_));
   pack(s, x0.data());
@@ -1188,49 +1187,164 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
 
   constexpr double h = 1e-30;
   const Cx ih(0.0, h);
-  // pack() on the complex state: the base's placement, then zero_linear_momentum's shift
-  // (shift_all(0, -linear_momentum() / total_mass()): for one rigid body m v / m).
-  double unused_norm = 0;
-  const Quaterniond q_s = unit_quaternion(s.q_NB, unused_norm);
-  const Eigen::Quaternion<Cx> dq(Cx(1.0), 0.5 * ih * ds.dtheta_B.x(), 0.5 * ih * ds.dtheta_B.y(),
-                                 0.5 * ih * ds.dtheta_B.z());
-  Cx qn;
-  const Eigen::Quaternion<Cx> q_pack = unit_quaternion<Cx>(q_s.cast<Cx>() * dq, qn);
-  V3<Cx> p = s.p_NoBo_N.cast<Cx>() + ih * ds.dp_NoBo_N.cast<Cx>();
-  V3<Cx> v = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
-  const V3<Cx> w = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
-  const double m = mass_[at(b)];
-  if (system_.zero_linear_momentum) v += -(m * v) / m;
-  // body_pass() on the packed state: the stored quaternion normalised again.
-  const Eigen::Quaternion<Cx> q = unit_quaternion<Cx>(q_pack, qn);
-  if (!(real_part(qn) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
-  const M3<Cx> R = q.toRotationMatrix();
-  // force_pass(): -w x I w, the body torque, the environment's load.
-  Eigen::Matrix<Cx, 6, 1> f;
-  f.head<3>().setZero();
-  f.tail<3>() = rigid_moment<Cx>(system_.bodies[at(b)], I_B_[at(b)], t, R, w);
+  auto turned = [&](const Quaterniond& q, const Vector3d& dtheta) {  // q (1, i h dtheta / 2)
+    const Quat<Cx> dq(Cx(1.0), 0.5 * ih * dtheta.x(), 0.5 * ih * dtheta.y(), 0.5 * ih * dtheta.z());
+    return Quat<Cx>(q.cast<Cx>() * dq);
+  };
+  std::vector<BodyKinematicsT<Cx>> bk(at(nb_));
+  std::vector<JointKinematicsT<Cx>> jk;
+  std::vector<ConstraintRowsT<Cx>> cr;
+  for (const JointModel& m : joints_) {
+    jk.emplace_back(m);
+    cr.emplace_back(m);
+  }
+  Cx norm;
+  // pack(): the base, then every child from its parent (place_child), then zero_linear_momentum's
+  // rigid shift (shift_all(0, -linear_momentum() / total_mass())).
+  {
+    BodyKinematicsT<Cx>& B = bk[at(joints_[0].child)];
+    B.q_NB = unit_quaternion(turned(s.q_NB, ds.dtheta_B), norm);
+    B.R_NB = B.q_NB.toRotationMatrix();
+    B.p_NoBo_N = s.p_NoBo_N.cast<Cx>() + ih * ds.dp_NoBo_N.cast<Cx>();
+    B.v_NBo_N = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
+    B.w_NB_B = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
+  }
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const TreeState::JointState& js = s.joints[at(j)];
+    const TreeTangent::JointTangent dj = m.prescribed ? TreeTangent::JointTangent{} : ds.joints[at(j)];
+    const JointStateT<Cx> jc{js.angle + ih * dj.angle, js.rate + ih * dj.rate,
+                             js.angle2 + ih * dj.angle2, js.rate2 + ih * dj.rate2,
+                             turned(js.q_J, dj.dtheta_J), js.w_PC_C.cast<Cx>() + ih * dj.w_PC_C.cast<Cx>()};
+    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    BodyKinematicsT<Cx>& C = bk[at(m.child)];
+    NodeFrameT<Cx>& F = jk[at(j)].F;
+    NodeFrameT<Cx>& G = jk[at(j)].G;
+    node_frame(m.P, P, F);
+    node_frame(m.C, C, G);
+    Quat<Cx> q_J = Quat<Cx>::Identity();
+    V3<Cx> w_FG_G = V3<Cx>::Zero(), r_F = V3<Cx>::Zero(), v_F = V3<Cx>::Zero();
+    if (m.unit->cx->pack) m.unit->cx->pack(m, jc, q_J, w_FG_G, r_F, v_F);
+    place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
+  }
+  if (system_.zero_linear_momentum) {
+    V3<Cx> L = V3<Cx>::Zero();
+    for (int b = 0; b < nb_; ++b) L += mass_[at(b)] * bk[at(b)].v_NBo_N;
+    const V3<Cx> dv = -L / total_mass();
+    for (BodyKinematicsT<Cx>& k : bk) k.v_NBo_N += dv;
+  }
+  // body_pass(): the stored attitude normalised again.
+  for (int b = 0; b < nb_; ++b) {
+    BodyKinematicsT<Cx>& k = bk[at(b)];
+    k.q_NB = unit_quaternion(k.q_NB, norm);
+    if (!(real_part(norm) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
+    k.R_NB = k.q_NB.toRotationMatrix();
+  }
+  // joint_pass(): relative kinematics, rows, coordinates (unwrapped against this pack()'s).
+  std::vector<JointCoordsT<Cx>> coords(at(nj_), JointCoordsT<Cx>::Zero());
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& C = bk[at(m.child)];
+    joint_kinematics(m, P, C, jk[at(j)]);
+    constraint_rows(m, P, C, jk[at(j)], cr[at(j)]);
+    if (m.unit->cx->track)
+      m.unit->cx->track(system_.joints[at(j)], m, t, jk[at(j)], cr[at(j)], coords[at(j)], coords_ref_[at(j)]);
+  }
+  // force_pass(): every body's moment row, the environment's loads, the joints' loads.
+  Eigen::VectorXcd f = Eigen::VectorXcd::Zero(nv_);
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematicsT<Cx>& k = bk[at(b)];
+    f.segment<3>(nu(b) + 3) = rigid_moment<Cx>(system_.bodies[at(b)], I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+  }
   if (!env_.none()) {
     const GravityField gf = gravity_field(t);
-    V3<Cx> F_grav_N, M_grav_B;
-    rigid_gravity<Cx>(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, R, p, F_grav_N, M_grav_B);
-    f.head<3>() += F_grav_N;
-    f.tail<3>() += M_grav_B;
+    for (int b = 0; b < nb_; ++b) {
+      const BodyKinematicsT<Cx>& k = bk[at(b)];
+      V3<Cx> F_grav_N, M_grav_B;
+      rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
+                        k.p_NoBo_N, F_grav_N, M_grav_B);
+      f.segment<3>(nu(b)) += F_grav_N;
+      f.segment<3>(nu(b) + 3) += M_grav_B;
+    }
   }
-  // solve_pass(): the engine's factorisation of the constant M, on Re f (the value) and Im f.
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const JointKinematicsT<Cx>& k = jk[at(j)];
+    V3<Cx> T_P, F_P;
+    if (!m.unit->cx->load || !m.unit->cx->load(system_.joints[at(j)], m, k, coords[at(j)], t, T_P, F_P))
+      continue;
+    f.segment<3>(nu(m.child) + 3) += k.R_PC.transpose() * T_P;  // torque_on_frame (rigid)
+    f.segment<3>(nu(m.parent) + 3) -= T_P;
+    if (!m.translates) continue;
+    const V3<Cx> F_N = bk[at(m.parent)].R_NB * F_P;
+    f.segment<3>(nu(m.child)) += F_N;
+    f.segment<3>(nu(m.child) + 3) += tcross<Cx>(k.G.s_B, V3<Cx>(k.R_PC.transpose() * F_P));
+    f.segment<3>(nu(m.parent)) -= F_N;
+    f.segment<3>(nu(m.parent) + 3) -= tcross<Cx>(k.r_PoJ_F, F_P);
+  }
+  // load_kkt(): the real parts into the engine's KKT system, the imaginary parts kept (K_i, b_i).
+  const int links = nj_ - 1;
+  std::vector<Matrix6d> JiP(at(links)), JiC(at(links));
+  std::vector<Vector6d> gamma_r(at(links)), gamma_i(at(links));
+  for (int j = 1; j < nj_; ++j) {
+    const ConstraintRowsT<Cx>& c = cr[at(j)];
+    const int k = j - 1;
+    Vec6<Cx> gamma_s = c.gamma;
+    if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
+    kkt_.J_parent(k).leftCols<6>() = c.J_P.real();
+    kkt_.J_child(k).leftCols<6>() = c.J_C.real();
+    JiP[at(k)] = c.J_P.imag();
+    JiC[at(k)] = c.J_C.imag();
+    gamma_r[at(k)] = gamma_s.real();
+    gamma_i[at(k)] = gamma_s.imag();
+  }
+  // solve_pass(): K_r z_r = b_r, then K_r z_i = b_i - K_i z_r.
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
-  const VectorXd f_im = f.imag();
-  VectorXd nu_im = VectorXd::Zero(nv_);
-  kkt_.solve(f_im, gamma_, nu_im, y_);
-  if (!nu_im.allFinite()) fail(t, labels_[at(vel(b))], "non-finite acceleration tangent");
-  // accelerations(): the entries of body b (no joint coordinates but the free base's: zero).
+  VectorXd nu_r = VectorXd::Zero(nv_), nu_i = VectorXd::Zero(nv_);
+  std::vector<Vector6d> y_r(at(links), Vector6d::Zero()), y_i(at(links), Vector6d::Zero());
+  kkt_.solve(f.real(), gamma_r, nu_r, y_r);
+  VectorXd f_i = f.imag();
+  for (int k = 0; k < links; ++k) {
+    const KktLink& l = kkt_.link(k);
+    const int rows = l.rows;
+    const int op = nu(l.parent), oc = nu(l.child);
+    f_i.segment<6>(op).noalias() -= JiP[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    f_i.segment<6>(oc).noalias() -= JiC[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    gamma_i[at(k)].noalias() -= JiP[at(k)] * nu_r.segment<6>(op) + JiC[at(k)] * nu_r.segment<6>(oc);
+  }
+  kkt_.solve(f_i, gamma_i, nu_i, y_i);
+  if (!nu_i.allFinite()) fail(t, "accelerations_tangent", "non-finite acceleration tangent");
+  // accelerations(): the bodies' entries, then the joints' from the complex body accelerations.
   da.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
   da.a_NBo_N.assign(at(nb_), Vector3d::Zero());
   da.angle_ddot.assign(at(nj_), 0.0);
   da.angle2_ddot.assign(at(nj_), 0.0);
   da.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
   da.eta_ddot.assign(at(nb_), VectorXd());
-  da.a_NBo_N[at(b)] = nu_im.segment<3>(nu(b)) / h;
-  da.wdot_NB_B[at(b)] = nu_im.segment<3>(nu(b) + 3) / h;
+  for (int b = 0; b < nb_; ++b) {
+    da.a_NBo_N[at(b)] = nu_i.segment<3>(nu(b)) / h;
+    da.wdot_NB_B[at(b)] = nu_i.segment<3>(nu(b) + 3) / h;
+  }
+  Eigen::VectorXcd nu_dot(nv_);
+  nu_dot.real() = nu_r;
+  nu_dot.imag() = nu_i;
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    if (!m.unit->cx->accelerations) continue;
+    const JointAccelInputsT<Cx> in{bk[at(m.parent)],
+                                   bk[at(m.child)],
+                                   jk[at(j)],
+                                   nu_dot.segment<3>(nu(m.parent) + 3),
+                                   nu_dot.segment<3>(nu(m.child) + 3),
+                                   nu_dot.segment<6>(nu(m.parent)),
+                                   nu_dot.segment<6>(nu(m.child))};
+    JointAccelT<Cx> aj;
+    m.unit->cx->accelerations(system_.joints[at(j)], m, in, t, aj);
+    da.angle_ddot[at(j)] = aj.angle_ddot.imag() / h;
+    da.angle2_ddot[at(j)] = aj.angle2_ddot.imag() / h;
+    da.wdot_PC_C[at(j)] = aj.wdot_PC_C.imag() / h;
+  }
   return true;
 }
 

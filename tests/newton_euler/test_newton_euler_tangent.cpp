@@ -1,7 +1,9 @@
 // The Newton-Euler engine's exact tangent, accelerations_tangent() (issue 27; core/engine.hpp):
 // the complex step through its own pack() and equations of motion (Martins, Sturdza & Alonso 2003,
 // ACM TOMS 29(3); Griewank & Walther 2008, "Evaluating Derivatives", 2nd ed., Ch. 3).
-// Checked on random states and tangents against
+// Covered: rigid bodies with a free base and revolute, prismatic, universal, fixed and spherical
+// (without a spring) joints, springs, dampers, motors, prescribed joints, body torques, uniform
+// gravity and an orbit's gravity gradient. Checked on random states and tangents against
 //   - a central difference of accelerations(pack(s +- h ds)) (h = 1e-5: agreement to the
 //     difference's own accuracy, ~1e-8 of max |da|),
 //   - a Richardson-extrapolated difference (h = 1e-2, two extrapolations, error O(h^6)): ~1e-11,
@@ -111,6 +113,17 @@ std::vector<double> richardson(Engine& e, double t, const TreeState& s, const Tr
   return r;
 }
 
+// random_state (ne_systems.hpp) with the universal joints' second angle and rate as well.
+TreeState random_state2(const System& system, std::mt19937& rng) {
+  TreeState s = random_state(system, rng);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (std::size_t j = 1; j < system.joints.size(); ++j) {
+    s.joints[j].angle2 = 3.0 * u(rng);
+    s.joints[j].rate2 = 2.0 * u(rng);
+  }
+  return s;
+}
+
 // A random tangent of every covered field (unit scale).
 TreeTangent random_tangent(const System& system, std::mt19937& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -121,6 +134,7 @@ TreeTangent random_tangent(const System& system, std::mt19937& rng) {
   ds.dv_NBo_N = vec();
   ds.dw_NB_B = vec();
   for (std::size_t j = 1; j < ds.joints.size(); ++j) {
+    if (system.joints[j].prescribed) continue;  // no tangent: the profile at t (TreeTangent)
     ds.joints[j].angle = u(rng);
     ds.joints[j].rate = u(rng);
     ds.joints[j].angle2 = u(rng);
@@ -166,10 +180,95 @@ System one_body(const std::string& name) {
   return s;
 }
 
+// A rigid tree with every covered joint type and load (base box; a revolute arm with a spring,
+// damper and motor; a spherical ball with a damper and motor; a universal gimbal with springs and
+// dampers on both axes; a prismatic slider with a spring, damper and motor; a fixed plate),
+// non-diagonal inertias and oblique axes.
+System rigid_tree(const std::string& name) {
+  System s;
+  s.name = name;
+  auto inertia = [](double a, double b, double c, double x) {
+    Matrix3d I;
+    I << a, x, -0.5 * x, x, b, 0.3 * x, -0.5 * x, 0.3 * x, c;
+    return I;
+  };
+  s.bodies.push_back(make_body("box", 50.0, inertia(8, 10, 12, 0.4)));
+  s.bodies.push_back(make_body("arm", 5.0, inertia(0.3, 2.0, 2.1, 0.05)));
+  s.bodies.push_back(make_body("ball", 3.0, inertia(0.4, 0.5, 0.6, 0.02)));
+  s.bodies.push_back(make_body("gimbal", 2.0, inertia(0.2, 0.3, 0.25, 0.01)));
+  s.bodies.push_back(make_body("slider", 4.0, inertia(0.5, 0.4, 0.7, 0.03)));
+  s.bodies.push_back(make_body("plate", 1.5, inertia(0.1, 0.2, 0.28, 0.01)));
+  Joint base = free_joint(0);
+  base.w_NB_B0 = Vector3d(0.3, -0.2, 0.5);
+  s.joints.push_back(base);
+  auto joint = [&](const char* n, JointType type, int parent, int child, Vector3d pp, Vector3d cp) {
+    Joint j;
+    j.name = n;
+    j.type = type;
+    j.parent = parent;
+    j.child = child;
+    j.p_PoJ_P = pp;
+    j.p_CoJ_C = cp;
+    j.q_PJ0 = Quaterniond(Eigen::AngleAxisd(0.4, Vector3d(1, 2, 3).normalized()));
+    return j;
+  };
+  Joint arm = joint("arm_hinge", JointType::Revolute, 0, 1, Vector3d(1, 0.2, 0), Vector3d(-0.8, 0, 0.1));
+  arm.axis_P = Vector3d(0.2, 0.1, 1).normalized();
+  arm.stiffness = 30;
+  arm.neutral_angle = 0.3;
+  arm.damping = 2;
+  arm.motor_revolute.times = {0.0};
+  arm.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(0.7)};
+  s.joints.push_back(arm);
+  Joint ball = joint("ball", JointType::Spherical, 1, 2, Vector3d(0.8, 0, 0), Vector3d(-0.4, 0.1, 0));
+  ball.damping = 0.5;
+  ball.motor_spherical.times = {0.0};
+  ball.motor_spherical.values = {Vector3d(0.1, -0.2, 0.05)};
+  s.joints.push_back(ball);
+  Joint gimbal = joint("gimbal", JointType::Universal, 0, 3, Vector3d(0, 1, 0.3), Vector3d(0, -0.3, 0));
+  gimbal.axis_P = Vector3d(1, 0, 0.2).normalized();
+  gimbal.axis2_P = Vector3d(0.1, 1, 0).normalized();
+  gimbal.stiffness = 4;
+  gimbal.damping = 0.3;
+  gimbal.stiffness2 = 6;
+  gimbal.damping2 = 0.2;
+  gimbal.neutral_angle2 = -0.2;
+  s.joints.push_back(gimbal);
+  Joint slider = joint("slider", JointType::Prismatic, 0, 4, Vector3d(0, -1, 0), Vector3d(0.1, 0.2, 0));
+  slider.axis_P = Vector3d(0.3, -1, 0.2).normalized();
+  slider.stiffness = 20;
+  slider.damping = 1.5;
+  slider.motor_revolute.times = {0.0};
+  slider.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(-2.0)};
+  s.joints.push_back(slider);
+  s.joints.push_back(joint("plate_mount", JointType::Fixed, 4, 5, Vector3d(0.2, 0, 0.5), Vector3d(0, 0, -0.2)));
+  return s;
+}
+
+// A prescribed base: a rigid hub spun up about z from N (not covered).
+const char* kPrescribedHub = R"(name: prescribed_hub
+bodies:
+  - name: hub
+    mass: 100 kg
+    inertia: [10, 12, 14]
+joints:
+  - name: spin
+    type: revolute
+    child: hub
+    parent_point: [0, 0, 0]
+    child_point: [0, 0, 0]
+    axis: [0, 0, 1]
+    prescribed: {profile: spin-up, rate: 2 rad/s, ramp_time: 5 s}
+run:
+  duration: 1 s
+  output_step: 0.1 s
+)";
+
 struct Case {
   std::string name;
   System system;
   double t = 0;
+  EngineOptions options{};
 };
 
 // The covered systems: one free rigid body torque-free; with a body torque in N and uniform
@@ -201,6 +300,26 @@ std::vector<Case> covered_cases() {
     s.bodies[0].torque_frame = Body::Frame::Body;
     cases.push_back({"orbit, body torque, free v", s, 1234.5});
   }
+  cases.push_back({"spherical chain (chain3)", chain(3), 0.0});
+  cases.push_back({"rigid tree, all joint types", rigid_tree("tree"), 0.5});
+  {
+    System s = rigid_tree("tree_gravity");
+    s.environment = uniform_gravity();
+    s.zero_linear_momentum = false;
+    cases.push_back({"rigid tree, uniform gravity", s, 0.5});
+  }
+  {
+    System s = rigid_tree("tree_orbit");
+    s.environment = orbit();
+    cases.push_back({"rigid tree, orbit", s, 800.0});
+  }
+  {
+    Case c{"rigid tree, Baumgarte", rigid_tree("tree_baumgarte"), 0.5};
+    c.options.stabilization = ConstraintStabilization::Baumgarte;
+    cases.push_back(c);
+  }
+  cases.push_back(
+      {"prescribed joint (scan platform)", read_scene_text(scan_platform_text(), "scan_platform_test"), 2.0});
   return cases;
 }
 
@@ -212,11 +331,11 @@ struct Figures {
 };
 
 void check_case(const Case& c, int states, Figures& fig) {
-  std::unique_ptr<Engine> e = make_newton_euler_engine(c.system, EngineOptions{});
+  std::unique_ptr<Engine> e = make_newton_euler_engine(c.system, c.options);
   std::mt19937 rng(2718);
   fig.name = c.name;
   for (int k = 0; k < states; ++k) {
-    const TreeState s = random_state(c.system, rng);
+    const TreeState s = random_state2(c.system, rng);
     const TreeTangent ds = random_tangent(c.system, rng);
     TreeAccel a, da;
     REQUIRE(e->accelerations_tangent(c.t, s, ds, a, da));
@@ -274,7 +393,7 @@ TEST_CASE("newton-euler tangent: the differences of an orbit's position tangent 
                321.0};
   std::unique_ptr<Engine> e = make_newton_euler_engine(c.system, EngineOptions{});
   std::mt19937 rng(11);
-  const TreeState s = random_state(c.system, rng);
+  const TreeState s = random_state2(c.system, rng);
   TreeTangent ds = TreeTangent::zero(c.system);
   ds.dp_NoBo_N = Vector3d(0.7, -0.4, 0.2);
   TreeAccel a, da;
@@ -288,16 +407,26 @@ TEST_CASE("newton-euler tangent: the differences of an orbit's position tangent 
 
 TEST_CASE("newton-euler tangent: linear in the tangent", "[newton_euler][tangent]") {
   for (const Case& c : covered_cases()) {
-    std::unique_ptr<Engine> e = make_newton_euler_engine(c.system, EngineOptions{});
+    std::unique_ptr<Engine> e = make_newton_euler_engine(c.system, c.options);
     std::mt19937 rng(31);
     for (int k = 0; k < 4; ++k) {
-      const TreeState s = random_state(c.system, rng);
+      const TreeState s = random_state2(c.system, rng);
       const TreeTangent d1 = random_tangent(c.system, rng), d2 = random_tangent(c.system, rng);
       TreeTangent d12 = d1;
       d12.dp_NoBo_N += 2 * d2.dp_NoBo_N;
       d12.dtheta_B += 2 * d2.dtheta_B;
       d12.dv_NBo_N += 2 * d2.dv_NBo_N;
       d12.dw_NB_B += 2 * d2.dw_NB_B;
+      for (std::size_t j = 0; j < d12.joints.size(); ++j) {
+        TreeTangent::JointTangent& t12 = d12.joints[j];
+        const TreeTangent::JointTangent& t2 = d2.joints[j];
+        t12.angle += 2 * t2.angle;
+        t12.rate += 2 * t2.rate;
+        t12.angle2 += 2 * t2.angle2;
+        t12.rate2 += 2 * t2.rate2;
+        t12.dtheta_J += 2 * t2.dtheta_J;
+        t12.w_PC_C += 2 * t2.w_PC_C;
+      }
       TreeAccel a, da1, da2, da12;
       REQUIRE(e->accelerations_tangent(c.t, s, d1, a, da1));
       REQUIRE(e->accelerations_tangent(c.t, s, d2, a, da2));
@@ -353,8 +482,7 @@ TEST_CASE("newton-euler tangent: a torque-free rigid body's d(wdot)/dw is the Ja
 TEST_CASE("newton-euler tangent: not covered returns false and writes nothing",
           "[newton_euler][tangent]") {
   std::vector<std::pair<std::string, System>> systems;
-  systems.emplace_back("spherical chain", chain(3));
-  systems.emplace_back("mixed tree", mixed_tree());
+  systems.emplace_back("mixed tree (a spherical joint's spring)", mixed_tree());
   systems.emplace_back("flexible chain", flexible_chain(2));
   {  // one flexible body alone
     System s;
@@ -363,7 +491,7 @@ TEST_CASE("newton-euler tangent: not covered returns false and writes nothing",
     s.joints.push_back(free_joint(0));
     systems.emplace_back("one flexible body", s);
   }
-  systems.emplace_back("prescribed base", read_scene_text(scan_platform_text(), "scan_platform_test"));
+  systems.emplace_back("prescribed base", read_scene_text(kPrescribedHub, "prescribed_hub"));
   for (const auto& [name, sys] : systems) {
     INFO(name);
     std::unique_ptr<Engine> e = make_newton_euler_engine(sys, EngineOptions{});
