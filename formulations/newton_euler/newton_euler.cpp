@@ -1163,10 +1163,10 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // solves with the engine's own factorisation (TreeKkt) of the real KKT matrix (which is the run's:
 // K_r equals the double path's to rounding); no complex factorisation, so nothing conjugates.
 // Covered (tangent_covered_, decided by the constructor): rigid bodies with a free base and
-// revolute, prismatic, universal, fixed and spherical (without a spring) joints, any environment,
-// body torques, joint springs, dampers, motors, prescribed joints, any stabilisation.
-// Anything else returns false before writing anything (a flexible body, a prescribed base, a
-// spherical joint's spring): the caller differentiates numerically and says so.
+// revolute, prismatic, universal, fixed and spherical joints, any environment, body torques,
+// joint springs, dampers, motors, prescribed joints, any stabilisation. Anything else returns
+// false before writing anything (a flexible body, a prescribed base): the caller differentiates
+// numerically and says so.
 bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
                                               TreeAccel& a, TreeAccel& da) {
   if (!tangent_covered_) return false;

@@ -16,13 +16,30 @@ namespace {
 void model(const Joint& /*joint*/, JointModel& m) { m.rows = 3; }
 
 // Spring, damper and motor in G (core/system.hpp), on the child-side frame, in P.
+// The rotation vector of a unit quaternion (core's rot::rotation_vector on double; on Cx the same
+// function, its branches on the real part: the canonical sign w >= 0, the series 2 v / w below
+// |v| = 1e-8, else v 2 atan2(|v|, w) / |v| with |v| = sqrt(v . v), analytic).
+template <class S>
+Vec3<S> rotation_vector(const Quat<S>& q_in) {
+  if constexpr (kIsReal<S>) {
+    return rot::rotation_vector(q_in);
+  } else {
+    const Quat<S> q = real_part(q_in.w()) < 0 ? Quat<S>(-q_in.w(), -q_in.x(), -q_in.y(), -q_in.z()) : q_in;
+    const Vec3<S> v = q.vec();
+    using std::sqrt;
+    const S s = sqrt(tsquared_norm<S>(v));
+    if (real_part(s) < 1e-8) return 2.0 * v / q.w();
+    const S angle = 2.0 * tatan2(s, q.w());
+    return v * (angle / s);
+  }
+}
+
 template <class S>
 bool load(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
           const JointCoordsT<S>& /*coords*/, double t, Vec3<S>& T_P, Vec3<S>& /*F_P*/) {
   Vec3<S> tau_G = -m.damping * jk.w_FG_G;
-  if constexpr (kIsReal<S>) {  // on Cx: not covered (covers() below)
-    if (J.stiffness != 0) tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
-  }
+  if (J.stiffness != 0)
+    tau_G -= J.stiffness * rotation_vector<S>(Quat<S>(m.q_PJ0.template cast<S>().conjugate() * jk.q_FG));
   if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
   const Vec3<S> T_C = m.C.modes > 0 ? Vec3<S>(jk.G.E * tau_G) : tau_G;
   T_P = jk.R_PC * T_C;
@@ -58,9 +75,8 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
   a.wdot_PC_C[static_cast<std::size_t>(j)] = aj.wdot_PC_C;
 }
 
-// The tangent covers a spherical joint without a spring (its torque is the rotation vector's,
-// not templated here).
-bool covers(const Joint& J) { return J.stiffness == 0; }
+// Every spherical joint is covered by the tangent.
+bool covers(const Joint& /*J*/) { return true; }
 
 const JointVerbsCx kCx{covers,  nullptr,  nullptr,    nullptr,
                        nullptr, load<Cx>, pack_t<Cx>, accelerations_t<Cx>};
