@@ -75,29 +75,35 @@ JointModel JointModel::from(const System& system, int j) {
   return model(system.joints[static_cast<std::size_t>(j)], &system);
 }
 
-JointKinematics::JointKinematics(const JointModel& m) {
-  F.JlPsi = Eigen::Matrix3Xd::Zero(3, m.P.modes);
-  G.JlPsi = Eigen::Matrix3Xd::Zero(3, m.C.modes);
-  F.Phi = m.P.Phi;
-  G.Phi = m.C.Phi;
-  F.g = Eigen::VectorXd::Zero(m.P.modes);
-  G.g = Eigen::VectorXd::Zero(m.C.modes);
-  F.s_B = m.P.r;
-  G.s_B = m.C.r;
+template <class S>
+JointKinematicsT<S>::JointKinematicsT(const JointModel& m) {
+  F.JlPsi = Eigen::Matrix<S, 3, Eigen::Dynamic>::Zero(3, m.P.modes);
+  G.JlPsi = Eigen::Matrix<S, 3, Eigen::Dynamic>::Zero(3, m.C.modes);
+  F.Phi = m.P.Phi.template cast<S>();
+  G.Phi = m.C.Phi.template cast<S>();
+  F.g = Eigen::Matrix<S, Eigen::Dynamic, 1>::Zero(m.P.modes);
+  G.g = Eigen::Matrix<S, Eigen::Dynamic, 1>::Zero(m.C.modes);
+  F.s_B = m.P.r.template cast<S>();
+  G.s_B = m.C.r.template cast<S>();
 }
 
-ConstraintRows::ConstraintRows(const JointModel& m)
-    : Je_P(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.P.modes)),
-      Je_C(Eigen::Matrix<double, 6, Eigen::Dynamic>::Zero(6, m.C.modes)) {}
+template <class S>
+ConstraintRowsT<S>::ConstraintRowsT(const JointModel& m)
+    : Je_P(Eigen::Matrix<S, 6, Eigen::Dynamic>::Zero(6, m.P.modes)),
+      Je_C(Eigen::Matrix<S, 6, Eigen::Dynamic>::Zero(6, m.C.modes)) {}
 
 double unwrap_angle(double wrapped, double reference) {
   constexpr double two_pi = 2.0 * std::numbers::pi;
   return wrapped + two_pi * std::round((reference - wrapped) / two_pi);
 }
 
-void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out) {
-  out.s_B = side.r;
+template <class Sc>
+void node_frame(const JointSide& side, const BodyKinematicsT<Sc>& B, NodeFrameT<Sc>& out) {
+  out.s_B = side.r.template cast<Sc>();
   if (side.modes == 0) return;  // rigid: the constants set by JointKinematics(m)
+  if constexpr (!kIsReal<Sc>) {
+    return;  // not reached: accelerations_tangent() covers rigid bodies only (header)
+  } else {
   out.s_B.noalias() += side.Phi * B.eta;
   if (side.stiff) {  // header "Geometric stiffening": s = r + Phi eta + e w, s' = Phi~ eta'
     out.g.noalias() = side.G * B.eta;
@@ -124,14 +130,16 @@ void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out) 
   out.JlPsi.noalias() = Jl * side.Psi;
   out.w_rel_B.noalias() = Jl * psi_dot;
   out.c_B.noalias() = Jl_dot * psi_dot;
+  }
 }
 
-void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-                      JointKinematics& out) {
+template <class S>
+void joint_kinematics(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+                      JointKinematicsT<S>& out) {
   node_frame(m.P, P, out.F);
   node_frame(m.C, C, out.G);
   out.R_PC.noalias() = P.R_NB.transpose() * C.R_NB;
-  const Quaterniond q_PC = P.q_NB.conjugate() * C.q_NB;
+  const Quat<S> q_PC = P.q_NB.conjugate() * C.q_NB;
   if (m.P.modes == 0 && m.C.modes == 0) {  // F = P, G = C
     out.q_FG = q_PC;
     out.R_FG = out.R_PC;
@@ -146,16 +154,19 @@ void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKi
   }
   out.w_FG_G = out.w_G - out.R_FG.transpose() * out.w_F;
   out.w_FG_F = out.R_FG * out.w_G - out.w_F;
-  if (m.unit->relative) {  // the type's own coordinates (revolute: angle, rate)
-    m.unit->relative(m, P, C, out);
+  if (const auto relative = relative_verb<S>(*m.unit)) {  // the type's own coordinates (revolute: angle, rate)
+    relative(m, P, C, out);
   } else {
     out.angle_wrapped = 0;
     out.rate = 0;
   }
 }
 
-void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-                     const JointKinematics& jk, ConstraintRows& out) {
+template <class S>
+void constraint_rows(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+                     const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out) {
+  const auto point_rows = point_rows_verb<S>(*m.unit);
+  const auto rotation_rows = rotation_rows_verb<S>(*m.unit);
   out.J_P.setZero();
   out.J_C.setZero();
   out.Je_P.setZero();
@@ -164,52 +175,70 @@ void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKin
   out.gdot.setZero();
   out.gamma.setZero();
   if (m.rows == 0) return;  // free: no rows
-  if (m.unit->point_rows) {  // prismatic: its own translation rows, no node frames (validate)
-    m.unit->point_rows(m, P, C, jk, out);
-    if (m.unit->rotation_rows) m.unit->rotation_rows(m, jk, out);
+  if (point_rows) {  // prismatic: its own translation rows, no node frames (validate)
+    point_rows(m, P, C, jk, out);
+    if (rotation_rows) rotation_rows(m, jk, out);
     return;
   }
 
   // Rows 0-2: the joint point is the same point of both sides (system.hpp, "Joint kinematics").
-  const Vector3d& w_P = P.w_NB_B;
-  const Vector3d& w_C = C.w_NB_B;
-  const Vector3d& s_P = jk.F.s_B;
-  const Vector3d& s_C = jk.G.s_B;
-  out.g.head<3>() = C.p_NoBo_N + C.R_NB * s_C - P.p_NoBo_N - P.R_NB * s_P;
-  out.J_C.block<3, 3>(0, 0).setIdentity();
-  out.J_C.block<3, 3>(0, 3).noalias() = -C.R_NB * skew(s_C);
-  out.J_P.block<3, 3>(0, 0) = -Matrix3d::Identity();
-  out.J_P.block<3, 3>(0, 3).noalias() = P.R_NB * skew(s_P);
-  out.gdot.head<3>() = C.v_NBo_N + C.R_NB * (w_C.cross(s_C) + jk.G.sdot_B) - P.v_NBo_N -
-                       P.R_NB * (w_P.cross(s_P) + jk.F.sdot_B);
-  out.gamma.head<3>() =
-      -(C.R_NB * (w_C.cross(w_C.cross(s_C)) + 2.0 * w_C.cross(jk.G.sdot_B)) -
-        P.R_NB * (w_P.cross(w_P.cross(s_P)) + 2.0 * w_P.cross(jk.F.sdot_B)));
-  if (m.C.modes > 0) out.Je_C.topRows<3>().noalias() = C.R_NB * jk.G.Phi;
-  if (m.P.modes > 0) out.Je_P.topRows<3>().noalias() = -P.R_NB * jk.F.Phi;
-  if (m.C.stiff) out.gamma.head<3>() -= C.R_NB * jk.G.a_B;
-  if (m.P.stiff) out.gamma.head<3>() += P.R_NB * jk.F.a_B;
+  const Vec3<S>& w_P = P.w_NB_B;
+  const Vec3<S>& w_C = C.w_NB_B;
+  const Vec3<S>& s_P = jk.F.s_B;
+  const Vec3<S>& s_C = jk.G.s_B;
+  out.g.template head<3>() = C.p_NoBo_N + C.R_NB * s_C - P.p_NoBo_N - P.R_NB * s_P;
+  out.J_C.template block<3, 3>(0, 0).setIdentity();
+  out.J_C.template block<3, 3>(0, 3).noalias() = -C.R_NB * tskew<S>(s_C);
+  out.J_P.template block<3, 3>(0, 0) = -Mat3<S>::Identity();
+  out.J_P.template block<3, 3>(0, 3).noalias() = P.R_NB * tskew<S>(s_P);
+  out.gdot.template head<3>() = C.v_NBo_N + C.R_NB * (tcross<S>(w_C, s_C) + jk.G.sdot_B) -
+                                P.v_NBo_N - P.R_NB * (tcross<S>(w_P, s_P) + jk.F.sdot_B);
+  out.gamma.template head<3>() =
+      -(C.R_NB * (tcross<S>(w_C, tcross<S>(w_C, s_C)) + 2.0 * tcross<S>(w_C, jk.G.sdot_B)) -
+        P.R_NB * (tcross<S>(w_P, tcross<S>(w_P, s_P)) + 2.0 * tcross<S>(w_P, jk.F.sdot_B)));
+  if (m.C.modes > 0) out.Je_C.template topRows<3>().noalias() = C.R_NB * jk.G.Phi;
+  if (m.P.modes > 0) out.Je_P.template topRows<3>().noalias() = -P.R_NB * jk.F.Phi;
+  if (m.C.stiff) out.gamma.template head<3>() -= C.R_NB * jk.G.a_B;
+  if (m.P.stiff) out.gamma.template head<3>() += P.R_NB * jk.F.a_B;
 
   // Rotation rows in terms of w_F and w_G (the frames' rigid rows, the type's rotation_rows verb),
   // written in the w_P and w_C columns, then mapped through the node frames below.
-  if (!m.unit->rotation_rows) return;  // spherical: rows 0-2 only
-  m.unit->rotation_rows(m, jk, out);
+  if (!rotation_rows) return;  // spherical: rows 0-2 only
+  rotation_rows(m, jk, out);
+  if constexpr (!kIsReal<S>) return;  // rigid only on Cx (header)
 
   // Node frames: w_F = E^T (w_B + Jl Psi eta'), d/dt w_F = E^T (alpha_B + Jl Psi eta'' + c -
   // w_rel x w_B) (header comment): rows A (w.r.t. w_F) become A E^T (w.r.t. w_B) and A E^T Jl Psi
   // (w.r.t. eta'), and gamma loses A E^T (c - w_rel x w_B).
   if (m.P.modes > 0) {
-    const Matrix3d A = out.J_P.block<3, 3>(3, 3) * jk.F.E.transpose();
-    out.J_P.block<3, 3>(3, 3) = A;
-    out.Je_P.bottomRows<3>().noalias() = A * jk.F.JlPsi;
-    out.gamma.tail<3>() -= A * (jk.F.c_B - jk.F.w_rel_B.cross(w_P));
+    const Mat3<S> A = out.J_P.template block<3, 3>(3, 3) * jk.F.E.transpose();
+    out.J_P.template block<3, 3>(3, 3) = A;
+    out.Je_P.template bottomRows<3>().noalias() = A * jk.F.JlPsi;
+    out.gamma.template tail<3>() -= A * (jk.F.c_B - jk.F.w_rel_B.cross(w_P));
   }
   if (m.C.modes > 0) {
-    const Matrix3d A = out.J_C.block<3, 3>(3, 3) * jk.G.E.transpose();
-    out.J_C.block<3, 3>(3, 3) = A;
-    out.Je_C.bottomRows<3>().noalias() = A * jk.G.JlPsi;
-    out.gamma.tail<3>() -= A * (jk.G.c_B - jk.G.w_rel_B.cross(w_C));
+    const Mat3<S> A = out.J_C.template block<3, 3>(3, 3) * jk.G.E.transpose();
+    out.J_C.template block<3, 3>(3, 3) = A;
+    out.Je_C.template bottomRows<3>().noalias() = A * jk.G.JlPsi;
+    out.gamma.template tail<3>() -= A * (jk.G.c_B - jk.G.w_rel_B.cross(w_C));
   }
 }
+
+template struct JointKinematicsT<double>;
+template struct JointKinematicsT<Cx>;
+template struct ConstraintRowsT<double>;
+template struct ConstraintRowsT<Cx>;
+template void node_frame(const JointSide&, const BodyKinematicsT<double>&, NodeFrameT<double>&);
+template void node_frame(const JointSide&, const BodyKinematicsT<Cx>&, NodeFrameT<Cx>&);
+template void joint_kinematics(const JointModel&, const BodyKinematicsT<double>&,
+                               const BodyKinematicsT<double>&, JointKinematicsT<double>&);
+template void joint_kinematics(const JointModel&, const BodyKinematicsT<Cx>&,
+                               const BodyKinematicsT<Cx>&, JointKinematicsT<Cx>&);
+template void constraint_rows(const JointModel&, const BodyKinematicsT<double>&,
+                              const BodyKinematicsT<double>&, const JointKinematicsT<double>&,
+                              ConstraintRowsT<double>&);
+template void constraint_rows(const JointModel&, const BodyKinematicsT<Cx>&,
+                              const BodyKinematicsT<Cx>&, const JointKinematicsT<Cx>&,
+                              ConstraintRowsT<Cx>&);
 
 }  // namespace crossdyn::newton_euler

@@ -84,6 +84,7 @@
 #pragma once
 
 #include "core/system.hpp"
+#include "formulations/newton_euler/scalar.hpp"
 #include "formulations/newton_euler/tree_kkt.hpp"
 
 #include <Eigen/Geometry>
@@ -107,6 +108,7 @@ struct JointUnit;  // the joint type's verbs (joints/joint_unit.hpp)
 // A joint's own coordinates in the engine: (angle, 0) revolute, (position s, 0) prismatic,
 // (a1, a2) universal.
 using JointCoords = Eigen::Vector2d;
+template <class S> using JointCoordsT = Eigen::Matrix<S, 2, 1>;
 
 // The constant description of one joint (built once from System::joints[j]).
 struct JointModel {
@@ -140,83 +142,104 @@ struct JointModel {
 };
 
 // One body's kinematic state, read from the engine's state vector.
-struct BodyKinematics {
-  Eigen::Quaterniond q_NB = Eigen::Quaterniond::Identity();  // unit
-  Eigen::Matrix3d R_NB = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d p_NoBo_N = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_NBo_N = Eigen::Vector3d::Zero();
-  Eigen::Vector3d w_NB_B = Eigen::Vector3d::Zero();
-  Eigen::VectorXd eta, eta_dot;  // modal coordinates and rates (size 0: rigid body)
+// The structures below are templates on the scalar S (scalar.hpp): double in the run, Cx in the
+// complex step of accelerations_tangent() (newton_euler.cpp, issue 27), which covers rigid bodies.
+template <class S>
+struct BodyKinematicsT {
+  Quat<S> q_NB = Quat<S>::Identity();  // unit
+  Mat3<S> R_NB = Mat3<S>::Identity();
+  Vec3<S> p_NoBo_N = Vec3<S>::Zero();
+  Vec3<S> v_NBo_N = Vec3<S>::Zero();
+  Vec3<S> w_NB_B = Vec3<S>::Zero();
+  Eigen::Matrix<S, Eigen::Dynamic, 1> eta, eta_dot;  // modal coordinates and rates (size 0: rigid body)
 };
+using BodyKinematics = BodyKinematicsT<double>;
 
 // A joint frame on one side at the current state (see the header comment).
-struct NodeFrame {
-  Eigen::Vector3d s_B = Eigen::Vector3d::Zero();      // joint point from Bo, body frame
-  Eigen::Vector3d sdot_B = Eigen::Vector3d::Zero();   // Phi~ eta': its rate relative to the body
-  Eigen::Matrix3Xd Phi;                               // 3 x modes: Phi~ (= Phi when not stiffened)
-  Eigen::Vector3d a_B = Eigen::Vector3d::Zero();      // e q: s'' = Phi~ eta'' + a_B (stiffened)
-  Eigen::VectorXd g;                                  // scratch: G eta
-  Eigen::Matrix3d E = Eigen::Matrix3d::Identity();    // exp([psi x]): the frame in the body frame
-  Eigen::Quaterniond q_E = Eigen::Quaterniond::Identity();
-  Eigen::Vector3d w_rel_B = Eigen::Vector3d::Zero();  // Jl(psi) Psi eta'
-  Eigen::Vector3d c_B = Eigen::Vector3d::Zero();      // (d/dt Jl(psi)) Psi eta'
-  Eigen::Matrix3Xd JlPsi;                             // 3 x modes: Jl(psi) Psi
+template <class S>
+struct NodeFrameT {
+  Vec3<S> s_B = Vec3<S>::Zero();      // joint point from Bo, body frame
+  Vec3<S> sdot_B = Vec3<S>::Zero();   // Phi~ eta': its rate relative to the body
+  Eigen::Matrix<S, 3, Eigen::Dynamic> Phi;  // 3 x modes: Phi~ (= Phi when not stiffened)
+  Vec3<S> a_B = Vec3<S>::Zero();      // e q: s'' = Phi~ eta'' + a_B (stiffened)
+  Eigen::Matrix<S, Eigen::Dynamic, 1> g;    // scratch: G eta
+  Mat3<S> E = Mat3<S>::Identity();    // exp([psi x]): the frame in the body frame
+  Quat<S> q_E = Quat<S>::Identity();
+  Vec3<S> w_rel_B = Vec3<S>::Zero();  // Jl(psi) Psi eta'
+  Vec3<S> c_B = Vec3<S>::Zero();      // (d/dt Jl(psi)) Psi eta'
+  Eigen::Matrix<S, 3, Eigen::Dynamic> JlPsi;  // 3 x modes: Jl(psi) Psi
 };
+using NodeFrame = NodeFrameT<double>;
 
 // Relative kinematics of a joint's child-side frame G in its parent-side frame F.
-struct JointKinematics {
-  NodeFrame F, G;
-  Eigen::Quaterniond q_FG = Eigen::Quaterniond::Identity();
-  Eigen::Matrix3d R_FG = Eigen::Matrix3d::Identity();
-  Eigen::Matrix3d R_PC = Eigen::Matrix3d::Identity();  // the bodies' relative attitude
-  Eigen::Vector3d w_F = Eigen::Vector3d::Zero();       // w_NF in F components
-  Eigen::Vector3d w_G = Eigen::Vector3d::Zero();       // w_NG in G components
-  Eigen::Vector3d w_FG_G = Eigen::Vector3d::Zero();    // w_G - R_GF w_F
-  Eigen::Vector3d w_FG_F = Eigen::Vector3d::Zero();    // R_FG w_G - w_F
-  double angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of G about the axis;
+template <class S>
+struct JointKinematicsT {
+  NodeFrameT<S> F, G;
+  Quat<S> q_FG = Quat<S>::Identity();
+  Mat3<S> R_FG = Mat3<S>::Identity();
+  Mat3<S> R_PC = Mat3<S>::Identity();  // the bodies' relative attitude
+  Vec3<S> w_F = Vec3<S>::Zero();       // w_NF in F components
+  Vec3<S> w_G = Vec3<S>::Zero();       // w_NG in G components
+  Vec3<S> w_FG_G = Vec3<S>::Zero();    // w_G - R_GF w_F
+  Vec3<S> w_FG_F = Vec3<S>::Zero();    // R_FG w_G - w_F
+  S angle_wrapped = 0;  // revolute: in (-pi, pi], the rotation of G about the axis;
                              // prismatic: the position s; universal: a1 in (-pi, pi]
-  double rate = 0;           // revolute: a_P . w_FG_F; prismatic s'; universal a1'
-  double angle2_wrapped = 0, rate2 = 0;  // universal: a2 in (-pi, pi], a2'
+  S rate = 0;              // revolute: a_P . w_FG_F; prismatic s'; universal a1'
+  S angle2_wrapped = 0, rate2 = 0;       // universal: a2 in (-pi, pi], a2'
   // Prismatic: the child's joint point from Po (D_F, P components) and its velocity relative to
   // Po's, R_NP^T (v_C - v_P) + R_PC (w_C x s_C) (u, P components).
-  Eigen::Vector3d r_PoJ_F = Eigen::Vector3d::Zero();
-  Eigen::Vector3d v_PoJ_F = Eigen::Vector3d::Zero();
+  Vec3<S> r_PoJ_F = Vec3<S>::Zero();
+  Vec3<S> v_PoJ_F = Vec3<S>::Zero();
 
   // Sizes the node frames' modal parts (once, outside the right-hand side).
-  explicit JointKinematics(const JointModel& m);
-  JointKinematics() = default;
+  explicit JointKinematicsT(const JointModel& m);
+  JointKinematicsT() = default;
 };
+using JointKinematics = JointKinematicsT<double>;
 
 // The constraint rows of one joint at one state.
-struct ConstraintRows {
-  Matrix6d J_P = Matrix6d::Zero();    // columns [v_P; w_P]
-  Matrix6d J_C = Matrix6d::Zero();    // columns [v_C; w_C]
-  Eigen::Matrix<double, 6, Eigen::Dynamic> Je_P, Je_C;  // columns eta_P', eta_C' (6 x modes)
-  Vector6d g = Vector6d::Zero();      // position violation (rows 0-2 m, 3-5 rad-like)
-  Vector6d gdot = Vector6d::Zero();   // J nu: velocity violation
-  Vector6d gamma = Vector6d::Zero();  // -Jdot nu
+template <class S>
+struct ConstraintRowsT {
+  Mat6<S> J_P = Mat6<S>::Zero();    // columns [v_P; w_P]
+  Mat6<S> J_C = Mat6<S>::Zero();    // columns [v_C; w_C]
+  Eigen::Matrix<S, 6, Eigen::Dynamic> Je_P, Je_C;  // columns eta_P', eta_C' (6 x modes)
+  Vec6<S> g = Vec6<S>::Zero();      // position violation (rows 0-2 m, 3-5 rad-like)
+  Vec6<S> gdot = Vec6<S>::Zero();   // J nu: velocity violation
+  Vec6<S> gamma = Vec6<S>::Zero();  // -Jdot nu
 
-  explicit ConstraintRows(const JointModel& m);
-  ConstraintRows() = default;
+  explicit ConstraintRowsT(const JointModel& m);
+  ConstraintRowsT() = default;
 };
+using ConstraintRows = ConstraintRowsT<double>;
+
+// The functions below are defined in joint_constraints.cpp (revolute_angle_wrapped in
+// joints/revolute.cpp) and instantiated there for S = double and S = Cx (scalar.hpp); on Cx only
+// rigid sides (no modes) are supported: accelerations_tangent() covers rigid bodies only.
 
 // (side, body state) => the joint frame on that side.
-void node_frame(const JointSide& side, const BodyKinematics& B, NodeFrame& out);
+template <class S>
+void node_frame(const JointSide& side, const BodyKinematicsT<S>& B, NodeFrameT<S>& out);
 
 // (P, C body states) => node frames and relative kinematics of joint `m`. No allocation once
 // `out` is sized (JointKinematics(m)).
-void joint_kinematics(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-                      JointKinematics& out);
+template <class S>
+void joint_kinematics(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+                      JointKinematicsT<S>& out);
 
 // (P, C body states, relative kinematics) => constraint rows. No allocation once `out` is sized.
-void constraint_rows(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-                     const JointKinematics& jk, ConstraintRows& out);
+template <class S>
+void constraint_rows(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+                     const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out);
 
 // Angle of a revolute joint's child-side frame about its axis: atan2 of the rotated e1 in (e1, e2)
 // (joints/revolute.cpp).
-double revolute_angle_wrapped(const JointModel& m, const Eigen::Matrix3d& R_FG);
+template <class S>
+S revolute_angle_wrapped(const JointModel& m, const Mat3<S>& R_FG);
 
-// The branch of `wrapped` (+ 2 pi k) nearest to `reference`.
+// The branch of `wrapped` (+ 2 pi k) nearest to `reference` (the branch chosen on the real part).
 double unwrap_angle(double wrapped, double reference);
+inline Cx unwrap_angle(const Cx& wrapped, double reference) {
+  return wrapped + (unwrap_angle(wrapped.real(), reference) - wrapped.real());
+}
 
 }  // namespace crossdyn::newton_euler

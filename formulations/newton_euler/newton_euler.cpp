@@ -25,6 +25,7 @@
 #include "formulations/newton_euler/joint_constraints.hpp"
 #include "formulations/newton_euler/joints/joint_unit.hpp"
 #include "formulations/newton_euler/modal_body.hpp"
+#include "formulations/newton_euler/scalar.hpp"
 #include "formulations/newton_euler/tree_kkt.hpp"
 
 #include <Eigen/Cholesky>
@@ -32,8 +33,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <string>
 #include <tuple>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -70,6 +73,71 @@ std::string where(const System& system) {
   return system.file.empty() ? std::string("scene '") + system.name + "'" : system.file;
 }
 
+// ---- the rigid body's equations on a scalar S (issue 27) ---------------------------------------
+// The pieces of the right-hand side that the exact tangent (accelerations_tangent(), below) runs
+// on S = std::complex<double> as well as on double (the run's path): written once, as templates
+// instantiated in this file only. On the complex instantiation nothing may take |.| or conjugate
+// (the complex step, Martins, Sturdza & Alonso 2003, ACM TOMS 29(3), needs every operation
+// analytic): norms are square roots of sums of squares, dot and cross products are written out
+// (Eigen's conjugate a complex argument or result), and
+// branches read the real part. On double these helpers are the calls the engine always made
+// (bit-for-bit the same arithmetic).
+template <class S> using V3 = Vec3<S>;
+template <class S> using M3 = Mat3<S>;
+
+// A rigid body's moment row before the environment's loads (force_pass, [Paper] Eqs. (1), (2)):
+// -w x I w plus its external torque (body frame, or N components turned into B).
+template <class S>
+V3<S> rigid_moment(const Body& body, const Matrix3d& I_B, double t, const M3<S>& R_NB,
+                   const V3<S>& w_NB_B) {
+  V3<S> M = -tcross<S>(w_NB_B, V3<S>(I_B * w_NB_B));
+  if (!body.torque.empty()) {
+    const Vector3d T = body.torque.value(t);
+    if (body.torque_frame == Body::Frame::Body) M += T;
+    else M += R_NB.transpose() * T;
+  }
+  return M;
+}
+
+// The environment's load on a rigid body (gravity_on_body(): equations there): the force in N
+// components and the moment about its CM in B components. n2, zhat_N: the orbit's field at t.
+template <class S>
+void rigid_gravity(const Environment& env, double m, const Matrix3d& I_B, const Vector3d& p_NoO_N,
+                   double n2, const Vector3d& zhat_N, const M3<S>& R_NB, const V3<S>& p_NoBo_N,
+                   V3<S>& F_grav_N, V3<S>& M_grav_B) {
+  if (env.uniform()) {
+    F_grav_N = (m * env.g_N).template cast<S>();
+    M_grav_B.setZero();
+    return;
+  }
+  const V3<S> d_N = p_NoBo_N - p_NoO_N;
+  const V3<S> z_B = R_NB.transpose() * zhat_N;
+  const V3<S> Td_N = n2 * (3.0 * tdot<S>(zhat_N, d_N) * zhat_N - d_N);  // T d
+  F_grav_N = m * Td_N;
+  M_grav_B = 3.0 * n2 * tcross<S>(z_B, V3<S>(I_B * z_B));  // tau_gg_B
+}
+
+// pack(): a child body placed from its parent, the joint's node frames F, G and the joint's
+// coordinates (q_J, w_FG_G, and r_F, v_F along a translation; the equations at pack()).
+template <class S>
+void place_child(const JointModel& m, const BodyKinematicsT<S>& P, const NodeFrameT<S>& F,
+                 const NodeFrameT<S>& G, const Quat<S>& q_J, const V3<S>& w_FG_G, const V3<S>& r_F,
+                 const V3<S>& v_F, BodyKinematicsT<S>& C) {
+  S norm;
+  const Quat<S> q_NF = P.q_NB * F.q_E;
+  C.q_NB = unit_quaternion(Quat<S>(q_NF * m.q_PJ0.template cast<S>() * q_J * G.q_E.conjugate()), norm);
+  C.R_NB = C.q_NB.toRotationMatrix();
+  const M3<S> R_NF = P.R_NB * F.E;
+  const M3<S> R_FG = R_NF.transpose() * C.R_NB * G.E;
+  const V3<S> w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
+  const V3<S> w_G = R_FG.transpose() * w_F + w_FG_G;
+  C.w_NB_B = G.E * w_G - G.w_rel_B;
+  const V3<S> s_F = F.s_B + r_F;
+  C.p_NoBo_N = P.p_NoBo_N + P.R_NB * s_F - C.R_NB * G.s_B;
+  C.v_NBo_N = P.v_NBo_N + P.R_NB * (tcross<S>(P.w_NB_B, s_F) + F.sdot_B + v_F) -
+              C.R_NB * (tcross<S>(C.w_NB_B, G.s_B) + G.sdot_B);
+}
+
 class NewtonEulerEngine final : public Engine {
  public:
   NewtonEulerEngine(const System& system, const EngineOptions& options);
@@ -91,6 +159,8 @@ class NewtonEulerEngine final : public Engine {
   const OutputLayout& layout() const override { return layout_; }
   void output_row(double t, const double* x, double* row) override;
   LinearSystem linear_system(double t, const double* x) override;
+  bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
+                             TreeAccel& da) override;
 
  private:
   // State layout (newton_euler.hpp): body b's positions at pos(b), its velocities at vel(b); the
@@ -175,6 +245,9 @@ class NewtonEulerEngine final : public Engine {
   OutputLayout layout_;          // pinned columns, then the constraint violations
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
+  // accelerations_tangent() covers this system (decided by the constructor): rigid bodies, a
+  // free base, joints covered by their unit's Cx verbs; any environment and body torques.
+  bool tangent_covered_ = false;
 
   // ---- workspace (mutable, preallocated) ----
   std::vector<BodyKinematics> bk_;
@@ -339,6 +412,15 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 
+  // accelerations_tangent(): rigid bodies, a free base, joints whose unit has verbs on Cx that
+  // cover them (joints/joint_unit.hpp, JointVerbsCx::covers).
+  tangent_covered_ = !prescribed_base_;
+  for (int b = 0; b < nb_; ++b) tangent_covered_ = tangent_covered_ && flex_[at(b)] < 0;
+  for (int j = 1; j < nj_; ++j) {
+    const JointUnit& u = *joints_[at(j)].unit;
+    tangent_covered_ = tangent_covered_ && u.cx && u.cx->covers(system.joints[at(j)]);
+  }
+
   // The environment. On an orbit, O = the system's CM at t = 0 (core/system.hpp "Environment"),
   // from this engine's own placement of the scene's initial state (pack(): the tree kinematics;
   // system_cm(): the deformed CM of every body), once; the workspace's joint coordinates are
@@ -445,10 +527,10 @@ void NewtonEulerEngine::body_pass(double t, const double* x) {
     BodyKinematics& k = bk_[at(b)];
     const double* xp = x + pos(b);
     const double* xv = x + vel(b);
-    const Quaterniond q(xp[3], xp[4], xp[5], xp[6]);
-    const double n = q.norm();
+    double n = 0;
+    const Quaterniond q_unit = unit_quaternion(Quaterniond(xp[3], xp[4], xp[5], xp[6]), n);
     if (!(n > 1e-6) || !std::isfinite(n)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
-    k.q_NB = Quaterniond(q.coeffs() / n);
+    k.q_NB = q_unit;
     k.R_NB = k.q_NB.toRotationMatrix();
     k.p_NoBo_N = Vector3d(xp[0], xp[1], xp[2]);
     k.v_NBo_N = Vector3d(xv[0], xv[1], xv[2]);
@@ -511,12 +593,12 @@ void NewtonEulerEngine::force_pass(double t) {
     const BodyKinematics& k = bk_[at(b)];
     const Body& body = system_.bodies[at(b)];
     const int fi = flex_[at(b)];
-    if (fi >= 0) {
-      f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
-    } else {
+    if (fi < 0) {
       f_.segment<3>(nu(b)).setZero();  // external forces: the environment's, below
-      f_.segment<3>(nu(b) + 3) = -k.w_NB_B.cross(I_B_[at(b)] * k.w_NB_B);
+      f_.segment<3>(nu(b) + 3) = rigid_moment(body, I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+      continue;
     }
+    f_.segment(nu(b), 6 + modes(b)) = terms_[at(fi)].f;
     if (!body.torque.empty()) {  // on the body frame: no work on eta
       const Vector3d T = body.torque.value(t);
       if (body.torque_frame == Body::Frame::Body) f_.segment<3>(nu(b) + 3) += T;
@@ -600,22 +682,19 @@ void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
   const double m = mass_[at(b)];
   const int n = modes(b);
   Vector3d F_grav_N, M_grav_B;
-  if (env_.uniform()) {
+  if (fi < 0) {
+    rigid_gravity(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
+  } else if (env_.uniform()) {
     F_grav_N = m * env_.g_N;
-    M_grav_B.setZero();
-    if (fi >= 0) {
-      const ModalTerms& mt = terms_[at(fi)];
-      M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
-      if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
-    }
+    const ModalTerms& mt = terms_[at(fi)];
+    M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
+    if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
   } else {
     const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
     const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
     const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);  // T d
     F_grav_N = m * Td_N;
-    if (fi < 0) {
-      M_grav_B = 3.0 * gf.n2 * z_B.cross(I_B_[at(b)] * z_B);  // tau_gg_B
-    } else {
+    {
       ModalTerms& mt = terms_[at(fi)];
       const Vector3d S_N = k.R_NB * mt.S;
       F_grav_N += gf.n2 * (3.0 * gf.zhat_N.dot(S_N) * gf.zhat_N - S_N);
@@ -849,7 +928,8 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
   }
   const int base = joints_[0].child;
   BodyKinematics& B = bk_[at(base)];
-  B.q_NB = s.q_NB.normalized();
+  double q_norm = 0;
+  B.q_NB = unit_quaternion(s.q_NB, q_norm);
   B.R_NB = B.q_NB.toRotationMatrix();
   B.p_NoBo_N = s.p_NoBo_N;
   B.v_NBo_N = s.v_NBo_N;
@@ -869,18 +949,7 @@ void NewtonEulerEngine::pack(const TreeState& s, double* x) {
     Vector3d w_FG_G = Vector3d::Zero();
     Vector3d r_F = Vector3d::Zero(), v_F = Vector3d::Zero();
     if (m.unit->pack) m.unit->pack(m, js, q_J, w_FG_G, r_F, v_F, coords_ref_[at(j)]);
-    const Quaterniond q_NF = P.q_NB * F.q_E;
-    C.q_NB = (q_NF * m.q_PJ0 * q_J * G.q_E.conjugate()).normalized();
-    C.R_NB = C.q_NB.toRotationMatrix();
-    const Matrix3d R_NF = P.R_NB * F.E;
-    const Matrix3d R_FG = R_NF.transpose() * C.R_NB * G.E;
-    const Vector3d w_F = F.E.transpose() * (P.w_NB_B + F.w_rel_B);
-    const Vector3d w_G = R_FG.transpose() * w_F + w_FG_G;
-    C.w_NB_B = G.E * w_G - G.w_rel_B;
-    const Vector3d s_F = F.s_B + r_F;
-    C.p_NoBo_N = P.p_NoBo_N + P.R_NB * s_F - C.R_NB * G.s_B;
-    C.v_NBo_N = P.v_NBo_N + P.R_NB * (P.w_NB_B.cross(s_F) + F.sdot_B + v_F) -
-                C.R_NB * (C.w_NB_B.cross(G.s_B) + G.sdot_B);
+    place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
   }
   if (system_.zero_linear_momentum && !prescribed_base_) shift_all(Vector3d::Zero(), -linear_momentum() / total_mass());
   write_state(x);
@@ -1074,6 +1143,209 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
                               nu_dot_.segment<6>(nu(m.child))};
     m.unit->accelerations(system_.joints[at(j)], m, in, t, a, j);
   }
+}
+
+// ---- the exact tangent (issue 27; core/engine.hpp) ---------------------------------------------
+//
+// The complex step (Martins, Sturdza & Alonso 2003, "The complex-step derivative approximation",
+// ACM TOMS 29(3); the tangent mode of Griewank & Walther 2008, "Evaluating Derivatives", 2nd ed.,
+// Ch. 3): the state is s + i h ds with h = 1e-30, and the engine's own pack() and equations run on
+// Cx = std::complex<double>: the templates shared with the double path (scalar.hpp; the joint
+// kinematics and constraint rows, joint_constraints.hpp; the units' verbs, joints/*.cpp; the
+// rigid body's moment and gravity and the placement of pack(), above), with the passes below
+// mirroring body_pass, joint_pass, force_pass, load_kkt, solve_pass and accelerations() for rigid
+// bodies. da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
+// Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent), normalised by
+// sqrt(w^2 + x^2 + y^2 + z^2) (analytic, never |.|). A prescribed joint has no tangent (its
+// profile at t).
+// The solve: K z = b with K = [M J^T; J 0] = K_r + i K_i (M real and constant: rigid bodies),
+// z = z_r + i z_i, b = b_r + i b_i: to O(h^2), K_r z_r = b_r and K_r z_i = b_i - K_i z_r, two
+// solves with the engine's own factorisation (TreeKkt) of the real KKT matrix (which is the run's:
+// K_r equals the double path's to rounding); no complex factorisation, so nothing conjugates.
+// Covered (tangent_covered_, decided by the constructor): rigid bodies with a free base and
+// revolute, prismatic, universal, fixed and spherical joints, any environment, body torques,
+// joint springs, dampers, motors, prescribed joints, any stabilisation. Anything else returns
+// false before writing anything (a flexible body, a prescribed base): the caller differentiates
+// numerically and says so.
+bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                              TreeAccel& a, TreeAccel& da) {
+  if (!tangent_covered_) return false;
+  // pack() resets the joints' continuous-angle references: the run's are restored on the way out.
+  struct Restore {
+    NewtonEulerEngine& e;
+    std::vector<JointCoords> coords, coords_ref;
+    ~Restore() {
+      e.coords_ = coords;
+      e.coords_ref_ = coords_ref;
+    }
+  } restore{*this, coords_, coords_ref_};
+
+  // a: the run's own path, at x(0) = pack(s).
+  std::vector<double> x0(at(nx_));
+  pack(s, x0.data());
+  accelerations(t, x0.data(), a);
+
+  constexpr double h = 1e-30;
+  const Cx ih(0.0, h);
+  auto turned = [&](const Quaterniond& q, const Vector3d& dtheta) {  // q (1, i h dtheta / 2)
+    const Quat<Cx> dq(Cx(1.0), 0.5 * ih * dtheta.x(), 0.5 * ih * dtheta.y(), 0.5 * ih * dtheta.z());
+    return Quat<Cx>(q.cast<Cx>() * dq);
+  };
+  std::vector<BodyKinematicsT<Cx>> bk(at(nb_));
+  std::vector<JointKinematicsT<Cx>> jk;
+  std::vector<ConstraintRowsT<Cx>> cr;
+  for (const JointModel& m : joints_) {
+    jk.emplace_back(m);
+    cr.emplace_back(m);
+  }
+  Cx norm;
+  // pack(): the base, then every child from its parent (place_child), then zero_linear_momentum's
+  // rigid shift (shift_all(0, -linear_momentum() / total_mass())).
+  {
+    BodyKinematicsT<Cx>& B = bk[at(joints_[0].child)];
+    B.q_NB = unit_quaternion(turned(s.q_NB, ds.dtheta_B), norm);
+    B.R_NB = B.q_NB.toRotationMatrix();
+    B.p_NoBo_N = s.p_NoBo_N.cast<Cx>() + ih * ds.dp_NoBo_N.cast<Cx>();
+    B.v_NBo_N = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
+    B.w_NB_B = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
+  }
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const TreeState::JointState& js = s.joints[at(j)];
+    const TreeTangent::JointTangent dj = m.prescribed ? TreeTangent::JointTangent{} : ds.joints[at(j)];
+    const JointStateT<Cx> jc{js.angle + ih * dj.angle, js.rate + ih * dj.rate,
+                             js.angle2 + ih * dj.angle2, js.rate2 + ih * dj.rate2,
+                             turned(js.q_J, dj.dtheta_J), js.w_PC_C.cast<Cx>() + ih * dj.w_PC_C.cast<Cx>()};
+    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    BodyKinematicsT<Cx>& C = bk[at(m.child)];
+    NodeFrameT<Cx>& F = jk[at(j)].F;
+    NodeFrameT<Cx>& G = jk[at(j)].G;
+    node_frame(m.P, P, F);
+    node_frame(m.C, C, G);
+    Quat<Cx> q_J = Quat<Cx>::Identity();
+    V3<Cx> w_FG_G = V3<Cx>::Zero(), r_F = V3<Cx>::Zero(), v_F = V3<Cx>::Zero();
+    if (m.unit->cx->pack) m.unit->cx->pack(m, jc, q_J, w_FG_G, r_F, v_F);
+    place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
+  }
+  if (system_.zero_linear_momentum) {
+    V3<Cx> L = V3<Cx>::Zero();
+    for (int b = 0; b < nb_; ++b) L += mass_[at(b)] * bk[at(b)].v_NBo_N;
+    const V3<Cx> dv = -L / total_mass();
+    for (BodyKinematicsT<Cx>& k : bk) k.v_NBo_N += dv;
+  }
+  // body_pass(): the stored attitude normalised again.
+  for (int b = 0; b < nb_; ++b) {
+    BodyKinematicsT<Cx>& k = bk[at(b)];
+    k.q_NB = unit_quaternion(k.q_NB, norm);
+    if (!(real_part(norm) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
+    k.R_NB = k.q_NB.toRotationMatrix();
+  }
+  // joint_pass(): relative kinematics, rows, coordinates (unwrapped against this pack()'s).
+  std::vector<JointCoordsT<Cx>> coords(at(nj_), JointCoordsT<Cx>::Zero());
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& C = bk[at(m.child)];
+    joint_kinematics(m, P, C, jk[at(j)]);
+    constraint_rows(m, P, C, jk[at(j)], cr[at(j)]);
+    if (m.unit->cx->track)
+      m.unit->cx->track(system_.joints[at(j)], m, t, jk[at(j)], cr[at(j)], coords[at(j)], coords_ref_[at(j)]);
+  }
+  // force_pass(): every body's moment row, the environment's loads, the joints' loads.
+  Eigen::VectorXcd f = Eigen::VectorXcd::Zero(nv_);
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematicsT<Cx>& k = bk[at(b)];
+    f.segment<3>(nu(b) + 3) = rigid_moment<Cx>(system_.bodies[at(b)], I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+  }
+  if (!env_.none()) {
+    const GravityField gf = gravity_field(t);
+    for (int b = 0; b < nb_; ++b) {
+      const BodyKinematicsT<Cx>& k = bk[at(b)];
+      V3<Cx> F_grav_N, M_grav_B;
+      rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
+                        k.p_NoBo_N, F_grav_N, M_grav_B);
+      f.segment<3>(nu(b)) += F_grav_N;
+      f.segment<3>(nu(b) + 3) += M_grav_B;
+    }
+  }
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    const JointKinematicsT<Cx>& k = jk[at(j)];
+    V3<Cx> T_P, F_P;
+    if (!m.unit->cx->load || !m.unit->cx->load(system_.joints[at(j)], m, k, coords[at(j)], t, T_P, F_P))
+      continue;
+    f.segment<3>(nu(m.child) + 3) += k.R_PC.transpose() * T_P;  // torque_on_frame (rigid)
+    f.segment<3>(nu(m.parent) + 3) -= T_P;
+    if (!m.translates) continue;
+    const V3<Cx> F_N = bk[at(m.parent)].R_NB * F_P;
+    f.segment<3>(nu(m.child)) += F_N;
+    f.segment<3>(nu(m.child) + 3) += tcross<Cx>(k.G.s_B, V3<Cx>(k.R_PC.transpose() * F_P));
+    f.segment<3>(nu(m.parent)) -= F_N;
+    f.segment<3>(nu(m.parent) + 3) -= tcross<Cx>(k.r_PoJ_F, F_P);
+  }
+  // load_kkt(): the real parts into the engine's KKT system, the imaginary parts kept (K_i, b_i).
+  const int links = nj_ - 1;
+  std::vector<Matrix6d> JiP(at(links)), JiC(at(links));
+  std::vector<Vector6d> gamma_r(at(links)), gamma_i(at(links));
+  for (int j = 1; j < nj_; ++j) {
+    const ConstraintRowsT<Cx>& c = cr[at(j)];
+    const int k = j - 1;
+    Vec6<Cx> gamma_s = c.gamma;
+    if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
+    kkt_.J_parent(k).leftCols<6>() = c.J_P.real();
+    kkt_.J_child(k).leftCols<6>() = c.J_C.real();
+    JiP[at(k)] = c.J_P.imag();
+    JiC[at(k)] = c.J_C.imag();
+    gamma_r[at(k)] = gamma_s.real();
+    gamma_i[at(k)] = gamma_s.imag();
+  }
+  // solve_pass(): K_r z_r = b_r, then K_r z_i = b_i - K_i z_r.
+  if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
+  VectorXd nu_r = VectorXd::Zero(nv_), nu_i = VectorXd::Zero(nv_);
+  std::vector<Vector6d> y_r(at(links), Vector6d::Zero()), y_i(at(links), Vector6d::Zero());
+  kkt_.solve(f.real(), gamma_r, nu_r, y_r);
+  VectorXd f_i = f.imag();
+  for (int k = 0; k < links; ++k) {
+    const KktLink& l = kkt_.link(k);
+    const int rows = l.rows;
+    const int op = nu(l.parent), oc = nu(l.child);
+    f_i.segment<6>(op).noalias() -= JiP[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    f_i.segment<6>(oc).noalias() -= JiC[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    gamma_i[at(k)].noalias() -= JiP[at(k)] * nu_r.segment<6>(op) + JiC[at(k)] * nu_r.segment<6>(oc);
+  }
+  kkt_.solve(f_i, gamma_i, nu_i, y_i);
+  if (!nu_i.allFinite()) fail(t, "accelerations_tangent", "non-finite acceleration tangent");
+  // accelerations(): the bodies' entries, then the joints' from the complex body accelerations.
+  da.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
+  da.a_NBo_N.assign(at(nb_), Vector3d::Zero());
+  da.angle_ddot.assign(at(nj_), 0.0);
+  da.angle2_ddot.assign(at(nj_), 0.0);
+  da.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
+  da.eta_ddot.assign(at(nb_), VectorXd());
+  for (int b = 0; b < nb_; ++b) {
+    da.a_NBo_N[at(b)] = nu_i.segment<3>(nu(b)) / h;
+    da.wdot_NB_B[at(b)] = nu_i.segment<3>(nu(b) + 3) / h;
+  }
+  Eigen::VectorXcd nu_dot(nv_);
+  nu_dot.real() = nu_r;
+  nu_dot.imag() = nu_i;
+  for (int j = 1; j < nj_; ++j) {
+    const JointModel& m = joints_[at(j)];
+    if (!m.unit->cx->accelerations) continue;
+    const JointAccelInputsT<Cx> in{bk[at(m.parent)],
+                                   bk[at(m.child)],
+                                   jk[at(j)],
+                                   nu_dot.segment<3>(nu(m.parent) + 3),
+                                   nu_dot.segment<3>(nu(m.child) + 3),
+                                   nu_dot.segment<6>(nu(m.parent)),
+                                   nu_dot.segment<6>(nu(m.child))};
+    JointAccelT<Cx> aj;
+    m.unit->cx->accelerations(system_.joints[at(j)], m, in, t, aj);
+    da.angle_ddot[at(j)] = aj.angle_ddot.imag() / h;
+    da.angle2_ddot[at(j)] = aj.angle2_ddot.imag() / h;
+    da.wdot_PC_C[at(j)] = aj.wdot_PC_C.imag() / h;
+  }
+  return true;
 }
 
 // The system's CM x_c = sum_i m_i x_i / sum_i m_i over every mass element, deformed [KLL83

@@ -123,6 +123,19 @@
 //     prescribed angle| and |rate - prescribed rate| to them, and a prescribed base its joint to N
 //     (largest row of g and g').
 //
+// Exact tangent (issue 27; core/engine.hpp, accelerations_tangent()): the complex step (Martins,
+// Sturdza & Alonso 2003, ACM TOMS 29(3); the tangent mode of Griewank & Walther 2008, "Evaluating
+// Derivatives", 2nd ed., Ch. 3) through this engine's own pack() and equations, templated on the
+// scalar (scalar.hpp: double for the run, std::complex<double> for the step; explicit
+// instantiations in the .cpp files only): joint kinematics and constraint rows
+// (joint_constraints.hpp), the joint units' verbs (joints/*.cpp, JointVerbsCx), the rigid body's
+// moment and gravity and pack()'s placement (newton_euler.cpp). The KKT system is solved as two
+// real systems with the engine's own factorisation (K_r z_r = b_r, K_r z_i = b_i - K_i z_r).
+// Covered: rigid bodies, a free base, revolute, prismatic, universal, fixed and spherical joints,
+// prescribed joints, springs, dampers, motors, body torques, uniform gravity and the orbit, every
+// stabilisation. Not covered (returns false; decided by the constructor): a flexible body, a
+// prescribed base.
+//
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached
 //     to the body frame: its point and frame do not move with the deformation;

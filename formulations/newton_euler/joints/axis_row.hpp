@@ -12,15 +12,15 @@
 namespace crossdyn::newton_euler {
 
 // u, u_dot = w_FG_F x u and transport_F = R_FG (w_FG_G x w_G) are shared by a joint's rows.
-inline void axis_row(const JointKinematics& jk, const Eigen::Vector3d& u,
-                     const Eigen::Vector3d& u_dot, const Eigen::Vector3d& transport_F,
-                     const Eigen::Vector3d& b, int row, ConstraintRows& out) {
-  const Eigen::Vector3d c = u.cross(b);
-  out.g(row) = b.dot(u);
-  out.J_C.block<1, 3>(row, 3).noalias() = c.transpose() * jk.R_FG;
-  out.J_P.block<1, 3>(row, 3) = -c.transpose();
-  out.gdot(row) = c.dot(jk.w_FG_F);
-  out.gamma(row) = -(u_dot.cross(b).dot(jk.w_FG_F) + c.dot(transport_F));
+template <class S>
+void axis_row(const JointKinematicsT<S>& jk, const Vec3<S>& u, const Vec3<S>& u_dot,
+              const Vec3<S>& transport_F, const Eigen::Vector3d& b, int row, ConstraintRowsT<S>& out) {
+  const Vec3<S> c = tcross<S>(u, b);
+  out.g(row) = tdot<S>(b, u);
+  out.J_C.template block<1, 3>(row, 3).noalias() = c.transpose() * jk.R_FG;
+  out.J_P.template block<1, 3>(row, 3) = -c.transpose();
+  out.gdot(row) = tdot<S>(c, jk.w_FG_F);
+  out.gamma(row) = -(tdot<S>(tcross<S>(u_dot, b), jk.w_FG_F) + tdot<S>(c, transport_F));
 }
 
 }  // namespace crossdyn::newton_euler

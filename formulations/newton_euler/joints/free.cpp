@@ -11,7 +11,7 @@ void model(const Joint& /*joint*/, JointModel& m) { m.rows = 0; }
 
 }  // namespace
 
-const JointUnit kFreeJoint{"free",  model,   nullptr, nullptr, nullptr, nullptr, nullptr,
+const JointUnit kFreeJoint{"free",  model,   nullptr, nullptr, nullptr, nullptr, nullptr, nullptr,
                            nullptr, nullptr, nullptr, nullptr, nullptr, nullptr, nullptr};
 
 }  // namespace crossdyn::newton_euler

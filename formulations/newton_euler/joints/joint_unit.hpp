@@ -67,12 +67,48 @@ namespace crossdyn::newton_euler {
 
 // What a unit's accelerations verb reads, after the solve: the bodies' states and accelerations
 // (rigid columns: a_NBo_N, wdot_NB_B) and the frames' d/dt w_F, d/dt w_G (joint_constraints.hpp).
-struct JointAccelInputs {
-  const BodyKinematics& P;
-  const BodyKinematics& C;
-  const JointKinematics& jk;
-  Eigen::Vector3d wdot_F, wdot_G;
-  Vector6d nudot_P, nudot_C;
+template <class S>
+struct JointAccelInputsT {
+  const BodyKinematicsT<S>& P;
+  const BodyKinematicsT<S>& C;
+  const JointKinematicsT<S>& jk;
+  Vec3<S> wdot_F, wdot_G;
+  Vec6<S> nudot_P, nudot_C;
+};
+using JointAccelInputs = JointAccelInputsT<double>;
+
+// The exact tangent (issue 27; newton_euler.cpp, accelerations_tangent()): a unit's verbs on
+// S = Cx (scalar.hpp), the same templates as its double verbs, for rigid sides only.
+// TreeState::JointState on S, and a joint's TreeAccel entries on S:
+template <class S>
+struct JointStateT {
+  S angle = 0, rate = 0, angle2 = 0, rate2 = 0;
+  Quat<S> q_J = Quat<S>::Identity();
+  Vec3<S> w_PC_C = Vec3<S>::Zero();
+};
+template <class S>
+struct JointAccelT {
+  S angle_ddot = 0, angle2_ddot = 0;
+  Vec3<S> wdot_PC_C = Vec3<S>::Zero();
+};
+struct JointVerbsCx {
+  // The joints of the type these verbs cover (e.g. a spherical joint without a spring);
+  // accelerations_tangent() returns false for a system with any other.
+  bool (*covers)(const Joint& joint);
+  void (*relative)(const JointModel& m, const BodyKinematicsT<Cx>& P, const BodyKinematicsT<Cx>& C,
+                   JointKinematicsT<Cx>& jk);
+  void (*point_rows)(const JointModel& m, const BodyKinematicsT<Cx>& P,
+                     const BodyKinematicsT<Cx>& C, const JointKinematicsT<Cx>& jk,
+                     ConstraintRowsT<Cx>& out);
+  void (*rotation_rows)(const JointModel& m, const JointKinematicsT<Cx>& jk, ConstraintRowsT<Cx>& out);
+  void (*track)(const Joint& joint, const JointModel& m, double t, const JointKinematicsT<Cx>& jk,
+                ConstraintRowsT<Cx>& cr, JointCoordsT<Cx>& coords, const JointCoords& coords_ref);
+  bool (*load)(const Joint& joint, const JointModel& m, const JointKinematicsT<Cx>& jk,
+               const JointCoordsT<Cx>& coords, double t, Vec3<Cx>& T_P, Vec3<Cx>& F_P);
+  void (*pack)(const JointModel& m, const JointStateT<Cx>& js, Quat<Cx>& q_J, Vec3<Cx>& w_FG_G,
+               Vec3<Cx>& r_F, Vec3<Cx>& v_F);
+  void (*accelerations)(const Joint& joint, const JointModel& m, const JointAccelInputsT<Cx>& in,
+                        double t, JointAccelT<Cx>& a);
 };
 
 struct JointUnit {
@@ -101,7 +137,25 @@ struct JointUnit {
                     double& pos, double& vel, double& ang, double& angvel);
   double (*power)(const Joint& joint, const JointModel& m, const JointKinematics& jk,
                   double torque, double t);
+  const JointVerbsCx* cx;  // the verbs on Cx (nullptr: the type is not covered by the tangent)
 };
+
+// The verbs that joint_kinematics() and constraint_rows() call, on S.
+template <class S>
+auto relative_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.relative;
+  else return u.cx ? u.cx->relative : nullptr;
+}
+template <class S>
+auto point_rows_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.point_rows;
+  else return u.cx ? u.cx->point_rows : nullptr;
+}
+template <class S>
+auto rotation_rows_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.rotation_rows;
+  else return u.cx ? u.cx->rotation_rows : nullptr;
+}
 
 // The units (one file each) and the choice among them (joints/dispatch.cpp).
 extern const JointUnit kFreeJoint;
@@ -129,7 +183,8 @@ void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWri
 // The fixed joint's relative attitude lock (joint_constraints.hpp, "fixed") in rows row0..row0+2
 // (fixed: 3; prismatic: 2), joints/fixed.cpp. The revolute row shared with the universal joint is
 // joints/axis_row.hpp.
-void lock_rotation_rows(const JointModel& m, const JointKinematics& jk, int row0,
-                        ConstraintRows& out);
+template <class S>
+void lock_rotation_rows(const JointModel& m, const JointKinematicsT<S>& jk, int row0,
+                        ConstraintRowsT<S>& out);
 
 }  // namespace crossdyn::newton_euler

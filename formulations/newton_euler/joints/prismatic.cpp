@@ -40,52 +40,58 @@ void validate(const Joint& joint, const std::string& key) {
 
 // D_F = R_NP^T (p_NoCo_N + R_NC s_C - p_NoPo_N) and u = R_NP^T (v_C - v_P) + R_PC (w_C x s_C)
 // (joint_constraints.hpp, "prismatic"); s = a_P . (D_F - s_P), s' = a_P . u + (w_P x a_P) . D_F.
-void relative(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-              JointKinematics& jk) {
-  const Vector3d& s_C = jk.G.s_B;
+template <class S>
+void relative(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+              JointKinematicsT<S>& jk) {
+  const Vec3<S>& s_C = jk.G.s_B;
   jk.r_PoJ_F.noalias() = P.R_NB.transpose() * (C.p_NoBo_N + C.R_NB * s_C - P.p_NoBo_N);
   jk.v_PoJ_F.noalias() = P.R_NB.transpose() * (C.v_NBo_N - P.v_NBo_N);
-  jk.v_PoJ_F.noalias() += jk.R_PC * C.w_NB_B.cross(s_C);
-  jk.angle_wrapped = m.a_P.dot(jk.r_PoJ_F - jk.F.s_B);
-  jk.rate = m.a_P.dot(jk.v_PoJ_F) + P.w_NB_B.cross(m.a_P).dot(jk.r_PoJ_F);
+  jk.v_PoJ_F.noalias() += jk.R_PC * tcross<S>(C.w_NB_B, s_C);
+  jk.angle_wrapped = tdot<S>(m.a_P, Vec3<S>(jk.r_PoJ_F - jk.F.s_B));
+  jk.rate = tdot<S>(m.a_P, jk.v_PoJ_F) + tdot<S>(tcross<S>(P.w_NB_B, m.a_P), jk.r_PoJ_F);
 }
 
 // Row i: c . (separation of the joint points), c a unit vector fixed in P (joint_constraints.hpp,
 // "prismatic").
-void point_row(const BodyKinematics& P, const BodyKinematics& C, const JointKinematics& jk,
-               const Vector3d& c, int i, ConstraintRows& out) {
-  const Vector3d& s_C = jk.G.s_B;
-  const Vector3d& D = jk.r_PoJ_F;
-  const Vector3d& u = jk.v_PoJ_F;
-  const Vector3d& w_P = P.w_NB_B;
-  const Vector3d& w_C = C.w_NB_B;
-  const Vector3d c_N = P.R_NB * c;
-  const Vector3d c_C = jk.R_PC.transpose() * c;
-  const Vector3d wc = w_P.cross(c);
-  out.J_C.block<1, 3>(i, 0) = c_N.transpose();
-  out.J_C.block<1, 3>(i, 3) = s_C.cross(c_C).transpose();
-  out.J_P.block<1, 3>(i, 0) = -c_N.transpose();
-  out.J_P.block<1, 3>(i, 3) = c.cross(D).transpose();
-  out.g(i) = c.dot(D - jk.F.s_B);
-  out.gdot(i) = c.dot(u) + wc.dot(D);
-  out.gamma(i) = -(w_P.cross(wc).dot(D) + 2.0 * wc.dot(u) + c_C.dot(w_C.cross(w_C.cross(s_C))));
+template <class S>
+void point_row(const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C, const JointKinematicsT<S>& jk,
+               const Vector3d& c, int i, ConstraintRowsT<S>& out) {
+  const Vec3<S>& s_C = jk.G.s_B;
+  const Vec3<S>& D = jk.r_PoJ_F;
+  const Vec3<S>& u = jk.v_PoJ_F;
+  const Vec3<S>& w_P = P.w_NB_B;
+  const Vec3<S>& w_C = C.w_NB_B;
+  const Vec3<S> c_N = P.R_NB * c;
+  const Vec3<S> c_C = jk.R_PC.transpose() * c;
+  const Vec3<S> wc = tcross<S>(w_P, c);
+  out.J_C.template block<1, 3>(i, 0) = c_N.transpose();
+  out.J_C.template block<1, 3>(i, 3) = tcross<S>(s_C, c_C).transpose();
+  out.J_P.template block<1, 3>(i, 0) = -c_N.transpose();
+  out.J_P.template block<1, 3>(i, 3) = tcross<S>(c, D).transpose();
+  out.g(i) = tdot<S>(c, Vec3<S>(D - jk.F.s_B));
+  out.gdot(i) = tdot<S>(c, u) + tdot<S>(wc, D);
+  out.gamma(i) = -(tdot<S>(tcross<S>(w_P, wc), D) + 2.0 * tdot<S>(wc, u) +
+                   tdot<S>(c_C, tcross<S>(w_C, tcross<S>(w_C, s_C))));
 }
 
-void point_rows(const JointModel& m, const BodyKinematics& P, const BodyKinematics& C,
-                const JointKinematics& jk, ConstraintRows& out) {
-  point_row(P, C, jk, m.b1_P, 0, out);
-  point_row(P, C, jk, m.b2_P, 1, out);
-  if (m.prescribed) point_row(P, C, jk, m.a_P, 5, out);  // s (track subtracts the profile)
+template <class S>
+void point_rows(const JointModel& m, const BodyKinematicsT<S>& P, const BodyKinematicsT<S>& C,
+                const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out) {
+  point_row<S>(P, C, jk, m.b1_P, 0, out);
+  point_row<S>(P, C, jk, m.b2_P, 1, out);
+  if (m.prescribed) point_row<S>(P, C, jk, m.a_P, 5, out);  // s (track subtracts the profile)
 }
 
-void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRows& out) {
-  lock_rotation_rows(m, jk, 2, out);  // R_PC = R_PJ0 (joints/fixed.cpp)
+template <class S>
+void rotation_rows(const JointModel& m, const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out) {
+  lock_rotation_rows<S>(m, jk, 2, out);  // R_PC = R_PJ0 (joints/fixed.cpp)
 }
 
 // A prescribed joint's row 5: g_5 = s - (angle0 + theta(t)), g_5' = s' - theta'(t),
 // gamma_5 += theta''(t) (Haug 1989, Sec. 6.3). Otherwise the position itself.
-void track(const Joint& J, const JointModel& m, double t, const JointKinematics& jk,
-           ConstraintRows& cr, JointCoords& coords, const JointCoords& /*coords_ref*/) {
+template <class S>
+void track(const Joint& J, const JointModel& m, double t, const JointKinematicsT<S>& jk,
+           ConstraintRowsT<S>& cr, JointCoordsT<S>& coords, const JointCoords& /*coords_ref*/) {
   if (m.prescribed) {
     coords(0) = J.angle0 + J.prescribed->angle(t);
     cr.g(5) = jk.angle_wrapped - coords(0);
@@ -98,37 +104,59 @@ void track(const Joint& J, const JointModel& m, double t, const JointKinematics&
 
 // Spring, damper and motor force along the axis on the child (core/system.hpp), in P; the engine
 // applies it at the child's joint point and the reaction on the parent at the same point.
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
-          double t, Vector3d& T_P, Vector3d& F_P) {
-  const double F = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
-                   (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
-  if (F == 0) return false;
+template <class S>
+bool load(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
+          const JointCoordsT<S>& coords, double t, Vec3<S>& T_P, Vec3<S>& F_P) {
+  const S F = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
+              (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
+  if (F == S(0)) return false;
   T_P.setZero();
   F_P = F * m.a_P;
   return true;
 }
 
-void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
-          Vector3d& r_F, Vector3d& v_F, JointCoords& coords_ref) {
+template <class S>
+void pack_t(const JointModel& m, const JointStateT<S>& js, Quat<S>& q_J, Vec3<S>& w_FG_G,
+            Vec3<S>& r_F, Vec3<S>& v_F) {
   q_J.setIdentity();
   w_FG_G.setZero();
   r_F = js.angle * m.a_P;
   v_F = js.rate * m.a_P;
+}
+
+void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
+          Vector3d& r_F, Vector3d& v_F, JointCoords& coords_ref) {
+  pack_t<double>(m, JointStateT<double>{js.angle, js.rate, js.angle2, js.rate2, js.q_J, js.w_PC_C},
+                 q_J, w_FG_G, r_F, v_F);
   coords_ref(0) = js.angle;
 }
 
 // s'' = J_row nu' - gamma_row of the axial row (c = a_P), by g'' = J nu' - gamma.
-void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
-                   TreeAccel& a, int j) {
-  double& s_ddot = a.angle_ddot[static_cast<std::size_t>(j)];
+template <class S>
+void accelerations_t(const Joint& J, const JointModel& m, const JointAccelInputsT<S>& in, double t,
+                     JointAccelT<S>& a) {
   if (m.prescribed) {
-    s_ddot = J.prescribed->accel(t);
+    a.angle_ddot = J.prescribed->accel(t);
     return;
   }
-  ConstraintRows row;
-  point_row(in.P, in.C, in.jk, m.a_P, 0, row);
-  s_ddot = row.J_P.row(0).dot(in.nudot_P) + row.J_C.row(0).dot(in.nudot_C) - row.gamma(0);
+  ConstraintRowsT<S> row;
+  point_row<S>(in.P, in.C, in.jk, m.a_P, 0, row);
+  a.angle_ddot = tdot<S>(row.J_P.row(0), in.nudot_P) + tdot<S>(row.J_C.row(0), in.nudot_C) -
+                 row.gamma(0);
 }
+
+void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
+                   TreeAccel& a, int j) {
+  JointAccelT<double> aj;
+  accelerations_t<double>(J, m, in, t, aj);
+  a.angle_ddot[static_cast<std::size_t>(j)] = aj.angle_ddot;
+}
+
+// Every prismatic joint is covered by the tangent.
+bool covers(const Joint& /*J*/) { return true; }
+
+const JointVerbsCx kCx{covers,    relative<Cx>, point_rows<Cx>, rotation_rows<Cx>,
+                       track<Cx>, load<Cx>,     pack_t<Cx>,     accelerations_t<Cx>};
 
 // Position and rate (a prescribed joint's from its profile, then its force: row 5's multiplier).
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
@@ -154,9 +182,20 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 }  // namespace
 
-const JointUnit kPrismaticJoint{"prismatic", model,         validate,      relative,  point_rows,
-                                rotation_rows, track,       load,          pack,      accelerations,
-                                one_coordinate_potential, output, violation,
-                                one_coordinate_power};
+const JointUnit kPrismaticJoint{"prismatic",
+                                model,
+                                validate,
+                                relative<double>,
+                                point_rows<double>,
+                                rotation_rows<double>,
+                                track<double>,
+                                load<double>,
+                                pack,
+                                accelerations,
+                                one_coordinate_potential,
+                                output,
+                                violation,
+                                one_coordinate_power,
+                                &kCx};
 
 }  // namespace crossdyn::newton_euler

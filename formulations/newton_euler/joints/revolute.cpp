@@ -18,11 +18,14 @@ using Eigen::Matrix3d;
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
 
-double revolute_angle_wrapped(const JointModel& m, const Matrix3d& R_FG) {
+template <class S>
+S revolute_angle_wrapped(const JointModel& m, const Mat3<S>& R_FG) {
   // R_J = R_PJ0^T R_FG = Rot(a_C, angle), so R_J e1 = cos(angle) e1 + sin(angle) (a_C x e1).
-  const Vector3d Re1 = m.R_PJ0.transpose() * (R_FG * m.e1_C);
-  return std::atan2(m.e2_C.dot(Re1), m.e1_C.dot(Re1));
+  const Vec3<S> Re1 = m.R_PJ0.transpose() * (R_FG * m.e1_C);
+  return tatan2(tdot<S>(m.e2_C, Re1), tdot<S>(m.e1_C, Re1));
 }
+template double revolute_angle_wrapped(const JointModel&, const Mat3<double>&);
+template Cx revolute_angle_wrapped(const JointModel&, const Mat3<Cx>&);
 
 namespace {
 
@@ -37,26 +40,28 @@ void validate(const Joint& joint, const std::string& key) {
   if (joint.axis_P.norm() < 1e-12) throw InputError(key + ": axis must be a non-zero vector");
 }
 
-void relative(const JointModel& m, const BodyKinematics& /*P*/, const BodyKinematics& /*C*/,
-              JointKinematics& jk) {
-  jk.angle_wrapped = revolute_angle_wrapped(m, jk.R_FG);
-  jk.rate = m.a_P.dot(jk.w_FG_F);
+template <class S>
+void relative(const JointModel& m, const BodyKinematicsT<S>& /*P*/, const BodyKinematicsT<S>& /*C*/,
+              JointKinematicsT<S>& jk) {
+  jk.angle_wrapped = revolute_angle_wrapped<S>(m, jk.R_FG);
+  jk.rate = tdot<S>(m.a_P, jk.w_FG_F);
 }
 
 // joint_constraints.hpp, "revolute" and "prescribed revolute".
-void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRows& out) {
-  const Vector3d& w_G = jk.w_G;
-  const Vector3d u = jk.R_FG * m.a_C;            // the child's axis, in F
-  const Vector3d u_dot = jk.w_FG_F.cross(u);     // F-frame derivative of u
-  const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(w_G);
-  axis_row(jk, u, u_dot, transport_F, m.b1_P, 3, out);  // joints/axis_row.hpp
-  axis_row(jk, u, u_dot, transport_F, m.b2_P, 4, out);
+template <class S>
+void rotation_rows(const JointModel& m, const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out) {
+  const Vec3<S>& w_G = jk.w_G;
+  const Vec3<S> u = jk.R_FG * m.a_C;                 // the child's axis, in F
+  const Vec3<S> u_dot = tcross<S>(jk.w_FG_F, u);     // F-frame derivative of u
+  const Vec3<S> transport_F = jk.R_FG * tcross<S>(jk.w_FG_G, w_G);
+  axis_row<S>(jk, u, u_dot, transport_F, m.b1_P, 3, out);  // joints/axis_row.hpp
+  axis_row<S>(jk, u, u_dot, transport_F, m.b2_P, 4, out);
   if (m.prescribed) {  // row 5: the angle (header; the time terms are track()'s)
     out.g(5) = jk.angle_wrapped;
-    out.J_C.block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
-    out.J_P.block<1, 3>(5, 3) = -m.a_P.transpose();
+    out.J_C.template block<1, 3>(5, 3).noalias() = m.a_P.transpose() * jk.R_FG;
+    out.J_P.template block<1, 3>(5, 3) = -m.a_P.transpose();
     out.gdot(5) = jk.rate;
-    out.gamma(5) = -m.a_P.dot(transport_F);
+    out.gamma(5) = -tdot<S>(m.a_P, transport_F);
   }
 }
 
@@ -64,8 +69,9 @@ void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRow
 // docs/prescribed-motion.md "The motion"): g_5 = angle - (angle0 + theta(t)) (wrapped to
 // (-pi, pi]), g_5' = rate - theta'(t), gamma_5 += theta''(t), so that projection and Baumgarte
 // drive the joint to the prescribed angle and rate at t. Otherwise the continuous angle.
-void track(const Joint& J, const JointModel& m, double t, const JointKinematics& jk,
-           ConstraintRows& cr, JointCoords& coords, const JointCoords& coords_ref) {
+template <class S>
+void track(const Joint& J, const JointModel& m, double t, const JointKinematicsT<S>& jk,
+           ConstraintRowsT<S>& cr, JointCoordsT<S>& coords, const JointCoords& coords_ref) {
   if (m.prescribed) {
     const double angle = J.angle0 + J.prescribed->angle(t);
     coords(0) = angle;
@@ -78,34 +84,56 @@ void track(const Joint& J, const JointModel& m, double t, const JointKinematics&
 }
 
 // Spring, damper and motor about the axis (core/system.hpp), on the child-side frame, in P.
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
-          double t, Vector3d& T_P, Vector3d& /*F_P*/) {
-  const double tau = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
-                     (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
-  if (tau == 0) return false;
+template <class S>
+bool load(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
+          const JointCoordsT<S>& coords, double t, Vec3<S>& T_P, Vec3<S>& /*F_P*/) {
+  const S tau = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate +
+                (J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0));
+  if (tau == S(0)) return false;
   T_P = tau * m.a_P;  // in F
   if (m.P.modes > 0) T_P = jk.F.E * T_P;
   return true;
 }
 
-void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
-          Vector3d& /*r_F*/, Vector3d& /*v_F*/, JointCoords& coords_ref) {
-  q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C));
+template <class S>
+void pack_t(const JointModel& m, const JointStateT<S>& js, Quat<S>& q_J, Vec3<S>& w_FG_G,
+            Vec3<S>& /*r_F*/, Vec3<S>& /*v_F*/) {
+  q_J = Quat<S>(Eigen::AngleAxis<S>(js.angle, m.a_C.cast<S>()));
   w_FG_G = js.rate * m.a_C;
+}
+
+void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
+          Vector3d& r_F, Vector3d& v_F, JointCoords& coords_ref) {
+  pack_t<double>(m, JointStateT<double>{js.angle, js.rate, js.angle2, js.rate2, js.q_J, js.w_PC_C},
+                 q_J, w_FG_G, r_F, v_F);
   coords_ref(0) = js.angle;
+}
+
+template <class S>
+void accelerations_t(const Joint& J, const JointModel& m, const JointAccelInputsT<S>& in, double t,
+                     JointAccelT<S>& a) {
+  if (m.prescribed) {
+    a.angle_ddot = J.prescribed->accel(t);
+  } else {
+    // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
+    const JointKinematicsT<S>& jk = in.jk;
+    a.angle_ddot = tdot<S>(m.a_P, Vec3<S>(jk.R_FG * in.wdot_G - in.wdot_F +
+                                          jk.R_FG * tcross<S>(jk.w_FG_G, jk.w_G)));
+  }
 }
 
 void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
                    TreeAccel& a, int j) {
-  if (m.prescribed) {
-    a.angle_ddot[static_cast<std::size_t>(j)] = J.prescribed->accel(t);
-  } else {
-    // angle'' = a_P . d/dt(w_FG_F) (F-frame derivative; d/dt R_FG = R_FG [w_FG_G x]).
-    const JointKinematics& jk = in.jk;
-    a.angle_ddot[static_cast<std::size_t>(j)] =
-        m.a_P.dot(jk.R_FG * in.wdot_G - in.wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G));
-  }
+  JointAccelT<double> aj;
+  accelerations_t<double>(J, m, in, t, aj);
+  a.angle_ddot[static_cast<std::size_t>(j)] = aj.angle_ddot;
 }
+
+// Every revolute joint (spring, damper, motor, prescribed) is covered by the tangent.
+bool covers(const Joint& /*J*/) { return true; }
+
+const JointVerbsCx kCx{covers,    relative<Cx>, nullptr,    rotation_rows<Cx>,
+                       track<Cx>, load<Cx>,     pack_t<Cx>, accelerations_t<Cx>};
 
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
             const JointCoords& coords, double torque, double t) {
@@ -162,8 +190,20 @@ double one_coordinate_power(const Joint& J, const JointModel& m, const JointKine
   return (motor - J.damping * jk.rate) * jk.rate;
 }
 
-const JointUnit kRevoluteJoint{"revolute", model,     validate,      relative,  nullptr,
-                               rotation_rows, track,  load,          pack,      accelerations,
-                               one_coordinate_potential, output, violation, one_coordinate_power};
+const JointUnit kRevoluteJoint{"revolute",
+                               model,
+                               validate,
+                               relative<double>,
+                               nullptr,
+                               rotation_rows<double>,
+                               track<double>,
+                               load<double>,
+                               pack,
+                               accelerations,
+                               one_coordinate_potential,
+                               output,
+                               violation,
+                               one_coordinate_power,
+                               &kCx};
 
 }  // namespace crossdyn::newton_euler

@@ -16,30 +16,70 @@ namespace {
 void model(const Joint& /*joint*/, JointModel& m) { m.rows = 3; }
 
 // Spring, damper and motor in G (core/system.hpp), on the child-side frame, in P.
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk,
-          const JointCoords& /*coords*/, double t, Vector3d& T_P, Vector3d& /*F_P*/) {
-  Vector3d tau_G = -m.damping * jk.w_FG_G;
-  if (J.stiffness != 0) tau_G -= J.stiffness * rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
+// The rotation vector of a unit quaternion (core's rot::rotation_vector on double; on Cx the same
+// function, its branches on the real part: the canonical sign w >= 0, the series 2 v / w below
+// |v| = 1e-8, else v 2 atan2(|v|, w) / |v| with |v| = sqrt(v . v), analytic).
+template <class S>
+Vec3<S> rotation_vector(const Quat<S>& q_in) {
+  if constexpr (kIsReal<S>) {
+    return rot::rotation_vector(q_in);
+  } else {
+    const Quat<S> q = real_part(q_in.w()) < 0 ? Quat<S>(-q_in.w(), -q_in.x(), -q_in.y(), -q_in.z()) : q_in;
+    const Vec3<S> v = q.vec();
+    using std::sqrt;
+    const S s = sqrt(tsquared_norm<S>(v));
+    if (real_part(s) < 1e-8) return 2.0 * v / q.w();
+    const S angle = 2.0 * tatan2(s, q.w());
+    return v * (angle / s);
+  }
+}
+
+template <class S>
+bool load(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
+          const JointCoordsT<S>& /*coords*/, double t, Vec3<S>& T_P, Vec3<S>& /*F_P*/) {
+  Vec3<S> tau_G = -m.damping * jk.w_FG_G;
+  if (J.stiffness != 0)
+    tau_G -= J.stiffness * rotation_vector<S>(Quat<S>(m.q_PJ0.template cast<S>().conjugate() * jk.q_FG));
   if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
-  const Vector3d T_C = m.C.modes > 0 ? Vector3d(jk.G.E * tau_G) : tau_G;
+  const Vec3<S> T_C = m.C.modes > 0 ? Vec3<S>(jk.G.E * tau_G) : tau_G;
   T_P = jk.R_PC * T_C;
   return true;
 }
 
-void pack(const JointModel& /*m*/, const TreeState::JointState& js, Quaterniond& q_J,
-          Vector3d& w_FG_G, Vector3d& /*r_F*/, Vector3d& /*v_F*/, JointCoords& /*coords_ref*/) {
-  q_J = js.q_J.normalized();
+template <class S>
+void pack_t(const JointModel& /*m*/, const JointStateT<S>& js, Quat<S>& q_J, Vec3<S>& w_FG_G,
+            Vec3<S>& /*r_F*/, Vec3<S>& /*v_F*/) {
+  S norm;
+  q_J = unit_quaternion(js.q_J, norm);
   w_FG_G = js.w_PC_C;
 }
 
-void accelerations(const Joint& /*J*/, const JointModel& /*m*/, const JointAccelInputs& in,
-                   double /*t*/, TreeAccel& a, int j) {
-  // G-frame derivative of w_FG_G = w_G - R_GF w_F, with d/dt R_GF = -[w_FG_G x] R_GF.
-  const JointKinematics& jk = in.jk;
-  const Vector3d w_F_G = jk.R_FG.transpose() * jk.w_F;
-  a.wdot_PC_C[static_cast<std::size_t>(j)] =
-      in.wdot_G - jk.R_FG.transpose() * in.wdot_F + jk.w_FG_G.cross(w_F_G);
+void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J,
+          Vector3d& w_FG_G, Vector3d& r_F, Vector3d& v_F, JointCoords& /*coords_ref*/) {
+  pack_t<double>(m, JointStateT<double>{js.angle, js.rate, js.angle2, js.rate2, js.q_J, js.w_PC_C},
+                 q_J, w_FG_G, r_F, v_F);
 }
+
+template <class S>
+void accelerations_t(const Joint& /*J*/, const JointModel& /*m*/, const JointAccelInputsT<S>& in,
+                     double /*t*/, JointAccelT<S>& a) {
+  const JointKinematicsT<S>& jk = in.jk;
+  const Vec3<S> w_F_G = jk.R_FG.transpose() * jk.w_F;
+  a.wdot_PC_C = in.wdot_G - jk.R_FG.transpose() * in.wdot_F + tcross<S>(jk.w_FG_G, w_F_G);
+}
+
+void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
+                   TreeAccel& a, int j) {
+  JointAccelT<double> aj;
+  accelerations_t<double>(J, m, in, t, aj);
+  a.wdot_PC_C[static_cast<std::size_t>(j)] = aj.wdot_PC_C;
+}
+
+// Every spherical joint is covered by the tangent.
+bool covers(const Joint& /*J*/) { return true; }
+
+const JointVerbsCx kCx{covers,  nullptr,  nullptr,    nullptr,
+                       nullptr, load<Cx>, pack_t<Cx>, accelerations_t<Cx>};
 
 void potential(const Joint& J, const JointModel& m, const JointKinematics& jk,
                const JointCoords& /*coords*/, double& e) {
@@ -65,8 +105,8 @@ double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk,
 
 }  // namespace
 
-const JointUnit kSphericalJoint{"spherical", model,   nullptr,       nullptr,   nullptr,
-                                nullptr,     nullptr, load,          pack,      accelerations,
-                                potential,   output,  nullptr,       power};
+const JointUnit kSphericalJoint{"spherical", model,   nullptr,      nullptr,   nullptr,
+                                nullptr,     nullptr, load<double>, pack,      accelerations,
+                                potential,   output,  nullptr,      power,     &kCx};
 
 }  // namespace crossdyn::newton_euler

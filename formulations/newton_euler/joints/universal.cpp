@@ -56,82 +56,109 @@ void validate(const Joint& joint, const std::string& key) {
 
 // The dual vectors e1, e2 of (n1, u) in the basis (n1, u, n = n1 x u) (header): e_k . n1, e_k . u
 // = the identity, e_k . n = 0.
-void dual(const Vector3d& n1, const Vector3d& u, Vector3d& e1, Vector3d& e2) {
-  const Vector3d n = n1.cross(u);
-  const double nn = n.squaredNorm();
-  e1 = u.cross(n) / nn;
-  e2 = n.cross(n1) / nn;
+template <class S>
+void dual(const Vector3d& n1, const Vec3<S>& u, Vec3<S>& e1, Vec3<S>& e2) {
+  const Vec3<S> n = tcross<S>(n1, u);
+  const S nn = tsquared_norm<S>(n);
+  e1 = tcross<S>(u, n) / nn;
+  e2 = tcross<S>(n, n1) / nn;
 }
 
 // The components of v on n1 and u (v = n1 x_1 + u x_2 + n x_3).
-Vector2d split(const Vector3d& v, const Vector3d& n1, const Vector3d& u) {
-  Vector3d e1, e2;
-  dual(n1, u, e1, e2);
-  return Vector2d(v.dot(e1), v.dot(e2));
+template <class S>
+Eigen::Matrix<S, 2, 1> split(const Vec3<S>& v, const Vector3d& n1, const Vec3<S>& u) {
+  Vec3<S> e1, e2;
+  dual<S>(n1, u, e1, e2);
+  return Eigen::Matrix<S, 2, 1>(tdot<S>(v, e1), tdot<S>(v, e2));
 }
 
-void relative(const JointModel& m, const BodyKinematics& /*P*/, const BodyKinematics& /*C*/,
-              JointKinematics& jk) {
+template <class S>
+void relative(const JointModel& m, const BodyKinematicsT<S>& /*P*/, const BodyKinematicsT<S>& /*C*/,
+              JointKinematicsT<S>& jk) {
   const Vector3d& n1 = m.a_P;
   const Vector3d& n2 = m.a2_P;
   const Vector3d n12 = n1.cross(n2);
-  const Vector3d u = jk.R_FG * m.a2_C;                           // R n2
-  const Vector3d v = m.R_PJ0 * (jk.R_FG.transpose() * n1);       // R^T n1
-  jk.angle_wrapped = std::atan2(n12.dot(u), (n2 - m.a12 * n1).dot(u));
-  jk.angle2_wrapped = std::atan2(n12.dot(v), (n1 - m.a12 * n2).dot(v));
-  const Vector2d rates = split(jk.w_FG_F, n1, u);
+  const Vec3<S> u = jk.R_FG * m.a2_C;                           // R n2
+  const Vec3<S> v = m.R_PJ0 * (jk.R_FG.transpose() * n1);       // R^T n1
+  jk.angle_wrapped = tatan2(tdot<S>(n12, u), tdot<S>(Vector3d(n2 - m.a12 * n1), u));
+  jk.angle2_wrapped = tatan2(tdot<S>(n12, v), tdot<S>(Vector3d(n1 - m.a12 * n2), v));
+  const Eigen::Matrix<S, 2, 1> rates = split<S>(jk.w_FG_F, n1, u);
   jk.rate = rates(0);
   jk.rate2 = rates(1);
 }
 
 // joint_constraints.hpp, "universal": row 3.
-void rotation_rows(const JointModel& m, const JointKinematics& jk, ConstraintRows& out) {
-  const Vector3d u = jk.R_FG * m.a2_C;
-  const Vector3d u_dot = jk.w_FG_F.cross(u);
-  const Vector3d transport_F = jk.R_FG * jk.w_FG_G.cross(jk.w_G);
-  axis_row(jk, u, u_dot, transport_F, m.a_P, 3, out);
+template <class S>
+void rotation_rows(const JointModel& m, const JointKinematicsT<S>& jk, ConstraintRowsT<S>& out) {
+  const Vec3<S> u = jk.R_FG * m.a2_C;
+  const Vec3<S> u_dot = tcross<S>(jk.w_FG_F, u);
+  const Vec3<S> transport_F = jk.R_FG * tcross<S>(jk.w_FG_G, jk.w_G);
+  axis_row<S>(jk, u, u_dot, transport_F, m.a_P, 3, out);
   out.g(3) -= m.a12;
 }
 
-void track(const Joint& /*J*/, const JointModel& /*m*/, double /*t*/, const JointKinematics& jk,
-           ConstraintRows& /*cr*/, JointCoords& coords, const JointCoords& coords_ref) {
+template <class S>
+void track(const Joint& /*J*/, const JointModel& /*m*/, double /*t*/, const JointKinematicsT<S>& jk,
+           ConstraintRowsT<S>& /*cr*/, JointCoordsT<S>& coords, const JointCoords& coords_ref) {
   coords(0) = unwrap_angle(jk.angle_wrapped, coords_ref(0));
   coords(1) = unwrap_angle(jk.angle2_wrapped, coords_ref(1));
 }
 
-bool load(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
-          double t, Vector3d& T_P, Vector3d& /*F_P*/) {
+template <class S>
+bool load(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
+          const JointCoordsT<S>& coords, double t, Vec3<S>& T_P, Vec3<S>& /*F_P*/) {
   const Vector2d motor = J.motor_universal.empty() ? Vector2d::Zero() : J.motor_universal.value(t);
-  const double tau1 = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate + motor(0);
-  const double tau2 =
-      -J.stiffness2 * (coords(1) - J.neutral_angle2) - m.damping2 * jk.rate2 + motor(1);
-  if (tau1 == 0 && tau2 == 0) return false;
-  Vector3d e1, e2;
-  dual(m.a_P, jk.R_FG * m.a2_C, e1, e2);
+  const S tau1 = -J.stiffness * (coords(0) - J.neutral_angle) - m.damping * jk.rate + motor(0);
+  const S tau2 = -J.stiffness2 * (coords(1) - J.neutral_angle2) - m.damping2 * jk.rate2 + motor(1);
+  if (tau1 == S(0) && tau2 == S(0)) return false;
+  Vec3<S> e1, e2;
+  dual<S>(m.a_P, Vec3<S>(jk.R_FG * m.a2_C), e1, e2);
   T_P = tau1 * e1 + tau2 * e2;
   return true;
 }
 
 // R_J = R_PJ0^T R_FG = Rot(n1_G, a1) Rot(n2_G, a2) (n1_G = a_C), w_FG_G = R_J^T (n1_G a1' +
 // Rot(n1_G, a1) n2_G a2') = Rot(n2_G, -a2) n1_G a1' + n2_G a2'.
+template <class S>
+void pack_t(const JointModel& m, const JointStateT<S>& js, Quat<S>& q_J, Vec3<S>& w_FG_G,
+            Vec3<S>& /*r_F*/, Vec3<S>& /*v_F*/) {
+  const Vec3<S> a_C = m.a_C.cast<S>(), a2_C = m.a2_C.cast<S>();
+  q_J = Quat<S>(Eigen::AngleAxis<S>(js.angle, a_C)) * Quat<S>(Eigen::AngleAxis<S>(js.angle2, a2_C));
+  w_FG_G = Eigen::AngleAxis<S>(-js.angle2, a2_C) * a_C * js.rate + a2_C * js.rate2;
+}
+
 void pack(const JointModel& m, const TreeState::JointState& js, Quaterniond& q_J, Vector3d& w_FG_G,
-          Vector3d& /*r_F*/, Vector3d& /*v_F*/, JointCoords& coords_ref) {
-  q_J = Quaterniond(Eigen::AngleAxisd(js.angle, m.a_C)) *
-        Quaterniond(Eigen::AngleAxisd(js.angle2, m.a2_C));
-  w_FG_G = Eigen::AngleAxisd(-js.angle2, m.a2_C) * m.a_C * js.rate + m.a2_C * js.rate2;
+          Vector3d& r_F, Vector3d& v_F, JointCoords& coords_ref) {
+  pack_t<double>(m, JointStateT<double>{js.angle, js.rate, js.angle2, js.rate2, js.q_J, js.w_PC_C},
+                 q_J, w_FG_G, r_F, v_F);
   coords_ref = JointCoords(js.angle, js.angle2);
 }
 
-void accelerations(const Joint& /*J*/, const JointModel& m, const JointAccelInputs& in,
-                   double /*t*/, TreeAccel& a, int j) {
-  const JointKinematics& jk = in.jk;
-  const Vector3d u = jk.R_FG * m.a2_C;
-  // d/dt w_FG_F in F = R_FG w_G' - w_F' + R_FG (w_FG_G x w_G) (joints/revolute.cpp).
-  const Vector3d wdot = jk.R_FG * in.wdot_G - in.wdot_F + jk.R_FG * jk.w_FG_G.cross(jk.w_G);
-  const Vector2d dd = split(wdot - jk.w_FG_F.cross(u) * jk.rate2, m.a_P, u);
-  a.angle_ddot[static_cast<std::size_t>(j)] = dd(0);
-  a.angle2_ddot[static_cast<std::size_t>(j)] = dd(1);
+template <class S>
+void accelerations_t(const Joint& /*J*/, const JointModel& m, const JointAccelInputsT<S>& in,
+                     double /*t*/, JointAccelT<S>& a) {
+  const JointKinematicsT<S>& jk = in.jk;
+  const Vec3<S> u = jk.R_FG * m.a2_C;
+  const Vec3<S> wdot = jk.R_FG * in.wdot_G - in.wdot_F + jk.R_FG * tcross<S>(jk.w_FG_G, jk.w_G);
+  const Eigen::Matrix<S, 2, 1> dd =
+      split<S>(Vec3<S>(wdot - tcross<S>(jk.w_FG_F, u) * jk.rate2), m.a_P, u);
+  a.angle_ddot = dd(0);
+  a.angle2_ddot = dd(1);
 }
+
+void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& in, double t,
+                   TreeAccel& a, int j) {
+  JointAccelT<double> aj;
+  accelerations_t<double>(J, m, in, t, aj);
+  a.angle_ddot[static_cast<std::size_t>(j)] = aj.angle_ddot;
+  a.angle2_ddot[static_cast<std::size_t>(j)] = aj.angle2_ddot;
+}
+
+// Every universal joint is covered by the tangent.
+bool covers(const Joint& /*J*/) { return true; }
+
+const JointVerbsCx kCx{covers,    relative<Cx>, nullptr,    rotation_rows<Cx>,
+                       track<Cx>, load<Cx>,     pack_t<Cx>, accelerations_t<Cx>};
 
 void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
                const JointCoords& coords, double& e) {
@@ -165,8 +192,10 @@ double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk,
 
 }  // namespace
 
-const JointUnit kUniversalJoint{"universal", model,         validate,      relative,  nullptr,
-                                rotation_rows, track,       load,          pack,      accelerations,
-                                potential,   output,        violation,     power};
+const JointUnit kUniversalJoint{"universal",          model,         validate,
+                                relative<double>,     nullptr,       rotation_rows<double>,
+                                track<double>,        load<double>,  pack,
+                                accelerations,        potential,     output,
+                                violation,            power,         &kCx};
 
 }  // namespace crossdyn::newton_euler
