@@ -64,8 +64,7 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
 
   // The exact tangent (tangent.cpp; issue 27) covers rigid trees and flexible bodies (with or
   // without geometric stiffening) at test_inertia_scale 1 (its flexible twin sums the node masses
-  // and inertias, which a scaled inertia no longer is) and test_gyroscopic_sign 1; a prismatic
-  // joint at a node of a flexible parent is refused below.
+  // and inertias, which a scaled inertia no longer is) and test_gyroscopic_sign 1.
   tangent_ = flex_.empty() ||
              (options.test_inertia_scale == 1.0 && options.test_gyroscopic_sign == 1.0);
 
@@ -350,8 +349,6 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
       for (Vector3d* v : {&a.Z_M_N, &a.Z_F_N, &a.g, &a.dalpha_N, &a.da_Ok_N}) v->setZero();
     }
   }
-  for (const Node& n : nodes_)
-    if (n.parent_attach && n.shape == JointShape::Slide1) tangent_ = false;
   // The environment (gravity.cpp): last, since an orbit's O is the CM of the packed initial state.
   init_environment();
 }

@@ -25,8 +25,17 @@
 //
 // The run's paths (rhs(), accelerations()) are untouched; tests/kane/test_kane_tangent.cpp checks
 // that the twin's value part is accelerations() to rounding and its derivative part a central
-// difference of accelerations() (and its Richardson extrapolation).  Flexible bodies are not
-// covered (tangent_ false: the caller differentiates numerically).
+// difference of accelerations() (and its Richardson extrapolation).
+//
+// Flexible bodies (and geometric stiffening) go through a second twin, flex_dynamics: Kane's
+// equations written particle by particle (C's node masses, its node inertias turning with C's
+// frame: the sums FlexModel's integrals hold), over the positions of Pass 1 with the joints at
+// nodes (docs/flexible-bodies.md), whose velocities, partial velocities and remainder
+// accelerations are the Taylor coefficients in time (Jet: a + b t + c t^2 with dual
+// coefficients, [GW08] Ch. 13) of those positions along q' = q'(u).  Not covered (tangent_
+// false: the caller differentiates numerically): a flexible body with test_inertia_scale != 1
+// (the scaled inertia is no longer the node sums) or a flipped test_gyroscopic_sign (a prismatic
+// joint at a node of a flexible body is refused by the engine itself).
 #include "formulations/kane/dual.hpp"
 #include "formulations/kane/kane_internal.hpp"
 
@@ -43,7 +52,8 @@ namespace crossdyn::kane {
 // A truncated Taylor polynomial in time, a + b t + c t^2, with dual coefficients (the flexible
 // twin below): b is the rate and 2 c the acceleration of whatever it carries, exact to rounding
 // (Taylor-mode arithmetic, [GW08] Ch. 13), and every coefficient carries its derivative along
-// the tangent.
+// the tangent.  Internal to this file.
+namespace {
 struct Jet {
   Dual a, b, c;
   Jet() = default;
@@ -106,6 +116,7 @@ inline Jet sqrt(const Jet& x) {
 }
 inline Jet abs(const Jet& x) { return x.a.v < 0 ? -x : x; }
 inline double value(const Jet& x) { return x.a.v; }
+}  // namespace
 
 }  // namespace crossdyn::kane
 
