@@ -519,6 +519,11 @@ TEST_CASE("kane tangent: flexible bodies (modal coordinates and rates, joints at
   SECTION("stiffened flex_tree (geometric stiffening, every node)") {
     check_system(flex_named(stiffened(flex_tree(true)), "flex_tree_stiffened"), 0.3, 3, 26);
   }
+  SECTION("flex_tree loaded, EngineOptions::test_damper_scale 3 (hinge and modal dampers)") {
+    EngineOptions damped;
+    damped.test_damper_scale = 3.0;
+    check_system(flex_named(flex_tree(true), "flex_tree_damper_scaled"), 0.3, 2, 28, damped);
+  }
   SECTION("stiffened flex_tree in orbit") {
     System s = flex_named(stiffened(flex_tree(true)), "flex_tree_stiffened_orbit");
     s.environment = orbit_field();
