@@ -62,8 +62,11 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
     if (options.test_damper_scale != 1.0) F.D *= options.test_damper_scale;
   }
 
-  // The exact tangent (tangent.cpp) covers rigid trees only (issue 27).
-  tangent_ = flex_.empty();
+  // The exact tangent (tangent.cpp; issue 27) covers rigid trees and flexible bodies (with or
+  // without geometric stiffening) at test_inertia_scale 1 (its flexible twin sums the node masses
+  // and inertias, which a scaled inertia no longer is) and test_gyroscopic_sign 1.
+  tangent_ = flex_.empty() ||
+             (options.test_inertia_scale == 1.0 && options.test_gyroscopic_sign == 1.0);
 
   nodes_.resize(nj);
   std::vector<int> node_of_body(nb, -1);

@@ -25,8 +25,17 @@
 //
 // The run's paths (rhs(), accelerations()) are untouched; tests/kane/test_kane_tangent.cpp checks
 // that the twin's value part is accelerations() to rounding and its derivative part a central
-// difference of accelerations() (and its Richardson extrapolation).  Flexible bodies are not
-// covered (tangent_ false: the caller differentiates numerically).
+// difference of accelerations() (and its Richardson extrapolation).
+//
+// Flexible bodies (and geometric stiffening) go through a second twin, flex_dynamics: Kane's
+// equations written particle by particle (C's node masses, its node inertias turning with C's
+// frame: the sums FlexModel's integrals hold), over the positions of Pass 1 with the joints at
+// nodes (docs/flexible-bodies.md), whose velocities, partial velocities and remainder
+// accelerations are the Taylor coefficients in time (Jet: a + b t + c t^2 with dual
+// coefficients, [GW08] Ch. 13) of those positions along q' = q'(u).  Not covered (tangent_
+// false: the caller differentiates numerically): a flexible body with test_inertia_scale != 1
+// (the scaled inertia is no longer the node sums) or a flipped test_gyroscopic_sign (a prismatic
+// joint at a node of a flexible body is refused by the engine itself).
 #include "formulations/kane/dual.hpp"
 #include "formulations/kane/kane_internal.hpp"
 
@@ -35,7 +44,105 @@
 
 #include <cmath>
 #include <string>
+#include <limits>
 #include <vector>
+
+namespace crossdyn::kane {
+
+// A truncated Taylor polynomial in time, a + b t + c t^2, with dual coefficients (the flexible
+// twin below): b is the rate and 2 c the acceleration of whatever it carries, exact to rounding
+// (Taylor-mode arithmetic, [GW08] Ch. 13), and every coefficient carries its derivative along
+// the tangent.  Internal to this file.
+namespace {
+struct Jet {
+  Dual a, b, c;
+  Jet() = default;
+  Jet(double v) : a(v) {}  // NOLINT: a constant
+  Jet(const Dual& v) : a(v) {}  // NOLINT: a constant in time
+  Jet(const Dual& a_, const Dual& b_, const Dual& c_) : a(a_), b(b_), c(c_) {}
+  Jet& operator+=(const Jet& o) {
+    a += o.a;
+    b += o.b;
+    c += o.c;
+    return *this;
+  }
+  Jet& operator-=(const Jet& o) {
+    a -= o.a;
+    b -= o.b;
+    c -= o.c;
+    return *this;
+  }
+  Jet& operator*=(const Jet& o) {
+    *this = Jet(a * o.a, a * o.b + b * o.a, a * o.c + b * o.b + c * o.a);
+    return *this;
+  }
+  Jet& operator/=(const Jet& o) {
+    const Dual q0 = a / o.a, q1 = (b - q0 * o.b) / o.a, q2 = (c - q0 * o.c - q1 * o.b) / o.a;
+    *this = Jet(q0, q1, q2);
+    return *this;
+  }
+};
+inline Jet operator-(const Jet& x) { return {-x.a, -x.b, -x.c}; }
+inline Jet operator+(const Jet& x) { return x; }
+inline Jet operator+(Jet x, const Jet& y) { return x += y; }
+inline Jet operator-(Jet x, const Jet& y) { return x -= y; }
+inline Jet operator*(Jet x, const Jet& y) { return x *= y; }
+inline Jet operator/(Jet x, const Jet& y) { return x /= y; }
+inline Jet operator+(Jet x, double y) { return x += Jet(y); }
+inline Jet operator+(double y, Jet x) { return x += Jet(y); }
+inline Jet operator-(Jet x, double y) { return x -= Jet(y); }
+inline Jet operator-(double y, const Jet& x) { return Jet(y) - x; }
+inline Jet operator*(const Jet& x, double y) { return {x.a * y, x.b * y, x.c * y}; }
+inline Jet operator*(double y, const Jet& x) { return {x.a * y, x.b * y, x.c * y}; }
+inline Jet operator/(const Jet& x, double y) { return {x.a / y, x.b / y, x.c / y}; }
+inline Jet operator/(double y, const Jet& x) { return Jet(y) / x; }
+inline bool operator<(const Jet& x, const Jet& y) { return x.a.v < y.a.v; }
+inline bool operator>(const Jet& x, const Jet& y) { return x.a.v > y.a.v; }
+inline bool operator<=(const Jet& x, const Jet& y) { return x.a.v <= y.a.v; }
+inline bool operator>=(const Jet& x, const Jet& y) { return x.a.v >= y.a.v; }
+inline bool operator==(const Jet& x, const Jet& y) { return x.a == y.a && x.b == y.b && x.c == y.c; }
+inline bool operator!=(const Jet& x, const Jet& y) { return !(x == y); }
+inline Jet sin(const Jet& x) {
+  const Dual s = sin(x.a), co = cos(x.a);
+  return {s, co * x.b, co * x.c - 0.5 * s * x.b * x.b};
+}
+inline Jet cos(const Jet& x) {
+  const Dual s = sin(x.a), co = cos(x.a);
+  return {co, -s * x.b, -s * x.c - 0.5 * co * x.b * x.b};
+}
+inline Jet sqrt(const Jet& x) {
+  const Dual r0 = sqrt(x.a), r1 = x.b / (2.0 * r0);
+  return {r0, r1, (x.c - r1 * r1) / (2.0 * r0)};
+}
+inline Jet abs(const Jet& x) { return x.a.v < 0 ? -x : x; }
+inline double value(const Jet& x) { return x.a.v; }
+}  // namespace
+
+}  // namespace crossdyn::kane
+
+namespace Eigen {
+template <>
+struct NumTraits<crossdyn::kane::Jet> : GenericNumTraits<double> {
+  using Real = crossdyn::kane::Jet;
+  using NonInteger = crossdyn::kane::Jet;
+  using Nested = crossdyn::kane::Jet;
+  using Literal = double;
+  enum {
+    IsComplex = 0,
+    IsInteger = 0,
+    IsSigned = 1,
+    RequireInitialization = 1,
+    ReadCost = 6,
+    AddCost = 6,
+    MulCost = 18
+  };
+  static inline Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
+  static inline Real dummy_precision() { return Real(1e-12); }
+  static inline Real highest() { return Real(std::numeric_limits<double>::max()); }
+  static inline Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
+  static inline int digits10() { return std::numeric_limits<double>::digits10; }
+};
+}  // namespace Eigen
 
 namespace crossdyn::kane {
 
@@ -391,6 +498,420 @@ struct TangentTwin {
     if (!udot.empty()) propagate<S>(e, w, udot.data());
   }
 
+  // ---------------------------------------------------------------------------------------------
+  // The flexible twin (a System with a flexible body).  Kane's equations with C's node masses as
+  // the particles and its node inertias J_i turning with C's frame (README.md "Flexible bodies":
+  // F_r* = -sum_i V_r^i . m_i a_i - sum_B W_r^B . (J_B alpha_B + w_B x J_B w_B)), written
+  // particle by particle over the same positions as Pass 1 (docs/flexible-bodies.md "Joints at
+  // nodes": R_NJp = R_NP E_Pj, R_NJc = R_NJp R_PJ0 R_J, R_NC = R_NJc E_Cj^T, p_Ok = p_Po + R_NP
+  // r_Pj = p_Co + R_NC r_Cj, r = p + Phi eta (+ e 1/2 eta^T G eta, geometric stiffening), node i
+  // at r_i likewise).  The velocities, partial velocities and remainder accelerations are the
+  // time derivatives of these positions along q' = q'(u), u' = 0 (or the given u'), carried as
+  // Taylor coefficients (Jet) of the positions; partial velocities are the rates at u = e_r
+  // (prescribed rates zero).  The modal loads -K eta - D eta', the hinge loads, gravity (uniform:
+  // m_i g; orbit: m_i T r_i and 3 n^2 z x (J z) on the node inertias) and body torques on C's
+  // frame complete f.  The model's integrals (FlexModel) are these same node sums.
+
+  struct JetFrame {
+    M3<Jet> R;
+    V3<Jet> p;            // the body-frame origin Bo (absolute, from No)
+    std::vector<V3<Jet>> pts;  // a flexible body's nodes
+  };
+
+  // exp([psi x]) (NodeRotation): R = 1 + (1 - x b) S + a S^2, x = |psi|^2, by the series below
+  // x = 1 and the closed forms above.
+  static M3<Jet> expso3(const V3<Jet>& psi) {
+    const Jet x = psi.squaredNorm();
+    Jet a, b;
+    if (value(x) < 1.0) {
+      double f = 1.0;  // 1 / k!
+      std::vector<double> inv(28);
+      for (int k = 0; k < 28; ++k) {
+        if (k > 0) f /= k;
+        inv[static_cast<std::size_t>(k)] = f;
+      }
+      Jet p = 1.0;
+      a = 0.0;
+      b = 0.0;
+      for (int k = 0; k < 12; ++k) {
+        a += p * inv[static_cast<std::size_t>(2 * k + 2)];
+        b += p * inv[static_cast<std::size_t>(2 * k + 3)];
+        p *= -x;
+      }
+    } else {
+      const Jet th = sqrt(x), c = cos(th), sn = sin(th);
+      a = (1.0 - c) / x;
+      b = (th - sn) / (x * th);
+    }
+    M3<Jet> S;
+    S << Jet(0.0), -psi(2), psi(1), psi(2), Jet(0.0), -psi(0), -psi(1), psi(0), Jet(0.0);
+    M3<Jet> R = (1.0 - x * b) * S + a * (S * S);
+    for (int i = 0; i < 3; ++i) R(i, i) += 1.0;
+    return R;
+  }
+
+  // The displacement Phi eta (+ e 1/2 eta^T G eta) and the rotation vector Psi eta at a node.
+  static V3<Jet> displacement(const Eigen::Matrix3Xd& Phi, bool stiff, const Vector3d& ev,
+                              const Eigen::MatrixXd& G, const Jet* eta, int nm) {
+    V3<Jet> u = V3<Jet>::Zero();
+    for (int l = 0; l < std::min<int>(nm, static_cast<int>(Phi.cols())); ++l)
+      u += Phi.col(l).cast<Jet>() * eta[l];
+    if (stiff) {
+      Jet q = 0.0;
+      for (int k = 0; k < nm; ++k)
+        for (int l = 0; l < nm; ++l) q += (0.5 * G(k, l)) * eta[k] * eta[l];
+      u += ev.cast<Jet>() * q;
+    }
+    return u;
+  }
+  static V3<Jet> rotvec(const Eigen::Matrix3Xd& Psi, const Jet* eta, int nm) {
+    V3<Jet> v = V3<Jet>::Zero();
+    for (int l = 0; l < std::min<int>(nm, static_cast<int>(Psi.cols())); ++l)
+      v += Psi.col(l).cast<Jet>() * eta[l];
+    return v;
+  }
+
+  // Positions as Taylor polynomials in time: q (x[0, n_q)) with rates and half accelerations.
+  static void jet_positions(const KaneEngine& e, const std::vector<Jet>& q,
+                            const std::vector<Jet>& pres, std::vector<JetFrame>& F) {
+    F.resize(e.nodes_.size());
+    JetFrame ground;
+    ground.R = M3<Jet>::Identity();
+    ground.p = V3<Jet>::Zero();
+    for (std::size_t k = 0; k < e.nodes_.size(); ++k) {
+      const Node& n = e.nodes_[k];
+      JetFrame& W = F[k];
+      if (n.shape == JointShape::Base6) {
+        W.R = quat_matrix(q.data() + n.q0 + 3);
+        W.p = V3<Jet>(q[static_cast<std::size_t>(n.q0)], q[static_cast<std::size_t>(n.q0) + 1],
+                      q[static_cast<std::size_t>(n.q0) + 2]);
+      } else {
+        const JetFrame& P = n.parent >= 0 ? F[static_cast<std::size_t>(n.parent)] : ground;
+        V3<Jet> r_Pj = cst<Jet>(n.p_PoJ_P);
+        M3<Jet> R_NJp = P.R;
+        if (n.parent_attach) {
+          const Node& pn = e.nodes_[static_cast<std::size_t>(n.parent)];
+          const Jet* eta_P = q.data() + pn.q0 + pn.nqj;
+          r_Pj += displacement(n.Phi_Pj, n.stiff_P, n.e_Pj, n.G_Pj, eta_P, pn.nm);
+          R_NJp = P.R * expso3(rotvec(n.Psi_Pj, eta_P, pn.nm));
+        }
+        const M3<Jet> R_NJ0 = n.has_offset ? M3<Jet>(R_NJp * cst<Jet>(n.R_PJ0)) : R_NJp;
+        M3<Jet> R_NJc;
+        const Jet ang = n.prescribed ? pres[k] : q[static_cast<std::size_t>(n.q0)];
+        switch (n.shape) {
+          case JointShape::Axis1: {
+            const Jet h = 0.5 * ang;
+            R_NJc = R_NJ0 * axis_angle<Jet>(n.axis_J, sin(h), cos(h));
+          } break;
+          case JointShape::Rotation3:
+            R_NJc = R_NJ0 * quat_matrix(q.data() + n.q0);
+            break;
+          case JointShape::Slide1:
+            R_NJc = R_NJ0;
+            r_Pj += ang * cst<Jet>(n.axis_P);
+            break;
+          case JointShape::Gimbal2: {
+            const Jet h1 = 0.5 * q[static_cast<std::size_t>(n.q0)],
+                      h2 = 0.5 * q[static_cast<std::size_t>(n.q0) + 1];
+            R_NJc = R_NJ0 * axis_angle<Jet>(n.axis_J, sin(h1), cos(h1)) *
+                    axis_angle<Jet>(n.axis2_J, sin(h2), cos(h2));
+          } break;
+          default:
+            R_NJc = R_NJ0;
+            break;
+        }
+        const V3<Jet> p_Ok = P.p + P.R * r_Pj;
+        V3<Jet> r_Cj = cst<Jet>(n.p_CoJ_C);
+        W.R = R_NJc;
+        if (n.child_attach) {
+          const Jet* eta = q.data() + n.q0 + n.nqj;
+          r_Cj += displacement(n.Phi_Cj, n.stiff_C, n.e_Cj, n.G_Cj, eta, n.nm);
+          W.R = R_NJc * expso3(rotvec(n.Psi_Cj, eta, n.nm)).transpose();
+        }
+        W.p = p_Ok - W.R * r_Cj;
+      }
+      W.pts.clear();
+      if (n.flex >= 0) {
+        const FlexBody& fb = *e.system_.bodies[static_cast<std::size_t>(n.body)].flex;
+        const Jet* eta = q.data() + n.q0 + n.nqj;
+        for (const FlexNode& nd : fb.nodes)
+          W.pts.push_back(W.p + W.R * (cst<Jet>(nd.p_BoNi_B) +
+                                       displacement(nd.Phi_B, fb.geometric_stiffening, nd.e_B,
+                                                    nd.G, eta, n.nm)));
+      }
+    }
+  }
+
+  // q with its rate q'(u) and half acceleration (u' = udot, or 0 when udot is null); prescribed
+  // joints at t (rates zero when partial).
+  static void jet_state(const KaneEngine& e, double t, const Dual* x, const Dual* u,
+                        const Dual* udot, bool partial, std::vector<Jet>& q,
+                        std::vector<Jet>& pres) {
+    q.assign(static_cast<std::size_t>(e.n_q_), Jet());
+    pres.assign(e.nodes_.size(), Jet());
+    for (int i = 0; i < e.n_q_; ++i) q[static_cast<std::size_t>(i)].a = x[i];
+    auto ud = [udot](int i) { return udot ? udot[i] : Dual(0.0); };
+    auto quat = [&](int q0, int u0) {
+      // q' = q (x) (0, w) / 2, q'' = q' (x) (0, w) / 2 + q (x) (0, w') / 2.
+      auto mul = [](const Dual* a, const Dual* w) {  // a (x) (0, w)
+        return std::array<Dual, 4>{-(a[1] * w[0] + a[2] * w[1] + a[3] * w[2]),
+                                   a[0] * w[0] + a[2] * w[2] - a[3] * w[1],
+                                   a[0] * w[1] + a[3] * w[0] - a[1] * w[2],
+                                   a[0] * w[2] + a[1] * w[1] - a[2] * w[0]};
+      };
+      const Dual w[3] = {u[u0], u[u0 + 1], u[u0 + 2]};
+      const Dual wd[3] = {ud(u0), ud(u0 + 1), ud(u0 + 2)};
+      const Dual* qa = x + q0;
+      const std::array<Dual, 4> d1 = mul(qa, w);
+      Dual q1[4];
+      for (int i = 0; i < 4; ++i) q1[i] = 0.5 * d1[static_cast<std::size_t>(i)];
+      const std::array<Dual, 4> d2a = mul(q1, w), d2b = mul(qa, wd);
+      for (std::size_t i = 0; i < 4; ++i) {
+        q[static_cast<std::size_t>(q0) + i].b = q1[i];
+        q[static_cast<std::size_t>(q0) + i].c = 0.25 * (d2a[i] + d2b[i]);
+      }
+    };
+    for (std::size_t k = 0; k < e.nodes_.size(); ++k) {
+      const Node& n = e.nodes_[k];
+      const std::size_t q0 = static_cast<std::size_t>(n.q0);
+      if (n.prescribed) {
+        pres[k] = Jet(Dual(n.angle0 + n.motion.angle(t)), Dual(partial ? 0.0 : n.motion.velocity(t)),
+                      Dual(partial ? 0.0 : 0.5 * n.motion.accel(t)));
+      }
+      switch (n.shape) {
+        case JointShape::Base6:
+          for (std::size_t i = 0; i < 3; ++i) {
+            q[q0 + i].b = u[n.u0 + 3 + static_cast<int>(i)];
+            q[q0 + i].c = 0.5 * ud(n.u0 + 3 + static_cast<int>(i));
+          }
+          quat(n.q0 + 3, n.u0);
+          break;
+        case JointShape::Rotation3:
+          quat(n.q0, n.u0);
+          break;
+        case JointShape::Axis1:
+        case JointShape::Slide1:
+        case JointShape::Gimbal2:
+          if (n.prescribed) break;
+          for (int i = 0; i < n.nuj; ++i) {
+            q[q0 + static_cast<std::size_t>(i)].b = u[n.u0 + i];
+            q[q0 + static_cast<std::size_t>(i)].c = 0.5 * ud(n.u0 + i);
+          }
+          break;
+        default:
+          break;
+      }
+      for (int l = 0; l < n.nm; ++l) {
+        q[q0 + static_cast<std::size_t>(n.nqj + l)].b = u[n.u0 + n.nuj + l];
+        q[q0 + static_cast<std::size_t>(n.nqj + l)].c = 0.5 * ud(n.u0 + n.nuj + l);
+      }
+    }
+  }
+
+  // The rate (b) and acceleration (2 c) of a point; the angular velocity and acceleration of a
+  // frame: [w x] = R' R^T, [alpha x] = skew part of R'' R^T.
+  static V3<Dual> rate(const V3<Jet>& p) { return V3<Dual>(p(0).b, p(1).b, p(2).b); }
+  static V3<Dual> accel(const V3<Jet>& p) {
+    return V3<Dual>(2.0 * p(0).c, 2.0 * p(1).c, 2.0 * p(2).c);
+  }
+  static M3<Dual> part(const M3<Jet>& R, int which) {
+    M3<Dual> m;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) m(i, j) = which == 0 ? R(i, j).a : which == 1 ? R(i, j).b : R(i, j).c;
+    return m;
+  }
+  static V3<Dual> vee_skew(const M3<Dual>& A) {
+    return V3<Dual>(0.5 * (A(2, 1) - A(1, 2)), 0.5 * (A(0, 2) - A(2, 0)), 0.5 * (A(1, 0) - A(0, 1)));
+  }
+  static V3<Dual> ang_rate(const M3<Jet>& R) {
+    return vee_skew(M3<Dual>(part(R, 1) * part(R, 0).transpose()));
+  }
+  static V3<Dual> ang_accel(const M3<Jet>& R) {
+    return vee_skew(M3<Dual>(2.0 * part(R, 2) * part(R, 0).transpose()));
+  }
+
+  // The rotational inertia that turns with a body's frame, in its axes: a rigid body's I_BBo_B,
+  // a flexible body's sum of node inertias J_i (its particles carry the rest).
+  static Matrix3d frame_inertia(const KaneEngine& e, const Node& n) {
+    if (n.flex < 0) return n.I_BBo_B;
+    Matrix3d J = Matrix3d::Zero();
+    for (const FlexNode& nd : e.system_.bodies[static_cast<std::size_t>(n.body)].flex->nodes)
+      J += 0.5 * (nd.J_Ni_B + nd.J_Ni_B.transpose());
+    return J;
+  }
+
+  // M u' = f by L D L^T (M symmetric positive definite; dense, unpivoted).
+  static void ldlt_solve(double t, std::size_t nu, const std::vector<Dual>& M,
+                         const std::vector<Dual>& f, std::vector<Dual>& udot) {
+    std::vector<Dual> L(nu * nu, Dual(0.0)), D(nu, Dual(0.0));
+    for (std::size_t j = 0; j < nu; ++j) {
+      Dual dj = M[j * nu + j];
+      for (std::size_t l = 0; l < j; ++l) dj -= L[j * nu + l] * L[j * nu + l] * D[l];
+      if (!(value(dj) > 0))
+        throw RunFailure("kane", t, "mass matrix", "not positive definite (a pivot of L D L^T <= 0)");
+      D[j] = dj;
+      for (std::size_t i = j + 1; i < nu; ++i) {
+        Dual m = M[i * nu + j];
+        for (std::size_t l = 0; l < j; ++l) m -= L[i * nu + l] * L[j * nu + l] * D[l];
+        L[i * nu + j] = m / dj;
+      }
+    }
+    udot.assign(nu, Dual(0.0));
+    for (std::size_t i = 0; i < nu; ++i) {
+      Dual y = f[i];
+      for (std::size_t l = 0; l < i; ++l) y -= L[i * nu + l] * udot[l];
+      udot[i] = y;
+    }
+    for (std::size_t i = 0; i < nu; ++i) udot[i] /= D[i];
+    for (std::size_t i = nu; i-- > 0;) {
+      Dual y = udot[i];
+      for (std::size_t l = i + 1; l < nu; ++l) y -= L[l * nu + i] * udot[l];
+      udot[i] = y;
+    }
+  }
+
+  // (t, x) => u' and every node's frame (R, alpha, a of Bo) in w, for a System with flexible
+  // bodies.
+  static void flex_dynamics(const KaneEngine& e, double t, const Dual* x,
+                            std::vector<TwinWork<Dual>>& w, std::vector<Dual>& udot) {
+    const std::size_t nn = e.nodes_.size(), nu = static_cast<std::size_t>(e.n_u_);
+    const Dual* u = x + e.n_q_;
+    std::vector<Jet> q, pres;
+    std::vector<JetFrame> F;
+    // The remainder: velocities and accelerations at u' = 0.
+    jet_state(e, t, x, u, nullptr, false, q, pres);
+    jet_positions(e, q, pres, F);
+    // Loads at the remainder accelerations: R_i on each particle, T_B on each frame.
+    M3<Dual> T_N = M3<Dual>::Zero();
+    V3<Dual> z_N = V3<Dual>::Zero();
+    double n2 = 0;
+    if (e.orbit_) {
+      const OrbitFrame o = orbit_frame(e.system_.environment, t);
+      n2 = o.n * o.n;
+      z_N = cst<Dual>(o.zenith_N);
+      Matrix3d T = (3.0 * n2) * o.zenith_N * o.zenith_N.transpose();
+      T.diagonal().array() -= n2;
+      T_N = cst<Dual>(T);
+    }
+    auto point_load = [&](double m, const V3<Jet>& p) {
+      V3<Dual> R = -m * accel(p);
+      if (e.gravity_) {
+        if (!e.orbit_)
+          R += m * cst<Dual>(e.g_N_);
+        else
+          R += m * (T_N * V3<Dual>(V3<Dual>(p(0).a, p(1).a, p(2).a) - cst<Dual>(e.p_NoO_N_)));
+      }
+      return R;
+    };
+    std::vector<std::vector<V3<Dual>>> Rp(nn);
+    std::vector<V3<Dual>> TB(nn);
+    std::vector<M3<Dual>> IN(nn);
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const JetFrame& W = F[k];
+      const M3<Dual> R = part(W.R, 0);
+      IN[k] = R * cst<Dual>(frame_inertia(e, n)) * R.transpose();
+      const V3<Dual> om = ang_rate(W.R);
+      V3<Dual> T = -(IN[k] * ang_accel(W.R)) - e.gyro_sign_ * om.cross(IN[k] * om);
+      if (n.body_torque) {
+        const Body& body = e.system_.bodies[static_cast<std::size_t>(n.body)];
+        const V3<Dual> Tq = cst<Dual>(body.torque.value(t));
+        T += body.torque_frame == Body::Frame::Body ? V3<Dual>(R * Tq) : Tq;
+      }
+      if (e.gravity_ && e.orbit_) T += (3.0 * n2) * z_N.cross(IN[k] * z_N);
+      TB[k] = T;
+      if (n.flex < 0) {
+        Rp[k].push_back(point_load(n.mass, W.p));
+      } else {
+        const FlexBody& fb = *e.system_.bodies[static_cast<std::size_t>(n.body)].flex;
+        for (std::size_t i = 0; i < W.pts.size(); ++i) Rp[k].push_back(point_load(fb.nodes[i].mass, W.pts[i]));
+      }
+    }
+    // Partial velocities of every particle and frame: the rates at u = e_r.
+    std::vector<std::vector<std::vector<V3<Dual>>>> Vp(nu);
+    std::vector<std::vector<V3<Dual>>> Wp(nu);
+    std::vector<Dual> er(nu, Dual(0.0));
+    for (std::size_t r = 0; r < nu; ++r) {
+      er.assign(nu, Dual(0.0));
+      er[r] = 1.0;
+      jet_state(e, t, x, er.data(), nullptr, true, q, pres);
+      jet_positions(e, q, pres, F);
+      Vp[r].resize(nn);
+      Wp[r].resize(nn);
+      for (std::size_t k = 0; k < nn; ++k) {
+        Wp[r][k] = ang_rate(F[k].R);
+        if (e.nodes_[k].flex < 0)
+          Vp[r][k].push_back(rate(F[k].p));
+        else
+          for (const V3<Jet>& p : F[k].pts) Vp[r][k].push_back(rate(p));
+      }
+    }
+    std::vector<Dual> M(nu * nu, Dual(0.0)), f(nu, Dual(0.0));
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      std::vector<double> mass;
+      if (n.flex < 0)
+        mass.push_back(n.mass);
+      else
+        for (const FlexNode& nd : e.system_.bodies[static_cast<std::size_t>(n.body)].flex->nodes)
+          mass.push_back(nd.mass);
+      for (std::size_t r = 0; r < nu; ++r) {
+        f[r] += Wp[r][k].dot(TB[k]);
+        for (std::size_t i = 0; i < mass.size(); ++i) f[r] += Vp[r][k][i].dot(Rp[k][i]);
+        const V3<Dual> IW = IN[k] * Wp[r][k];
+        for (std::size_t s2 = r; s2 < nu; ++s2) {
+          Dual m = Wp[s2][k].dot(IW);
+          for (std::size_t i = 0; i < mass.size(); ++i) m += mass[i] * Vp[r][k][i].dot(Vp[s2][k][i]);
+          M[r * nu + s2] += m;
+          if (s2 != r) M[s2 * nu + r] += m;
+        }
+      }
+      // Modal stiffness and damping.
+      if (n.flex >= 0) {
+        const FlexModel& FM = e.flex_[static_cast<std::size_t>(n.flex)];
+        for (int l = 0; l < n.nm; ++l) {
+          Dual g = 0.0;
+          for (int m2 = 0; m2 < n.nm; ++m2)
+            g += FM.K(l, m2) * x[n.q0 + n.nqj + m2] + FM.D(l, m2) * u[n.u0 + n.nuj + m2];
+          f[static_cast<std::size_t>(n.u0 + n.nuj + l)] -= g;
+        }
+      }
+    }
+    for (const Node& n : e.nodes_) hinge(e, n, t, x, f);
+    udot.clear();
+    if (nu > 0) ldlt_solve(t, nu, M, f, udot);
+    // The full accelerations.
+    jet_state(e, t, x, u, nu > 0 ? udot.data() : nullptr, false, q, pres);
+    jet_positions(e, q, pres, F);
+    w.assign(nn, TwinWork<Dual>());
+    for (std::size_t k = 0; k < nn; ++k) {
+      w[k].R = part(F[k].R, 0);
+      w[k].alpha = ang_accel(F[k].R);
+      w[k].a = accel(F[k].p);
+      if (e.nodes_[k].prescribed) w[k].pres_accel = e.nodes_[k].motion.accel(t);
+    }
+  }
+
+  // pack()'s zero linear momentum for a System with flexible bodies: P0 = sum m_i v_i at
+  // v_B0o = 0 (prescribed joints at t = 0).
+  static V3<Dual> flex_momentum(const KaneEngine& e, const std::vector<Dual>& x0) {
+    std::vector<Jet> q, pres;
+    std::vector<JetFrame> F;
+    jet_state(e, 0.0, x0.data(), x0.data() + e.n_q_, nullptr, false, q, pres);
+    jet_positions(e, q, pres, F);
+    V3<Dual> P = V3<Dual>::Zero();
+    for (std::size_t k = 0; k < e.nodes_.size(); ++k) {
+      const Node& n = e.nodes_[k];
+      if (n.flex < 0) {
+        P += n.mass * rate(F[k].p);
+      } else {
+        const FlexBody& fb = *e.system_.bodies[static_cast<std::size_t>(n.body)].flex;
+        for (std::size_t i = 0; i < F[k].pts.size(); ++i) P += fb.nodes[i].mass * rate(F[k].pts[i]);
+      }
+    }
+    return P;
+  }
+
   // TreeState and TreeTangent => x(0) and dx/de (as duals) through pack(): the engine's own pack
   // for the values; the derivatives field by field (a quaternion q's right perturbation
   // q (x) (1, e dtheta / 2) gives dq = q (x) (0, dtheta) / 2, q normalised as pack() stores it),
@@ -447,6 +968,16 @@ struct TangentTwin {
         default:
           break;
       }
+      if (n.nm > 0) {  // a flexible child's modal coordinates and rates (per body)
+        const std::size_t b = static_cast<std::size_t>(n.body);
+        for (int l = 0; l < n.nm; ++l) {
+          const Eigen::Index li = l;
+          if (b < ds.eta.size() && ds.eta[b].size() > li)
+            x[q0 + static_cast<std::size_t>(n.nqj + l)].d = ds.eta[b](li);
+          if (b < ds.eta_rate.size() && ds.eta_rate[b].size() > li)
+            u[u0 + static_cast<std::size_t>(n.nuj + l)].d = ds.eta_rate[b](li);
+        }
+      }
     }
     // Zero linear momentum (pack(): a free base only, prescribed joints at t = 0): the base
     // velocity -P0 / m_total, P0 = sum m v_Bo at v_B0o = 0; its value stays pack()'s.
@@ -454,10 +985,14 @@ struct TangentTwin {
       const std::size_t v0 = static_cast<std::size_t>(e.nodes_[0].u0) + 3;
       std::vector<Dual> x0(x);
       for (std::size_t i = 0; i < 3; ++i) x0[static_cast<std::size_t>(e.n_q_) + v0 + i] = Dual();
-      std::vector<TwinWork<Dual>> w;
-      kinematics<Dual>(e, 0.0, x0.data(), w);
       V3<Dual> P = V3<Dual>::Zero();
-      for (std::size_t k = 0; k < e.nodes_.size(); ++k) P += e.nodes_[k].mass * w[k].v;
+      if (!e.flex_.empty()) {
+        P = flex_momentum(e, x0);
+      } else {
+        std::vector<TwinWork<Dual>> w;
+        kinematics<Dual>(e, 0.0, x0.data(), w);
+        for (std::size_t k = 0; k < e.nodes_.size(); ++k) P += e.nodes_[k].mass * w[k].v;
+      }
       for (std::size_t i = 0; i < 3; ++i)
         u[v0 + i].d = -P(static_cast<Eigen::Index>(i)).d / e.total_mass_;
     }
@@ -471,7 +1006,10 @@ bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeT
   TangentTwin::pack(*this, s, ds, x);
   std::vector<TwinWork<Dual>> w;
   std::vector<Dual> udot;
-  TangentTwin::dynamics<Dual>(*this, t, x.data(), w, udot);
+  if (flex_.empty())
+    TangentTwin::dynamics<Dual>(*this, t, x.data(), w, udot);
+  else
+    TangentTwin::flex_dynamics(*this, t, x.data(), w, udot);
 
   const std::size_t nb = system_.bodies.size(), nj = system_.joints.size();
   TreeAccel ra, rd;
@@ -516,6 +1054,14 @@ bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeT
         break;
       default:
         break;
+    }
+    if (n.nm > 0) {
+      ra.eta_ddot[b].resize(n.nm);
+      rd.eta_ddot[b].resize(n.nm);
+      for (int l = 0; l < n.nm; ++l) {
+        ra.eta_ddot[b](l) = udot[u0 + static_cast<std::size_t>(n.nuj + l)].v;
+        rd.eta_ddot[b](l) = udot[u0 + static_cast<std::size_t>(n.nuj + l)].d;
+      }
     }
   }
   a = std::move(ra);
