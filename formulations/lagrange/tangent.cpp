@@ -1,0 +1,423 @@
+// The Lagrange engine's exact linearisation (issue 27; core/engine.hpp accelerations_tangent):
+// a = accelerations(t, pack(s)) and its variation da along a TreeTangent ds, exact to rounding.
+//
+// How (README.md, "Exact linearisation"): nested forward-mode automatic differentiation
+// (Griewank & Walther 2008, "Evaluating Derivatives", 2nd ed., Ch. 3, the tangent mode, and
+// Ch. 13, higher derivatives by nesting), no differences and no complex step. The scalar
+// E = Dual<1> carries every value with its variation along ds (the outer direction); the scalar
+// S = Dual<1, E> carries, on top, one derivative with respect to a coordinate q*_k (the inner
+// direction). Through the engine's own kinematics and energies (kinematics.hpp pose and twist
+// passes, energy.hpp's potential, euler_chart.hpp's A) on S, the same Lagrangian as rhs()'s,
+//   L(q*, q*') = 1/2 q*'^T Abar^T M(q*) Abar q*' - V(q*),   pi' = Abar(q*) q*'
+// (Abar: A on every Euler set's block, 1 elsewhere; M_ij = T(e_i, e_j) from the unit-seed twists
+// as in the mass pass), gives Lagrange's equations in q*
+//   Mbar q*'' = Abar^T N - (sum_l dMbar/dq*_l q*'_l) q*' + 1/2 q*'^T (dMbar/dq*_k) q*' - dV/dq*_k,
+// solved in E, then pi'' = Abar q*'' + (d Abar/dt) q*': the same equations of motion as the
+// Boltzmann-Hamel form rhs() solves (paper Eq. 23 is these with d(pi) = A dq*, Eqs. 16-22), so
+// their value parts equal accelerations()'s to rounding (checked below: the variation is returned
+// only when they agree). The state's own variation is pack()'s, in the chart pack() chose: a right
+// perturbation R exp(e [dtheta x]) of an Euler set's rotation moves its angles by B dtheta
+// (B = A^-1: w = A a', euler_chart.hpp), and with System::zero_linear_momentum the base velocity's
+// variation is that of -P_rest / m_total, P_rest the linear momentum of the other quasi-velocities.
+//
+// Covered (Model::tangent, decided once by the constructor): rigid bodies on a free base with
+// revolute, prismatic, universal, spherical and fixed joints, hinge springs, dampers and motors,
+// body torques (body or inertial frame). Not covered (accelerations_tangent returns false, the
+// harness differentiates numerically): flexible bodies, prescribed joints or base, an environment
+// (uniform gravity, orbit).
+//
+// Cost: n inner directions, each n twist passes (O(n^2) passes and O(n^4) products): for
+// linearisation and tests, never rhs(). Allocates.
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/errors.hpp"
+#include "formulations/lagrange/autodiff.hpp"
+#include "formulations/lagrange/energy.hpp"
+#include "formulations/lagrange/euler_chart.hpp"
+#include "formulations/lagrange/joints/joint_unit.hpp"
+#include "formulations/lagrange/kinematics.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/workspace.hpp"
+
+namespace crossdyn::lagrange {
+
+namespace {
+
+using E = Dual<1>;     // a value and its variation along the tangent ds
+using S = Dual<1, E>;  // ... and one derivative along a coordinate q*_k
+
+// Dense n x n matrix of E, row-major.
+struct MatE {
+  int n = 0;
+  std::vector<E> a;
+  explicit MatE(int size) : n(size), a(static_cast<std::size_t>(size * size), E(0.0)) {}
+  E& operator()(int r, int c) { return a[static_cast<std::size_t>(r * n + c)]; }
+  const E& operator()(int r, int c) const { return a[static_cast<std::size_t>(r * n + c)]; }
+};
+
+// A z = b in E by Gaussian elimination with partial pivoting on the values (A is Mbar, symmetric
+// positive definite, or a 3 x 3 A of a chart away from its singularity). b becomes z; A is
+// overwritten. Returns false when a pivot is zero.
+bool solve_in_place(MatE A, std::vector<E>& b) {
+  const int n = A.n;
+  for (int c = 0; c < n; ++c) {
+    int p = c;
+    for (int r = c + 1; r < n; ++r)
+      if (std::abs(A(r, c).v) > std::abs(A(p, c).v)) p = r;
+    if (A(p, c).v == 0.0) return false;
+    if (p != c) {
+      for (int k = 0; k < n; ++k) std::swap(A(p, k), A(c, k));
+      std::swap(b[static_cast<std::size_t>(p)], b[static_cast<std::size_t>(c)]);
+    }
+    for (int r = c + 1; r < n; ++r) {
+      const E f = A(r, c) / A(c, c);
+      for (int k = c; k < n; ++k) A(r, k) -= f * A(c, k);
+      b[static_cast<std::size_t>(r)] -= f * b[static_cast<std::size_t>(c)];
+    }
+  }
+  for (int r = n - 1; r >= 0; --r) {
+    E z = b[static_cast<std::size_t>(r)];
+    for (int k = r + 1; k < n; ++k) z -= A(r, k) * b[static_cast<std::size_t>(k)];
+    b[static_cast<std::size_t>(r)] = z / A(r, r);
+  }
+  return true;
+}
+
+E seeded(double value, double variation) {
+  E e(value);
+  e.d[0] = variation;
+  return e;
+}
+
+}  // namespace
+
+bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                           TreeAccel& a, TreeAccel& da) {
+  const Model& m = *model_;
+  if (!m.tangent) return false;
+  if (ds.joints.size() != m.joints.size())
+    throw InputError("engine lagrange: accelerations_tangent() got a tangent with " +
+                     std::to_string(ds.joints.size()) + " joints for a system with " +
+                     std::to_string(m.joints.size()));
+  Workspace& w = *ws_;
+  // pack() chooses the charts and records the last accepted state (after_step()): both are put
+  // back on the way out, so a run's engine is left as it was.
+  struct Restore {
+    Workspace& w;
+    std::vector<int> chart;
+    std::vector<double> last_a2;
+    double last_t;
+    bool have_last;
+    ~Restore() {
+      w.chart = chart;
+      w.last_a2 = last_a2;
+      w.last_t = last_t;
+      w.have_last = have_last;
+    }
+  } restore{w, w.chart, w.last_a2, w.last_t, w.have_last};
+
+  const int n = m.n;  // nothing prescribed (Model::tangent): the state is the full (q*, pi')
+  const auto un = static_cast<std::size_t>(n);
+  std::vector<double> x(2 * un);
+  pack(s, x.data());
+  TreeAccel a0;
+  accelerations(t, x.data(), a0);
+  const int* chart = w.chart.data();
+  const std::size_t nb = m.bodies.size(), nj = m.joints.size(), ns = m.euler_sets.size();
+
+  // The state's variation, pack()'s (header comment).
+  std::vector<double> dq(un, 0.0), du(un, 0.0);
+  auto B_of = [&](int set) {
+    const int i0 = m.euler_sets[static_cast<std::size_t>(set)].i0;
+    const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[set])];
+    return Eigen::Matrix3d(euler_rate_matrix(seq, x[static_cast<std::size_t>(i0 + 1)],
+                                             x[static_cast<std::size_t>(i0 + 2)])
+                               .inverse());
+  };
+  for (std::size_t j = 0; j < nj; ++j) {
+    const Model::JointM& J = m.joints[j];
+    const TreeTangent::JointTangent& jt = ds.joints[j];
+    double* q = dq.data() + J.i0;
+    double* u = du.data() + J.i0;
+    if (J.absolute) {
+      const Eigen::Vector3d da_set = B_of(J.euler_set) * ds.dtheta_B;
+      for (int i = 0; i < 3; ++i) {
+        q[i] = ds.dp_NoBo_N(i);
+        q[3 + i] = da_set(i);
+        u[i] = ds.dv_NBo_N(i);
+        u[3 + i] = ds.dw_NB_B(i);
+      }
+    } else if (J.relative_euler) {
+      const Eigen::Vector3d da_set = B_of(J.euler_set) * jt.dtheta_J;
+      for (int i = 0; i < 3; ++i) {
+        q[i] = da_set(i);
+        u[i] = jt.w_PC_C(i);
+      }
+    } else {
+      // Scalar coordinates (revolute, prismatic: angle; universal: angle, angle2; fixed: none).
+      if (J.dof > 0) {
+        q[0] = jt.angle;
+        u[0] = jt.rate;
+      }
+      if (J.dof > 1) {
+        q[1] = jt.angle2;
+        u[1] = jt.rate2;
+      }
+    }
+  }
+  std::vector<E> qE(un), uE(un);
+  for (std::size_t i = 0; i < un; ++i) {
+    qE[i] = seeded(x[i], dq[i]);
+    uE[i] = seeded(x[un + i], du[i]);
+  }
+
+  // Inner directions k: with q* + eps e_k, the unit-seed twists Xi (6 x n per body), Mbar, V and
+  // the charts' A on S. Kept: values (E) and d/dq*_k (E).
+  std::vector<std::vector<Vec3<E>>> Xw(nb, std::vector<Vec3<E>>(un)), Xv = Xw;  // Xi value
+  // dXi/dq*_k: [k][b][i]
+  std::vector<std::vector<std::vector<Vec3<E>>>> dXw(un, Xw), dXv(un, Xw);
+  std::vector<Mat3<E>> R(nb);
+  MatE Mbar(n);
+  std::vector<MatE> dMbar(un, MatE(n));
+  std::vector<E> dV(un);
+  std::vector<Mat3<E>> A(ns);
+  std::vector<std::vector<Mat3<E>>> dA(un, std::vector<Mat3<E>>(ns));
+  Kin<S> k;
+  k.resize(m);
+  std::vector<double> seed(un, 0.0);
+  std::vector<std::vector<Vec3<S>>> Sw(nb, std::vector<Vec3<S>>(un)), Sv = Sw;
+  std::vector<S> MS(un * un), AbS(un * un), T1(un * un);
+  for (std::size_t kd = 0; kd < un; ++kd) {
+    for (std::size_t i = 0; i < un; ++i) k.q[i] = S(qE[i]);
+    k.q[kd].d[0] = E(1.0);
+    pose_pass(m, chart, k, true);
+    for (std::size_t i = 0; i < un; ++i) {
+      seed[i] = 1.0;
+      twist_pass(m, k, seed.data(), m.all_joints);
+      seed[i] = 0.0;
+      for (std::size_t b = 0; b < nb; ++b) {
+        Sw[b][i] = k.w_NB_B[b];
+        Sv[b][i] = k.v_NBo_B[b];
+        for (int r = 0; r < 3; ++r) {
+          dXw[kd][b][i](r) = k.w_NB_B[b](r).d[0];
+          dXv[kd][b][i](r) = k.v_NBo_B[b](r).d[0];
+          if (kd == 0) {
+            Xw[b][i](r) = k.w_NB_B[b](r).v;
+            Xv[b][i](r) = k.v_NBo_B[b](r).v;
+          }
+        }
+      }
+    }
+    if (kd == 0)
+      for (std::size_t b = 0; b < nb; ++b)
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) R[b](r, c) = k.R_NB[b](r, c).v;
+    // M_ij = sum over bodies w_i . I w_j + m v_i . v_j (rigid bodies; the mass pass's T(e_i, e_j)).
+    for (std::size_t i = 0; i < un; ++i)
+      for (std::size_t j = i; j < un; ++j) {
+        S mij(0.0);
+        for (std::size_t b = 0; b < nb; ++b) {
+          const Model::BodyM& Bm = m.bodies[b];
+          mij += Sw[b][i].dot(const_times(Bm.I_BBo_B, Sw[b][j])) + Bm.mass * Sv[b][i].dot(Sv[b][j]);
+        }
+        MS[i * un + j] = mij;
+        MS[j * un + i] = mij;
+      }
+    // Abar (A on the Euler sets' blocks, 1 elsewhere) and Mbar = Abar^T M Abar.
+    for (std::size_t i = 0; i < un * un; ++i) AbS[i] = S(0.0);
+    for (std::size_t i = 0; i < un; ++i) AbS[i * un + i] = S(1.0);
+    for (std::size_t set = 0; set < ns; ++set) {
+      const auto i0 = static_cast<std::size_t>(m.euler_sets[set].i0);
+      const Mat3<S> As = euler_rate_matrix(kSequences[static_cast<std::size_t>(chart[set])],
+                                           k.q[i0 + 1], k.q[i0 + 2]);
+      for (std::size_t r = 0; r < 3; ++r)
+        for (std::size_t c = 0; c < 3; ++c) {
+          AbS[(i0 + r) * un + i0 + c] = As(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
+          dA[kd][set](static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
+              As(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)).d[0];
+          if (kd == 0)
+            A[set](static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) =
+                As(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)).v;
+        }
+    }
+    for (std::size_t i = 0; i < un; ++i)  // T1 = M Abar
+      for (std::size_t j = 0; j < un; ++j) {
+        S sum(0.0);
+        for (std::size_t l = 0; l < un; ++l)
+          if (AbS[l * un + j] != S(0.0)) sum += MS[i * un + l] * AbS[l * un + j];
+        T1[i * un + j] = sum;
+      }
+    for (std::size_t i = 0; i < un; ++i)  // Mbar = Abar^T T1
+      for (std::size_t j = 0; j < un; ++j) {
+        S sum(0.0);
+        for (std::size_t l = 0; l < un; ++l)
+          if (AbS[l * un + i] != S(0.0)) sum += AbS[l * un + i] * T1[l * un + j];
+        const auto ii = static_cast<int>(i), jj = static_cast<int>(j);
+        dMbar[kd](ii, jj) = sum.d[0];
+        if (kd == 0) Mbar(ii, jj) = sum.v;
+      }
+    dV[kd] = potential_energy_of(m, chart, k.q.data()).d[0];
+  }
+
+  // Zero linear momentum (pack()): the base velocity's variation is that of -P_rest / m_total,
+  // P_rest = sum over bodies m R_NB v(other quasi-velocities) (the base translation seeds give
+  // every body v_NBo_N = e_a, m_total e_a in all).
+  const Model::JointM& J0 = m.joints[0];
+  if (m.zero_linear_momentum) {
+    Vec3<E> P = Vec3<E>::Zero();
+    for (std::size_t b = 0; b < nb; ++b) {
+      Vec3<E> v = Vec3<E>::Zero();
+      for (std::size_t i = 0; i < un; ++i) {
+        const int ii = static_cast<int>(i);
+        if (ii >= J0.i0 && ii < J0.i0 + J0.translations) continue;
+        v += Xv[b][i] * uE[i];
+      }
+      P += m.bodies[b].mass * Vec3<E>(R[b] * v);
+    }
+    for (int i = 0; i < J0.translations; ++i)
+      uE[static_cast<std::size_t>(J0.i0 + i)].d[0] = -P(i).d[0] / m.total_mass;
+  }
+
+  // q*' = B pi' (A on each Euler set solved in E), 1 elsewhere.
+  std::vector<E> qd = uE;
+  for (std::size_t set = 0; set < ns; ++set) {
+    const auto i0 = static_cast<std::size_t>(m.euler_sets[set].i0);
+    MatE A3(3);
+    std::vector<E> rhs3(3);
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) A3(r, c) = A[set](r, c);
+      rhs3[static_cast<std::size_t>(r)] = uE[i0 + static_cast<std::size_t>(r)];
+    }
+    if (!solve_in_place(A3, rhs3)) return false;
+    for (std::size_t r = 0; r < 3; ++r) qd[i0 + r] = rhs3[r];
+  }
+
+  // N: body torques (tau . w(e_i)), joint dampers and motors (generalised_forces.cpp).
+  std::vector<E> N(un, E(0.0));
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Model::BodyM& Bm = m.bodies[b];
+    if (Bm.torque.empty()) continue;
+    const Eigen::Vector3d tau = Bm.torque.value(t);
+    Vec3<E> tau_B;
+    if (Bm.torque_frame == Body::Frame::Inertial)
+      tau_B = transpose_times(R[b], Vec3<E>(tau.cast<E>()));
+    else
+      tau_B = tau.cast<E>();
+    for (std::size_t i = 0; i < un; ++i) N[i] += Xw[b][i].dot(tau_B);
+  }
+  for (const Model::JointM& J : m.joints) {
+    if (J.loaded == 0) continue;
+    const Eigen::Vector3d motor = J.motor.value(t);
+    for (int c = 0; c < J.loaded; ++c) {
+      const auto i = static_cast<std::size_t>(J.i0 + c);
+      N[i] += -J.damping[static_cast<std::size_t>(c)] * uE[i] + motor(c);
+    }
+  }
+  // Abar^T N (Abar is block diagonal).
+  std::vector<E> rhs = N;
+  for (std::size_t set = 0; set < ns; ++set) {
+    const auto i0 = static_cast<std::size_t>(m.euler_sets[set].i0);
+    for (int c = 0; c < 3; ++c) {
+      E sum(0.0);
+      for (int r = 0; r < 3; ++r) sum += A[set](r, c) * N[i0 + static_cast<std::size_t>(r)];
+      rhs[i0 + static_cast<std::size_t>(c)] = sum;
+    }
+  }
+  // - (d Mbar/dt) q*' + 1/2 q*'^T (dMbar/dq*_k) q*' - dV/dq*_k.
+  for (std::size_t kd = 0; kd < un; ++kd) {
+    const int kk = static_cast<int>(kd);
+    E quad(0.0);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j)
+        quad += qd[static_cast<std::size_t>(i)] * dMbar[kd](i, j) * qd[static_cast<std::size_t>(j)];
+    E mdot(0.0);
+    for (std::size_t l = 0; l < un; ++l) {
+      E row(0.0);
+      for (int j = 0; j < n; ++j) row += dMbar[l](kk, j) * qd[static_cast<std::size_t>(j)];
+      mdot += row * qd[l];
+    }
+    rhs[kd] += 0.5 * quad - mdot - dV[kd];
+  }
+  std::vector<E> qdd = rhs;
+  if (!solve_in_place(Mbar, qdd)) return false;
+  // pi'' = Abar q*'' + (d Abar/dt) q*'.
+  std::vector<E> ud = qdd;
+  for (std::size_t set = 0; set < ns; ++set) {
+    const auto i0 = static_cast<std::size_t>(m.euler_sets[set].i0);
+    Mat3<E> Adot = Mat3<E>::Zero();
+    for (std::size_t l = 0; l < un; ++l) Adot += dA[l][set] * qd[l];
+    for (int r = 0; r < 3; ++r) {
+      E sum(0.0);
+      for (int c = 0; c < 3; ++c) {
+        const auto ic = i0 + static_cast<std::size_t>(c);
+        sum += A[set](r, c) * qdd[ic] + Adot(r, c) * qd[ic];
+      }
+      ud[i0 + static_cast<std::size_t>(r)] = sum;
+    }
+  }
+
+  // The accelerations (outputs.cpp): per body xi = Xi pi', xi' = Xi pi'' + (dXi/dt) pi',
+  // wdot = xi'_w, a_NBo_N = R_NB (xi'_v + w x v); per joint its unit's share of pi''.
+  TreeAccel av = a0, dav = a0;
+  const auto variation = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).d[0], v(1).d[0], v(2).d[0]); };
+  const auto value = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).v, v(1).v, v(2).v); };
+  for (std::size_t b = 0; b < nb; ++b) {
+    Vec3<E> xw = Vec3<E>::Zero(), xv = xw, xwd = xw, xvd = xw;
+    for (std::size_t i = 0; i < un; ++i) {
+      xw += Xw[b][i] * uE[i];
+      xv += Xv[b][i] * uE[i];
+      xwd += Xw[b][i] * ud[i];
+      xvd += Xv[b][i] * ud[i];
+      for (std::size_t l = 0; l < un; ++l) {
+        const E rate = qd[l] * uE[i];
+        xwd += dXw[l][b][i] * rate;
+        xvd += dXv[l][b][i] * rate;
+      }
+    }
+    const Vec3<E> acc = R[b] * Vec3<E>(xvd + xw.cross(xv));
+    av.wdot_NB_B[b] = value(xwd);
+    dav.wdot_NB_B[b] = variation(xwd);
+    av.a_NBo_N[b] = value(acc);
+    dav.a_NBo_N[b] = variation(acc);
+  }
+  Eigen::VectorXd ud_value(n), ud_variation(n);
+  for (int i = 0; i < n; ++i) {
+    ud_value(i) = ud[static_cast<std::size_t>(i)].v;
+    ud_variation(i) = ud[static_cast<std::size_t>(i)].d[0];
+  }
+  for (std::size_t j = 0; j < nj; ++j) {
+    const Model::JointM& J = m.joints[j];
+    J.unit->accelerations(av, j, ud_value, J.i0);
+    J.unit->accelerations(dav, j, ud_variation, J.i0);
+  }
+
+  // The value parts are accelerations()'s to rounding: otherwise something here is not what
+  // rhs() solves, and no variation is returned (the caller differentiates numerically).
+  double scale = 0.0, diff = 0.0;
+  auto compare = [&](double x0, double x1) {
+    scale = std::max(scale, std::abs(x0));
+    diff = std::max(diff, std::abs(x0 - x1));
+  };
+  for (std::size_t b = 0; b < nb; ++b)
+    for (int r = 0; r < 3; ++r) {
+      compare(a0.wdot_NB_B[b](r), av.wdot_NB_B[b](r));
+      compare(a0.a_NBo_N[b](r), av.a_NBo_N[b](r));
+    }
+  for (std::size_t j = 0; j < nj; ++j) {
+    compare(a0.angle_ddot[j], av.angle_ddot[j]);
+    compare(a0.angle2_ddot[j], av.angle2_ddot[j]);
+    for (int r = 0; r < 3; ++r) compare(a0.wdot_PC_C[j](r), av.wdot_PC_C[j](r));
+  }
+  if (!(diff <= 1e-8 * scale + 1e-12)) return false;
+  a = a0;
+  da = dav;
+  return true;
+}
+
+}  // namespace crossdyn::lagrange

@@ -1,0 +1,324 @@
+// The Lagrange engine's exact linearisation (issue 27; tangent.cpp, core/engine.hpp
+// accelerations_tangent): on random states and tangents of rigid trees (revolute, spherical,
+// universal, prismatic and fixed joints, springs, dampers, motors, body torques in both frames, with
+// and without the zero-linear-momentum rule), the variation da against central differences of
+// accelerations(pack(s +- h ds)) (the same right perturbations), to the difference's accuracy, and
+// against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
+// ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
+// ds; Euler's equations' Jacobian for a free rigid body in closed form; false, with nothing
+// written, for what is not covered (flexible bodies, gravity, prescribed joints).
+#include <catch2/catch.hpp>
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/rotation.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/flex_scenes.hpp"
+#include "tests/lagrange/scenes.hpp"
+
+using namespace crossdyn;
+using crossdyn::lagrange::LagrangeEngine;
+
+namespace {
+
+Joint one_axis_joint(JointType type, const std::string& name, int parent, int child,
+                     const Eigen::Vector3d& p_PoJ_P, const Eigen::Vector3d& p_CoJ_C,
+                     const Eigen::Vector3d& axis_P) {
+  Joint j;
+  j.name = name;
+  j.type = type;
+  j.parent = parent;
+  j.child = child;
+  j.p_PoJ_P = p_PoJ_P;
+  j.p_CoJ_C = p_CoJ_C;
+  j.axis_P = axis_P.normalized();
+  return j;
+}
+
+// A hub with a slider (prismatic, spring, damper, motor) and a gimbaled payload (universal,
+// springs on both axes, an orientation offset), and a revolute arm on the payload.
+System slider_gimbal(bool zero_linear_momentum) {
+  System s;
+  s.name = "slider_gimbal";
+  Body hub = test::make_body("hub", 100, {40, 50, 60});
+  hub.I_BBo_B(0, 1) = hub.I_BBo_B(1, 0) = 2.0;
+  s.bodies = {hub, test::make_body("slider", 5, {0.5, 0.6, 0.7}),
+              test::make_body("payload", 4, {0.3, 0.5, 0.6}), test::make_body("arm", 1, {0.1, 0.2, 0.2})};
+  s.joints = {test::free_joint(0, {0.05, -0.03, 0.6})};
+  Joint p = one_axis_joint(JointType::Prismatic, "slide", 0, 1, {0.8, 0.1, 0.2}, {-0.3, 0.0, 0.05},
+                           {1.0, 0.2, 0.1});
+  p.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 1).normalized()));
+  p.stiffness = 30.0;
+  p.neutral_angle = 0.05;
+  p.damping = 2.0;
+  p.motor_revolute.times = {0.0};
+  p.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(0.7)};
+  Joint u = one_axis_joint(JointType::Universal, "gimbal", 0, 2, {0.5, 0.3, 1.0}, {0.1, 0.0, -0.6},
+                           {1, 0, 0.1});
+  u.axis2_P = Eigen::Vector3d(0.3, 1, 0.2).normalized();
+  u.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, -1, 2).normalized()));
+  u.stiffness = 1.5;
+  u.neutral_angle = 0.2;
+  u.stiffness2 = 0.8;
+  u.neutral_angle2 = -0.1;
+  Joint r = one_axis_joint(JointType::Revolute, "elbow", 2, 3, {0.2, 0.1, 0.0}, {-0.4, 0.0, 0.0},
+                           {0.1, 0.3, 1.0});
+  r.stiffness = 0.6;
+  r.damping = 0.05;
+  s.joints.push_back(p);
+  s.joints.push_back(u);
+  s.joints.push_back(r);
+  s.zero_linear_momentum = zero_linear_momentum;
+  return s;
+}
+
+// One free rigid body with a full inertia, torque-free.
+System one_body() {
+  System s;
+  s.name = "one_body";
+  Body b = test::make_body("body", 7, {3, 4, 6});
+  b.I_BBo_B(0, 1) = b.I_BBo_B(1, 0) = 0.3;
+  b.I_BBo_B(0, 2) = b.I_BBo_B(2, 0) = -0.2;
+  b.I_BBo_B(1, 2) = b.I_BBo_B(2, 1) = 0.4;
+  s.bodies = {b};
+  s.joints = {test::free_joint(0, {0.3, -0.5, 0.8})};
+  return s;
+}
+
+struct Case {
+  std::string name;
+  System system;
+};
+
+std::vector<Case> covered_systems() {
+  System spear_spherical = test::spear1(-10, true);
+  spear_spherical.zero_linear_momentum = false;
+  return {{"spear1 (revolute)", test::spear1()},
+          {"spear1 spherical, no momentum rule", spear_spherical},
+          {"chain5 (spherical)", test::chain(5)},
+          {"mixed_tree (loads, fixed joint, torques)", test::mixed_tree(true)},
+          {"slider_gimbal (prismatic, universal)", slider_gimbal(true)},
+          {"slider_gimbal, no momentum rule", slider_gimbal(false)},
+          {"one free body", one_body()}};
+}
+
+Eigen::Vector3d random_vec(std::mt19937& g, double scale) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  return Eigen::Vector3d(u(g), u(g), u(g)) * scale;
+}
+
+TreeTangent random_tangent(const System& system, std::mt19937& g) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  TreeTangent ds = TreeTangent::zero(system);
+  ds.dp_NoBo_N = random_vec(g, 1.0);
+  ds.dtheta_B = random_vec(g, 1.0);
+  ds.dv_NBo_N = random_vec(g, 1.0);
+  ds.dw_NB_B = random_vec(g, 1.0);
+  for (TreeTangent::JointTangent& j : ds.joints) {
+    j.angle = u(g);
+    j.rate = u(g);
+    j.angle2 = u(g);
+    j.rate2 = u(g);
+    j.dtheta_J = random_vec(g, 1.0);
+    j.w_PC_C = random_vec(g, 1.0);
+  }
+  return ds;
+}
+
+TreeTangent combine(const TreeTangent& a, double c, const TreeTangent& b) {  // a + c b
+  TreeTangent r = a;
+  r.dp_NoBo_N += c * b.dp_NoBo_N;
+  r.dtheta_B += c * b.dtheta_B;
+  r.dv_NBo_N += c * b.dv_NBo_N;
+  r.dw_NB_B += c * b.dw_NB_B;
+  for (std::size_t j = 0; j < r.joints.size(); ++j) {
+    r.joints[j].angle += c * b.joints[j].angle;
+    r.joints[j].rate += c * b.joints[j].rate;
+    r.joints[j].angle2 += c * b.joints[j].angle2;
+    r.joints[j].rate2 += c * b.joints[j].rate2;
+    r.joints[j].dtheta_J += c * b.joints[j].dtheta_J;
+    r.joints[j].w_PC_C += c * b.joints[j].w_PC_C;
+  }
+  return r;
+}
+
+// s + e ds, rotations turned on the right: R exp(e [dtheta x]) (core/engine.hpp TreeTangent).
+TreeState moved(const TreeState& s, const TreeTangent& ds, double e) {
+  TreeState r = s;
+  r.p_NoBo_N += e * ds.dp_NoBo_N;
+  r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
+  r.v_NBo_N += e * ds.dv_NBo_N;
+  r.w_NB_B += e * ds.dw_NB_B;
+  for (std::size_t j = 0; j < r.joints.size(); ++j) {
+    r.joints[j].angle += e * ds.joints[j].angle;
+    r.joints[j].rate += e * ds.joints[j].rate;
+    r.joints[j].angle2 += e * ds.joints[j].angle2;
+    r.joints[j].rate2 += e * ds.joints[j].rate2;
+    r.joints[j].q_J = s.joints[j].q_J * rot::from_rotation_vector(e * ds.joints[j].dtheta_J);
+    r.joints[j].w_PC_C += e * ds.joints[j].w_PC_C;
+  }
+  return r;
+}
+
+// Every field of a TreeAccel in one vector.
+Eigen::VectorXd flat(const TreeAccel& a) {
+  std::vector<double> v;
+  for (const auto& x : a.wdot_NB_B) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const auto& x : a.a_NBo_N) v.insert(v.end(), x.data(), x.data() + 3);
+  v.insert(v.end(), a.angle_ddot.begin(), a.angle_ddot.end());
+  v.insert(v.end(), a.angle2_ddot.begin(), a.angle2_ddot.end());
+  for (const auto& x : a.wdot_PC_C) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const auto& x : a.eta_ddot) v.insert(v.end(), x.data(), x.data() + x.size());
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+Eigen::VectorXd accel_at(LagrangeEngine& e, double t, const TreeState& s) {
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(s, x.data());
+  TreeAccel a;
+  e.accelerations(t, x.data(), a);
+  return flat(a);
+}
+
+Eigen::VectorXd central(LagrangeEngine& e, double t, const TreeState& s, const TreeTangent& ds,
+                        double h) {
+  return (accel_at(e, t, moved(s, ds, h)) - accel_at(e, t, moved(s, ds, -h))) / (2 * h);
+}
+
+// Richardson's extrapolation of central differences at h, h/2, h/4: error O(h^6).
+Eigen::VectorXd richardson(LagrangeEngine& e, double t, const TreeState& s, const TreeTangent& ds,
+                           double h) {
+  const Eigen::VectorXd d1 = central(e, t, s, ds, h), d2 = central(e, t, s, ds, h / 2),
+                        d3 = central(e, t, s, ds, h / 4);
+  const Eigen::VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d3 - d2) / 3;
+  return (16 * r2 - r1) / 15;
+}
+
+double rel(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
+}
+
+}  // namespace
+
+TEST_CASE("lagrange tangent: da against central and Richardson differences on rigid trees",
+          "[lagrange][tangent]") {
+  std::mt19937 g(27);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    double worst_central = 0, worst_richardson = 0, worst_a = 0;
+    for (int trial = 0; trial < 3; ++trial) {
+      const TreeState s = test::random_state(c.system, g);
+      const TreeTangent ds = random_tangent(c.system, g);
+      const double t = 0.3;
+      TreeAccel a, da;
+      REQUIRE(e.accelerations_tangent(t, s, ds, a, da));
+      const Eigen::VectorXd fa = flat(a), fda = flat(da);
+      REQUIRE(fa.size() == accel_at(e, t, s).size());
+      REQUIRE(fda.size() == fa.size());
+      worst_a = std::max(worst_a, rel(fa, accel_at(e, t, s)));
+      worst_central = std::max(worst_central, rel(central(e, t, s, ds, 1e-5), fda));
+      // The extrapolation at its best first step: truncation O(h^6) above, the rounding of
+      // accelerations() (relative eps_a ~ 1e-15 to 1e-12, the chain's the largest) times 1/h below.
+      double best = 1.0;
+      for (double h : {3.2e-2, 1.6e-2, 8e-3}) best = std::min(best, rel(richardson(e, t, s, ds, h), fda));
+      worst_richardson = std::max(worst_richardson, best);
+    }
+    INFO(c.name << ": max relative difference to accelerations() " << worst_a
+                << ", to central differences " << worst_central << ", to Richardson "
+                << worst_richardson);
+    CHECK(worst_a <= 1e-14);
+    // Central differences at h = 1e-5: truncation ~h^2 ~ 1e-10, rounding eps_a / h up to ~1e-7
+    // (the chain's).
+    CHECK(worst_central < 2e-7);
+    // Richardson: ~1e-13 on every system but the chain (~5e-11, its accelerations' rounding).
+    CHECK(worst_richardson < 1e-10);
+  }
+}
+
+TEST_CASE("lagrange tangent: da is linear in ds", "[lagrange][tangent]") {
+  std::mt19937 g(28);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    const TreeState s = test::random_state(c.system, g);
+    const TreeTangent d1 = random_tangent(c.system, g), d2 = random_tangent(c.system, g);
+    TreeAccel a, da1, da2, da12;
+    REQUIRE(e.accelerations_tangent(0.0, s, d1, a, da1));
+    REQUIRE(e.accelerations_tangent(0.0, s, d2, a, da2));
+    REQUIRE(e.accelerations_tangent(0.0, s, combine(d1, 2.0, d2), a, da12));
+    INFO(c.name);
+    CHECK(rel(flat(da12), flat(da1) + 2 * flat(da2)) < 1e-12);
+  }
+}
+
+TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian",
+          "[lagrange][tangent]") {
+  // I w' = -w x I w  =>  d(w')/dw = I^-1 ([I w x] - [w x] I) (torque-free, any attitude).
+  const System sys = one_body();
+  LagrangeEngine e(sys, {});
+  std::mt19937 g(29);
+  const Eigen::Matrix3d I = sys.bodies[0].I_BBo_B;
+  for (int trial = 0; trial < 5; ++trial) {
+    const TreeState s = test::random_state(sys, g);
+    const Eigen::Vector3d w = s.w_NB_B;
+    const Eigen::Matrix3d J = I.inverse() * (rot::skew(I * w) - rot::skew(w) * I);
+    Eigen::Matrix3d D;
+    for (int k = 0; k < 3; ++k) {
+      TreeTangent ds = TreeTangent::zero(sys);
+      ds.dw_NB_B(k) = 1.0;
+      TreeAccel a, da;
+      REQUIRE(e.accelerations_tangent(0.0, s, ds, a, da));
+      D.col(k) = da.wdot_NB_B[0];
+      CHECK(da.a_NBo_N[0].norm() == 0.0);  // no force: the CM does not accelerate
+    }
+    INFO("D\n" << D << "\nJ\n" << J);
+    CHECK((D - J).cwiseAbs().maxCoeff() <= 1e-14 * J.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST_CASE("lagrange tangent: false, with nothing written, where not covered",
+          "[lagrange][tangent]") {
+  System gravity = test::spear1();
+  gravity.environment.kind = Environment::Kind::Uniform;
+  gravity.environment.g_N = Eigen::Vector3d(0, 0, -9.81);
+  System prescribed = test::spear1();
+  prescribed.joints[1].prescribed = PrescribedMotion{};
+  prescribed.joints[1].prescribed->rate = 1.0;
+  prescribed.joints[1].prescribed->ramp_time = 2.0;
+  prescribed.joints[1].rate0 = 0.0;
+  for (const System& sys : {test::flex_tree(true), gravity, prescribed}) {
+    LagrangeEngine e(sys, {});
+    std::mt19937 g(30);
+    TreeAccel a, da;
+    a.angle_ddot = {42.0};
+    da.angle_ddot = {43.0};
+    INFO(sys.name);
+    CHECK_FALSE(e.accelerations_tangent(0.0, TreeState::initial(sys), TreeTangent::zero(sys), a, da));
+    CHECK(a.angle_ddot == std::vector<double>{42.0});
+    CHECK(da.angle_ddot == std::vector<double>{43.0});
+    CHECK(a.wdot_NB_B.empty());
+    CHECK(da.wdot_NB_B.empty());
+  }
+}
+
+TEST_CASE("lagrange tangent: the engine's run state is left as it was", "[lagrange][tangent]") {
+  // accelerations_tangent() packs s (choosing charts): a run's state x keeps its meaning after.
+  const System sys = test::chain(5);
+  LagrangeEngine e(sys, {});
+  std::mt19937 g(31);
+  std::vector<double> x(static_cast<std::size_t>(e.state_size())), f0(x.size()), f1(x.size());
+  e.pack(test::random_state(sys, g), x.data());
+  std::vector<int> charts;
+  for (int k = 0; k < e.euler_sets(); ++k) charts.push_back(e.chart(k));
+  e.rhs(0.0, x.data(), f0.data());
+  for (int trial = 0; trial < 5; ++trial) {
+    const TreeState s = test::random_state(sys, g);
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.0, s, random_tangent(sys, g), a, da));
+  }
+  for (int k = 0; k < e.euler_sets(); ++k) CHECK(e.chart(k) == charts[static_cast<std::size_t>(k)]);
+  e.rhs(0.0, x.data(), f1.data());
+  CHECK(f0 == f1);
+}
