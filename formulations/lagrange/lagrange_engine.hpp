@@ -38,7 +38,8 @@ class LagrangeEngine final : public Engine {
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
   // Exact, by nested forward-mode AD through the engine's kinematics and energies (tangent.cpp):
-  // rigid trees on a free base; false for flexible bodies, prescribed joints and an environment.
+  // rigid trees on a free base, with or without gravity; false for flexible bodies and prescribed
+  // joints.
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
   const OutputLayout& layout() const override;

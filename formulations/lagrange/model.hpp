@@ -143,7 +143,7 @@ struct LagrangeEngine::Model {
   OutputLayout layout;               // pinned columns, then extras
   int recharts_column = -1;          // extra column lagrange.recharts
   // accelerations_tangent() covers this system (tangent.cpp): rigid bodies, a free base, nothing
-  // prescribed, no environment. Decided once by the constructor.
+  // prescribed. Decided once by the constructor.
   bool tangent = false;
 };
 

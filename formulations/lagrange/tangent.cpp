@@ -22,9 +22,9 @@
 //
 // Covered (Model::tangent, decided once by the constructor): rigid bodies on a free base with
 // revolute, prismatic, universal, spherical and fixed joints, hinge springs, dampers and motors,
-// body torques (body or inertial frame). Not covered (accelerations_tangent returns false, the
-// harness differentiates numerically): flexible bodies, prescribed joints or base, an environment
-// (uniform gravity, orbit).
+// body torques (body or inertial frame), uniform gravity and the orbit's gravity gradient
+// (gravity.cpp's loads, as generalised active forces). Not covered (accelerations_tangent returns
+// false, the harness differentiates numerically): flexible bodies, prescribed joints or base.
 //
 // Cost: n inner directions, each n twist passes (O(n^2) passes and O(n^4) products): for
 // linearisation and tests, never rhs(). Allocates.
@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "core/errors.hpp"
+#include "core/orbit.hpp"
 #include "formulations/lagrange/autodiff.hpp"
 #include "formulations/lagrange/energy.hpp"
 #include "formulations/lagrange/euler_chart.hpp"
@@ -183,6 +184,7 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   // dXi/dq*_k: [k][b][i]
   std::vector<std::vector<std::vector<Vec3<E>>>> dXw(un, Xw), dXv(un, Xw);
   std::vector<Mat3<E>> R(nb);
+  std::vector<Vec3<E>> rP(nb);  // a sliding joint point r_P (pose pass), per child body
   MatE Mbar(n);
   std::vector<MatE> dMbar(un, MatE(n));
   std::vector<E> dV(un);
@@ -216,8 +218,10 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     }
     if (kd == 0)
       for (std::size_t b = 0; b < nb; ++b)
-        for (int r = 0; r < 3; ++r)
+        for (int r = 0; r < 3; ++r) {
           for (int c = 0; c < 3; ++c) R[b](r, c) = k.R_NB[b](r, c).v;
+          rP[b](r) = k.r_P[b](r).v;
+        }
     // M_ij = sum over bodies w_i . I w_j + m v_i . v_j (rigid bodies; the mass pass's T(e_i, e_j)).
     for (std::size_t i = 0; i < un; ++i)
       for (std::size_t j = i; j < un; ++j) {
@@ -317,6 +321,44 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     for (int c = 0; c < J.loaded; ++c) {
       const auto i = static_cast<std::size_t>(J.i0 + c);
       N[i] += -J.damping[static_cast<std::size_t>(c)] * uE[i] + motor(c);
+    }
+  }
+  // The environment's loads (gravity.cpp), F at Bo and M about it: N_i += F . v(e_i) + M . w(e_i).
+  // Uniform: F = m g, M = 0. Orbit: F = m T (p_Bo - O), M = gg_sign 3 n^2 zhat x (I_N zhat), with
+  // the body origins from the pose pass's position formula (kinematics.hpp) on E.
+  if (m.gravity) {
+    const Environment& env = m.environment;
+    std::vector<Vec3<E>> p(nb);
+    for (const Model::JointM& J : m.joints) {
+      const auto c = static_cast<std::size_t>(J.child);
+      if (J.absolute) {
+        for (int r = 0; r < 3; ++r) p[c](r) = qE[static_cast<std::size_t>(J.i0 + r)];
+        continue;
+      }
+      const auto P = static_cast<std::size_t>(J.parent);  // a free base: every other joint has one
+      const Vec3<E> r_P = J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
+      p[c] = p[P] + R[P] * r_P - R[c] * Vec3<E>(J.p_CoJ_C.cast<E>());
+    }
+    OrbitFrame of;
+    double n2 = 0;
+    if (m.orbit) {
+      of = orbit_frame(env, t);
+      n2 = of.n * of.n;
+    }
+    const Vec3<E> z = of.zenith_N.cast<E>();
+    for (std::size_t b = 0; b < nb; ++b) {
+      const Model::BodyM& Bm = m.bodies[b];
+      Vec3<E> F, M = Vec3<E>::Zero();
+      if (m.orbit) {
+        const Vec3<E> rho = p[b] - Vec3<E>(m.p_NoO_N.cast<E>());
+        F = Bm.mass * n2 * Vec3<E>(3.0 * z.dot(rho) * z - rho);
+        const Vec3<E> Iz = R[b] * Vec3<E>(const_times(Bm.I_BBo_B, transpose_times(R[b], z)));
+        M = m.gg_sign * 3.0 * n2 * Vec3<E>(z.cross(Iz));
+      } else {
+        F = Bm.mass * env.g_N.cast<E>();
+      }
+      const Vec3<E> F_B = transpose_times(R[b], F), M_B = transpose_times(R[b], M);
+      for (std::size_t i = 0; i < un; ++i) N[i] += Xw[b][i].dot(M_B) + Xv[b][i].dot(F_B);
     }
   }
   // Abar^T N (Abar is block diagonal).

@@ -6,7 +6,8 @@
 // against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
 // ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
 // ds; Euler's equations' Jacobian for a free rigid body in closed form; false, with nothing
-// written, for what is not covered (flexible bodies, gravity, prescribed joints).
+// written, for what is not covered (flexible bodies, prescribed joints). Uniform gravity and the
+// orbit's gravity gradient are among the covered systems.
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
@@ -88,6 +89,33 @@ System one_body() {
   return s;
 }
 
+Environment uniform_gravity() {
+  Environment env;
+  env.kind = Environment::Kind::Uniform;
+  env.g_N = Eigen::Vector3d(0.3, -1.2, -9.81);
+  return env;
+}
+
+// A circular orbit, mean motion n = 0.05 rad/s (fast, so the gravity gradient is not small next to
+// the other loads), radius 7000 km, inclined.
+Environment orbit() {
+  Environment env;
+  env.kind = Environment::Kind::Orbit;
+  const double n = 0.05;
+  env.radius = 7.0e6;
+  env.mu = n * n * env.radius * env.radius * env.radius;
+  env.inclination = 0.6;
+  env.raan = 0.3;
+  env.latitude0 = 0.2;
+  return env;
+}
+
+System with_environment(System s, const Environment& env, const std::string& name) {
+  s.environment = env;
+  s.name = name;
+  return s;
+}
+
 struct Case {
   std::string name;
   System system;
@@ -102,7 +130,11 @@ std::vector<Case> covered_systems() {
           {"mixed_tree (loads, fixed joint, torques)", test::mixed_tree(true)},
           {"slider_gimbal (prismatic, universal)", slider_gimbal(true)},
           {"slider_gimbal, no momentum rule", slider_gimbal(false)},
-          {"one free body", one_body()}};
+          {"one free body", one_body()},
+          {"mixed_tree, uniform gravity",
+           with_environment(test::mixed_tree(true), uniform_gravity(), "mixed_tree_uniform")},
+          {"slider_gimbal, orbit", with_environment(slider_gimbal(false), orbit(), "slider_gimbal_orbit")},
+          {"chain5, orbit", with_environment(test::chain(5), orbit(), "chain5_orbit")}};
 }
 
 Eigen::Vector3d random_vec(std::mt19937& g, double scale) {
@@ -280,15 +312,13 @@ TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian"
 
 TEST_CASE("lagrange tangent: false, with nothing written, where not covered",
           "[lagrange][tangent]") {
-  System gravity = test::spear1();
-  gravity.environment.kind = Environment::Kind::Uniform;
-  gravity.environment.g_N = Eigen::Vector3d(0, 0, -9.81);
+  const System flex_gravity = with_environment(test::flex_tree(true), uniform_gravity(), "flex_g");
   System prescribed = test::spear1();
   prescribed.joints[1].prescribed = PrescribedMotion{};
   prescribed.joints[1].prescribed->rate = 1.0;
   prescribed.joints[1].prescribed->ramp_time = 2.0;
   prescribed.joints[1].rate0 = 0.0;
-  for (const System& sys : {test::flex_tree(true), gravity, prescribed}) {
+  for (const System& sys : {test::flex_tree(true), flex_gravity, prescribed}) {
     LagrangeEngine e(sys, {});
     std::mt19937 g(30);
     TreeAccel a, da;
