@@ -20,11 +20,12 @@
 // (B = A^-1: w = A a', euler_chart.hpp), and with System::zero_linear_momentum the base velocity's
 // variation is that of -P_rest / m_total, P_rest the linear momentum of the other quasi-velocities.
 //
-// Covered (Model::tangent, decided once by the constructor): rigid bodies on a free base with
-// revolute, prismatic, universal, spherical and fixed joints, hinge springs, dampers and motors,
+// Covered (Model::tangent, decided once by the constructor): rigid bodies on a free or prescribed
+// base with revolute, prismatic, universal, spherical and fixed joints, hinge springs, dampers and motors,
 // body torques (body or inertial frame), uniform gravity and the orbit's gravity gradient
-// (gravity.cpp's loads, as generalised active forces). Not covered (accelerations_tangent returns
-// false, the harness differentiates numerically): flexible bodies, prescribed joints or base.
+// (gravity.cpp's loads, as generalised active forces), prescribed joints and a prescribed base
+// (their coordinates at the profile's t, no variation, theta''(t) known). Not covered
+// (accelerations_tangent returns false, the harness differentiates numerically): flexible bodies.
 //
 // Cost: n inner directions, each n twist passes (O(n^2) passes and O(n^4) products): for
 // linearisation and tests, never rhs(). Allocates.
@@ -123,12 +124,15 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     }
   } restore{w, w.chart, w.last_a2, w.last_t, w.have_last};
 
-  const int n = m.n;  // nothing prescribed (Model::tangent): the state is the full (q*, pi')
+  const int n = m.n;
   const auto un = static_cast<std::size_t>(n);
-  std::vector<double> x(2 * un);
-  pack(s, x.data());
+  std::vector<double> xs(static_cast<std::size_t>(state_size()));
+  pack(s, xs.data());
   TreeAccel a0;
-  accelerations(t, x.data(), a0);
+  accelerations(t, xs.data(), a0);
+  // The full (q*, pi'), prescribed coordinates at their profile's t (expand).
+  const double* xf = expand(t, xs.data());
+  const std::vector<double> x(xf, xf + 2 * n);
   const int* chart = w.chart.data();
   const std::size_t nb = m.bodies.size(), nj = m.joints.size(), ns = m.euler_sets.size();
 
@@ -144,6 +148,7 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];
     const TreeTangent::JointTangent& jt = ds.joints[j];
+    if (J.prescribed) continue;  // it follows its profile: no variation
     double* q = dq.data() + J.i0;
     double* u = du.data() + J.i0;
     if (J.absolute) {
@@ -335,7 +340,11 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
         for (int r = 0; r < 3; ++r) p[c](r) = qE[static_cast<std::size_t>(J.i0 + r)];
         continue;
       }
-      const auto P = static_cast<std::size_t>(J.parent);  // a free base: every other joint has one
+      if (J.parent < 0) {  // a prescribed base: its joint point is fixed in N
+        p[c] = Vec3<E>(J.p_PoJ_P.cast<E>()) - R[c] * Vec3<E>(J.p_CoJ_C.cast<E>());
+        continue;
+      }
+      const auto P = static_cast<std::size_t>(J.parent);
       const Vec3<E> r_P = J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
       p[c] = p[P] + R[P] * r_P - R[c] * Vec3<E>(J.p_CoJ_C.cast<E>());
     }
@@ -386,8 +395,32 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     }
     rhs[kd] += 0.5 * quad - mdot - dV[kd];
   }
-  std::vector<E> qdd = rhs;
-  if (!solve_in_place(Mbar, qdd)) return false;
+  // Prescribed coordinates c: q*''_c = theta''(t) known (Abar is 1 there), the free block solves
+  // Mbar_ff q*''_f = rhs_f - Mbar_fc theta'' (solve.cpp; docs/prescribed-motion.md).
+  std::vector<E> qdd(un, E(0.0));
+  std::vector<bool> known(un, false);
+  for (int j : m.prescribed_joints) {
+    const Model::JointM& J = m.joints[static_cast<std::size_t>(j)];
+    known[static_cast<std::size_t>(J.i0)] = true;
+    qdd[static_cast<std::size_t>(J.i0)] = E(J.motion.accel(t));
+  }
+  std::vector<int> fr;
+  for (int i = 0; i < n; ++i)
+    if (!known[static_cast<std::size_t>(i)]) fr.push_back(i);
+  const int nf = static_cast<int>(fr.size());
+  MatE Mff(nf);
+  std::vector<E> bff(static_cast<std::size_t>(nf));
+  for (int a = 0; a < nf; ++a) {
+    const int i = fr[static_cast<std::size_t>(a)];
+    E b = rhs[static_cast<std::size_t>(i)];
+    for (int c = 0; c < n; ++c)
+      if (known[static_cast<std::size_t>(c)]) b -= Mbar(i, c) * qdd[static_cast<std::size_t>(c)];
+    bff[static_cast<std::size_t>(a)] = b;
+    for (int c = 0; c < nf; ++c) Mff(a, c) = Mbar(i, fr[static_cast<std::size_t>(c)]);
+  }
+  if (!solve_in_place(Mff, bff)) return false;
+  for (int a = 0; a < nf; ++a)
+    qdd[static_cast<std::size_t>(fr[static_cast<std::size_t>(a)])] = bff[static_cast<std::size_t>(a)];
   // pi'' = Abar q*'' + (d Abar/dt) q*'.
   std::vector<E> ud = qdd;
   for (std::size_t set = 0; set < ns; ++set) {

@@ -6,8 +6,8 @@
 // against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
 // ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
 // ds; Euler's equations' Jacobian for a free rigid body in closed form; false, with nothing
-// written, for what is not covered (flexible bodies, prescribed joints). Uniform gravity and the
-// orbit's gravity gradient are among the covered systems.
+// written, for what is not covered (flexible bodies). Uniform gravity, the orbit's gravity
+// gradient, a prescribed joint and a prescribed base are among the covered systems.
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
@@ -116,6 +116,47 @@ System with_environment(System s, const Environment& env, const std::string& nam
   return s;
 }
 
+// spear1 with its first hinge spun up by a prescribed profile (docs/prescribed-motion.md).
+System spear1_prescribed_hinge() {
+  System s = test::spear1();
+  s.name = "spear1_prescribed_hinge";
+  PrescribedMotion p;
+  p.rate = 1.0;
+  p.ramp_time = 2.0;
+  s.joints[1].prescribed = p;
+  s.joints[1].rate0 = 0.0;
+  return s;
+}
+
+// A prescribed base: a rotor turned about z through a point off its CM by a spin-up profile,
+// carrying an arm on a spherical joint with a spring and a slider (prismatic).
+System prescribed_base() {
+  System s;
+  s.name = "prescribed_base";
+  s.bodies = {test::make_body("rotor", 20, {2, 3, 4}), test::make_body("arm", 2, {0.1, 0.4, 0.45}),
+              test::make_body("slider", 1, {0.05, 0.06, 0.07})};
+  Joint base = one_axis_joint(JointType::Revolute, "spin", -1, 0, {0.1, -0.2, 0.3}, {0.2, 0.1, 0.0},
+                              {0.1, 0.2, 1.0});
+  PrescribedMotion p;
+  p.rate = 2.0;
+  p.ramp_time = 1.5;
+  base.prescribed = p;
+  Joint arm;
+  arm.name = "shoulder";
+  arm.type = JointType::Spherical;
+  arm.parent = 0;
+  arm.child = 1;
+  arm.p_PoJ_P = {0.6, 0.0, 0.1};
+  arm.p_CoJ_C = {-0.5, 0.0, 0.0};
+  arm.stiffness = 2.0;
+  arm.damping = 0.1;
+  Joint slide = one_axis_joint(JointType::Prismatic, "slide", 1, 2, {0.3, 0.0, 0.0},
+                               {-0.1, 0.0, 0.0}, {1.0, 0.1, 0.0});
+  slide.stiffness = 5.0;
+  s.joints = {base, arm, slide};
+  return s;
+}
+
 struct Case {
   std::string name;
   System system;
@@ -134,7 +175,10 @@ std::vector<Case> covered_systems() {
           {"mixed_tree, uniform gravity",
            with_environment(test::mixed_tree(true), uniform_gravity(), "mixed_tree_uniform")},
           {"slider_gimbal, orbit", with_environment(slider_gimbal(false), orbit(), "slider_gimbal_orbit")},
-          {"chain5, orbit", with_environment(test::chain(5), orbit(), "chain5_orbit")}};
+          {"chain5, orbit", with_environment(test::chain(5), orbit(), "chain5_orbit")},
+          {"spear1, prescribed hinge", spear1_prescribed_hinge()},
+          {"prescribed base, uniform gravity",
+           with_environment(prescribed_base(), uniform_gravity(), "prescribed_base_g")}};
 }
 
 Eigen::Vector3d random_vec(std::mt19937& g, double scale) {
@@ -313,12 +357,7 @@ TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian"
 TEST_CASE("lagrange tangent: false, with nothing written, where not covered",
           "[lagrange][tangent]") {
   const System flex_gravity = with_environment(test::flex_tree(true), uniform_gravity(), "flex_g");
-  System prescribed = test::spear1();
-  prescribed.joints[1].prescribed = PrescribedMotion{};
-  prescribed.joints[1].prescribed->rate = 1.0;
-  prescribed.joints[1].prescribed->ramp_time = 2.0;
-  prescribed.joints[1].rate0 = 0.0;
-  for (const System& sys : {test::flex_tree(true), flex_gravity, prescribed}) {
+  for (const System& sys : {test::flex_tree(true), flex_gravity}) {
     LagrangeEngine e(sys, {});
     std::mt19937 g(30);
     TreeAccel a, da;
