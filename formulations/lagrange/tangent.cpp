@@ -20,12 +20,14 @@
 // (B = A^-1: w = A a', euler_chart.hpp), and with System::zero_linear_momentum the base velocity's
 // variation is that of -P_rest / m_total, P_rest the linear momentum of the other quasi-velocities.
 //
-// Covered (Model::tangent, decided once by the constructor): rigid bodies on a free or prescribed
-// base with revolute, prismatic, universal, spherical and fixed joints, hinge springs, dampers and motors,
-// body torques (body or inertial frame), uniform gravity and the orbit's gravity gradient
-// (gravity.cpp's loads, as generalised active forces), prescribed joints and a prescribed base
-// (their coordinates at the profile's t, no variation, theta''(t) known). Not covered
-// (accelerations_tangent returns false, the harness differentiates numerically): flexible bodies.
+// Covered (Model::tangent, decided once by the constructor): a free or prescribed base with
+// revolute, prismatic, universal, spherical and fixed joints (at nodes too), hinge springs,
+// dampers and motors, body torques (body or inertial frame), prescribed joints (their coordinates
+// at the profile's t, no variation, theta''(t) known); flexible bodies (M_B(eta) by flex_momentum,
+// elastic V, modal damping, geometric stiffening) without an environment; on rigid systems
+// uniform gravity and the orbit's gravity gradient (gravity.cpp's loads, as generalised active
+// forces). Not covered (accelerations_tangent returns false, the harness differentiates
+// numerically): a flexible body in an environment.
 //
 // Cost: n inner directions, each n twist passes (O(n^2) passes and O(n^4) products): for
 // linearisation and tests, never rhs(). Allocates.
@@ -90,6 +92,13 @@ bool solve_in_place(MatE A, std::vector<E>& b) {
   }
   return true;
 }
+
+// A flexible body's first mass moment s(eta) and S1(eta) = ds/deta at the values (E).
+struct FlexB {
+  Vec3<E> s = Vec3<E>::Zero();
+  std::vector<Vec3<E>> S1;
+  void resize_modes(Eigen::Index n) { S1.resize(static_cast<std::size_t>(n)); }
+};
 
 E seeded(double value, double variation) {
   E e(value);
@@ -177,6 +186,19 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
       }
     }
   }
+  for (std::size_t b = 0; b < nb; ++b) {  // modal coordinates and rates
+    const Model::BodyM& Bm = m.bodies[b];
+    if (Bm.flex < 0) continue;
+    if (b >= ds.eta.size() || b >= ds.eta_rate.size() || ds.eta[b].size() != Bm.nm ||
+        ds.eta_rate[b].size() != Bm.nm)
+      throw InputError("engine lagrange: accelerations_tangent() got a tangent without the " +
+                       std::to_string(Bm.nm) + " modal variations of flexible body '" + Bm.name +
+                       "'");
+    for (int c = 0; c < Bm.nm; ++c) {
+      dq[static_cast<std::size_t>(Bm.e0 + c)] = ds.eta[b](c);
+      du[static_cast<std::size_t>(Bm.e0 + c)] = ds.eta_rate[b](c);
+    }
+  }
   std::vector<E> qE(un), uE(un);
   for (std::size_t i = 0; i < un; ++i) {
     qE[i] = seeded(x[i], dq[i]);
@@ -190,6 +212,7 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   std::vector<std::vector<std::vector<Vec3<E>>>> dXw(un, Xw), dXv(un, Xw);
   std::vector<Mat3<E>> R(nb);
   std::vector<Vec3<E>> rP(nb);  // a sliding joint point r_P (pose pass), per child body
+  std::vector<FlexB> flexB(nb);  // flexible bodies
   MatE Mbar(n);
   std::vector<MatE> dMbar(un, MatE(n));
   std::vector<E> dV(un);
@@ -227,17 +250,50 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
           for (int c = 0; c < 3; ++c) R[b](r, c) = k.R_NB[b](r, c).v;
           rP[b](r) = k.r_P[b](r).v;
         }
-    // M_ij = sum over bodies w_i . I w_j + m v_i . v_j (rigid bodies; the mass pass's T(e_i, e_j)).
-    for (std::size_t i = 0; i < un; ++i)
-      for (std::size_t j = i; j < un; ++j) {
-        S mij(0.0);
-        for (std::size_t b = 0; b < nb; ++b) {
-          const Model::BodyM& Bm = m.bodies[b];
-          mij += Sw[b][i].dot(const_times(Bm.I_BBo_B, Sw[b][j])) + Bm.mass * Sv[b][i].dot(Sv[b][j]);
-        }
-        MS[i * un + j] = mij;
-        MS[j * un + i] = mij;
+    // M_ij = T(e_i, e_j) (the mass pass's): a rigid body's w_i . I w_j + m v_i . v_j; a flexible
+    // body's Y_i . M_B(eta) Y_j with Y_j = (w_j, v_j, e_j on its own eta' block) (flex_body.hpp).
+    for (std::size_t i = 0; i < un * un; ++i) MS[i] = S(0.0);
+    for (std::size_t b = 0; b < nb; ++b) {
+      const Model::BodyM& Bm = m.bodies[b];
+      if (Bm.flex < 0) {
+        for (std::size_t i = 0; i < un; ++i)
+          for (std::size_t j = i; j < un; ++j) {
+            const S mij = Sw[b][i].dot(const_times(Bm.I_BBo_B, Sw[b][j])) +
+                          Bm.mass * Sv[b][i].dot(Sv[b][j]);
+            MS[i * un + j] += mij;
+            if (j != i) MS[j * un + i] += mij;
+          }
+        continue;
       }
+      const FlexInvariants& f = m.flex[static_cast<std::size_t>(Bm.flex)];
+      const auto e0 = static_cast<std::size_t>(Bm.e0), nm = static_cast<std::size_t>(Bm.nm);
+      std::vector<double> ed(nm, 0.0);
+      std::vector<S> he(nm);
+      Vec3<S> hw, hv;
+      for (std::size_t j = 0; j < un; ++j) {
+        const bool own_j = j >= e0 && j < e0 + nm;
+        if (own_j) ed[j - e0] = 1.0;
+        flex_momentum(f, k.fi[b], Sw[b][j], Sv[b][j], ed.data(), hw, hv, he.data());
+        if (own_j) ed[j - e0] = 0.0;
+        for (std::size_t i = 0; i < un; ++i) {
+          S mij = Sw[b][i].dot(hw) + Sv[b][i].dot(hv);
+          if (i >= e0 && i < e0 + nm) mij += he[i - e0];
+          MS[i * un + j] += mij;
+        }
+      }
+      // Its linear momentum R (m v + w x s + S1 eta') without the base translation's share
+      // (zero linear momentum below; outputs.cpp body_momenta), at the values.
+      if (kd == 0) {
+        FlexB fb;
+        fb.s = Vec3<E>(k.fi[b].s(0).v, k.fi[b].s(1).v, k.fi[b].s(2).v);
+        fb.resize_modes(static_cast<Eigen::Index>(nm));
+        for (std::size_t c = 0; c < nm; ++c)
+          for (int r = 0; r < 3; ++r)
+            fb.S1[c](r) = k.fi[b].stiff ? k.fi[b].S1(r, static_cast<Eigen::Index>(c)).v
+                                        : E(f.S1(r, static_cast<Eigen::Index>(c)));
+        flexB[b] = fb;
+      }
+    }
     // Abar (A on the Euler sets' blocks, 1 elsewhere) and Mbar = Abar^T M Abar.
     for (std::size_t i = 0; i < un * un; ++i) AbS[i] = S(0.0);
     for (std::size_t i = 0; i < un; ++i) AbS[i * un + i] = S(1.0);
@@ -287,7 +343,16 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
         if (ii >= J0.i0 && ii < J0.i0 + J0.translations) continue;
         v += Xv[b][i] * uE[i];
       }
-      P += m.bodies[b].mass * Vec3<E>(R[b] * v);
+      Vec3<E> h = m.bodies[b].mass * v;
+      if (m.bodies[b].flex >= 0) {
+        // + w x s + S1 eta' (flex_body.hpp flex_momentum's h_v)
+        Vec3<E> wb = Vec3<E>::Zero();
+        for (std::size_t i = 0; i < un; ++i) wb += Xw[b][i] * uE[i];
+        h += wb.cross(flexB[b].s);
+        const auto e0 = static_cast<std::size_t>(m.bodies[b].e0);
+        for (std::size_t c = 0; c < flexB[b].S1.size(); ++c) h += flexB[b].S1[c] * uE[e0 + c];
+      }
+      P += Vec3<E>(R[b] * h);
     }
     for (int i = 0; i < J0.translations; ++i)
       uE[static_cast<std::size_t>(J0.i0 + i)].d[0] = -P(i).d[0] / m.total_mass;
@@ -319,6 +384,14 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     else
       tau_B = tau.cast<E>();
     for (std::size_t i = 0; i < un; ++i) N[i] += Xw[b][i].dot(tau_B);
+  }
+  for (std::size_t b = 0; b < nb; ++b) {  // modal damping -D eta'
+    const Model::BodyM& Bm = m.bodies[b];
+    if (Bm.flex < 0) continue;
+    const Eigen::MatrixXd& Dm = m.flex[static_cast<std::size_t>(Bm.flex)].Dmp;
+    for (int c = 0; c < Bm.nm; ++c)
+      for (int l = 0; l < Bm.nm; ++l)
+        N[static_cast<std::size_t>(Bm.e0 + c)] -= Dm(c, l) * uE[static_cast<std::size_t>(Bm.e0 + l)];
   }
   for (const Model::JointM& J : m.joints) {
     if (J.loaded == 0) continue;
@@ -460,6 +533,15 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     dav.wdot_NB_B[b] = variation(xwd);
     av.a_NBo_N[b] = value(acc);
     dav.a_NBo_N[b] = variation(acc);
+    const Model::BodyM& Bm = m.bodies[b];
+    if (Bm.flex >= 0) {
+      av.eta_ddot[b].resize(Bm.nm);
+      dav.eta_ddot[b].resize(Bm.nm);
+      for (int c = 0; c < Bm.nm; ++c) {
+        av.eta_ddot[b](c) = ud[static_cast<std::size_t>(Bm.e0 + c)].v;
+        dav.eta_ddot[b](c) = ud[static_cast<std::size_t>(Bm.e0 + c)].d[0];
+      }
+    }
   }
   Eigen::VectorXd ud_value(n), ud_variation(n);
   for (int i = 0; i < n; ++i) {
@@ -479,11 +561,15 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     scale = std::max(scale, std::abs(x0));
     diff = std::max(diff, std::abs(x0 - x1));
   };
-  for (std::size_t b = 0; b < nb; ++b)
+  for (std::size_t b = 0; b < nb; ++b) {
     for (int r = 0; r < 3; ++r) {
       compare(a0.wdot_NB_B[b](r), av.wdot_NB_B[b](r));
       compare(a0.a_NBo_N[b](r), av.a_NBo_N[b](r));
     }
+    if (a0.eta_ddot[b].size() != av.eta_ddot[b].size()) return false;
+    for (Eigen::Index c = 0; c < a0.eta_ddot[b].size(); ++c)
+      compare(a0.eta_ddot[b](c), av.eta_ddot[b](c));
+  }
   for (std::size_t j = 0; j < nj; ++j) {
     compare(a0.angle_ddot[j], av.angle_ddot[j]);
     compare(a0.angle2_ddot[j], av.angle2_ddot[j]);

@@ -6,8 +6,9 @@
 // against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
 // ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
 // ds; Euler's equations' Jacobian for a free rigid body in closed form; false, with nothing
-// written, for what is not covered (flexible bodies). Uniform gravity, the orbit's gravity
-// gradient, a prescribed joint and a prescribed base are among the covered systems.
+// written, for what is not covered (flexible bodies in an environment). Flexible bodies (with
+// geometric stiffening), uniform gravity, the orbit's gravity gradient, a prescribed joint and a
+// prescribed base are among the covered systems.
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
@@ -177,6 +178,8 @@ std::vector<Case> covered_systems() {
           {"slider_gimbal, orbit", with_environment(slider_gimbal(false), orbit(), "slider_gimbal_orbit")},
           {"chain5, orbit", with_environment(test::chain(5), orbit(), "chain5_orbit")},
           {"spear1, prescribed hinge", spear1_prescribed_hinge()},
+          {"flex_tree (flexible, joints at nodes, loads)", test::flex_tree(true)},
+          {"flex_tree, geometric stiffening", test::with_stiffening(test::flex_tree(true))},
           {"prescribed base, uniform gravity",
            with_environment(prescribed_base(), uniform_gravity(), "prescribed_base_g")}};
 }
@@ -193,6 +196,11 @@ TreeTangent random_tangent(const System& system, std::mt19937& g) {
   ds.dtheta_B = random_vec(g, 1.0);
   ds.dv_NBo_N = random_vec(g, 1.0);
   ds.dw_NB_B = random_vec(g, 1.0);
+  for (std::size_t b = 0; b < ds.eta.size(); ++b)
+    for (Eigen::Index k = 0; k < ds.eta[b].size(); ++k) {
+      ds.eta[b](k) = 0.1 * u(g);
+      ds.eta_rate[b](k) = u(g);
+    }
   for (TreeTangent::JointTangent& j : ds.joints) {
     j.angle = u(g);
     j.rate = u(g);
@@ -210,6 +218,10 @@ TreeTangent combine(const TreeTangent& a, double c, const TreeTangent& b) {  // 
   r.dtheta_B += c * b.dtheta_B;
   r.dv_NBo_N += c * b.dv_NBo_N;
   r.dw_NB_B += c * b.dw_NB_B;
+  for (std::size_t k = 0; k < r.eta.size(); ++k) {
+    r.eta[k] += c * b.eta[k];
+    r.eta_rate[k] += c * b.eta_rate[k];
+  }
   for (std::size_t j = 0; j < r.joints.size(); ++j) {
     r.joints[j].angle += c * b.joints[j].angle;
     r.joints[j].rate += c * b.joints[j].rate;
@@ -228,6 +240,10 @@ TreeState moved(const TreeState& s, const TreeTangent& ds, double e) {
   r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
   r.v_NBo_N += e * ds.dv_NBo_N;
   r.w_NB_B += e * ds.dw_NB_B;
+  for (std::size_t k = 0; k < r.eta.size(); ++k) {
+    r.eta[k] += e * ds.eta[k];
+    r.eta_rate[k] += e * ds.eta_rate[k];
+  }
   for (std::size_t j = 0; j < r.joints.size(); ++j) {
     r.joints[j].angle += e * ds.joints[j].angle;
     r.joints[j].rate += e * ds.joints[j].rate;
@@ -286,7 +302,7 @@ TEST_CASE("lagrange tangent: da against central and Richardson differences on ri
     LagrangeEngine e(c.system, {});
     double worst_central = 0, worst_richardson = 0, worst_a = 0;
     for (int trial = 0; trial < 3; ++trial) {
-      const TreeState s = test::random_state(c.system, g);
+      const TreeState s = test::random_flex_state(c.system, g);
       const TreeTangent ds = random_tangent(c.system, g);
       const double t = 0.3;
       TreeAccel a, da;
@@ -318,7 +334,7 @@ TEST_CASE("lagrange tangent: da is linear in ds", "[lagrange][tangent]") {
   std::mt19937 g(28);
   for (const Case& c : covered_systems()) {
     LagrangeEngine e(c.system, {});
-    const TreeState s = test::random_state(c.system, g);
+    const TreeState s = test::random_flex_state(c.system, g);
     const TreeTangent d1 = random_tangent(c.system, g), d2 = random_tangent(c.system, g);
     TreeAccel a, da1, da2, da12;
     REQUIRE(e.accelerations_tangent(0.0, s, d1, a, da1));
@@ -357,7 +373,8 @@ TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian"
 TEST_CASE("lagrange tangent: false, with nothing written, where not covered",
           "[lagrange][tangent]") {
   const System flex_gravity = with_environment(test::flex_tree(true), uniform_gravity(), "flex_g");
-  for (const System& sys : {test::flex_tree(true), flex_gravity}) {
+  const System flex_orbit = with_environment(test::flex_tree(true), orbit(), "flex_orbit");
+  for (const System& sys : {flex_gravity, flex_orbit}) {
     LagrangeEngine e(sys, {});
     std::mt19937 g(30);
     TreeAccel a, da;
