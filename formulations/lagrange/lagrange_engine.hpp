@@ -38,7 +38,7 @@ class LagrangeEngine final : public Engine {
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
   // Exact, by nested forward-mode AD through the engine's kinematics and energies (tangent.cpp):
-  // every system but a flexible body in an environment (there false).
+  // every system (false only if its values disagreed with accelerations()).
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
   const OutputLayout& layout() const override;

@@ -142,8 +142,8 @@ struct LagrangeEngine::Model {
   std::vector<std::string> labels;   // state labels, size 2n
   OutputLayout layout;               // pinned columns, then extras
   int recharts_column = -1;          // extra column lagrange.recharts
-  // accelerations_tangent() covers this system (tangent.cpp): all but a flexible body in an
-  // environment. Decided once by the constructor.
+  // accelerations_tangent() covers this system (tangent.cpp): every system, since issue 27's last
+  // step (flexible bodies in an environment). Decided once by the constructor.
   bool tangent = false;
 };
 

@@ -20,14 +20,14 @@
 // (B = A^-1: w = A a', euler_chart.hpp), and with System::zero_linear_momentum the base velocity's
 // variation is that of -P_rest / m_total, P_rest the linear momentum of the other quasi-velocities.
 //
-// Covered (Model::tangent, decided once by the constructor): a free or prescribed base with
-// revolute, prismatic, universal, spherical and fixed joints (at nodes too), hinge springs,
-// dampers and motors, body torques (body or inertial frame), prescribed joints (their coordinates
-// at the profile's t, no variation, theta''(t) known); flexible bodies (M_B(eta) by flex_momentum,
-// elastic V, modal damping, geometric stiffening) without an environment; on rigid systems
-// uniform gravity and the orbit's gravity gradient (gravity.cpp's loads, as generalised active
-// forces). Not covered (accelerations_tangent returns false, the harness differentiates
-// numerically): a flexible body in an environment.
+// Covered (Model::tangent, decided once by the constructor): every system the engine runs. A free
+// or prescribed base; revolute, prismatic, universal, spherical and fixed joints (at nodes too);
+// hinge springs, dampers and motors; body torques (body or inertial frame); prescribed joints
+// (their coordinates at the profile's t, no variation, theta''(t) known); flexible bodies (M_B(eta)
+// by flex_momentum, elastic V, modal damping, geometric stiffening); uniform gravity and the
+// orbit's gravity gradient (gravity.cpp's loads as generalised active forces, its flexible bodies'
+// modal forces with ds/deta and dI_w/deta from the inner derivative). It returns false only if
+// its values disagree with accelerations() (never seen in the tests).
 //
 // Cost: n inner directions, each n twist passes (O(n^2) passes and O(n^4) products): for
 // linearisation and tests, never rhs(). Allocates.
@@ -96,8 +96,14 @@ bool solve_in_place(MatE A, std::vector<E>& b) {
 // A flexible body's first mass moment s(eta) and S1(eta) = ds/deta at the values (E).
 struct FlexB {
   Vec3<E> s = Vec3<E>::Zero();
-  std::vector<Vec3<E>> S1;
-  void resize_modes(Eigen::Index n) { S1.resize(static_cast<std::size_t>(n)); }
+  Mat3<E> I_w = Mat3<E>::Zero();
+  std::vector<Vec3<E>> S1, ds;  // per mode: S1(eta) and ds/deta_k (= S1 without stiffening)
+  std::vector<Mat3<E>> dI;      // per mode: dI_w/deta_k
+  void resize_modes(Eigen::Index n) {
+    S1.resize(static_cast<std::size_t>(n));
+    ds.resize(static_cast<std::size_t>(n));
+    dI.resize(static_cast<std::size_t>(n));
+  }
 };
 
 E seeded(double value, double variation) {
@@ -212,6 +218,7 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   std::vector<std::vector<std::vector<Vec3<E>>>> dXw(un, Xw), dXv(un, Xw);
   std::vector<Mat3<E>> R(nb);
   std::vector<Vec3<E>> rP(nb);  // a sliding joint point r_P (pose pass), per child body
+  std::vector<Vec3<E>> rC(nb);  // a joint point at a child node r_C (pose pass), per child body
   std::vector<FlexB> flexB(nb);  // flexible bodies
   MatE Mbar(n);
   std::vector<MatE> dMbar(un, MatE(n));
@@ -249,6 +256,7 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
         for (int r = 0; r < 3; ++r) {
           for (int c = 0; c < 3; ++c) R[b](r, c) = k.R_NB[b](r, c).v;
           rP[b](r) = k.r_P[b](r).v;
+          rC[b](r) = k.r_C[b](r).v;
         }
     // M_ij = T(e_i, e_j) (the mass pass's): a rigid body's w_i . I w_j + m v_i . v_j; a flexible
     // body's Y_i . M_B(eta) Y_j with Y_j = (w_j, v_j, e_j on its own eta' block) (flex_body.hpp).
@@ -291,7 +299,20 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
           for (int r = 0; r < 3; ++r)
             fb.S1[c](r) = k.fi[b].stiff ? k.fi[b].S1(r, static_cast<Eigen::Index>(c)).v
                                         : E(f.S1(r, static_cast<Eigen::Index>(c)));
-        flexB[b] = fb;
+        for (int r = 0; r < 3; ++r)
+          for (int c = 0; c < 3; ++c) fb.I_w(r, c) = k.fi[b].I_w(r, c).v;
+        flexB[b].s = fb.s;
+        flexB[b].I_w = fb.I_w;
+        flexB[b].S1 = fb.S1;
+        flexB[b].ds.resize(nm);
+        flexB[b].dI.resize(nm);
+      }
+      // The derivatives along the body's own modal coordinate (this inner direction).
+      if (kd >= e0 && kd < e0 + nm) {
+        for (int r = 0; r < 3; ++r) {
+          flexB[b].ds[kd - e0](r) = k.fi[b].s(r).d[0];
+          for (int c = 0; c < 3; ++c) flexB[b].dI[kd - e0](r, c) = k.fi[b].I_w(r, c).d[0];
+        }
       }
     }
     // Abar (A on the Euler sets' blocks, 1 elsewhere) and Mbar = Abar^T M Abar.
@@ -413,13 +434,15 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
         for (int r = 0; r < 3; ++r) p[c](r) = qE[static_cast<std::size_t>(J.i0 + r)];
         continue;
       }
+      const Vec3<E> r_C = J.child_node >= 0 ? rC[c] : Vec3<E>(J.p_CoJ_C.cast<E>());
       if (J.parent < 0) {  // a prescribed base: its joint point is fixed in N
-        p[c] = Vec3<E>(J.p_PoJ_P.cast<E>()) - R[c] * Vec3<E>(J.p_CoJ_C.cast<E>());
+        p[c] = Vec3<E>(J.p_PoJ_P.cast<E>()) - R[c] * r_C;
         continue;
       }
       const auto P = static_cast<std::size_t>(J.parent);
-      const Vec3<E> r_P = J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
-      p[c] = p[P] + R[P] * r_P - R[c] * Vec3<E>(J.p_CoJ_C.cast<E>());
+      const Vec3<E> r_P =
+          J.parent_node >= 0 || J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
+      p[c] = p[P] + R[P] * r_P - R[c] * r_C;
     }
     OrbitFrame of;
     double n2 = 0;
@@ -431,9 +454,38 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     for (std::size_t b = 0; b < nb; ++b) {
       const Model::BodyM& Bm = m.bodies[b];
       Vec3<E> F, M = Vec3<E>::Zero();
-      if (m.orbit) {
+      auto tidal = [&](const Vec3<E>& v) { return Vec3<E>(n2 * Vec3<E>(3.0 * z.dot(v) * z - v)); };
+      if (Bm.flex >= 0) {
+        // gravity.cpp's flexible body: F at Bo, M about it, Q on its own eta'.
+        const FlexB& fb = flexB[b];
+        const FlexInvariants& f = m.flex[static_cast<std::size_t>(Bm.flex)];
+        const Vec3<E> s_N = R[b] * fb.s;
+        const auto e0 = static_cast<std::size_t>(Bm.e0);
+        if (m.orbit) {
+          const Vec3<E> rho = p[b] - Vec3<E>(m.p_NoO_N.cast<E>());
+          const Vec3<E> Trho = tidal(rho);
+          F = Bm.mass * Trho + tidal(s_N);
+          const Vec3<E> z_B = transpose_times(R[b], z);
+          const Vec3<E> Iz = R[b] * Vec3<E>(fb.I_w * z_B);
+          const Vec3<E> Jz = R[b] * Vec3<E>(const_times(f.J, z_B));
+          M = s_N.cross(Trho) + 3.0 * n2 * Vec3<E>(z.cross(Iz)) +
+              (m.gg_sign - 1.0) * 3.0 * n2 * Vec3<E>(z.cross(Jz));
+          const Vec3<E> Trho_B = transpose_times(R[b], Trho);
+          for (std::size_t c = 0; c < fb.ds.size(); ++c) {
+            const Mat3<E>& dI = fb.dI[c];
+            N[e0 + c] += Trho_B.dot(fb.ds[c]) +
+                         0.5 * n2 * (dI.trace() - 3.0 * z_B.dot(Vec3<E>(dI * z_B)));
+          }
+        } else {
+          const Vec3<E> g = env.g_N.cast<E>();
+          F = Bm.mass * g;
+          M = s_N.cross(g);
+          const Vec3<E> g_B = transpose_times(R[b], g);
+          for (std::size_t c = 0; c < fb.S1.size(); ++c) N[e0 + c] += fb.S1[c].dot(g_B);
+        }
+      } else if (m.orbit) {
         const Vec3<E> rho = p[b] - Vec3<E>(m.p_NoO_N.cast<E>());
-        F = Bm.mass * n2 * Vec3<E>(3.0 * z.dot(rho) * z - rho);
+        F = Bm.mass * tidal(rho);
         const Vec3<E> Iz = R[b] * Vec3<E>(const_times(Bm.I_BBo_B, transpose_times(R[b], z)));
         M = m.gg_sign * 3.0 * n2 * Vec3<E>(z.cross(Iz));
       } else {

@@ -1,14 +1,14 @@
 // The Lagrange engine's exact linearisation (issue 27; tangent.cpp, core/engine.hpp
-// accelerations_tangent): on random states and tangents of rigid trees (revolute, spherical,
-// universal, prismatic and fixed joints, springs, dampers, motors, body torques in both frames, with
-// and without the zero-linear-momentum rule), the variation da against central differences of
+// accelerations_tangent): on random states and tangents of rigid and flexible trees (revolute,
+// spherical, universal, prismatic and fixed joints, springs, dampers, motors, body torques in both
+// frames, with and without the zero-linear-momentum rule), the variation da against central differences of
 // accelerations(pack(s +- h ds)) (the same right perturbations), to the difference's accuracy, and
 // against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
 // ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
-// ds; Euler's equations' Jacobian for a free rigid body in closed form; false, with nothing
-// written, for what is not covered (flexible bodies in an environment). Flexible bodies (with
+// ds; Euler's equations' Jacobian for a free rigid body in closed form; an InputError, with nothing
+// written, for a malformed tangent. Every system is covered: rigid and flexible bodies (with
 // geometric stiffening), uniform gravity, the orbit's gravity gradient, a prescribed joint and a
-// prescribed base are among the covered systems.
+// prescribed base are among the tested systems.
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/errors.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "tests/lagrange/flex_scenes.hpp"
@@ -180,6 +181,10 @@ std::vector<Case> covered_systems() {
           {"spear1, prescribed hinge", spear1_prescribed_hinge()},
           {"flex_tree (flexible, joints at nodes, loads)", test::flex_tree(true)},
           {"flex_tree, geometric stiffening", test::with_stiffening(test::flex_tree(true))},
+          {"flex_tree, uniform gravity",
+           with_environment(test::flex_tree(true), uniform_gravity(), "flex_tree_uniform")},
+          {"flex_tree stiffened, orbit",
+           with_environment(test::with_stiffening(test::flex_tree(true)), orbit(), "flex_tree_orbit")},
           {"prescribed base, uniform gravity",
            with_environment(prescribed_base(), uniform_gravity(), "prescribed_base_g")}};
 }
@@ -295,7 +300,7 @@ double rel(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
 
 }  // namespace
 
-TEST_CASE("lagrange tangent: da against central and Richardson differences on rigid trees",
+TEST_CASE("lagrange tangent: da against central and Richardson differences on rigid and flexible trees",
           "[lagrange][tangent]") {
   std::mt19937 g(27);
   for (const Case& c : covered_systems()) {
@@ -370,18 +375,20 @@ TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian"
   }
 }
 
-TEST_CASE("lagrange tangent: false, with nothing written, where not covered",
+TEST_CASE("lagrange tangent: a malformed tangent throws, with nothing written",
           "[lagrange][tangent]") {
-  const System flex_gravity = with_environment(test::flex_tree(true), uniform_gravity(), "flex_g");
-  const System flex_orbit = with_environment(test::flex_tree(true), orbit(), "flex_orbit");
-  for (const System& sys : {flex_gravity, flex_orbit}) {
-    LagrangeEngine e(sys, {});
-    std::mt19937 g(30);
+  // Every system is covered (the constructor's Model::tangent); what remains is the input check.
+  const System sys = test::flex_tree(true);
+  LagrangeEngine e(sys, {});
+  TreeTangent no_modes = TreeTangent::zero(sys);
+  for (Eigen::VectorXd& v : no_modes.eta) v.resize(0);
+  TreeTangent no_joints = TreeTangent::zero(sys);
+  no_joints.joints.pop_back();
+  for (const TreeTangent& ds : {no_modes, no_joints}) {
     TreeAccel a, da;
     a.angle_ddot = {42.0};
     da.angle_ddot = {43.0};
-    INFO(sys.name);
-    CHECK_FALSE(e.accelerations_tangent(0.0, TreeState::initial(sys), TreeTangent::zero(sys), a, da));
+    CHECK_THROWS_AS(e.accelerations_tangent(0.0, TreeState::initial(sys), ds, a, da), InputError);
     CHECK(a.angle_ddot == std::vector<double>{42.0});
     CHECK(da.angle_ddot == std::vector<double>{43.0});
     CHECK(a.wdot_NB_B.empty());
