@@ -19,27 +19,41 @@
 #include <Eigen/Core>
 #include <array>
 #include <cmath>
+#include <cstddef>
+#include <type_traits>
 
 namespace crossdyn::lagrange {
 
+// Nested forward mode (Griewank & Walther 2008, Ch. 13, higher derivatives by repeated tangent
+// propagation): Dual<K, T> carries its value and derivatives in a base scalar T, double by default
+// (Dual<K> is Dual<K, double>, the run's path, unchanged: the same members, layout and arithmetic).
+// With T = Dual<1>, every value and derivative also carries its first-order variation along an
+// outer direction, so that a computation written on Dual<K> derivatives (the engine's mass,
+// gradient and time-derivative passes) can be differentiated once more, exactly (issue 27:
+// Engine::accelerations_tangent). The operations below are written once for every T; those with a
+// double operand exist for every T, those with a T operand only when T is not double.
+//
 // Layout: the derivatives first, then the value, so that the derivative pairs the compiler moves
 // with 16-byte loads start where whole-object copies put their 16-byte stores (with the value first,
 // every d[0..1] load straddled two stores of a fresh copy: a store-forwarding stall per operation,
 // most of the right-hand side's time in the Dual<5> gradient pass).
-template <int K>
+template <int K, class T = double>
 struct Dual {
-  std::array<double, K> d{};
-  double v = 0.0;
+  std::array<T, K> d{};
+  T v = T(0.0);
 
   constexpr Dual() = default;
   constexpr Dual(double value) : v(value) {}  // NOLINT: a constant converts implicitly
+  constexpr Dual(const T& value)              // NOLINT: the base scalar converts implicitly
+    requires(!std::is_same_v<T, double>)
+      : v(value) {}
   // The variable x = value seeded along direction c (d = e_c).
-  static Dual variable(double value, int c) {
+  static Dual variable(const T& value, int c) {
     Dual r(value);
-    r.d[static_cast<std::size_t>(c)] = 1.0;
+    r.d[static_cast<std::size_t>(c)] = T(1.0);
     return r;
   }
-  double value() const { return v; }
+  T value() const { return v; }
 
   Dual& operator+=(const Dual& b) {
     v += b.v;
@@ -65,105 +79,168 @@ struct Dual {
     for (int c = 0; c < K; ++c) d[c] *= b;
     return *this;
   }
+  Dual& operator+=(const T& b)
+    requires(!std::is_same_v<T, double>)
+  {
+    v += b;
+    return *this;
+  }
+  Dual& operator*=(const T& b)
+    requires(!std::is_same_v<T, double>)
+  {
+    v *= b;
+    for (int c = 0; c < K; ++c) d[c] *= b;
+    return *this;
+  }
 };
 
 // f(a) with f' = df/da: value f, derivatives f' d.
-template <int K>
-Dual<K> chain(const Dual<K>& a, double f, double fprime) {
-  Dual<K> r(f);
+template <int K, class T>
+Dual<K, T> chain(const Dual<K, T>& a, const T& f, const T& fprime) {
+  Dual<K, T> r(f);
   for (int c = 0; c < K; ++c) r.d[c] = fprime * a.d[c];
   return r;
 }
 
-template <int K>
-Dual<K> operator-(const Dual<K>& a) {
-  return chain(a, -a.v, -1.0);
+template <int K, class T>
+Dual<K, T> operator-(const Dual<K, T>& a) {
+  return chain(a, T(-a.v), T(-1.0));
 }
-template <int K>
-Dual<K> operator+(Dual<K> a, const Dual<K>& b) {
+template <int K, class T>
+Dual<K, T> operator+(Dual<K, T> a, const Dual<K, T>& b) {
   return a += b;
 }
-template <int K>
-Dual<K> operator-(Dual<K> a, const Dual<K>& b) {
+template <int K, class T>
+Dual<K, T> operator-(Dual<K, T> a, const Dual<K, T>& b) {
   return a -= b;
 }
-template <int K>
-Dual<K> operator*(const Dual<K>& a, const Dual<K>& b) {
-  Dual<K> r(a.v * b.v);
+template <int K, class T>
+Dual<K, T> operator*(const Dual<K, T>& a, const Dual<K, T>& b) {
+  Dual<K, T> r(a.v * b.v);
   for (int c = 0; c < K; ++c) r.d[c] = a.d[c] * b.v + a.v * b.d[c];
   return r;
 }
-template <int K>
-Dual<K> operator/(const Dual<K>& a, const Dual<K>& b) {
-  const double q = a.v / b.v;
-  Dual<K> r(q);
+template <int K, class T>
+Dual<K, T> operator/(const Dual<K, T>& a, const Dual<K, T>& b) {
+  const T q = a.v / b.v;
+  Dual<K, T> r(q);
   for (int c = 0; c < K; ++c) r.d[c] = (a.d[c] - q * b.d[c]) / b.v;
   return r;
 }
-template <int K>
-Dual<K> operator+(Dual<K> a, double b) {
+template <int K, class T>
+Dual<K, T> operator+(Dual<K, T> a, double b) {
   return a += b;
 }
-template <int K>
-Dual<K> operator+(double a, Dual<K> b) {
+template <int K, class T>
+Dual<K, T> operator+(double a, Dual<K, T> b) {
   return b += a;
 }
-template <int K>
-Dual<K> operator-(Dual<K> a, double b) {
+template <int K, class T>
+Dual<K, T> operator-(Dual<K, T> a, double b) {
   return a += -b;
 }
-template <int K>
-Dual<K> operator-(double a, const Dual<K>& b) {
-  return chain(b, a - b.v, -1.0);
+template <int K, class T>
+Dual<K, T> operator-(double a, const Dual<K, T>& b) {
+  return chain(b, T(a - b.v), T(-1.0));
 }
-template <int K>
-Dual<K> operator*(Dual<K> a, double b) {
+template <int K, class T>
+Dual<K, T> operator*(Dual<K, T> a, double b) {
   return a *= b;
 }
-template <int K>
-Dual<K> operator*(double a, Dual<K> b) {
+template <int K, class T>
+Dual<K, T> operator*(double a, Dual<K, T> b) {
   return b *= a;
 }
-template <int K>
-Dual<K> operator/(Dual<K> a, double b) {
+template <int K, class T>
+Dual<K, T> operator/(Dual<K, T> a, double b) {
   return a *= 1.0 / b;
 }
-template <int K>
-Dual<K> operator/(double a, const Dual<K>& b) {
-  return chain(b, a / b.v, -a / (b.v * b.v));
+template <int K, class T>
+Dual<K, T> operator/(double a, const Dual<K, T>& b) {
+  return chain(b, T(a / b.v), T(-a / (b.v * b.v)));
 }
-template <int K>
-bool operator==(const Dual<K>& a, const Dual<K>& b) {
+// With the base scalar T (nested duals only; for T = double these are the overloads above).
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator+(Dual<K, T> a, const T& b) {
+  return a += b;
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator+(const T& a, Dual<K, T> b) {
+  return b += a;
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator-(Dual<K, T> a, const T& b) {
+  return a += T(-b);
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator-(const T& a, const Dual<K, T>& b) {
+  return chain(b, T(a - b.v), T(-1.0));
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator*(Dual<K, T> a, const T& b) {
+  return a *= b;
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator*(const T& a, Dual<K, T> b) {
+  return b *= a;
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator/(const Dual<K, T>& a, const T& b) {
+  return a / Dual<K, T>(b);
+}
+template <int K, class T>
+  requires(!std::is_same_v<T, double>)
+Dual<K, T> operator/(const T& a, const Dual<K, T>& b) {
+  return chain(b, T(a / b.v), T(-a / (b.v * b.v)));
+}
+template <int K, class T>
+bool operator==(const Dual<K, T>& a, const Dual<K, T>& b) {
   return a.v == b.v && a.d == b.d;
 }
-template <int K>
-bool operator!=(const Dual<K>& a, const Dual<K>& b) {
+template <int K, class T>
+bool operator!=(const Dual<K, T>& a, const Dual<K, T>& b) {
   return !(a == b);
 }
 
-template <int K>
-Dual<K> sin(const Dual<K>& a) {
-  return chain(a, std::sin(a.v), std::cos(a.v));
+// The elementary functions: on the value std:: (T = double) or these overloads again (nested, by
+// argument-dependent lookup).
+template <int K, class T>
+Dual<K, T> sin(const Dual<K, T>& a) {
+  using std::cos;
+  using std::sin;
+  return chain(a, T(sin(a.v)), T(cos(a.v)));
 }
-template <int K>
-Dual<K> cos(const Dual<K>& a) {
-  return chain(a, std::cos(a.v), -std::sin(a.v));
+template <int K, class T>
+Dual<K, T> cos(const Dual<K, T>& a) {
+  using std::cos;
+  using std::sin;
+  return chain(a, T(cos(a.v)), T(-sin(a.v)));
 }
-template <int K>
-Dual<K> exp(const Dual<K>& a) {
-  const double e = std::exp(a.v);
+template <int K, class T>
+Dual<K, T> exp(const Dual<K, T>& a) {
+  using std::exp;
+  const T e = exp(a.v);
   return chain(a, e, e);
 }
-template <int K>
-Dual<K> sqrt(const Dual<K>& a) {
-  const double s = std::sqrt(a.v);
-  return chain(a, s, 0.5 / s);
+template <int K, class T>
+Dual<K, T> sqrt(const Dual<K, T>& a) {
+  using std::sqrt;
+  const T s = sqrt(a.v);
+  return chain(a, s, T(0.5 / s));
 }
 // d atan2(y, x) = (x dy - y dx) / (x^2 + y^2).
-template <int K>
-Dual<K> atan2(const Dual<K>& y, const Dual<K>& x) {
-  const double r2 = x.v * x.v + y.v * y.v;
-  Dual<K> r(std::atan2(y.v, x.v));
+template <int K, class T>
+Dual<K, T> atan2(const Dual<K, T>& y, const Dual<K, T>& x) {
+  using std::atan2;
+  const T r2 = x.v * x.v + y.v * y.v;
+  Dual<K, T> r(T(atan2(y.v, x.v)));
   for (int c = 0; c < K; ++c) r.d[c] = (x.v * y.d[c] - y.v * x.d[c]) / r2;
   return r;
 }
@@ -177,9 +254,9 @@ using Mat3 = Eigen::Matrix<S, 3, 3>;
 inline double value_of(double a) {
   return a;
 }
-template <int K>
-double value_of(const Dual<K>& a) {
-  return a.v;
+template <int K, class T>
+double value_of(const Dual<K, T>& a) {
+  return value_of(a.v);
 }
 
 // Square of the rotation angle of the unit quaternion (w, x, y, z): angle = 2 atan2(|v|, |w|), so
@@ -208,30 +285,31 @@ S rotation_angle_squared(S w, S x, S y, S z) {
 
 }  // namespace crossdyn::lagrange
 
-// Dual<K> as an Eigen scalar (Eigen docs, "Using custom scalar types").
+// Dual<K, T> as an Eigen scalar (Eigen docs, "Using custom scalar types"). The costs are the
+// base scalar's times the number of its operations (for T = double: K + 1, K + 1, 2 K + 1).
 namespace Eigen {
-template <int K>
-struct NumTraits<crossdyn::lagrange::Dual<K>> : NumTraits<double> {
-  using Real = crossdyn::lagrange::Dual<K>;
-  using NonInteger = crossdyn::lagrange::Dual<K>;
-  using Nested = crossdyn::lagrange::Dual<K>;
-  using Literal = crossdyn::lagrange::Dual<K>;
+template <int K, class T>
+struct NumTraits<crossdyn::lagrange::Dual<K, T>> : NumTraits<double> {
+  using Real = crossdyn::lagrange::Dual<K, T>;
+  using NonInteger = crossdyn::lagrange::Dual<K, T>;
+  using Nested = crossdyn::lagrange::Dual<K, T>;
+  using Literal = crossdyn::lagrange::Dual<K, T>;
   enum {
     IsComplex = 0,
     IsInteger = 0,
     IsSigned = 1,
     RequireInitialization = 1,
-    ReadCost = K + 1,
-    AddCost = K + 1,
-    MulCost = 2 * K + 1
+    ReadCost = (K + 1) * int(NumTraits<T>::ReadCost),
+    AddCost = (K + 1) * int(NumTraits<T>::AddCost),
+    MulCost = (2 * K + 1) * int(NumTraits<T>::MulCost)
   };
 };
-template <int K, typename BinaryOp>
-struct ScalarBinaryOpTraits<crossdyn::lagrange::Dual<K>, double, BinaryOp> {
-  using ReturnType = crossdyn::lagrange::Dual<K>;
+template <int K, class T, typename BinaryOp>
+struct ScalarBinaryOpTraits<crossdyn::lagrange::Dual<K, T>, double, BinaryOp> {
+  using ReturnType = crossdyn::lagrange::Dual<K, T>;
 };
-template <int K, typename BinaryOp>
-struct ScalarBinaryOpTraits<double, crossdyn::lagrange::Dual<K>, BinaryOp> {
-  using ReturnType = crossdyn::lagrange::Dual<K>;
+template <int K, class T, typename BinaryOp>
+struct ScalarBinaryOpTraits<double, crossdyn::lagrange::Dual<K, T>, BinaryOp> {
+  using ReturnType = crossdyn::lagrange::Dual<K, T>;
 };
 }  // namespace Eigen

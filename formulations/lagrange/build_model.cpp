@@ -302,6 +302,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
       w->eta_g.assign(static_cast<std::size_t>(m->max_modes), Dual<1>(0.0));
     }
   }
+  m->tangent = true;  // every system the constructor accepts (tangent.cpp)
   Model* const model = m.get();
   model_ = std::move(m);
   ws_ = std::move(w);

@@ -37,6 +37,10 @@ class LagrangeEngine final : public Engine {
   void rhs(double t, const double* x, double* xdot) override;
   bool after_step(double t, double* x) override;
   void accelerations(double t, const double* x, TreeAccel& a) override;
+  // Exact, by nested forward-mode AD through the engine's kinematics and energies (tangent.cpp):
+  // every system (false only if its values disagreed with accelerations()).
+  bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
+                             TreeAccel& da) override;
   const OutputLayout& layout() const override;
   void output_row(double t, const double* x, double* row) override;
   // The system the solve pass factors at (t, x), in the chart x is in (the workspace's current

@@ -142,6 +142,9 @@ struct LagrangeEngine::Model {
   std::vector<std::string> labels;   // state labels, size 2n
   OutputLayout layout;               // pinned columns, then extras
   int recharts_column = -1;          // extra column lagrange.recharts
+  // accelerations_tangent() covers this system (tangent.cpp): every system, since issue 27's last
+  // step (flexible bodies in an environment). Decided once by the constructor.
+  bool tangent = false;
 };
 
 using Model = LagrangeEngine::Model;

@@ -102,3 +102,40 @@ TEST_CASE("rotation_angle_squared: value and derivative of theta^2 on both branc
   CHECK(close(a2.value(), theta0 * theta0, 0, 1e-14));
   CHECK(close(a2.d[0], 2 * theta0, 0, 1e-12));
 }
+
+TEST_CASE("Dual<K, Dual<1>>: nested forward mode gives exact second derivatives",
+          "[autodiff][tangent]") {
+  // Griewank & Walther 2008, Ch. 13: the inner Dual<2> holds the gradient, the outer Dual<1> (its
+  // base scalar) the variation of everything along x, so d[c].d[0] is a column of the Hessian.
+  using D1 = Dual<1>;
+  using N2 = Dual<2, D1>;
+  for (double x0 : {-1.3, 0.4, 2.1}) {
+    for (double y0 : {-0.8, 0.6}) {
+      const N2 x = N2::variable(D1::variable(x0, 0), 0), y = N2::variable(D1(y0), 1);
+      const N2 g = sin(x) * cos(y) + exp(x * y);
+      const double e = std::exp(x0 * y0);
+      CHECK(close(g.v.v, std::sin(x0) * std::cos(y0) + e, kTol, kTol));
+      CHECK(close(g.v.d[0], std::cos(x0) * std::cos(y0) + y0 * e, kTol, kTol));  // g_x
+      CHECK(close(g.d[0].v, std::cos(x0) * std::cos(y0) + y0 * e, kTol, kTol));  // g_x
+      CHECK(close(g.d[1].v, -std::sin(x0) * std::sin(y0) + x0 * e, kTol, kTol));  // g_y
+      CHECK(close(g.d[0].d[0], -std::sin(x0) * std::cos(y0) + y0 * y0 * e, kTol, kTol));  // g_xx
+      CHECK(close(g.d[1].d[0], -std::cos(x0) * std::sin(y0) + e + x0 * y0 * e, kTol, kTol));  // g_xy
+      // atan2, sqrt, division and the base-scalar operands: h = atan2(y, x) + sqrt(x^2 + y^2) / X
+      // with X the inner variable x as a constant of the inner level (only the outer part varies).
+      const D1 X = D1::variable(x0, 0);
+      const N2 h = atan2(y, x) + sqrt(x * x + y * y) / X - X * y + (2.0 - X) / x;
+      const double r2 = x0 * x0 + y0 * y0, r = std::sqrt(r2);
+      // h_x (inner) = -y/r^2 + x/(r X) - (2 - X)/x^2; its outer variation d/dx of that with X = x:
+      const double hx = -y0 / r2 + x0 / (r * x0) - (2.0 - x0) / (x0 * x0);
+      const double hxx = 2 * x0 * y0 / (r2 * r2) + (1 / r - x0 * x0 / (r2 * r)) / x0 -
+                         x0 / (r * x0 * x0) + 1 / (x0 * x0) + 2 * (2.0 - x0) / (x0 * x0 * x0);
+      const double hy = x0 / r2 + y0 / (r * x0) - x0;
+      const double hyx = (y0 * y0 - x0 * x0) / (r2 * r2) - y0 * x0 / (r2 * r * x0) -
+                         y0 / (r * x0 * x0) - 1.0;
+      CHECK(close(h.d[0].v, hx, kTol, kTol));
+      CHECK(close(h.d[1].v, hy, kTol, kTol));
+      CHECK(close(h.d[0].d[0], hxx, 1e-13, 1e-13));
+      CHECK(close(h.d[1].d[0], hyx, 1e-13, 1e-13));
+    }
+  }
+}

@@ -1,0 +1,417 @@
+// The Lagrange engine's exact linearisation (issue 27; tangent.cpp, core/engine.hpp
+// accelerations_tangent): on random states and tangents of rigid and flexible trees (revolute,
+// spherical, universal, prismatic and fixed joints, springs, dampers, motors, body torques in both
+// frames, with and without the zero-linear-momentum rule), the variation da against central differences of
+// accelerations(pack(s +- h ds)) (the same right perturbations), to the difference's accuracy, and
+// against a Richardson extrapolation of them (Richardson 1911; three levels, error O(h^6)), to
+// ~1e-11 relative, which only an exact derivative meets; a against accelerations(); linearity in
+// ds; Euler's equations' Jacobian for a free rigid body in closed form; an InputError, with nothing
+// written, for a malformed tangent. Every system is covered: rigid and flexible bodies (with
+// geometric stiffening), uniform gravity, the orbit's gravity gradient, a prescribed joint and a
+// prescribed base are among the tested systems.
+#include <catch2/catch.hpp>
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "core/errors.hpp"
+#include "core/rotation.hpp"
+#include "formulations/lagrange/lagrange_engine.hpp"
+#include "tests/lagrange/flex_scenes.hpp"
+#include "tests/lagrange/scenes.hpp"
+
+using namespace crossdyn;
+using crossdyn::lagrange::LagrangeEngine;
+
+namespace {
+
+Joint one_axis_joint(JointType type, const std::string& name, int parent, int child,
+                     const Eigen::Vector3d& p_PoJ_P, const Eigen::Vector3d& p_CoJ_C,
+                     const Eigen::Vector3d& axis_P) {
+  Joint j;
+  j.name = name;
+  j.type = type;
+  j.parent = parent;
+  j.child = child;
+  j.p_PoJ_P = p_PoJ_P;
+  j.p_CoJ_C = p_CoJ_C;
+  j.axis_P = axis_P.normalized();
+  return j;
+}
+
+// A hub with a slider (prismatic, spring, damper, motor) and a gimbaled payload (universal,
+// springs on both axes, an orientation offset), and a revolute arm on the payload.
+System slider_gimbal(bool zero_linear_momentum) {
+  System s;
+  s.name = "slider_gimbal";
+  Body hub = test::make_body("hub", 100, {40, 50, 60});
+  hub.I_BBo_B(0, 1) = hub.I_BBo_B(1, 0) = 2.0;
+  s.bodies = {hub, test::make_body("slider", 5, {0.5, 0.6, 0.7}),
+              test::make_body("payload", 4, {0.3, 0.5, 0.6}), test::make_body("arm", 1, {0.1, 0.2, 0.2})};
+  s.joints = {test::free_joint(0, {0.05, -0.03, 0.6})};
+  Joint p = one_axis_joint(JointType::Prismatic, "slide", 0, 1, {0.8, 0.1, 0.2}, {-0.3, 0.0, 0.05},
+                           {1.0, 0.2, 0.1});
+  p.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(0, 1, 1).normalized()));
+  p.stiffness = 30.0;
+  p.neutral_angle = 0.05;
+  p.damping = 2.0;
+  p.motor_revolute.times = {0.0};
+  p.motor_revolute.values = {Eigen::Matrix<double, 1, 1>(0.7)};
+  Joint u = one_axis_joint(JointType::Universal, "gimbal", 0, 2, {0.5, 0.3, 1.0}, {0.1, 0.0, -0.6},
+                           {1, 0, 0.1});
+  u.axis2_P = Eigen::Vector3d(0.3, 1, 0.2).normalized();
+  u.q_PJ0 = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, -1, 2).normalized()));
+  u.stiffness = 1.5;
+  u.neutral_angle = 0.2;
+  u.stiffness2 = 0.8;
+  u.neutral_angle2 = -0.1;
+  Joint r = one_axis_joint(JointType::Revolute, "elbow", 2, 3, {0.2, 0.1, 0.0}, {-0.4, 0.0, 0.0},
+                           {0.1, 0.3, 1.0});
+  r.stiffness = 0.6;
+  r.damping = 0.05;
+  s.joints.push_back(p);
+  s.joints.push_back(u);
+  s.joints.push_back(r);
+  s.zero_linear_momentum = zero_linear_momentum;
+  return s;
+}
+
+// One free rigid body with a full inertia, torque-free.
+System one_body() {
+  System s;
+  s.name = "one_body";
+  Body b = test::make_body("body", 7, {3, 4, 6});
+  b.I_BBo_B(0, 1) = b.I_BBo_B(1, 0) = 0.3;
+  b.I_BBo_B(0, 2) = b.I_BBo_B(2, 0) = -0.2;
+  b.I_BBo_B(1, 2) = b.I_BBo_B(2, 1) = 0.4;
+  s.bodies = {b};
+  s.joints = {test::free_joint(0, {0.3, -0.5, 0.8})};
+  return s;
+}
+
+Environment uniform_gravity() {
+  Environment env;
+  env.kind = Environment::Kind::Uniform;
+  env.g_N = Eigen::Vector3d(0.3, -1.2, -9.81);
+  return env;
+}
+
+// A circular orbit, mean motion n = 0.05 rad/s (fast, so the gravity gradient is not small next to
+// the other loads), radius 7000 km, inclined.
+Environment orbit() {
+  Environment env;
+  env.kind = Environment::Kind::Orbit;
+  const double n = 0.05;
+  env.radius = 7.0e6;
+  env.mu = n * n * env.radius * env.radius * env.radius;
+  env.inclination = 0.6;
+  env.raan = 0.3;
+  env.latitude0 = 0.2;
+  return env;
+}
+
+System with_environment(System s, const Environment& env, const std::string& name) {
+  s.environment = env;
+  s.name = name;
+  return s;
+}
+
+// spear1 with its first hinge spun up by a prescribed profile (docs/prescribed-motion.md).
+System spear1_prescribed_hinge() {
+  System s = test::spear1();
+  s.name = "spear1_prescribed_hinge";
+  PrescribedMotion p;
+  p.rate = 1.0;
+  p.ramp_time = 2.0;
+  s.joints[1].prescribed = p;
+  s.joints[1].rate0 = 0.0;
+  return s;
+}
+
+// A prescribed base: a rotor turned about z through a point off its CM by a spin-up profile,
+// carrying an arm on a spherical joint with a spring and a slider (prismatic).
+System prescribed_base() {
+  System s;
+  s.name = "prescribed_base";
+  s.bodies = {test::make_body("rotor", 20, {2, 3, 4}), test::make_body("arm", 2, {0.1, 0.4, 0.45}),
+              test::make_body("slider", 1, {0.05, 0.06, 0.07})};
+  Joint base = one_axis_joint(JointType::Revolute, "spin", -1, 0, {0.1, -0.2, 0.3}, {0.2, 0.1, 0.0},
+                              {0.1, 0.2, 1.0});
+  PrescribedMotion p;
+  p.rate = 2.0;
+  p.ramp_time = 1.5;
+  base.prescribed = p;
+  Joint arm;
+  arm.name = "shoulder";
+  arm.type = JointType::Spherical;
+  arm.parent = 0;
+  arm.child = 1;
+  arm.p_PoJ_P = {0.6, 0.0, 0.1};
+  arm.p_CoJ_C = {-0.5, 0.0, 0.0};
+  arm.stiffness = 2.0;
+  arm.damping = 0.1;
+  Joint slide = one_axis_joint(JointType::Prismatic, "slide", 1, 2, {0.3, 0.0, 0.0},
+                               {-0.1, 0.0, 0.0}, {1.0, 0.1, 0.0});
+  slide.stiffness = 5.0;
+  s.joints = {base, arm, slide};
+  return s;
+}
+
+struct Case {
+  std::string name;
+  System system;
+};
+
+std::vector<Case> covered_systems() {
+  System spear_spherical = test::spear1(-10, true);
+  spear_spherical.zero_linear_momentum = false;
+  return {{"spear1 (revolute)", test::spear1()},
+          {"spear1 spherical, no momentum rule", spear_spherical},
+          {"chain5 (spherical)", test::chain(5)},
+          {"mixed_tree (loads, fixed joint, torques)", test::mixed_tree(true)},
+          {"slider_gimbal (prismatic, universal)", slider_gimbal(true)},
+          {"slider_gimbal, no momentum rule", slider_gimbal(false)},
+          {"one free body", one_body()},
+          {"mixed_tree, uniform gravity",
+           with_environment(test::mixed_tree(true), uniform_gravity(), "mixed_tree_uniform")},
+          {"slider_gimbal, orbit", with_environment(slider_gimbal(false), orbit(), "slider_gimbal_orbit")},
+          {"chain5, orbit", with_environment(test::chain(5), orbit(), "chain5_orbit")},
+          {"spear1, prescribed hinge", spear1_prescribed_hinge()},
+          {"flex_tree (flexible, joints at nodes, loads)", test::flex_tree(true)},
+          {"flex_tree, geometric stiffening", test::with_stiffening(test::flex_tree(true))},
+          {"flex_tree, uniform gravity",
+           with_environment(test::flex_tree(true), uniform_gravity(), "flex_tree_uniform")},
+          {"flex_tree stiffened, orbit",
+           with_environment(test::with_stiffening(test::flex_tree(true)), orbit(), "flex_tree_orbit")},
+          {"prescribed base, uniform gravity",
+           with_environment(prescribed_base(), uniform_gravity(), "prescribed_base_g")}};
+}
+
+Eigen::Vector3d random_vec(std::mt19937& g, double scale) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  return Eigen::Vector3d(u(g), u(g), u(g)) * scale;
+}
+
+TreeTangent random_tangent(const System& system, std::mt19937& g) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  TreeTangent ds = TreeTangent::zero(system);
+  ds.dp_NoBo_N = random_vec(g, 1.0);
+  ds.dtheta_B = random_vec(g, 1.0);
+  ds.dv_NBo_N = random_vec(g, 1.0);
+  ds.dw_NB_B = random_vec(g, 1.0);
+  for (std::size_t b = 0; b < ds.eta.size(); ++b)
+    for (Eigen::Index k = 0; k < ds.eta[b].size(); ++k) {
+      ds.eta[b](k) = 0.1 * u(g);
+      ds.eta_rate[b](k) = u(g);
+    }
+  for (TreeTangent::JointTangent& j : ds.joints) {
+    j.angle = u(g);
+    j.rate = u(g);
+    j.angle2 = u(g);
+    j.rate2 = u(g);
+    j.dtheta_J = random_vec(g, 1.0);
+    j.w_PC_C = random_vec(g, 1.0);
+  }
+  return ds;
+}
+
+TreeTangent combine(const TreeTangent& a, double c, const TreeTangent& b) {  // a + c b
+  TreeTangent r = a;
+  r.dp_NoBo_N += c * b.dp_NoBo_N;
+  r.dtheta_B += c * b.dtheta_B;
+  r.dv_NBo_N += c * b.dv_NBo_N;
+  r.dw_NB_B += c * b.dw_NB_B;
+  for (std::size_t k = 0; k < r.eta.size(); ++k) {
+    r.eta[k] += c * b.eta[k];
+    r.eta_rate[k] += c * b.eta_rate[k];
+  }
+  for (std::size_t j = 0; j < r.joints.size(); ++j) {
+    r.joints[j].angle += c * b.joints[j].angle;
+    r.joints[j].rate += c * b.joints[j].rate;
+    r.joints[j].angle2 += c * b.joints[j].angle2;
+    r.joints[j].rate2 += c * b.joints[j].rate2;
+    r.joints[j].dtheta_J += c * b.joints[j].dtheta_J;
+    r.joints[j].w_PC_C += c * b.joints[j].w_PC_C;
+  }
+  return r;
+}
+
+// s + e ds, rotations turned on the right: R exp(e [dtheta x]) (core/engine.hpp TreeTangent).
+TreeState moved(const TreeState& s, const TreeTangent& ds, double e) {
+  TreeState r = s;
+  r.p_NoBo_N += e * ds.dp_NoBo_N;
+  r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
+  r.v_NBo_N += e * ds.dv_NBo_N;
+  r.w_NB_B += e * ds.dw_NB_B;
+  for (std::size_t k = 0; k < r.eta.size(); ++k) {
+    r.eta[k] += e * ds.eta[k];
+    r.eta_rate[k] += e * ds.eta_rate[k];
+  }
+  for (std::size_t j = 0; j < r.joints.size(); ++j) {
+    r.joints[j].angle += e * ds.joints[j].angle;
+    r.joints[j].rate += e * ds.joints[j].rate;
+    r.joints[j].angle2 += e * ds.joints[j].angle2;
+    r.joints[j].rate2 += e * ds.joints[j].rate2;
+    r.joints[j].q_J = s.joints[j].q_J * rot::from_rotation_vector(e * ds.joints[j].dtheta_J);
+    r.joints[j].w_PC_C += e * ds.joints[j].w_PC_C;
+  }
+  return r;
+}
+
+// Every field of a TreeAccel in one vector.
+Eigen::VectorXd flat(const TreeAccel& a) {
+  std::vector<double> v;
+  for (const auto& x : a.wdot_NB_B) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const auto& x : a.a_NBo_N) v.insert(v.end(), x.data(), x.data() + 3);
+  v.insert(v.end(), a.angle_ddot.begin(), a.angle_ddot.end());
+  v.insert(v.end(), a.angle2_ddot.begin(), a.angle2_ddot.end());
+  for (const auto& x : a.wdot_PC_C) v.insert(v.end(), x.data(), x.data() + 3);
+  for (const auto& x : a.eta_ddot) v.insert(v.end(), x.data(), x.data() + x.size());
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+Eigen::VectorXd accel_at(LagrangeEngine& e, double t, const TreeState& s) {
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(s, x.data());
+  TreeAccel a;
+  e.accelerations(t, x.data(), a);
+  return flat(a);
+}
+
+Eigen::VectorXd central(LagrangeEngine& e, double t, const TreeState& s, const TreeTangent& ds,
+                        double h) {
+  return (accel_at(e, t, moved(s, ds, h)) - accel_at(e, t, moved(s, ds, -h))) / (2 * h);
+}
+
+// Richardson's extrapolation of central differences at h, h/2, h/4: error O(h^6).
+Eigen::VectorXd richardson(LagrangeEngine& e, double t, const TreeState& s, const TreeTangent& ds,
+                           double h) {
+  const Eigen::VectorXd d1 = central(e, t, s, ds, h), d2 = central(e, t, s, ds, h / 2),
+                        d3 = central(e, t, s, ds, h / 4);
+  const Eigen::VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d3 - d2) / 3;
+  return (16 * r2 - r1) / 15;
+}
+
+double rel(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
+}
+
+}  // namespace
+
+TEST_CASE("lagrange tangent: da against central and Richardson differences on rigid and flexible trees",
+          "[lagrange][tangent]") {
+  std::mt19937 g(27);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    double worst_central = 0, worst_richardson = 0, worst_a = 0;
+    for (int trial = 0; trial < 3; ++trial) {
+      const TreeState s = test::random_flex_state(c.system, g);
+      const TreeTangent ds = random_tangent(c.system, g);
+      const double t = 0.3;
+      TreeAccel a, da;
+      REQUIRE(e.accelerations_tangent(t, s, ds, a, da));
+      const Eigen::VectorXd fa = flat(a), fda = flat(da);
+      REQUIRE(fa.size() == accel_at(e, t, s).size());
+      REQUIRE(fda.size() == fa.size());
+      worst_a = std::max(worst_a, rel(fa, accel_at(e, t, s)));
+      worst_central = std::max(worst_central, rel(central(e, t, s, ds, 1e-5), fda));
+      // The extrapolation at its best first step: truncation O(h^6) above, the rounding of
+      // accelerations() (relative eps_a ~ 1e-15 to 1e-12, the chain's the largest) times 1/h below.
+      double best = 1.0;
+      for (double h : {3.2e-2, 1.6e-2, 8e-3}) best = std::min(best, rel(richardson(e, t, s, ds, h), fda));
+      worst_richardson = std::max(worst_richardson, best);
+    }
+    INFO(c.name << ": max relative difference to accelerations() " << worst_a
+                << ", to central differences " << worst_central << ", to Richardson "
+                << worst_richardson);
+    CHECK(worst_a <= 1e-14);
+    // Central differences at h = 1e-5: truncation ~h^2 ~ 1e-10, rounding eps_a / h up to ~1e-7
+    // (the chain's).
+    CHECK(worst_central < 2e-7);
+    // Richardson: ~1e-13 on every system but the chain (~5e-11, its accelerations' rounding).
+    CHECK(worst_richardson < 1e-10);
+  }
+}
+
+TEST_CASE("lagrange tangent: da is linear in ds", "[lagrange][tangent]") {
+  std::mt19937 g(28);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    const TreeState s = test::random_flex_state(c.system, g);
+    const TreeTangent d1 = random_tangent(c.system, g), d2 = random_tangent(c.system, g);
+    TreeAccel a, da1, da2, da12;
+    REQUIRE(e.accelerations_tangent(0.0, s, d1, a, da1));
+    REQUIRE(e.accelerations_tangent(0.0, s, d2, a, da2));
+    REQUIRE(e.accelerations_tangent(0.0, s, combine(d1, 2.0, d2), a, da12));
+    INFO(c.name);
+    CHECK(rel(flat(da12), flat(da1) + 2 * flat(da2)) < 1e-12);
+  }
+}
+
+TEST_CASE("lagrange tangent: a free rigid body's d(wdot)/dw is Euler's Jacobian",
+          "[lagrange][tangent]") {
+  // I w' = -w x I w  =>  d(w')/dw = I^-1 ([I w x] - [w x] I) (torque-free, any attitude).
+  const System sys = one_body();
+  LagrangeEngine e(sys, {});
+  std::mt19937 g(29);
+  const Eigen::Matrix3d I = sys.bodies[0].I_BBo_B;
+  for (int trial = 0; trial < 5; ++trial) {
+    const TreeState s = test::random_state(sys, g);
+    const Eigen::Vector3d w = s.w_NB_B;
+    const Eigen::Matrix3d J = I.inverse() * (rot::skew(I * w) - rot::skew(w) * I);
+    Eigen::Matrix3d D;
+    for (int k = 0; k < 3; ++k) {
+      TreeTangent ds = TreeTangent::zero(sys);
+      ds.dw_NB_B(k) = 1.0;
+      TreeAccel a, da;
+      REQUIRE(e.accelerations_tangent(0.0, s, ds, a, da));
+      D.col(k) = da.wdot_NB_B[0];
+      CHECK(da.a_NBo_N[0].norm() == 0.0);  // no force: the CM does not accelerate
+    }
+    INFO("D\n" << D << "\nJ\n" << J);
+    CHECK((D - J).cwiseAbs().maxCoeff() <= 1e-14 * J.cwiseAbs().maxCoeff());
+  }
+}
+
+TEST_CASE("lagrange tangent: a malformed tangent throws, with nothing written",
+          "[lagrange][tangent]") {
+  // Every system is covered (the constructor's Model::tangent); what remains is the input check.
+  const System sys = test::flex_tree(true);
+  LagrangeEngine e(sys, {});
+  TreeTangent no_modes = TreeTangent::zero(sys);
+  for (Eigen::VectorXd& v : no_modes.eta) v.resize(0);
+  TreeTangent no_joints = TreeTangent::zero(sys);
+  no_joints.joints.pop_back();
+  for (const TreeTangent& ds : {no_modes, no_joints}) {
+    TreeAccel a, da;
+    a.angle_ddot = {42.0};
+    da.angle_ddot = {43.0};
+    CHECK_THROWS_AS(e.accelerations_tangent(0.0, TreeState::initial(sys), ds, a, da), InputError);
+    CHECK(a.angle_ddot == std::vector<double>{42.0});
+    CHECK(da.angle_ddot == std::vector<double>{43.0});
+    CHECK(a.wdot_NB_B.empty());
+    CHECK(da.wdot_NB_B.empty());
+  }
+}
+
+TEST_CASE("lagrange tangent: the engine's run state is left as it was", "[lagrange][tangent]") {
+  // accelerations_tangent() packs s (choosing charts): a run's state x keeps its meaning after.
+  const System sys = test::chain(5);
+  LagrangeEngine e(sys, {});
+  std::mt19937 g(31);
+  std::vector<double> x(static_cast<std::size_t>(e.state_size())), f0(x.size()), f1(x.size());
+  e.pack(test::random_state(sys, g), x.data());
+  std::vector<int> charts;
+  for (int k = 0; k < e.euler_sets(); ++k) charts.push_back(e.chart(k));
+  e.rhs(0.0, x.data(), f0.data());
+  for (int trial = 0; trial < 5; ++trial) {
+    const TreeState s = test::random_state(sys, g);
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.0, s, random_tangent(sys, g), a, da));
+  }
+  for (int k = 0; k < e.euler_sets(); ++k) CHECK(e.chart(k) == charts[static_cast<std::size_t>(k)]);
+  e.rhs(0.0, x.data(), f1.data());
+  CHECK(f0 == f1);
+}
