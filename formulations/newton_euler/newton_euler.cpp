@@ -246,7 +246,7 @@ class NewtonEulerEngine final : public Engine {
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
   // accelerations_tangent() covers this system (decided by the constructor): rigid bodies, a
-  // free base, joints covered by their unit's Cx verbs; any environment and body torques.
+  // free or prescribed base, joints covered by their unit's Cx verbs; any environment, torques.
   bool tangent_covered_ = false;
 
   // ---- workspace (mutable, preallocated) ----
@@ -412,11 +412,11 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 
-  // accelerations_tangent(): rigid bodies, a free base, joints whose unit has verbs on Cx that
-  // cover them (joints/joint_unit.hpp, JointVerbsCx::covers).
-  tangent_covered_ = !prescribed_base_;
+  // accelerations_tangent(): rigid bodies, a free or prescribed base, joints whose unit has verbs
+  // on Cx that cover them (joints/joint_unit.hpp, JointVerbsCx::covers).
+  tangent_covered_ = true;
   for (int b = 0; b < nb_; ++b) tangent_covered_ = tangent_covered_ && flex_[at(b)] < 0;
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointUnit& u = *joints_[at(j)].unit;
     tangent_covered_ = tangent_covered_ && u.cx && u.cx->covers(system.joints[at(j)]);
   }
@@ -1162,10 +1162,13 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // z = z_r + i z_i, b = b_r + i b_i: to O(h^2), K_r z_r = b_r and K_r z_i = b_i - K_i z_r, two
 // solves with the engine's own factorisation (TreeKkt) of the real KKT matrix (which is the run's:
 // K_r equals the double path's to rounding); no complex factorisation, so nothing conjugates.
-// Covered (tangent_covered_, decided by the constructor): rigid bodies with a free base and
-// revolute, prismatic, universal, fixed and spherical joints, any environment, body torques,
-// joint springs, dampers, motors, prescribed joints, any stabilisation. Anything else returns
-// false before writing anything (a flexible body, a prescribed base): the caller differentiates
+// A prescribed base is placed from N by joint 0 (its profile at t, no tangent; the TreeState's
+// base pose is not read, as in pack()), and its root rows enter the two solves like a link's
+// (K_i's root block J_R,i, zero here since the base is real, kept for the form).
+// Covered (tangent_covered_, decided by the constructor): rigid bodies with a free or prescribed
+// base and revolute, prismatic, universal, fixed and spherical joints, any environment, body
+// torques, joint springs, dampers, motors, prescribed joints, any stabilisation. Anything else
+// returns false before writing anything (any flexible body): the caller differentiates
 // numerically and says so.
 bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
                                               TreeAccel& a, TreeAccel& da) {
@@ -1201,6 +1204,9 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   Cx norm;
   // pack(): the base, then every child from its parent (place_child), then zero_linear_momentum's
   // rigid shift (shift_all(0, -linear_momentum() / total_mass())).
+  // A prescribed base: placed from N by joint 0 below (its profile at t: no tangent), as pack()
+  // does; the TreeState's base pose is then not read.
+  BodyKinematicsT<Cx> ground;  // N: identity attitude, at rest (ground_)
   {
     BodyKinematicsT<Cx>& B = bk[at(joints_[0].child)];
     B.q_NB = unit_quaternion(turned(s.q_NB, ds.dtheta_B), norm);
@@ -1209,14 +1215,14 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     B.v_NBo_N = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
     B.w_NB_B = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
   }
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const TreeState::JointState& js = s.joints[at(j)];
     const TreeTangent::JointTangent dj = m.prescribed ? TreeTangent::JointTangent{} : ds.joints[at(j)];
     const JointStateT<Cx> jc{js.angle + ih * dj.angle, js.rate + ih * dj.rate,
                              js.angle2 + ih * dj.angle2, js.rate2 + ih * dj.rate2,
                              turned(js.q_J, dj.dtheta_J), js.w_PC_C.cast<Cx>() + ih * dj.w_PC_C.cast<Cx>()};
-    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
     BodyKinematicsT<Cx>& C = bk[at(m.child)];
     NodeFrameT<Cx>& F = jk[at(j)].F;
     NodeFrameT<Cx>& G = jk[at(j)].G;
@@ -1227,7 +1233,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     if (m.unit->cx->pack) m.unit->cx->pack(m, jc, q_J, w_FG_G, r_F, v_F);
     place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
   }
-  if (system_.zero_linear_momentum) {
+  if (system_.zero_linear_momentum && !prescribed_base_) {
     V3<Cx> L = V3<Cx>::Zero();
     for (int b = 0; b < nb_; ++b) L += mass_[at(b)] * bk[at(b)].v_NBo_N;
     const V3<Cx> dv = -L / total_mass();
@@ -1242,9 +1248,9 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   }
   // joint_pass(): relative kinematics, rows, coordinates (unwrapped against this pack()'s).
   std::vector<JointCoordsT<Cx>> coords(at(nj_), JointCoordsT<Cx>::Zero());
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
     const BodyKinematicsT<Cx>& C = bk[at(m.child)];
     joint_kinematics(m, P, C, jk[at(j)]);
     constraint_rows(m, P, C, jk[at(j)], cr[at(j)]);
@@ -1299,12 +1305,29 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     gamma_r[at(k)] = gamma_s.real();
     gamma_i[at(k)] = gamma_s.imag();
   }
+  Matrix6d JiR = Matrix6d::Zero();  // a prescribed base's root rows (joint 0 to N)
+  Vector6d gamma_root_i = Vector6d::Zero();
+  if (prescribed_base_) {
+    const ConstraintRowsT<Cx>& c = cr[0];
+    Vec6<Cx> gamma_s = c.gamma;
+    if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
+    kkt_.J_root().leftCols<6>() = c.J_C.real();
+    JiR = c.J_C.imag();
+    kkt_.gamma_root() = gamma_s.real();
+    gamma_root_i = gamma_s.imag();
+  }
   // solve_pass(): K_r z_r = b_r, then K_r z_i = b_i - K_i z_r.
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
   VectorXd nu_r = VectorXd::Zero(nv_), nu_i = VectorXd::Zero(nv_);
   std::vector<Vector6d> y_r(at(links), Vector6d::Zero()), y_i(at(links), Vector6d::Zero());
   kkt_.solve(f.real(), gamma_r, nu_r, y_r);
   VectorXd f_i = f.imag();
+  if (prescribed_base_) {
+    const int ob = nu(joints_[0].child);
+    f_i.segment<6>(ob).noalias() -= JiR.transpose() * kkt_.y_root();
+    gamma_root_i.noalias() -= JiR * nu_r.segment<6>(ob);
+    kkt_.gamma_root() = gamma_root_i;
+  }
   for (int k = 0; k < links; ++k) {
     const KktLink& l = kkt_.link(k);
     const int rows = l.rows;
