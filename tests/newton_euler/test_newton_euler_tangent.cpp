@@ -15,6 +15,7 @@
 #include "core/rotation.hpp"
 #include "core/scene/scene.hpp"
 #include "formulations/newton_euler/newton_euler.hpp"
+#include "formulations/newton_euler/so3.hpp"
 #include "tests/newton_euler/ne_prescribed_scenes.hpp"
 #include "tests/newton_euler/ne_systems.hpp"
 #include "tests/support/paths.hpp"
@@ -23,6 +24,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdio>
 #include <functional>
 #include <random>
@@ -36,6 +38,7 @@ using namespace crossdyn::test::ne;
 using Eigen::Matrix3d;
 using Eigen::Quaterniond;
 using Eigen::Vector3d;
+namespace so3 = crossdyn::newton_euler::so3;
 
 // Every field of a TreeAccel in one vector (a fixed order: bodies, then joints, then modes).
 std::vector<double> flatten(const TreeAccel& a) {
@@ -674,5 +677,42 @@ TEST_CASE("newton-euler tangent: Richardson steps", "[.tangent_steps]") {
     std::printf("%-40s", c.name.c_str());
     for (double w : worst) std::printf(" %.1e", w);
     std::printf("\n");
+  }
+}
+
+TEST_CASE("newton-euler tangent: the node frames' so3 maps on the complex step",
+          "[newton_euler][tangent]") {
+  // so3::coefficients_sq(x) is coefficients(sqrt(x)) on both branches (series below x = 1), and
+  // its complex step gives d/dx of each coefficient: checked against a central difference in x;
+  // so3::quaternion(psi) is the rotation exp([psi x]) and its complex step in psi is the right
+  // one (against a central difference of rot::from_rotation_vector).
+  using C = std::complex<double>;
+  for (double x : {0.0, 1e-6, 0.3, 0.999, 1.001, 2.5, 9.0}) {
+    const so3::Coefficients r = so3::coefficients(std::sqrt(x));
+    const so3::CoefficientsCx c = so3::coefficients_sq(C(x, 0.0));
+    INFO("x = " << x);
+    CHECK(std::abs(c.s.real() - r.s) <= 1e-15);
+    CHECK(std::abs(c.a.real() - r.a) <= 1e-15);
+    CHECK(std::abs(c.b.real() - r.b) <= 1e-15);
+    CHECK(std::abs(c.a1.real() - r.a1) <= 1e-13);
+    CHECK(std::abs(c.b1.real() - r.b1) <= 1e-13);
+    if (x < 0.01) continue;  // the differences below reach sqrt of a negative argument
+    const double h = 1e-30, d = 1e-5;
+    const so3::CoefficientsCx cs = so3::coefficients_sq(C(x, h));
+    const so3::Coefficients p = so3::coefficients(std::sqrt(x + d)), m = so3::coefficients(std::sqrt(x - d));
+    CHECK(std::abs(cs.s.imag() / h - (p.s - m.s) / (2 * d)) <= 1e-9);
+    CHECK(std::abs(cs.a.imag() / h - (p.a - m.a) / (2 * d)) <= 1e-9);
+    CHECK(std::abs(cs.b.imag() / h - (p.b - m.b) / (2 * d)) <= 1e-9);
+  }
+  for (double scale : {1e-3, 0.5, 1.5, 3.0}) {
+    const Vector3d psi = scale * Vector3d(0.3, -0.8, 0.5).normalized(), dpsi(0.2, 0.1, -0.4);
+    const Quaterniond q0 = rot::from_rotation_vector(psi);
+    const Eigen::Quaternion<C> q = so3::quaternion(Eigen::Matrix<C, 3, 1>(psi.cast<C>() + C(0, 1e-30) * dpsi.cast<C>()));
+    const Quaterniond qp = rot::from_rotation_vector(psi + 1e-6 * dpsi), qm = rot::from_rotation_vector(psi - 1e-6 * dpsi);
+    INFO("|psi| = " << scale);
+    for (int i = 0; i < 4; ++i) {
+      CHECK(std::abs(q.coeffs()(i).real() - q0.coeffs()(i)) <= 1e-15);
+      CHECK(std::abs(q.coeffs()(i).imag() / 1e-30 - (qp.coeffs()(i) - qm.coeffs()(i)) / 2e-6) <= 1e-9);
+    }
   }
 }
