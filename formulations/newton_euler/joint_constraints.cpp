@@ -102,7 +102,34 @@ void node_frame(const JointSide& side, const BodyKinematicsT<Sc>& B, NodeFrameT<
   out.s_B = side.r.template cast<Sc>();
   if (side.modes == 0) return;  // rigid: the constants set by JointKinematics(m)
   if constexpr (!kIsReal<Sc>) {
-    return;  // not reached: accelerations_tangent() covers rigid bodies only (header)
+    // The same on the complex step (scalar.hpp): no |.| (so3::coefficients_sq of psi . psi, the
+    // node's quaternion so3::quaternion), no conjugation (tdot, tskew).
+    const Vec3<Sc> e = side.e.template cast<Sc>();
+    out.s_B.noalias() += side.Phi * B.eta;
+    if (side.stiff) {
+      out.g.noalias() = side.G * B.eta;
+      out.s_B += (0.5 * tdot<Sc>(B.eta, out.g)) * e;
+      out.Phi = side.Phi.template cast<Sc>();
+      out.Phi.noalias() += e * out.g.transpose();
+      Sc q = 0.0;
+      for (int k = 0; k < side.modes; ++k)
+        for (int l = 0; l < side.modes; ++l) q += B.eta_dot(k) * side.G(k, l) * B.eta_dot(l);
+      out.a_B = q * e;
+    }
+    out.sdot_B.noalias() = out.Phi * B.eta_dot;
+    Vec3<Sc> psi, psi_dot;
+    psi.noalias() = side.Psi * B.eta;
+    psi_dot.noalias() = side.Psi * B.eta_dot;
+    const so3::CoefficientsCx c = so3::coefficients_sq(tdot<Sc>(psi, psi));
+    const Mat3<Sc> S = tskew<Sc>(psi), S2 = S * S, Sd = tskew<Sc>(psi_dot);
+    const Sc pp = tdot<Sc>(psi, psi_dot);
+    out.E = Mat3<Sc>::Identity() + c.s * S + c.a * S2;
+    out.q_E = so3::quaternion(psi);
+    const Mat3<Sc> Jl = Mat3<Sc>::Identity() + c.a * S + c.b * S2;
+    const Mat3<Sc> Jl_dot = c.a1 * pp * S + c.a * Sd + c.b1 * pp * S2 + c.b * (Sd * S + S * Sd);
+    out.JlPsi.noalias() = Jl * side.Psi;
+    out.w_rel_B.noalias() = Jl * psi_dot;
+    out.c_B.noalias() = Jl_dot * psi_dot;
   } else {
   out.s_B.noalias() += side.Phi * B.eta;
   if (side.stiff) {  // header "Geometric stiffening": s = r + Phi eta + e w, s' = Phi~ eta'
@@ -205,7 +232,6 @@ void constraint_rows(const JointModel& m, const BodyKinematicsT<S>& P, const Bod
   // written in the w_P and w_C columns, then mapped through the node frames below.
   if (!rotation_rows) return;  // spherical: rows 0-2 only
   rotation_rows(m, jk, out);
-  if constexpr (!kIsReal<S>) return;  // rigid only on Cx (header)
 
   // Node frames: w_F = E^T (w_B + Jl Psi eta'), d/dt w_F = E^T (alpha_B + Jl Psi eta'' + c -
   // w_rel x w_B) (header comment): rows A (w.r.t. w_F) become A E^T (w.r.t. w_B) and A E^T Jl Psi
@@ -214,13 +240,13 @@ void constraint_rows(const JointModel& m, const BodyKinematicsT<S>& P, const Bod
     const Mat3<S> A = out.J_P.template block<3, 3>(3, 3) * jk.F.E.transpose();
     out.J_P.template block<3, 3>(3, 3) = A;
     out.Je_P.template bottomRows<3>().noalias() = A * jk.F.JlPsi;
-    out.gamma.template tail<3>() -= A * (jk.F.c_B - jk.F.w_rel_B.cross(w_P));
+    out.gamma.template tail<3>() -= A * (jk.F.c_B - tcross<S>(jk.F.w_rel_B, w_P));
   }
   if (m.C.modes > 0) {
     const Mat3<S> A = out.J_C.template block<3, 3>(3, 3) * jk.G.E.transpose();
     out.J_C.template block<3, 3>(3, 3) = A;
     out.Je_C.template bottomRows<3>().noalias() = A * jk.G.JlPsi;
-    out.gamma.template tail<3>() -= A * (jk.G.c_B - jk.G.w_rel_B.cross(w_C));
+    out.gamma.template tail<3>() -= A * (jk.G.c_B - tcross<S>(jk.G.w_rel_B, w_C));
   }
 }
 

@@ -143,7 +143,7 @@ struct JointModel {
 
 // One body's kinematic state, read from the engine's state vector.
 // The structures below are templates on the scalar S (scalar.hpp): double in the run, Cx in the
-// complex step of accelerations_tangent() (newton_euler.cpp, issue 27), which covers rigid bodies.
+// complex step of accelerations_tangent() (newton_euler.cpp, issue 27).
 template <class S>
 struct BodyKinematicsT {
   Quat<S> q_NB = Quat<S>::Identity();  // unit
@@ -213,8 +213,8 @@ struct ConstraintRowsT {
 using ConstraintRows = ConstraintRowsT<double>;
 
 // The functions below are defined in joint_constraints.cpp (revolute_angle_wrapped in
-// joints/revolute.cpp) and instantiated there for S = double and S = Cx (scalar.hpp); on Cx only
-// rigid sides (no modes) are supported: accelerations_tangent() covers rigid bodies only.
+// joints/revolute.cpp) and instantiated there for S = double and S = Cx (scalar.hpp); on Cx a
+// flexible side's node frame uses so3::coefficients_sq and so3::quaternion (no |.|).
 
 // (side, body state) => the joint frame on that side.
 template <class S>

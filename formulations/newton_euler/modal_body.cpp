@@ -1,6 +1,7 @@
 #include "formulations/newton_euler/modal_body.hpp"
 
 #include "core/rotation.hpp"
+#include "formulations/newton_euler/scalar.hpp"
 
 namespace crossdyn::newton_euler {
 
@@ -62,13 +63,17 @@ Matrix3d ModalInvariants::rigid_inertia() const {
   return J_sum + Q0.trace() * Matrix3d::Identity() - Q0;
 }
 
-ModalTerms::ModalTerms(int n)
-    : Lambda(Eigen::Matrix3Xd::Zero(3, n)),
-      B(at(n), Matrix3d::Zero()),
-      M(Eigen::MatrixXd::Zero(6 + n, 6 + n)),
-      f(Eigen::VectorXd::Zero(6 + n)),
-      g(Eigen::VectorXd::Zero(n)),
-      Phit(Eigen::Matrix3Xd::Zero(3, n)) {}
+template <class S>
+ModalTermsT<S>::ModalTermsT(int n)
+    : Lambda(M3X::Zero(3, n)),
+      B(at(n), M3::Zero()),
+      M(MX::Zero(6 + n, 6 + n)),
+      f(VX::Zero(6 + n)),
+      g(VX::Zero(n)),
+      Phit(M3X::Zero(3, n)) {}
+
+template struct ModalTermsT<double>;
+template struct ModalTermsT<Cx>;
 
 Foreshortening foreshortening(const Eigen::MatrixXd& G, const Eigen::Ref<const Eigen::VectorXd>& eta,
                               const Eigen::Ref<const Eigen::VectorXd>& eta_dot) {
@@ -106,14 +111,18 @@ void modal_first_moments(const ModalInvariants& inv, const Eigen::Ref<const Eige
 namespace {
 
 // The geometrically stiffened body's terms by node sums (modal_body.hpp, "Geometric stiffening").
-void modal_terms_stiffened(const ModalInvariants& inv, const Matrix3d& R, const Vector3d& w,
-                           const Eigen::Ref<const Eigen::VectorXd>& eta,
-                           const Eigen::Ref<const Eigen::VectorXd>& eta_dot, ModalTerms& out) {
+template <class T>
+void modal_terms_stiffened(const ModalInvariants& inv, const Mat3<T>& R, const Vec3<T>& w,
+                           const Eigen::Ref<const Eigen::Matrix<T, Eigen::Dynamic, 1>>& eta,
+                           const Eigen::Ref<const Eigen::Matrix<T, Eigen::Dynamic, 1>>& eta_dot,
+                           ModalTermsT<T>& out) {
+  using V3 = Vec3<T>;
+  using M3 = Mat3<T>;
   const int n = inv.n;
-  Eigen::MatrixXd& M = out.M;
-  Matrix3d Q = Matrix3d::Zero();  // sum m_i r_i r_i^T
-  Vector3d S = Vector3d::Zero(), p_rel = Vector3d::Zero(), h_rel = Vector3d::Zero();
-  Vector3d F_tr = Vector3d::Zero(), F_rot = Vector3d::Zero();
+  auto& M = out.M;
+  M3 Q = M3::Zero();  // sum m_i r_i r_i^T
+  V3 S = V3::Zero(), p_rel = V3::Zero(), h_rel = V3::Zero();
+  V3 F_tr = V3::Zero(), F_rot = V3::Zero();
   auto Phi_bar = M.block(0, 6, 3, n);   // filled in B components, turned by R below
   auto Mee = M.bottomRightCorner(n, n);
   auto f_modal = out.f.tail(n);
@@ -123,70 +132,74 @@ void modal_terms_stiffened(const ModalInvariants& inv, const Matrix3d& R, const 
   out.Lambda.setZero();
   for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
     const double mi = inv.node_m[i];
-    const Vector3d& e = inv.node_e[i];
+    const V3 e = inv.node_e[i].template cast<T>();
     out.g.noalias() = inv.node_G[i] * eta;                        // G_i eta
-    const double wi = 0.5 * eta.dot(out.g);                       // w_i
-    out.Phit = inv.node_Phi[i];
+    const T wi = 0.5 * tdot<T>(eta, out.g);                       // w_i
+    out.Phit = inv.node_Phi[i].template cast<T>();
     out.Phit.noalias() += e * out.g.transpose();                  // Phi~_i
-    double qi = 0;                                                // eta'^T G_i eta'
+    T qi = 0;                                                     // eta'^T G_i eta'
     for (int k = 0; k < n; ++k)
       for (int l = 0; l < n; ++l) qi += eta_dot(k) * inv.node_G[i](k, l) * eta_dot(l);
-    Vector3d r = inv.node_p[i] + wi * e;
+    V3 r = inv.node_p[i].template cast<T>() + wi * e;
     r.noalias() += inv.node_Phi[i] * eta;                         // r_i = p_i + u_i
-    Vector3d ud;
+    V3 ud;
     ud.noalias() = out.Phit * eta_dot;                            // u_i'
-    const Vector3d c = w.cross(w.cross(r)) + 2.0 * w.cross(ud) + qi * e;  // c_i
+    const V3 c = tcross<T>(w, tcross<T>(w, r)) + 2.0 * tcross<T>(w, ud) + qi * e;  // c_i
     S += mi * r;
     Q.noalias() += mi * r * r.transpose();
     p_rel += mi * ud;
-    h_rel += mi * r.cross(ud);
+    h_rel += mi * tcross<T>(r, ud);
     F_tr += mi * c;
-    F_rot += mi * r.cross(c);
+    F_rot += mi * tcross<T>(r, c);
     Phi_bar += mi * out.Phit;
-    for (int k = 0; k < n; ++k) out.Lambda.col(k) += mi * r.cross(out.Phit.col(k));
+    for (int k = 0; k < n; ++k) out.Lambda.col(k) += mi * tcross<T>(r, out.Phit.col(k));
     Mee.noalias() += mi * out.Phit.transpose() * out.Phit;
     f_modal.noalias() -= out.Phit.transpose() * (mi * c);
   }
   out.S = S;
-  out.I = inv.J_sum + Q.trace() * Matrix3d::Identity() - Q;
+  out.I = inv.J_sum.template cast<T>() + Q.trace() * M3::Identity() - Q;
   out.p_rel = p_rel;
   out.h_rel = h_rel;
-  M.topLeftCorner<3, 3>() = inv.m * Matrix3d::Identity();
-  M.block<3, 3>(0, 3).noalias() = -R * skew(out.S);
-  M.block<3, 3>(3, 0) = M.block<3, 3>(0, 3).transpose();
-  M.block<3, 3>(3, 3) = out.I;
+  M.template topLeftCorner<3, 3>() = (inv.m * Matrix3d::Identity()).template cast<T>();
+  M.template block<3, 3>(0, 3).noalias() = -R * tskew<T>(out.S);
+  M.template block<3, 3>(3, 0) = M.template block<3, 3>(0, 3).transpose();
+  M.template block<3, 3>(3, 3) = out.I;
   out.Phit = Phi_bar;                       // B components (scratch), then R Phi~_bar in place
   Phi_bar.noalias() = R * out.Phit;
   M.block(6, 0, n, 3) = Phi_bar.transpose();
   M.block(3, 6, 3, n) = out.Lambda;
   M.block(6, 3, n, 3) = out.Lambda.transpose();
-  out.f.head<3>().noalias() = -R * F_tr;
-  out.f.segment<3>(3) = -F_rot - w.cross(inv.J_sum * w);
+  out.f.template head<3>().noalias() = -R * F_tr;
+  out.f.template segment<3>(3) = -F_rot - tcross<T>(w, V3(inv.J_sum * w));
   f_modal.noalias() -= inv.K * eta;
   f_modal.noalias() -= inv.Dmp * eta_dot;
 }
 
 }  // namespace
 
-void modal_terms(const ModalInvariants& inv, const Matrix3d& R, const Vector3d& w,
-                 const Eigen::Ref<const Eigen::VectorXd>& eta,
-                 const Eigen::Ref<const Eigen::VectorXd>& eta_dot, ModalTerms& out) {
-  if (inv.stiffening) return modal_terms_stiffened(inv, R, w, eta, eta_dot, out);
+template <class T>
+void modal_terms_t(const ModalInvariants& inv, const Mat3<T>& R, const Vec3<T>& w,
+                   const Eigen::Ref<const Eigen::Matrix<T, Eigen::Dynamic, 1>>& eta,
+                   const Eigen::Ref<const Eigen::Matrix<T, Eigen::Dynamic, 1>>& eta_dot,
+                   ModalTermsT<T>& out) {
+  using V3 = Vec3<T>;
+  using M3 = Mat3<T>;
+  if (inv.stiffening) return modal_terms_stiffened<T>(inv, R, w, eta, eta_dot, out);
   const int n = inv.n;
   // B_k = sum m_i Phi_ik r_i^T and the second moment sum m_i r_i r_i^T (modal_body.hpp).
-  Matrix3d Q = inv.Q0;
-  Matrix3d P = Matrix3d::Zero();  // sum m_i u_i' r_i^T
+  M3 Q = inv.Q0.template cast<T>();
+  M3 P = M3::Zero();  // sum m_i u_i' r_i^T
   for (int k = 0; k < n; ++k) {
-    Matrix3d& Bk = out.B[at(k)];
-    Bk = inv.C[at(k)];
+    M3& Bk = out.B[at(k)];
+    Bk = inv.C[at(k)].template cast<T>();
     for (int l = 0; l < n; ++l) Bk += eta(l) * inv.D[at(k * n + l)];
     Q += eta(k) * (Bk + inv.C[at(k)].transpose());
     P += eta_dot(k) * Bk;
     // Lambda[:, k] = sum m_i r_i x Phi_ik = vex(B_k - B_k^T).
-    out.Lambda.col(k) = Vector3d(Bk(2, 1) - Bk(1, 2), Bk(0, 2) - Bk(2, 0), Bk(1, 0) - Bk(0, 1));
+    out.Lambda.col(k) = V3(Bk(2, 1) - Bk(1, 2), Bk(0, 2) - Bk(2, 0), Bk(1, 0) - Bk(0, 1));
   }
-  out.S = inv.S0;
-  out.I = inv.J_sum + Q.trace() * Matrix3d::Identity() - Q;
+  out.S = inv.S0.template cast<T>();
+  out.I = inv.J_sum.template cast<T>() + Q.trace() * M3::Identity() - Q;
   if (n > 0) {
     out.S.noalias() += inv.Phi_bar * eta;
     out.p_rel.noalias() = inv.Phi_bar * eta_dot;
@@ -198,33 +211,49 @@ void modal_terms(const ModalInvariants& inv, const Matrix3d& R, const Vector3d& 
   }
 
   // Mass matrix (modal_body.hpp): rows/columns [a_N; alpha_B; eta''].
-  Eigen::MatrixXd& M = out.M;
-  M.topLeftCorner<3, 3>() = inv.m * Matrix3d::Identity();
-  M.block<3, 3>(0, 3).noalias() = -R * skew(out.S);
-  M.block<3, 3>(3, 0) = M.block<3, 3>(0, 3).transpose();
-  M.block<3, 3>(3, 3) = out.I;
+  auto& M = out.M;
+  M.template topLeftCorner<3, 3>() = (inv.m * Matrix3d::Identity()).template cast<T>();
+  M.template block<3, 3>(0, 3).noalias() = -R * tskew<T>(out.S);
+  M.template block<3, 3>(3, 0) = M.template block<3, 3>(0, 3).transpose();
+  M.template block<3, 3>(3, 3) = out.I;
   if (n > 0) {
     M.block(0, 6, 3, n).noalias() = R * inv.Phi_bar;
     M.block(6, 0, n, 3) = M.block(0, 6, 3, n).transpose();
     M.block(3, 6, 3, n) = out.Lambda;
     M.block(6, 3, n, 3) = out.Lambda.transpose();
-    M.bottomRightCorner(n, n) = inv.M_ee;
+    M.bottomRightCorner(n, n) = inv.M_ee.template cast<T>();
   }
 
   // Quadratic velocity terms, moved to the right-hand side, and the internal modal forces.
-  out.f.head<3>().noalias() = -R * (w.cross(w.cross(out.S)) + 2.0 * w.cross(out.p_rel));
-  out.f.segment<3>(3) = -w.cross(out.I * w) - 2.0 * (P.trace() * w - P * w);
-  const double w2 = w.squaredNorm();
+  out.f.template head<3>().noalias() =
+      -R * (tcross<T>(w, tcross<T>(w, out.S)) + 2.0 * tcross<T>(w, out.p_rel));
+  out.f.template segment<3>(3) = -tcross<T>(w, V3(out.I * w)) - 2.0 * (P.trace() * w - P * w);
+  const T w2 = tsquared_norm<T>(w);
   for (int k = 0; k < n; ++k) {
-    const Matrix3d& Bk = out.B[at(k)];
-    Vector3d g;  // sum_l G_kl eta'_l = sum m_i Phi_ik x u_i'
+    const M3& Bk = out.B[at(k)];
+    V3 g;  // sum_l G_kl eta'_l = sum m_i Phi_ik x u_i'
     g.noalias() = inv.G.middleCols(k * n, n) * eta_dot;
-    out.f(6 + k) = -(w.dot(Bk * w) - w2 * Bk.trace()) + 2.0 * w.dot(g);
+    out.f(6 + k) = -(tdot<T>(w, V3(Bk * w)) - w2 * Bk.trace()) + 2.0 * tdot<T>(w, g);
   }
   if (n > 0) {
     out.f.tail(n).noalias() -= inv.K * eta;
     out.f.tail(n).noalias() -= inv.Dmp * eta_dot;
   }
+}
+
+template void modal_terms_t(const ModalInvariants&, const Mat3<double>&, const Vec3<double>&,
+                            const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 1>>&,
+                            const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 1>>&,
+                            ModalTermsT<double>&);
+template void modal_terms_t(const ModalInvariants&, const Mat3<Cx>&, const Vec3<Cx>&,
+                            const Eigen::Ref<const Eigen::Matrix<Cx, Eigen::Dynamic, 1>>&,
+                            const Eigen::Ref<const Eigen::Matrix<Cx, Eigen::Dynamic, 1>>&,
+                            ModalTermsT<Cx>&);
+
+void modal_terms(const ModalInvariants& inv, const Matrix3d& R, const Vector3d& w,
+                 const Eigen::Ref<const Eigen::VectorXd>& eta,
+                 const Eigen::Ref<const Eigen::VectorXd>& eta_dot, ModalTerms& out) {
+  modal_terms_t<double>(inv, R, w, eta, eta_dot, out);
 }
 
 }  // namespace crossdyn::newton_euler

@@ -98,26 +98,40 @@ struct ModalInvariants {
   Eigen::Matrix3d rigid_inertia() const;
 };
 
-// One flexible body's terms at one state (a preallocated workspace: no allocation per state).
-struct ModalTerms {
-  Eigen::Vector3d S = Eigen::Vector3d::Zero();         // sum m_i r_i, B
-  Eigen::Matrix3d I = Eigen::Matrix3d::Zero();         // I(eta), about Bo, B
-  Eigen::Matrix3Xd Lambda;                             // 3 x n
-  Eigen::Vector3d p_rel = Eigen::Vector3d::Zero();     // Phi_bar eta', B
-  Eigen::Vector3d h_rel = Eigen::Vector3d::Zero();     // Lambda eta' = sum m_i r_i x u_i', B
-  std::vector<Eigen::Matrix3d> B;                      // B_k
-  Eigen::MatrixXd M;                                   // (6 + n) x (6 + n)
-  Eigen::VectorXd f;                                   // f_bias (6 + n)
-  Eigen::VectorXd g;                                   // stiffening scratch: G_i eta (n)
-  Eigen::Matrix3Xd Phit;                               // stiffening scratch: Phi~_i (3 x n)
+// One flexible body's terms at one state (a preallocated workspace: no allocation per state), on
+// the scalar T (double for the run; std::complex<double> for the exact tangent, scalar.hpp).
+template <class T>
+struct ModalTermsT {
+  using V3 = Eigen::Matrix<T, 3, 1>;
+  using M3 = Eigen::Matrix<T, 3, 3>;
+  using M3X = Eigen::Matrix<T, 3, Eigen::Dynamic>;
+  using MX = Eigen::Matrix<T, Eigen::Dynamic, Eigen::Dynamic>;
+  using VX = Eigen::Matrix<T, Eigen::Dynamic, 1>;
+  V3 S = V3::Zero();         // sum m_i r_i, B
+  M3 I = M3::Zero();         // I(eta), about Bo, B
+  M3X Lambda;                // 3 x n
+  V3 p_rel = V3::Zero();     // Phi_bar eta', B
+  V3 h_rel = V3::Zero();     // Lambda eta' = sum m_i r_i x u_i', B
+  std::vector<M3> B;         // B_k
+  MX M;                      // (6 + n) x (6 + n)
+  VX f;                      // f_bias (6 + n)
+  VX g;                      // stiffening scratch: G_i eta (n)
+  M3X Phit;                  // stiffening scratch: Phi~_i (3 x n)
 
-  explicit ModalTerms(int n = 0);
+  explicit ModalTermsT(int n = 0);
 };
+using ModalTerms = ModalTermsT<double>;
 
 // (invariants, R_NB, w_NB_B, eta, eta') => M, f_bias and the momentum terms. No allocation.
 void modal_terms(const ModalInvariants& inv, const Eigen::Matrix3d& R_NB, const Eigen::Vector3d& w,
                  const Eigen::Ref<const Eigen::VectorXd>& eta,
                  const Eigen::Ref<const Eigen::VectorXd>& eta_dot, ModalTerms& out);
+// The same on the scalar S, instantiated for double (what modal_terms calls) and
+// std::complex<double> (modal_body.cpp; the exact tangent: no |.|, no conjugation, scalar.hpp).
+template <class S>
+void modal_terms_t(const ModalInvariants& inv, const Eigen::Matrix<S, 3, 3>& R_NB,
+                 const Eigen::Matrix<S, 3, 1>& w, const Eigen::Ref<const Eigen::Matrix<S, Eigen::Dynamic, 1>>& eta,
+                 const Eigen::Ref<const Eigen::Matrix<S, Eigen::Dynamic, 1>>& eta_dot, ModalTermsT<S>& out);
 
 // With geometric stiffening, node i's second-order terms at eta, eta' (no allocation):
 // w_i = 1/2 eta^T G_i eta, eta^T G_i eta' (= d/dt w_i) and q_i = eta'^T G_i eta'.

@@ -191,6 +191,11 @@ class NewtonEulerEngine final : public Engine {
   };
   GravityField gravity_field(double t) const;
   void gravity_on_body(int b, const GravityField& gf);
+  // gravity_on_body()'s flexible branch on the complex step (accelerations_tangent()): the force
+  // and moment returned, the modal generalised forces added to f.
+  void flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
+                           ModalTermsT<Cx>& mt, Eigen::VectorXcd& f, V3<Cx>& F_grav_N,
+                           V3<Cx>& M_grav_B) const;
   double gravity_potential(double t) const;          // V of every mass (valid after mass_pass)
   void load_kkt();  // J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
@@ -245,8 +250,8 @@ class NewtonEulerEngine final : public Engine {
   OutputLayout layout_;          // pinned columns, then the constraint violations
   int violation0_ = 0;           // the first extra column
   std::vector<std::string> labels_;
-  // accelerations_tangent() covers this system (decided by the constructor): rigid bodies, a
-  // free base, joints covered by their unit's Cx verbs; any environment and body torques.
+  // accelerations_tangent() covers this system (decided by the constructor): joints covered by
+  // their unit's Cx verbs (every body, base, load and environment is covered).
   bool tangent_covered_ = false;
 
   // ---- workspace (mutable, preallocated) ----
@@ -412,11 +417,10 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
       coords_ref_[at(j)] = coords_[at(j)] =
           JointCoords(system.joints[at(j)].angle0, system.joints[at(j)].angle2_0);
 
-  // accelerations_tangent(): rigid bodies, a free base, joints whose unit has verbs on Cx that
-  // cover them (joints/joint_unit.hpp, JointVerbsCx::covers).
-  tangent_covered_ = !prescribed_base_;
-  for (int b = 0; b < nb_; ++b) tangent_covered_ = tangent_covered_ && flex_[at(b)] < 0;
-  for (int j = 1; j < nj_; ++j) {
+  // accelerations_tangent(): every joint's unit has verbs on Cx that cover it
+  // (joints/joint_unit.hpp, JointVerbsCx::covers); bodies, bases and loads are all covered.
+  tangent_covered_ = true;
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointUnit& u = *joints_[at(j)].unit;
     tangent_covered_ = tangent_covered_ && u.cx && u.cx->covers(system.joints[at(j)]);
   }
@@ -727,6 +731,50 @@ void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
   f_.segment<3>(nu(b) + 3) += M_grav_B;
   F_grav_N_[at(b)] = F_grav_N;
   M_grav_B_[at(b)] = M_grav_B;
+}
+
+// gravity_on_body()'s flexible branch, the same equations on Cx (scalar.hpp: tdot, tcross; the
+// node-by-node sum of a stiffened body with its own scratch).
+void NewtonEulerEngine::flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
+                                            ModalTermsT<Cx>& mt, Eigen::VectorXcd& f,
+                                            V3<Cx>& F_grav_N, V3<Cx>& M_grav_B) const {
+  const double m = mass_[at(b)];
+  const int n = modes(b);
+  if (env_.uniform()) {
+    F_grav_N = (m * env_.g_N).cast<Cx>();
+    M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * env_.g_N));
+    if (n > 0) f.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
+    return;
+  }
+  const V3<Cx> d_N = k.p_NoBo_N - p_NoO_N_;
+  const V3<Cx> z_B = k.R_NB.transpose() * gf.zhat_N;
+  const V3<Cx> Td_N = gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, d_N) * gf.zhat_N - d_N);  // T d
+  F_grav_N = m * Td_N;
+  const V3<Cx> S_N = k.R_NB * mt.S;
+  F_grav_N += gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, S_N) * gf.zhat_N - S_N);
+  M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * Td_N)) +
+             3.0 * gf.n2 * tcross<Cx>(z_B, V3<Cx>(mt.I * z_B));
+  if (n == 0) return;
+  auto f_modal = f.segment(nu(b) + 6, n);
+  f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
+  const ModalInvariants& inv = inv_[at(flex_[at(b)])];
+  if (!inv.stiffening) {
+    for (int c = 0; c < n; ++c) {
+      const Mat3<Cx>& Bk = mt.B[at(c)];
+      f_modal(c) += gf.n2 * (3.0 * tdot<Cx>(z_B, V3<Cx>(Bk * z_B)) - Bk.trace());
+    }
+    return;
+  }
+  const Eigen::VectorXcd& eta = k.eta;
+  for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
+    mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
+    V3<Cx> r = inv.node_p[i].cast<Cx>() + 0.5 * tdot<Cx>(eta, mt.g) * inv.node_e[i].cast<Cx>();
+    r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
+    mt.Phit = inv.node_Phi[i].cast<Cx>();
+    mt.Phit.noalias() += inv.node_e[i].cast<Cx>() * mt.g.transpose();  // Phi~_i
+    const V3<Cx> TBr = gf.n2 * (3.0 * tdot<Cx>(z_B, r) * z_B - r);
+    f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
+  }
 }
 
 // The environment's potential V (equations above gravity_field()); 0 without one. Valid after
@@ -1152,21 +1200,27 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // Ch. 3): the state is s + i h ds with h = 1e-30, and the engine's own pack() and equations run on
 // Cx = std::complex<double>: the templates shared with the double path (scalar.hpp; the joint
 // kinematics and constraint rows, joint_constraints.hpp; the units' verbs, joints/*.cpp; the
-// rigid body's moment and gravity and the placement of pack(), above), with the passes below
-// mirroring body_pass, joint_pass, force_pass, load_kkt, solve_pass and accelerations() for rigid
-// bodies. da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
+// rigid body's moment and gravity and the placement of pack(), above; a flexible body's mass
+// matrix and velocity terms, modal_body.hpp's modal_terms_t; the node frames' so3 maps on Cx,
+// so3.hpp), with the passes below mirroring body_pass, mass_pass, joint_pass, force_pass
+// (gravity on a flexible body's nodes: flexible_gravity_cx), load_kkt, solve_pass and
+// accelerations() (a node frame's angular acceleration as frame_angular_acceleration()). da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
 // Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent), normalised by
 // sqrt(w^2 + x^2 + y^2 + z^2) (analytic, never |.|). A prescribed joint has no tangent (its
 // profile at t).
-// The solve: K z = b with K = [M J^T; J 0] = K_r + i K_i (M real and constant: rigid bodies),
-// z = z_r + i z_i, b = b_r + i b_i: to O(h^2), K_r z_r = b_r and K_r z_i = b_i - K_i z_r, two
+// The solve: K z = b with K = [M J^T; J 0] = K_r + i K_i (a rigid body's M is real and constant;
+// a flexible body's depends on the state, M_i its imaginary part; J's modal columns too), z = z_r + i z_i, b = b_r + i b_i: to O(h^2), K_r z_r = b_r and K_r z_i = b_i - K_i z_r, two
 // solves with the engine's own factorisation (TreeKkt) of the real KKT matrix (which is the run's:
 // K_r equals the double path's to rounding); no complex factorisation, so nothing conjugates.
-// Covered (tangent_covered_, decided by the constructor): rigid bodies with a free base and
-// revolute, prismatic, universal, fixed and spherical joints, any environment, body torques,
-// joint springs, dampers, motors, prescribed joints, any stabilisation. Anything else returns
-// false before writing anything (a flexible body, a prescribed base): the caller differentiates
-// numerically and says so.
+// A prescribed base is placed from N by joint 0 (its profile at t, no tangent; the TreeState's
+// base pose is not read, as in pack()), and its root rows enter the two solves like a link's
+// (K_i's root block J_R,i, zero here since the base is real, kept for the form).
+// Covered (tangent_covered_, decided by the constructor): rigid and flexible (modal) bodies,
+// geometrically stiffened or not, with a free or prescribed base; revolute, prismatic, universal,
+// fixed and spherical joints (at nodes or not), any environment, body torques, joint springs,
+// dampers, motors, modal stiffness and damping, prescribed joints, any stabilisation. A joint
+// type whose unit had no Cx verbs would return false before writing anything (the caller then
+// differentiates numerically and says so); every type this engine has now has them.
 bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
                                               TreeAccel& a, TreeAccel& da) {
   if (!tangent_covered_) return false;
@@ -1201,6 +1255,24 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   Cx norm;
   // pack(): the base, then every child from its parent (place_child), then zero_linear_momentum's
   // rigid shift (shift_all(0, -linear_momentum() / total_mass())).
+  // Flexible bodies' modal coordinates and rates, eta + i h d eta (read by the node frames).
+  for (int b = 0; b < nb_; ++b) {
+    if (modes(b) == 0) continue;
+    const auto n = static_cast<Eigen::Index>(modes(b));
+    if (at(b) >= s.eta.size() || at(b) >= s.eta_rate.size() || s.eta[at(b)].size() != n ||
+        s.eta_rate[at(b)].size() != n)
+      throw InputError(where(system_) + ": TreeState: body '" + system_.bodies[at(b)].name +
+                       "' needs " + std::to_string(n) + " modal coordinates and rates");
+    BodyKinematicsT<Cx>& k = bk[at(b)];
+    k.eta = s.eta[at(b)].cast<Cx>();
+    k.eta_dot = s.eta_rate[at(b)].cast<Cx>();
+    if (at(b) < ds.eta.size() && ds.eta[at(b)].size() == n) k.eta += ih * ds.eta[at(b)].cast<Cx>();
+    if (at(b) < ds.eta_rate.size() && ds.eta_rate[at(b)].size() == n)
+      k.eta_dot += ih * ds.eta_rate[at(b)].cast<Cx>();
+  }
+  // A prescribed base: placed from N by joint 0 below (its profile at t: no tangent), as pack()
+  // does; the TreeState's base pose is then not read.
+  BodyKinematicsT<Cx> ground;  // N: identity attitude, at rest (ground_)
   {
     BodyKinematicsT<Cx>& B = bk[at(joints_[0].child)];
     B.q_NB = unit_quaternion(turned(s.q_NB, ds.dtheta_B), norm);
@@ -1209,14 +1281,14 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     B.v_NBo_N = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
     B.w_NB_B = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
   }
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const TreeState::JointState& js = s.joints[at(j)];
     const TreeTangent::JointTangent dj = m.prescribed ? TreeTangent::JointTangent{} : ds.joints[at(j)];
     const JointStateT<Cx> jc{js.angle + ih * dj.angle, js.rate + ih * dj.rate,
                              js.angle2 + ih * dj.angle2, js.rate2 + ih * dj.rate2,
                              turned(js.q_J, dj.dtheta_J), js.w_PC_C.cast<Cx>() + ih * dj.w_PC_C.cast<Cx>()};
-    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
     BodyKinematicsT<Cx>& C = bk[at(m.child)];
     NodeFrameT<Cx>& F = jk[at(j)].F;
     NodeFrameT<Cx>& G = jk[at(j)].G;
@@ -1227,24 +1299,44 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     if (m.unit->cx->pack) m.unit->cx->pack(m, jc, q_J, w_FG_G, r_F, v_F);
     place_child(m, P, F, G, q_J, w_FG_G, r_F, v_F, C);
   }
-  if (system_.zero_linear_momentum) {
-    V3<Cx> L = V3<Cx>::Zero();
-    for (int b = 0; b < nb_; ++b) L += mass_[at(b)] * bk[at(b)].v_NBo_N;
-    const V3<Cx> dv = -L / total_mass();
-    for (BodyKinematicsT<Cx>& k : bk) k.v_NBo_N += dv;
-  }
-  // body_pass(): the stored attitude normalised again.
+  // body_pass(): the stored attitude normalised again (the momentum shift below changes only the
+  // velocities, so the two commute).
   for (int b = 0; b < nb_; ++b) {
     BodyKinematicsT<Cx>& k = bk[at(b)];
     k.q_NB = unit_quaternion(k.q_NB, norm);
     if (!(real_part(norm) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
     k.R_NB = k.q_NB.toRotationMatrix();
   }
+  // mass_pass(): each flexible body's mass matrix and velocity terms (modal_body.hpp) on Cx; they
+  // depend on R, w, eta, eta' (not on v: the momentum shift below leaves them as they are).
+  std::vector<ModalTermsT<Cx>> mtc;
+  mtc.reserve(inv_.size());
+  for (const ModalInvariants& inv : inv_) mtc.emplace_back(inv.n);
+  for (int b = 0; b < nb_; ++b) {
+    const int fi = flex_[at(b)];
+    if (fi < 0) continue;
+    const BodyKinematicsT<Cx>& k = bk[at(b)];
+    modal_terms_t<Cx>(inv_[at(fi)], k.R_NB, k.w_NB_B, k.eta, k.eta_dot, mtc[at(fi)]);
+    if (!kkt_.set_mass(b, mtc[at(fi)].M.real()))
+      fail(t, system_.bodies[at(b)].name, "flexible body's mass matrix is not positive definite");
+  }
+  if (system_.zero_linear_momentum && !prescribed_base_) {
+    // linear_momentum(): m v + R (w x S + p_rel) per body (modal_body.hpp), then shift_all.
+    V3<Cx> L = V3<Cx>::Zero();
+    for (int b = 0; b < nb_; ++b) {
+      const BodyKinematicsT<Cx>& k = bk[at(b)];
+      L += mass_[at(b)] * k.v_NBo_N;
+      const int fi = flex_[at(b)];
+      if (fi >= 0) L += k.R_NB * (tcross<Cx>(k.w_NB_B, mtc[at(fi)].S) + mtc[at(fi)].p_rel);
+    }
+    const V3<Cx> dv = -L / total_mass();
+    for (BodyKinematicsT<Cx>& k : bk) k.v_NBo_N += dv;
+  }
   // joint_pass(): relative kinematics, rows, coordinates (unwrapped against this pack()'s).
   std::vector<JointCoordsT<Cx>> coords(at(nj_), JointCoordsT<Cx>::Zero());
-  for (int j = 1; j < nj_; ++j) {
+  for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const BodyKinematicsT<Cx>& P = bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
     const BodyKinematicsT<Cx>& C = bk[at(m.child)];
     joint_kinematics(m, P, C, jk[at(j)]);
     constraint_rows(m, P, C, jk[at(j)], cr[at(j)]);
@@ -1255,15 +1347,31 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   Eigen::VectorXcd f = Eigen::VectorXcd::Zero(nv_);
   for (int b = 0; b < nb_; ++b) {
     const BodyKinematicsT<Cx>& k = bk[at(b)];
-    f.segment<3>(nu(b) + 3) = rigid_moment<Cx>(system_.bodies[at(b)], I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+    const Body& body = system_.bodies[at(b)];
+    const int fi = flex_[at(b)];
+    if (fi < 0) {
+      f.segment<3>(nu(b) + 3) = rigid_moment<Cx>(body, I_B_[at(b)], t, k.R_NB, k.w_NB_B);
+      continue;
+    }
+    f.segment(nu(b), 6 + modes(b)) = mtc[at(fi)].f;
+    if (!body.torque.empty()) {  // on the body frame: no work on eta
+      const Vector3d T = body.torque.value(t);
+      if (body.torque_frame == Body::Frame::Body) f.segment<3>(nu(b) + 3) += T.cast<Cx>();
+      else f.segment<3>(nu(b) + 3) += k.R_NB.transpose() * T;
+    }
   }
   if (!env_.none()) {
     const GravityField gf = gravity_field(t);
     for (int b = 0; b < nb_; ++b) {
       const BodyKinematicsT<Cx>& k = bk[at(b)];
       V3<Cx> F_grav_N, M_grav_B;
-      rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
-                        k.p_NoBo_N, F_grav_N, M_grav_B);
+      const int fi = flex_[at(b)];
+      if (fi < 0) {
+        rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
+                          k.p_NoBo_N, F_grav_N, M_grav_B);
+      } else {
+        flexible_gravity_cx(b, gf, k, mtc[at(fi)], f, F_grav_N, M_grav_B);
+      }
       f.segment<3>(nu(b)) += F_grav_N;
       f.segment<3>(nu(b) + 3) += M_grav_B;
     }
@@ -1274,8 +1382,12 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     V3<Cx> T_P, F_P;
     if (!m.unit->cx->load || !m.unit->cx->load(system_.joints[at(j)], m, k, coords[at(j)], t, T_P, F_P))
       continue;
-    f.segment<3>(nu(m.child) + 3) += k.R_PC.transpose() * T_P;  // torque_on_frame (rigid)
+    // torque_on_frame(): on the body and, through a node frame, on eta ((Jl Psi)^T T_B).
+    const V3<Cx> T_C = k.R_PC.transpose() * T_P;
+    f.segment<3>(nu(m.child) + 3) += T_C;
+    if (m.C.modes > 0) f.segment(nu(m.child) + 6, m.C.modes).noalias() += k.G.JlPsi.transpose() * T_C;
     f.segment<3>(nu(m.parent) + 3) -= T_P;
+    if (m.P.modes > 0) f.segment(nu(m.parent) + 6, m.P.modes).noalias() -= k.F.JlPsi.transpose() * T_P;
     if (!m.translates) continue;
     const V3<Cx> F_N = bk[at(m.parent)].R_NB * F_P;
     f.segment<3>(nu(m.child)) += F_N;
@@ -1285,19 +1397,46 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   }
   // load_kkt(): the real parts into the engine's KKT system, the imaginary parts kept (K_i, b_i).
   const int links = nj_ - 1;
-  std::vector<Matrix6d> JiP(at(links)), JiC(at(links));
+  std::vector<Eigen::MatrixXd> JiP(at(links)), JiC(at(links));  // 6 x dofs(parent), 6 x dofs(child)
   std::vector<Vector6d> gamma_r(at(links)), gamma_i(at(links));
   for (int j = 1; j < nj_; ++j) {
     const ConstraintRowsT<Cx>& c = cr[at(j)];
     const int k = j - 1;
     Vec6<Cx> gamma_s = c.gamma;
     if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
+    const JointModel& m = joints_[at(j)];
     kkt_.J_parent(k).leftCols<6>() = c.J_P.real();
     kkt_.J_child(k).leftCols<6>() = c.J_C.real();
-    JiP[at(k)] = c.J_P.imag();
-    JiC[at(k)] = c.J_C.imag();
+    JiP[at(k)] = Eigen::MatrixXd::Zero(6, 6 + m.P.modes);
+    JiC[at(k)] = Eigen::MatrixXd::Zero(6, 6 + m.C.modes);
+    JiP[at(k)].leftCols<6>() = c.J_P.imag();
+    JiC[at(k)].leftCols<6>() = c.J_C.imag();
+    if (m.P.modes > 0) {
+      kkt_.J_parent(k).rightCols(m.P.modes) = c.Je_P.real();
+      JiP[at(k)].rightCols(m.P.modes) = c.Je_P.imag();
+    }
+    if (m.C.modes > 0) {
+      kkt_.J_child(k).rightCols(m.C.modes) = c.Je_C.real();
+      JiC[at(k)].rightCols(m.C.modes) = c.Je_C.imag();
+    }
     gamma_r[at(k)] = gamma_s.real();
     gamma_i[at(k)] = gamma_s.imag();
+  }
+  Eigen::MatrixXd JiR = Eigen::MatrixXd::Zero(6, 6 + modes(joints_[0].child));  // a prescribed base's root rows
+  Vector6d gamma_root_i = Vector6d::Zero();
+  if (prescribed_base_) {
+    const ConstraintRowsT<Cx>& c = cr[0];
+    Vec6<Cx> gamma_s = c.gamma;
+    if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
+    kkt_.J_root().leftCols<6>() = c.J_C.real();
+    JiR.leftCols<6>() = c.J_C.imag();
+    const int n0 = joints_[0].C.modes;
+    if (n0 > 0) {
+      kkt_.J_root().rightCols(n0) = c.Je_C.real();
+      JiR.rightCols(n0) = c.Je_C.imag();
+    }
+    kkt_.gamma_root() = gamma_s.real();
+    gamma_root_i = gamma_s.imag();
   }
   // solve_pass(): K_r z_r = b_r, then K_r z_i = b_i - K_i z_r.
   if (!kkt_.factor()) fail(t, "constraints", "singular constraint system (KKT pivot not definite)");
@@ -1305,13 +1444,26 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   std::vector<Vector6d> y_r(at(links), Vector6d::Zero()), y_i(at(links), Vector6d::Zero());
   kkt_.solve(f.real(), gamma_r, nu_r, y_r);
   VectorXd f_i = f.imag();
+  if (prescribed_base_) {
+    const int ob = nu(joints_[0].child), db = static_cast<int>(JiR.cols());
+    f_i.segment(ob, db).noalias() -= JiR.transpose() * kkt_.y_root();
+    gamma_root_i.noalias() -= JiR * nu_r.segment(ob, db);
+    kkt_.gamma_root() = gamma_root_i;
+  }
+  for (int b = 0; b < nb_; ++b) {  // M_i: a flexible body's mass matrix depends on the state
+    const int fi = flex_[at(b)];
+    if (fi < 0) continue;
+    const int d = 6 + modes(b);
+    f_i.segment(nu(b), d).noalias() -= mtc[at(fi)].M.imag() * nu_r.segment(nu(b), d);
+  }
   for (int k = 0; k < links; ++k) {
     const KktLink& l = kkt_.link(k);
     const int rows = l.rows;
     const int op = nu(l.parent), oc = nu(l.child);
-    f_i.segment<6>(op).noalias() -= JiP[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
-    f_i.segment<6>(oc).noalias() -= JiC[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
-    gamma_i[at(k)].noalias() -= JiP[at(k)] * nu_r.segment<6>(op) + JiC[at(k)] * nu_r.segment<6>(oc);
+    const auto dp = JiP[at(k)].cols(), dc = JiC[at(k)].cols();
+    f_i.segment(op, dp).noalias() -= JiP[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    f_i.segment(oc, dc).noalias() -= JiC[at(k)].topRows(rows).transpose() * y_r[at(k)].head(rows);
+    gamma_i[at(k)].noalias() -= JiP[at(k)] * nu_r.segment(op, dp) + JiC[at(k)] * nu_r.segment(oc, dc);
   }
   kkt_.solve(f_i, gamma_i, nu_i, y_i);
   if (!nu_i.allFinite()) fail(t, "accelerations_tangent", "non-finite acceleration tangent");
@@ -1325,6 +1477,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   for (int b = 0; b < nb_; ++b) {
     da.a_NBo_N[at(b)] = nu_i.segment<3>(nu(b)) / h;
     da.wdot_NB_B[at(b)] = nu_i.segment<3>(nu(b) + 3) / h;
+    if (modes(b) > 0) da.eta_ddot[at(b)] = nu_i.segment(nu(b) + 6, modes(b)) / h;
   }
   Eigen::VectorXcd nu_dot(nv_);
   nu_dot.real() = nu_r;
@@ -1332,11 +1485,18 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     if (!m.unit->cx->accelerations) continue;
+    // frame_angular_acceleration(): E^T (alpha_B + Jl Psi eta'' + c - w_rel x w_B) at a node.
+    auto frame_alpha = [&](const JointSide& side, const NodeFrameT<Cx>& fr, int b) {
+      const V3<Cx> alpha = nu_dot.segment<3>(nu(b) + 3);
+      if (side.modes == 0) return alpha;
+      return V3<Cx>(fr.E.transpose() * (alpha + fr.JlPsi * nu_dot.segment(nu(b) + 6, side.modes) + fr.c_B -
+                                        tcross<Cx>(fr.w_rel_B, bk[at(b)].w_NB_B)));
+    };
     const JointAccelInputsT<Cx> in{bk[at(m.parent)],
                                    bk[at(m.child)],
                                    jk[at(j)],
-                                   nu_dot.segment<3>(nu(m.parent) + 3),
-                                   nu_dot.segment<3>(nu(m.child) + 3),
+                                   frame_alpha(m.P, jk[at(j)].F, m.parent),
+                                   frame_alpha(m.C, jk[at(j)].G, m.child),
                                    nu_dot.segment<6>(nu(m.parent)),
                                    nu_dot.segment<6>(nu(m.child))};
     JointAccelT<Cx> aj;

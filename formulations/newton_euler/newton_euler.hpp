@@ -131,10 +131,13 @@
 // (joint_constraints.hpp), the joint units' verbs (joints/*.cpp, JointVerbsCx), the rigid body's
 // moment and gravity and pack()'s placement (newton_euler.cpp). The KKT system is solved as two
 // real systems with the engine's own factorisation (K_r z_r = b_r, K_r z_i = b_i - K_i z_r).
-// Covered: rigid bodies, a free base, revolute, prismatic, universal, fixed and spherical joints,
-// prescribed joints, springs, dampers, motors, body torques, uniform gravity and the orbit, every
-// stabilisation. Not covered (returns false; decided by the constructor): a flexible body, a
-// prescribed base.
+// Covered: rigid and flexible (modal) bodies, with or without geometric stiffening (modal_body's
+// terms, the node frames' so3 maps and the nodes' gravity on the scalar; a flexible body's M
+// depends on the state: its imaginary part is in K_i), a free or prescribed base (its motion the
+// profile at t: zero tangent), revolute, prismatic, universal, fixed and spherical joints (at
+// nodes too), prescribed joints, springs, dampers, motors, modal stiffness and damping, body
+// torques, uniform gravity and the orbit, every stabilisation. Returns false (decided by the
+// constructor) only for a joint whose unit has no Cx verbs: none of this engine's types.
 //
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached

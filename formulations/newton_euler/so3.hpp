@@ -22,6 +22,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <complex>
 
 namespace crossdyn::newton_euler::so3 {
 
@@ -31,6 +34,17 @@ struct Coefficients {
 
 // The coefficients at t = |psi| (any t >= 0).
 Coefficients coefficients(double t);
+
+// The same coefficients on std::complex<double> (the exact tangent's complex step, scalar.hpp),
+// as analytic functions of x = psi . psi (no |.|): the series in x when Re x < 1, else the closed
+// forms with t = sqrt(x). On a real x they are coefficients(sqrt(x)).
+struct CoefficientsCx {
+  std::complex<double> s, a, b, a1, b1;
+};
+CoefficientsCx coefficients_sq(const std::complex<double>& x);
+// The unit quaternion of exp([psi x]), (cos(t/2), sin(t/2)/t psi), on std::complex<double>, as an
+// analytic function of x = psi . psi (series below Re x < 1).
+Eigen::Quaternion<std::complex<double>> quaternion(const Eigen::Matrix<std::complex<double>, 3, 1>& psi);
 
 Eigen::Matrix3d exp(const Eigen::Vector3d& psi);
 Eigen::Matrix3d left_jacobian(const Eigen::Vector3d& psi);

@@ -78,7 +78,7 @@ struct JointAccelInputsT {
 using JointAccelInputs = JointAccelInputsT<double>;
 
 // The exact tangent (issue 27; newton_euler.cpp, accelerations_tangent()): a unit's verbs on
-// S = Cx (scalar.hpp), the same templates as its double verbs, for rigid sides only.
+// S = Cx (scalar.hpp), the same templates as its double verbs (rigid or flexible sides).
 // TreeState::JointState on S, and a joint's TreeAccel entries on S:
 template <class S>
 struct JointStateT {
