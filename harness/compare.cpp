@@ -12,6 +12,7 @@
 #include "core/rotation.hpp"
 
 #include <algorithm>
+#include <new>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -1116,6 +1117,8 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
       } catch (const cancel::Cancelled& c) {  // from pack() or output_row() outside simulate's care
         if (c.reason() == cancel::Reason::Interrupt) throw;
         run.result.failure = RunFailure(spec.label, 0.0, "", c.what());
+      } catch (const std::bad_alloc&) {
+        throw;  // out of memory is the command's error (exit 3), not an engine's failure
       } catch (const std::exception& e) {
         run.result.failure = RunFailure(spec.label, 0.0, "", std::string("unexpected error: ") + e.what());
       }

@@ -33,7 +33,7 @@
 // rounding, column by column along the variations of z at the operating point (ReducedMap::tangent,
 // rate_tangent: every phi is zero there, so exp and J_r^-1 are differentiated in closed form);
 // the differences above are then its cross-check, a "jacobian" check per engine
-// (|A - A_fd| <= 10 x the differences' own error). An engine without one keeps the differences, said
+// (|A - A_fd| <= 100 x the differences' own error + 1e-9 max|A|). An engine without one keeps the differences, said
 // in every output. C (the output columns) stays differentiated numerically, with its error stated.
 #pragma once
 
@@ -99,7 +99,7 @@ struct EngineLinearModel {
   double a_error = 0;          // estimated max error of A's entries (rounding when exact, else the differences')
   bool a_exact = false;        // A from the engine's own tangent (Engine::accelerations_tangent)
   double fd_difference = 0;    // exact A: max |A - A_fd| against its finite differences (the cross-check)
-  double fd_error = 0;         // the finite differences' own estimated error (the cross-check's bound / 10)
+  double fd_error = 0;         // the finite differences' own estimated error (the cross-check's bound: 100 x this + 1e-9 max|A|)
   struct Entry {
     Eigen::Index row = 0, col = 0;
     double exact = 0, differences = 0;

@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <new>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
@@ -159,6 +160,8 @@ std::vector<NamedPath> scene_file_inputs(const std::string& path) {
   if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) return {{"the scene file", path}};
   try {
     return scene_inputs(read_scene(path));
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is not an unreadable scene
   } catch (const std::exception&) {
     // A scene that cannot be read does not say which data files it reads: every regular file of
     // its folder whose name the text holds counts as one (cli_fuzzer: `verify bad.yaml --shard 0/2

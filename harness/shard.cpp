@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <new>
 #include <cstdio>
 #include <cstdlib>
 #include <cmath>
@@ -213,6 +214,8 @@ double scene_cost(const std::string& path) {
     if (models > 1 && models <= kVerifyConvergeModels) runs += static_cast<double>(models);
     const double cost = one_run * runs;
     return std::isfinite(cost) && cost > 0 ? cost : 1;
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is not an unreadable scene
   } catch (const std::exception&) {
     return 1;  // unreadable: verify reports it without running anything
   }
@@ -558,6 +561,8 @@ std::vector<PartInput> unit_inputs(const std::vector<ShardScene>& units) {
     System s;
     try {
       s = read_scene(u.path, &warnings);
+    } catch (const std::bad_alloc&) {
+      throw;  // out of memory is not an unreadable scene
     } catch (const std::exception&) {
       continue;  // the unit records why it cannot be read
     }

@@ -11,6 +11,7 @@
 #include "harness/numbers.hpp"
 
 #include <cctype>
+#include <new>
 #include <cstdlib>
 #include <Eigen/Eigenvalues>
 
@@ -368,6 +369,8 @@ double jacobian_spectral_radius(const System& system, const std::string& engine_
     double r = 0;
     for (Eigen::Index i = 0; i < ev.size(); ++i) r = std::max(r, std::abs(ev(i)));
     return r;
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory: the command's error (exit 3), not an unknown radius
   } catch (const std::exception&) {
     return kNaN;
   }
