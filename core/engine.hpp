@@ -84,6 +84,11 @@ struct TreeTangent {
   static TreeTangent zero(const System& system);
 };
 
+// s + e ds as defined above (rotations turned on the right by exact exponentials): the state a
+// tangent points to, for differencing an engine along it. ds sized by TreeTangent::zero for s's
+// system (a body whose modal sizes differ keeps its modal coordinates).
+TreeState moved_along(const TreeState& s, const TreeTangent& ds, double e);
+
 // Engine-neutral accelerations at one state, for cross-checking engines (STYLE item 6).
 struct TreeAccel {
   std::vector<Eigen::Vector3d> wdot_NB_B;  // per body: d/dt of w_NB_B components (rad/s^2)

@@ -1,6 +1,7 @@
 #include "core/system.hpp"
 
 #include "core/engine.hpp"
+#include "core/rotation.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -71,6 +72,29 @@ TreeTangent TreeTangent::zero(const System& system) {
     d.eta_rate[b] = Eigen::VectorXd::Zero(n);
   }
   return d;
+}
+
+TreeState moved_along(const TreeState& s, const TreeTangent& ds, double e) {
+  TreeState r = s;
+  r.p_NoBo_N += e * ds.dp_NoBo_N;
+  r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
+  r.v_NBo_N += e * ds.dv_NBo_N;
+  r.w_NB_B += e * ds.dw_NB_B;
+  for (std::size_t j = 0; j < r.joints.size() && j < ds.joints.size(); ++j) {
+    const TreeTangent::JointTangent& dj = ds.joints[j];
+    TreeState::JointState& js = r.joints[j];
+    js.angle += e * dj.angle;
+    js.rate += e * dj.rate;
+    js.angle2 += e * dj.angle2;
+    js.rate2 += e * dj.rate2;
+    js.q_J = s.joints[j].q_J * rot::from_rotation_vector(e * dj.dtheta_J);
+    js.w_PC_C += e * dj.w_PC_C;
+  }
+  for (std::size_t b = 0; b < r.eta.size(); ++b) {
+    if (b < ds.eta.size() && ds.eta[b].size() == r.eta[b].size()) r.eta[b] += e * ds.eta[b];
+    if (b < ds.eta_rate.size() && ds.eta_rate[b].size() == r.eta_rate[b].size()) r.eta_rate[b] += e * ds.eta_rate[b];
+  }
+  return r;
 }
 
 TreeState TreeState::initial(const System& system) {

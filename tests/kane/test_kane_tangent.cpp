@@ -9,6 +9,7 @@
 // accelerations() itself; da's linearity in ds; a closed form (Euler's equations' Jacobian);
 // flexible bodies and geometric stiffening (builders and committed scenes); the refusal of
 // what is not covered.
+#include "tests/support/tree_accel.hpp"
 #include "core/engine.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
@@ -50,41 +51,8 @@ TreeState random_new_state(const System& s, std::mt19937& g) {
   return st;
 }
 
-// Every field of a TreeAccel, one vector.
-VectorXd flat(const TreeAccel& a) {
-  std::vector<double> v;
-  for (const Vector3d& x : a.wdot_NB_B) v.insert(v.end(), x.data(), x.data() + 3);
-  for (const Vector3d& x : a.a_NBo_N) v.insert(v.end(), x.data(), x.data() + 3);
-  v.insert(v.end(), a.angle_ddot.begin(), a.angle_ddot.end());
-  v.insert(v.end(), a.angle2_ddot.begin(), a.angle2_ddot.end());
-  for (const Vector3d& x : a.wdot_PC_C) v.insert(v.end(), x.data(), x.data() + 3);
-  for (const VectorXd& x : a.eta_ddot) v.insert(v.end(), x.data(), x.data() + x.size());
-  return Eigen::Map<const VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
+using crossdyn::test::flat;
 
-// s + h ds (TreeTangent's definition: rotations turned on the right).
-TreeState moved(const TreeState& s, const TreeTangent& ds, double h) {
-  TreeState m = s;
-  m.p_NoBo_N += h * ds.dp_NoBo_N;
-  m.q_NB = s.q_NB * rot::from_rotation_vector(h * ds.dtheta_B);
-  m.v_NBo_N += h * ds.dv_NBo_N;
-  m.w_NB_B += h * ds.dw_NB_B;
-  for (std::size_t j = 0; j < s.joints.size(); ++j) {
-    const TreeTangent::JointTangent& d = ds.joints[j];
-    TreeState::JointState& js = m.joints[j];
-    js.angle += h * d.angle;
-    js.rate += h * d.rate;
-    js.angle2 += h * d.angle2;
-    js.rate2 += h * d.rate2;
-    js.q_J = s.joints[j].q_J * rot::from_rotation_vector(h * d.dtheta_J);
-    js.w_PC_C += h * d.w_PC_C;
-  }
-  for (std::size_t b = 0; b < s.eta.size(); ++b) {
-    m.eta[b] += h * ds.eta[b];
-    m.eta_rate[b] += h * ds.eta_rate[b];
-  }
-  return m;
-}
 
 VectorXd accel_at(KaneEngine& e, double t, const TreeState& s) {
   const std::vector<double> x = packed(e, s);
@@ -141,7 +109,7 @@ TreeTangent combined(const TreeTangent& a, double c, const TreeTangent& b) {
 // The central difference (f(h) - f(-h)) / 2h and its Richardson extrapolation twice
 // (errors O(h^2), then O(h^4), then O(h^6)).
 VectorXd central(KaneEngine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
-  return (accel_at(e, t, moved(s, ds, h)) - accel_at(e, t, moved(s, ds, -h))) / (2 * h);
+  return (accel_at(e, t, moved_along(s, ds, h)) - accel_at(e, t, moved_along(s, ds, -h))) / (2 * h);
 }
 VectorXd richardson(KaneEngine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
   const VectorXd d1 = central(e, t, s, ds, h), d2 = central(e, t, s, ds, h / 2),

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "tests/support/tree_accel.hpp"
 #include "core/errors.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
@@ -238,39 +239,8 @@ TreeTangent combine(const TreeTangent& a, double c, const TreeTangent& b) {  // 
   return r;
 }
 
-// s + e ds, rotations turned on the right: R exp(e [dtheta x]) (core/engine.hpp TreeTangent).
-TreeState moved(const TreeState& s, const TreeTangent& ds, double e) {
-  TreeState r = s;
-  r.p_NoBo_N += e * ds.dp_NoBo_N;
-  r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
-  r.v_NBo_N += e * ds.dv_NBo_N;
-  r.w_NB_B += e * ds.dw_NB_B;
-  for (std::size_t k = 0; k < r.eta.size(); ++k) {
-    r.eta[k] += e * ds.eta[k];
-    r.eta_rate[k] += e * ds.eta_rate[k];
-  }
-  for (std::size_t j = 0; j < r.joints.size(); ++j) {
-    r.joints[j].angle += e * ds.joints[j].angle;
-    r.joints[j].rate += e * ds.joints[j].rate;
-    r.joints[j].angle2 += e * ds.joints[j].angle2;
-    r.joints[j].rate2 += e * ds.joints[j].rate2;
-    r.joints[j].q_J = s.joints[j].q_J * rot::from_rotation_vector(e * ds.joints[j].dtheta_J);
-    r.joints[j].w_PC_C += e * ds.joints[j].w_PC_C;
-  }
-  return r;
-}
 
-// Every field of a TreeAccel in one vector.
-Eigen::VectorXd flat(const TreeAccel& a) {
-  std::vector<double> v;
-  for (const auto& x : a.wdot_NB_B) v.insert(v.end(), x.data(), x.data() + 3);
-  for (const auto& x : a.a_NBo_N) v.insert(v.end(), x.data(), x.data() + 3);
-  v.insert(v.end(), a.angle_ddot.begin(), a.angle_ddot.end());
-  v.insert(v.end(), a.angle2_ddot.begin(), a.angle2_ddot.end());
-  for (const auto& x : a.wdot_PC_C) v.insert(v.end(), x.data(), x.data() + 3);
-  for (const auto& x : a.eta_ddot) v.insert(v.end(), x.data(), x.data() + x.size());
-  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
-}
+using crossdyn::test::flat;
 
 Eigen::VectorXd accel_at(LagrangeEngine& e, double t, const TreeState& s) {
   std::vector<double> x(static_cast<std::size_t>(e.state_size()));
@@ -282,7 +252,7 @@ Eigen::VectorXd accel_at(LagrangeEngine& e, double t, const TreeState& s) {
 
 Eigen::VectorXd central(LagrangeEngine& e, double t, const TreeState& s, const TreeTangent& ds,
                         double h) {
-  return (accel_at(e, t, moved(s, ds, h)) - accel_at(e, t, moved(s, ds, -h))) / (2 * h);
+  return (accel_at(e, t, moved_along(s, ds, h)) - accel_at(e, t, moved_along(s, ds, -h))) / (2 * h);
 }
 
 // Richardson's extrapolation of central differences at h, h/2, h/4: error O(h^6).

@@ -65,30 +65,6 @@ double max_abs_diff(const std::vector<double>& a, const std::vector<double>& b) 
   return m;
 }
 
-// s + e ds, the rotations turned on the right by exact exponentials (TreeTangent).
-TreeState displaced(const TreeState& s, const TreeTangent& ds, double e) {
-  TreeState r = s;
-  r.p_NoBo_N += e * ds.dp_NoBo_N;
-  r.q_NB = s.q_NB * rot::from_rotation_vector(e * ds.dtheta_B);
-  r.v_NBo_N += e * ds.dv_NBo_N;
-  r.w_NB_B += e * ds.dw_NB_B;
-  for (std::size_t j = 0; j < r.joints.size(); ++j) {
-    const TreeTangent::JointTangent& dj = ds.joints[j];
-    TreeState::JointState& js = r.joints[j];
-    js.angle += e * dj.angle;
-    js.rate += e * dj.rate;
-    js.angle2 += e * dj.angle2;
-    js.rate2 += e * dj.rate2;
-    js.q_J = s.joints[j].q_J * rot::from_rotation_vector(e * dj.dtheta_J);
-    js.w_PC_C += e * dj.w_PC_C;
-  }
-  for (std::size_t b = 0; b < r.eta.size(); ++b) {
-    if (b < ds.eta.size() && ds.eta[b].size() == r.eta[b].size()) r.eta[b] += e * ds.eta[b];
-    if (b < ds.eta_rate.size() && ds.eta_rate[b].size() == r.eta_rate[b].size())
-      r.eta_rate[b] += e * ds.eta_rate[b];
-  }
-  return r;
-}
 
 std::vector<double> accel_at(Engine& e, double t, const TreeState& s) {
   std::vector<double> x(static_cast<std::size_t>(e.state_size()));
@@ -99,7 +75,7 @@ std::vector<double> accel_at(Engine& e, double t, const TreeState& s) {
 }
 
 std::vector<double> central(Engine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
-  const std::vector<double> p = accel_at(e, t, displaced(s, ds, h)), m = accel_at(e, t, displaced(s, ds, -h));
+  const std::vector<double> p = accel_at(e, t, moved_along(s, ds, h)), m = accel_at(e, t, moved_along(s, ds, -h));
   std::vector<double> d(p.size());
   for (std::size_t i = 0; i < p.size(); ++i) d[i] = (p[i] - m[i]) / (2 * h);
   return d;
