@@ -179,6 +179,42 @@ class Engine {
     return false;
   }
 
+  // The exact first-order variation of output_row() along a tangent (issue 27: the output matrix C
+  // of a linear model), by the same means and rules as accelerations_tangent(): with
+  // x(e) = pack(s + e ds),
+  //   row = output_row(t, x(0)),   drow = d/de output_row(t, x(e)) at e = 0,
+  // every column of layout() (each array layout().size() long; the time column's derivative 0).
+  // Columns that depend on the accelerations (joint loads, a prescribed base's reaction, external
+  // moments) carry their variation through the accelerations' own. A quaternion column's derivative
+  // is that of the sign output_row() writes (canonical, qw >= 0: the sign of the value part). Returns
+  // false when the engine offers none (the caller then differences output_row() and says so).
+  // Allocates; never the hot path. May throw RunFailure like output_row().
+  virtual bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                                  double* drow) {
+    (void)t;
+    (void)s;
+    (void)ds;
+    (void)row;
+    (void)drow;
+    return false;
+  }
+
+  // The exact first-order variation of rhs() in the engine's own coordinates (issue 27: the
+  // Jacobian d(rhs)/dx that `crossdyn linearize` reports per engine as own_A):
+  //   xdot = rhs(t, x),   dxdot = d/de rhs(t, x + e dx) at e = 0,
+  // for any dx of state_size() (also one that leaves the engine's constraint manifold or a
+  // quaternion's unit sphere: rhs() as it is evaluated there), with the engine's internal choices
+  // (an Euler-angle chart) as rhs() would find them. Same means and rules as
+  // accelerations_tangent(); false when the engine offers none.
+  virtual bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) {
+    (void)t;
+    (void)x;
+    (void)dx;
+    (void)xdot;
+    (void)dxdot;
+    return false;
+  }
+
   // The linear system the engine solves for its accelerations at (t, x), written out dense:
   // A z = b, A square and symmetric (a mass matrix, or a KKT matrix [M J^T; J 0]), so that its
   // conditioning can be measured (harness: `crossdyn study --scaling`, the condition number
