@@ -292,12 +292,11 @@ class ReducedMap {
     return d;
   }
 
-  // The variation of rate(z, a) at z0 along dz, given the accelerations a at z0 and their variation
+  // The variation of rate(z, a) at z = z0() along dz, given the accelerations a at z0 and their variation
   // da (Engine::accelerations_tangent). At phi = 0, J_r(phi)^-1 = 1 + [phi x]/2 + O(|phi|^2), so
   // d(J_r^-1 w) = dw + dphi x w / 2; on an orbit d/dt w_OB_B = w_NB_B' + w_NB_B x w_NO_B with
   // w_NO_B = R_NB^T w_NO_N, d w_NO_B = w_NO_B x dphi (rate()).
-  VectorXd rate_tangent(const VectorXd& dz, const TreeAccel& da) const {
-    const VectorXd z = z0();
+  VectorXd rate_tangent(const VectorXd& z, const VectorXd& dz, const TreeAccel& da) const {
     VectorXd dzd(size());
     std::vector<Vector3d> dphi(system_.joints.size(), Vector3d::Zero()), w(system_.joints.size(), Vector3d::Zero()),
         dw(system_.joints.size(), Vector3d::Zero());
@@ -551,6 +550,20 @@ Derivative best_derivative(const F& eval, const VectorXd& z, int j, double fixed
   return best;
 }
 
+// An exact matrix adopted in place of its finite differences M_fd (which become its cross-check):
+// how far they differ, at which entry, and the differences' own estimated error (how.error until
+// now); how.error becomes the exact matrix's rounding.
+void adopt_exact(MatrixXd& M_fd, const MatrixXd& exact, double rounding, MatrixMethod& how) {
+  how.fd_error = how.error;
+  Eigen::Index wi = 0, wj = 0;
+  how.fd_difference = exact.size() ? (exact - M_fd).cwiseAbs().maxCoeff(&wi, &wj) : 0.0;
+  if (exact.size()) how.worst = {wi, wj, exact(wi, wj), M_fd(wi, wj)};
+  if (!std::isfinite(how.fd_difference)) return;  // a non-finite tangent is not adopted
+  how.exact = true;
+  how.error = rounding;
+  M_fd = exact;
+}
+
 // One engine evaluated at a point of z: dz/dt through its pack() and accelerations(), and the
 // chosen output columns through its output_row().
 struct Probe {
@@ -675,7 +688,7 @@ void eigen_analysis(EngineLinearModel& m, const ReducedMap& map, double zero_tol
     // Times 10: the extrapolation's error is an estimate, not a bound (newton-euler's, whose
     // accelerations carry its constrained solve's rounding, was exceeded 2.7-fold at a mode
     // near a double zero: spinup_beam_linear at 3.7 rad/s).
-    m.allowances.push_back(10 * kappa * n * m.a_error);
+    m.allowances.push_back(10 * kappa * n * m.a_method.error);
     if (std::abs(l) <= m.zero_bound || rho == 0) {
       ++m.zeros;
       continue;
@@ -964,7 +977,7 @@ TreeState settle(const System& system, const TreeState& op, const LinearizeOptio
   const int nu = static_cast<int>(unknowns.size());
   if (nu == 0 || nv == 0) return op;
   const LinearEngineChoice& choice = o.engines.front();
-  const std::unique_ptr<Engine> engine = make_engine(choice.engine, system, choice.options);
+  const std::unique_ptr<Engine> engine = choice.make(system);
   Probe probe;
   probe.engine = engine.get();
   probe.map = &map;
@@ -1079,6 +1092,10 @@ std::vector<std::string> linear_input_names(const System& system, bool named_onl
   return names;
 }
 
+std::unique_ptr<Engine> LinearEngineChoice::make(const System& system) const {
+  return factory ? factory(system, options) : make_engine(engine, system, options);
+}
+
 bool LinearizeResult::passed() const {
   for (const LinearCheck& c : checks)
     if (!c.passed) return false;
@@ -1142,7 +1159,7 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
   for (const LinearEngineChoice& choice : o.engines) {
     EngineLinearModel m;
     m.label = choice.label;
-    const std::unique_ptr<Engine> engine = make_engine(choice.engine, system, choice.options);
+    const std::unique_ptr<Engine> engine = choice.make(system);
     Probe probe;
     probe.engine = engine.get();
     probe.map = &map;
@@ -1189,29 +1206,29 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
       // Rounding: each difference carries ~ eps |f| / h, amplified ~ 3 by the extrapolations.
       const double eps = std::numeric_limits<double>::epsilon();
       const double fscale = std::max(zd0.lpNorm<Eigen::Infinity>(), m.A.lpNorm<Eigen::Infinity>() * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0));
-      m.a_error = (n ? Aerr.maxCoeff() : 0.0) + 8 * eps * fscale;
-      m.c_error = p && n ? Cerr.maxCoeff() + 8 * eps * std::max(y0.lpNorm<Eigen::Infinity>(), 1.0) : 0.0;
-      // Exact: the engine's own tangent, column by column; the differences above its cross-check.
-      {
+      m.a_method.error = (n ? Aerr.maxCoeff() : 0.0) + 8 * eps * fscale;
+      const double yscale = p ? std::max(y0.lpNorm<Eigen::Infinity>(), 1.0) : 1.0;
+      m.c_method.error = p && n ? Cerr.maxCoeff() + 8 * eps * yscale : 0.0;
+      // Exact: the engine's own tangents, column by column along the variations of z at the
+      // operating point; the differences above their cross-check.
+      if (n > 0) {
         const TreeState s0 = map.state(r.z0);
-        MatrixXd Ax(n, n);
+        MatrixXd Ax(n, n), Cx(p, n);
         TreeAccel a0, da;
-        bool exact = n > 0;
-        for (int j = 0; j < n && exact; ++j) {
+        std::vector<double> row(engine->columns().size()), drow(row.size());
+        bool a_exact = true, c_exact = p > 0;
+        for (int j = 0; j < n && (a_exact || c_exact); ++j) {
           const VectorXd e = VectorXd::Unit(n, j);
-          exact = engine->accelerations_tangent(o.time, s0, map.tangent(e), a0, da);
-          if (exact) Ax.col(j) = map.rate_tangent(e, da);
+          const TreeTangent dz = map.tangent(e);
+          if (a_exact) a_exact = engine->accelerations_tangent(o.time, s0, dz, a0, da);
+          if (a_exact) Ax.col(j) = map.rate_tangent(r.z0, e, da);
+          if (c_exact) c_exact = engine->output_row_tangent(o.time, s0, dz, row.data(), drow.data());
+          if (c_exact)
+            for (int k = 0; k < p; ++k) Cx(k, j) = drow[static_cast<std::size_t>(probe.output_columns[static_cast<std::size_t>(k)])];
         }
-        if (exact && Ax.allFinite()) {
-          m.a_exact = true;
-          m.fd_error = m.a_error;
-          Eigen::Index wi = 0, wj = 0;
-          m.fd_difference = (Ax - m.A).cwiseAbs().maxCoeff(&wi, &wj);
-          m.fd_worst = {wi, wj, Ax(wi, wj), m.A(wi, wj)};
-          m.A = Ax;
-          // Rounding of the engine's own evaluation: a few eps of the scale of its terms.
-          m.a_error = 16 * eps * fscale;
-        }
+        // Rounding of the engine's own evaluation: a few eps of the scale of its terms.
+        if (a_exact) adopt_exact(m.A, Ax, 16 * eps * fscale, m.a_method);
+        if (c_exact) adopt_exact(m.C, Cx, 16 * eps * yscale * std::max(1.0, m.C.lpNorm<Eigen::Infinity>()), m.c_method);
       }
       const double denom = (n ? m.A.lpNorm<Eigen::Infinity>() : 0.0) * std::max(r.z0.lpNorm<Eigen::Infinity>(), 1.0);
       const double res = n ? zd0.lpNorm<Eigen::Infinity>() : 0.0;
@@ -1227,7 +1244,7 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
         VectorXd f[2], y[2];
         for (int side = 0; side < 2; ++side) {
           const System s = with_input(system, u, o.time, side == 0 ? delta : -delta);
-          const std::unique_ptr<Engine> e = make_engine(choice.engine, s, choice.options);
+          const std::unique_ptr<Engine> e = choice.make(s);
           Probe q = probe;
           q.engine = e.get();
           q.eval(r.z0, f[side], p > 0 ? &y[side] : nullptr);
@@ -1242,7 +1259,6 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
       engine->pack(op, x0.data());
       const VectorXd X0 = Eigen::Map<const VectorXd>(x0.data(), nx);
       m.own_A.resize(nx, nx);
-      double own_err = 0;
       for (int i = 0; i < nx; ++i) m.own_states.push_back(engine->state_label(i));
       for (int j = 0; j < nx; ++j) {
         const Derivative d = best_derivative(
@@ -1252,9 +1268,21 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
             },
             X0, j, o.fd_step, nx);
         m.own_A.col(j) = d.d;
-        own_err = std::max(own_err, nx ? d.error.maxCoeff() : 0.0);
+        m.own_method.error = std::max(m.own_method.error, nx ? d.error.maxCoeff() : 0.0);
       }
-      m.own_error = own_err;
+      if (nx > 0) {
+        MatrixXd Ox(nx, nx);
+        std::vector<double> f0(static_cast<std::size_t>(nx)), df(f0.size());
+        bool exact = true;
+        for (int j = 0; j < nx && exact; ++j) {
+          const VectorXd e = VectorXd::Unit(nx, j);
+          exact = engine->rhs_tangent(o.time, x0.data(), e.data(), f0.data(), df.data());
+          if (exact) Ox.col(j) = Eigen::Map<const VectorXd>(df.data(), nx);
+        }
+        const double oscale = std::max(Eigen::Map<const VectorXd>(f0.data(), nx).lpNorm<Eigen::Infinity>(),
+                                       m.own_A.lpNorm<Eigen::Infinity>() * std::max(X0.lpNorm<Eigen::Infinity>(), 1.0));
+        if (exact) adopt_exact(m.own_A, Ox, 16 * eps * oscale, m.own_method);
+      }
       eigen_analysis(m, map, o.zero_tol);
     } catch (const RunFailure& f) {
       m.failure = f.what();
@@ -1299,30 +1327,44 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
            "not compared)";
     throw InputError(msg.str());
   }
-  if (!r.equilibrium) return r;  // Jacobians only, nothing compared
-
-  // Each exact A against its own finite differences (the cross-check that the tangent is right).
+  // Each exact matrix against its own finite differences (the cross-check that the engine's tangent
+  // is right): A, C and the engine's own Jacobian, at an equilibrium or not.
   for (const EngineLinearModel& m : r.engines) {
-    if (!m.failure.empty() || !m.a_exact) continue;
-    LinearCheck c;
-    c.kind = "jacobian";
-    c.what = "A exact vs its finite differences, entry d/dt " + r.states[static_cast<std::size_t>(m.fd_worst.row)] +
-             " / d " + r.states[static_cast<std::size_t>(m.fd_worst.col)] + " (the largest difference)";
-    c.engine_a = m.label;
-    c.engine_b = m.label + " differences";
-    c.a = m.fd_worst.exact;
-    c.b = m.fd_worst.differences;
-    c.error = m.fd_difference;
-    // The differences' error is an estimate, not a bound: newton-euler's differences exceeded theirs
-    // 8.5-fold on spinup_beam at t = 20 s and 3.4-fold on iftomm_pendulum (its constrained solve's
-    // rounding times m L^2 / I = 1e6), where its exact A agrees with the other engines' to 5e-11.
-    // Hence 100 x the estimate plus 1e-9 of |A|'s largest entry: a missing or wrong term of a
-    // tangent moves entries by far more (a gravity-gradient entry of 4e-6 |A| changed by 1% is 40
-    // times this floor).
-    c.bound = 100 * m.fd_error + 1e-9 * m.A.cwiseAbs().maxCoeff();
-    c.passed = c.error <= c.bound;
-    r.checks.push_back(c);
+    if (!m.failure.empty()) continue;
+    auto cross_check = [&](const MatrixMethod& how, const MatrixXd& M, const std::string& entry) {
+      if (!how.exact || M.size() == 0) return;
+      LinearCheck c;
+      c.kind = "jacobian";
+      c.what = entry + " (the largest difference)";
+      c.engine_a = m.label;
+      c.engine_b = m.label + " differences";
+      c.a = how.worst.exact;
+      c.b = how.worst.differences;
+      c.error = how.fd_difference;
+      // The differences' error is an estimate, not a bound: newton-euler's differences exceeded
+      // theirs 8.5-fold on spinup_beam at t = 20 s and 3.4-fold on iftomm_pendulum (its constrained
+      // solve's rounding times m L^2 / I = 1e6), where its exact A agrees with the other engines' to
+      // 5e-11. Hence 100 x the estimate plus 1e-9 of the matrix's largest entry: a missing or wrong
+      // term of a tangent moves entries by far more (a gravity-gradient entry of 4e-6 |A| changed by
+      // 1% is 40 times this floor).
+      c.bound = 100 * how.fd_error + 1e-9 * M.cwiseAbs().maxCoeff();
+      c.passed = c.error <= c.bound;
+      r.checks.push_back(c);
+    };
+    const auto state = [&](Eigen::Index i) { return r.states[static_cast<std::size_t>(i)]; };
+    cross_check(m.a_method, m.A,
+                "A exact vs its finite differences, entry d/dt " + state(m.a_method.worst.row) + " / d " + state(m.a_method.worst.col));
+    if (!r.outputs.empty())
+      cross_check(m.c_method, m.C,
+                  "C exact vs its finite differences, entry d " + r.outputs[static_cast<std::size_t>(m.c_method.worst.row)] +
+                      " / d " + state(m.c_method.worst.col));
+    if (!m.own_states.empty())
+      cross_check(m.own_method, m.own_A,
+                  "own-coordinate A exact vs its finite differences, entry d/dt " +
+                      m.own_states[static_cast<std::size_t>(m.own_method.worst.row)] + " / d " +
+                      m.own_states[static_cast<std::size_t>(m.own_method.worst.col)]);
   }
+  if (!r.equilibrium) return r;  // Jacobians only, nothing compared between engines
 
   // Eigenvalues: each engine against the first that ran.
   const EngineLinearModel* ref = nullptr;
@@ -1476,6 +1518,16 @@ LinearizeResult linearize(const System& system, const LinearizeOptions& o) {
 // ------------------------------------------------------------------------------------------------
 // Outputs.
 
+namespace {
+// "exact (...)" or "by finite differences (...)": how a matrix was obtained, in the outputs' words.
+std::string method_words(const MatrixMethod& how) {
+  if (how.exact)
+    return "exact (the engine's own tangent; its finite differences within " + num(how.fd_difference, 2) +
+           ", their own error " + num(how.fd_error, 2) + ")";
+  return "by finite differences (the engine offers no exact tangent here), error <= " + num(how.error, 2);
+}
+}  // namespace
+
 std::string format_linearization(const LinearizeResult& r) {
   std::ostringstream o;
   o << "linearize " << r.scene << " at t = " << num(r.time) << " s\n";
@@ -1495,22 +1547,21 @@ std::string format_linearization(const LinearizeResult& r) {
       continue;
     }
     o << m.label << ": residual |dz/dt| " << num(m.residual.size() ? m.residual.lpNorm<Eigen::Infinity>() : 0.0, 3)
-      << " (" << num(m.relative_residual, 3) << " relative); A's error <= " << num(m.a_error, 2) << " (|A| "
-      << num(m.A.size() ? m.A.lpNorm<Eigen::Infinity>() : 0.0, 3) << ", "
-      << (m.a_exact ? "exact: the engine's own tangent, its differences within " + num(m.fd_difference, 2)
-                    : std::string("finite differences: the engine offers no exact tangent here"))
-      << "); " << m.zeros << " zero eigenvalue"
-      << (m.zeros == 1 ? "" : "s") << " (|lambda| <= " << num(m.zero_bound, 2) << "); own state " << m.own_states.size()
-      << "\n";
+      << " (" << num(m.relative_residual, 3) << " relative); |A| " << num(m.A.size() ? m.A.lpNorm<Eigen::Infinity>() : 0.0, 3)
+      << "; " << m.zeros << " zero eigenvalue" << (m.zeros == 1 ? "" : "s") << " (|lambda| <= " << num(m.zero_bound, 2)
+      << "); own state " << m.own_states.size() << "\n";
+    o << "  A " << method_words(m.a_method) << "\n";
+    if (!r.outputs.empty()) o << "  C " << method_words(m.c_method) << "\n";
+    o << "  own-coordinate A " << method_words(m.own_method) << "\n";
   }
   if (!r.equilibrium) {
-    o << "\nnot an equilibrium: each engine's Jacobian is in the outputs (coordinate-dependent), nothing compared\n";
-    return o.str();
+    o << "\nnot an equilibrium: each engine's Jacobian is in the outputs (coordinate-dependent), nothing "
+         "compared between engines\n";
   }
   // The modes table: one row per mode of the first engine.
   const EngineLinearModel* ref = nullptr;
   for (const EngineLinearModel& m : r.engines)
-    if (m.failure.empty()) {
+    if (m.failure.empty() && r.equilibrium) {
       ref = &m;
       break;
     }
@@ -1578,6 +1629,10 @@ nlohmann::json matrix_json(const MatrixXd& M) {
   }
   return rows;
 }
+std::string method_name(const MatrixMethod& how) { return how.exact ? "exact" : "finite differences"; }
+nlohmann::json cross_check_json(const MatrixMethod& how) {
+  return {{"max_difference", how.fd_difference}, {"differences_error", how.fd_error}};
+}
 nlohmann::json complex_json(cd v) { return nlohmann::json{{"re", v.real()}, {"im", v.imag()}}; }
 
 std::string csv_matrix(const std::vector<std::string>& header, const MatrixXd& M) {
@@ -1620,10 +1675,12 @@ std::string linearization_json(const LinearizeResult& r) {
     e["B"] = matrix_json(m.B);
     e["C"] = matrix_json(m.C);
     e["D"] = matrix_json(m.D);
-    e["A_error"] = m.a_error;
-    e["A_method"] = m.a_exact ? "exact" : "finite differences";
-    if (m.a_exact) e["A_cross_check"] = {{"max_difference", m.fd_difference}, {"differences_error", m.fd_error}};
-    e["C_error"] = m.c_error;
+    e["A_error"] = m.a_method.error;
+    e["A_method"] = method_name(m.a_method);
+    if (m.a_method.exact) e["A_cross_check"] = cross_check_json(m.a_method);
+    e["C_error"] = m.c_method.error;
+    e["C_method"] = method_name(m.c_method);
+    if (m.c_method.exact) e["C_cross_check"] = cross_check_json(m.c_method);
     std::vector<double> res(m.residual.data(), m.residual.data() + m.residual.size());
     e["residual"] = res;
     e["relative_residual"] = m.relative_residual;
@@ -1640,7 +1697,9 @@ std::string linearization_json(const LinearizeResult& r) {
     e["own_coordinates"] = {{"note", "the engine's own state; coordinate-dependent, never compared"},
                             {"states", m.own_states},
                             {"A", matrix_json(m.own_A)},
-                            {"A_error", m.own_error}};
+                            {"A_error", m.own_method.error},
+                            {"A_method", method_name(m.own_method)}};
+    if (m.own_method.exact) e["own_coordinates"]["A_cross_check"] = cross_check_json(m.own_method);
     j["engines"].push_back(e);
   }
   j["frequencies"] = r.frequencies;
@@ -1698,7 +1757,7 @@ std::string mode_geometry(const System& system, const LinearizeOptions& o, const
   if (!(largest > 1e-9 * md.shape.norm())) return "";
   const double a = 0.35 / largest;
   const LinearEngineChoice& choice = o.engines.at(engine);
-  const std::unique_ptr<Engine> e = make_engine(choice.engine, system, choice.options);
+  const std::unique_ptr<Engine> e = choice.make(system);
   std::vector<double> x(static_cast<std::size_t>(e->state_size())), row(e->columns().size());
   auto configuration = [&](const VectorXd& z, double t) {
     e->pack(map.state(z), x.data());

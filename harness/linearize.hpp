@@ -23,7 +23,8 @@
 // coordinates are thereby reduced to the constraint manifold (pack places every body from the
 // joint coordinates). The Jacobian A = d(dz/dt)/dz is taken by central differences with two
 // Richardson extrapolations (sixth order; Press et al., Numerical Recipes, 3rd ed., Sec. 5.7), its
-// error estimated per entry from the last extrapolation and rounding (stated in every output);
+// error estimated per entry from the last extrapolation and rounding (stated in every output;
+// the cross-check of the exact matrices below);
 // B and D from the inputs, on which the equations are linear (a central difference is exact to
 // rounding). Each engine's Jacobian in its own state coordinates (rhs) is given too, marked
 // coordinate-dependent, never compared.
@@ -34,7 +35,8 @@
 // rate_tangent: every phi is zero there, so exp and J_r^-1 are differentiated in closed form);
 // the differences above are then its cross-check, a "jacobian" check per engine
 // (|A - A_fd| <= 100 x the differences' own error + 1e-9 max|A|). An engine without one keeps the differences, said
-// in every output. C (the output columns) stays differentiated numerically, with its error stated.
+// in every output. C and each engine's own Jacobian likewise: from Engine::output_row_tangent and
+// rhs_tangent where the engine offers them, their differences the cross-check ("jacobian" checks).
 #pragma once
 
 #include "core/engine.hpp"
@@ -42,7 +44,10 @@
 #include <Eigen/Core>
 
 #include <complex>
+#include <functional>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace crossdyn::harness {
@@ -57,9 +62,16 @@ enum class OperatingPoint {
 };
 
 struct LinearEngineChoice {
+  LinearEngineChoice() = default;
+  LinearEngineChoice(std::string label_, std::string engine_, EngineOptions options_ = {})
+      : label(std::move(label_)), engine(std::move(engine_)), options(options_) {}
   std::string label;  // as printed ("kane", or a test double's "kane*gyro")
   std::string engine;
   EngineOptions options;
+  // Test-only: builds the engine instead of make_engine(engine, ...), so that a test double (an
+  // engine whose tangent is wrong) can be shown to fail its cross-check. Empty in every real run.
+  std::function<std::unique_ptr<Engine>(const System&, const EngineOptions&)> factory;
+  std::unique_ptr<Engine> make(const System& system) const;
 };
 
 struct LinearizeOptions {
@@ -92,19 +104,26 @@ struct LinearMode {
   Eigen::VectorXcd shape;    // its right eigenvector in z (unit norm)
 };
 
+// How one matrix of an engine's linear model was obtained: exact (the engine's own tangent,
+// Engine::accelerations_tangent, output_row_tangent or rhs_tangent) with its finite differences as
+// the cross-check, or by those differences alone.
+struct MatrixMethod {
+  bool exact = false;
+  double error = 0;          // estimated max error of its entries: rounding when exact, else the differences'
+  double fd_difference = 0;  // exact: max |M - M_fd| against its finite differences (the cross-check)
+  double fd_error = 0;       // the finite differences' own estimated error (the cross-check's bound: 100 x this + 1e-9 max|M|)
+  struct Entry {
+    Eigen::Index row = 0, col = 0;
+    double exact = 0, differences = 0;
+  } worst;                   // the entry where they differ most
+};
+
 struct EngineLinearModel {
   std::string label;
   std::string failure;         // "" or why the engine could not be linearised (RunFailure)
   Eigen::MatrixXd A, B, C, D;  // dz/dt = A dz + B du, dy = C dz + D du
-  double a_error = 0;          // estimated max error of A's entries (rounding when exact, else the differences')
-  bool a_exact = false;        // A from the engine's own tangent (Engine::accelerations_tangent)
-  double fd_difference = 0;    // exact A: max |A - A_fd| against its finite differences (the cross-check)
-  double fd_error = 0;         // the finite differences' own estimated error (the cross-check's bound: 100 x this + 1e-9 max|A|)
-  struct Entry {
-    Eigen::Index row = 0, col = 0;
-    double exact = 0, differences = 0;
-  } fd_worst;                  // the entry where they differ most
-  double c_error = 0;          // of C's
+  MatrixMethod a_method;       // A's (accelerations_tangent)
+  MatrixMethod c_method;       // C's (output_row_tangent)
   Eigen::VectorXd residual;    // dz/dt at the operating point
   double relative_residual = 0;
   std::vector<std::complex<double>> eigenvalues;  // every eigenvalue of A
@@ -114,7 +133,7 @@ struct EngineLinearModel {
   double zero_bound = 0;                           // |lambda| below this is a zero
   std::vector<std::string> own_states;             // the engine's own state labels
   Eigen::MatrixXd own_A;                           // d(rhs)/dx, coordinate-dependent
-  double own_error = 0;
+  MatrixMethod own_method;                         // own_A's (rhs_tangent)
 };
 
 struct LinearCheck {

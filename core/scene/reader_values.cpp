@@ -389,7 +389,7 @@ std::string Reader::word(const Field& f) const {
   const std::vector<std::string> w = words(*f.key);
   const std::string& s = scalar(f.val, what);
   if (std::find(w.begin(), w.end(), s) == w.end())
-    fail(f.val, "unknown " + what + " " + quoted_excerpt(s) + suggestion(s, w) +
+    fail(f.val, "unknown " + without_article(what) + " " + quoted_excerpt(s) + suggestion(s, w) +
                     "; expected one of: " + join(w));
   return s;
 }

@@ -55,6 +55,12 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
   return row[b.size()];
 }
 
+std::string without_article(const std::string& noun) {
+  for (const char* article : {"a ", "an ", "the "})
+    if (noun.rfind(article, 0) == 0) return noun.substr(std::char_traits<char>::length(article));
+  return noun;
+}
+
 std::string suggestion(const std::string& word, const std::vector<std::string>& candidates) {
   if (word.size() > 64) return "";
   std::size_t best = std::numeric_limits<std::size_t>::max();

@@ -20,6 +20,10 @@ std::string join(const std::vector<std::string>& v, std::size_t max_items = 12);
 // Optimal-string-alignment distance (Levenshtein plus adjacent transpositions), ignoring case.
 std::size_t edit_distance(const std::string& a, const std::string& b);
 
+// A schema noun without its leading article ("a motion profile" => "motion profile"), for messages
+// that put their own word before it ("unknown motion profile 'x'").
+std::string without_article(const std::string& noun);
+
 // " (did you mean 'x'?)" when one candidate is close to `word`, else "".
 std::string suggestion(const std::string& word, const std::vector<std::string>& candidates);
 

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "core/errors.hpp"
+#include "core/output_layout.hpp"
 #include "core/flex/beam.hpp"
 #include "core/scene/scene.hpp"
 #include "harness/engines.hpp"
@@ -237,7 +238,14 @@ TEST_CASE("linearize: a state that is not an equilibrium is refused with its res
     o.jacobian_only = true;
     const LinearizeResult r = linearize(s, o);
     CHECK_FALSE(r.equilibrium);
-    CHECK(r.checks.empty());
+    // Nothing compared between engines: only each engine's exact matrices against their own
+    // differences.
+    for (const LinearCheck& k : r.checks) {
+      INFO(k.what);
+      CHECK(k.kind == "jacobian");
+      CHECK(k.engine_b == k.engine_a + " differences");
+      CHECK(k.passed);
+    }
     for (const EngineLinearModel& m : r.engines) {
       CHECK(m.A.rows() == static_cast<Eigen::Index>(r.states.size()));
       CHECK(m.own_A.rows() == static_cast<Eigen::Index>(m.own_states.size()));
@@ -648,11 +656,11 @@ run: {duration: 10, output_step: 1}
   for (const EngineLinearModel& e : r.engines) CHECK(e.relative_residual < 1e-15);
 }
 
-// Each engine linearises its own equations exactly (Engine::accelerations_tangent: its own
-// automatic differentiation), the finite differences are its cross-check (a "jacobian" check per
-// engine), and the exactness shows: on an orbit the libration eigenvalues equal Wie's closed forms to
+// Each engine linearises its own equations exactly (Engine::accelerations_tangent, output_row_tangent,
+// rhs_tangent: its own automatic differentiation or complex step), the finite differences are their
+// cross-check (three "jacobian" checks per engine), and the exactness shows: on an orbit the libration eigenvalues equal Wie's closed forms to
 // a few units of rounding, where the differences' Jacobian carried 5e-13 of |lambda|.
-TEST_CASE("linearize: every engine's A is its own exact tangent, within its finite differences' error, on rigid, spherical, prescribed, flexible, gravity and orbit scenes") {
+TEST_CASE("linearize: every engine's A, C and own Jacobian are its own exact tangents, within their finite differences' error, on rigid, spherical, prescribed, flexible, gravity and orbit scenes") {
   struct Point {
     const char* scene;
     OperatingPoint point;
@@ -674,16 +682,27 @@ TEST_CASE("linearize: every engine's A is its own exact tangent, within its fini
     LinearizeOptions o = every_engine();
     o.point = p.point;
     o.time = p.t;
+    // Every pinned output column (joint loads, momentum, energy, positions; on an orbit the
+    // attitude relative to the orbit frame and the Jacobi integral): C exact too.
+    o.outputs = pinned_columns(s);
+    o.outputs.erase(o.outputs.begin());  // t
     const LinearizeResult r = linearize(s, o);
     CHECK(failed_checks(r) == "");
-    CHECK(count(r, "jacobian") == static_cast<int>(r.engines.size()));
+    // A, C and the engine's own Jacobian: three cross-checks per engine.
+    CHECK(count(r, "jacobian") == 3 * static_cast<int>(r.engines.size()));
     for (const EngineLinearModel& m : r.engines) {
       INFO(m.label);
-      CHECK(m.a_exact);
-      // The cross-check can fail: its bound is the differences' own error estimate (x 10), which
+      for (const MatrixMethod* how : {&m.a_method, &m.c_method, &m.own_method}) {
+        CHECK(how->exact);
+        CHECK(how->fd_difference <= 100 * how->fd_error + 1e-9 * (how == &m.a_method   ? m.A
+                                                                  : how == &m.c_method ? m.C
+                                                                                       : m.own_A)
+                                                                         .cwiseAbs()
+                                                                         .maxCoeff());
+      }
+      // The cross-check can fail: its bound is the differences' own error estimate (x 100), which
       // is far below |A|.
-      CHECK(m.fd_difference <= 100 * m.fd_error + 1e-9 * m.A.cwiseAbs().maxCoeff());
-      CHECK(m.fd_error < 1e-9 * m.A.lpNorm<Eigen::Infinity>());
+      CHECK(m.a_method.fd_error < 1e-9 * m.A.lpNorm<Eigen::Infinity>());
     }
     if (std::string(p.scene) == "gg_libration")
       for (const LinearCheck& c : r.checks)
@@ -692,4 +711,93 @@ TEST_CASE("linearize: every engine's A is its own exact tangent, within its fini
           CHECK(c.error <= 1e-13 * std::abs(c.b));
         }
   }
+}
+
+namespace {
+// A test double: a real engine whose exact tangents are wrong by one part in 1e6 in one entry (A:
+// joint 1's acceleration; C: one output column; own A: the last state's rate), every other call passed
+// through. Each cross-check must catch its own.
+class WrongTangent final : public Engine {
+ public:
+  enum class Which { A, C, Own };
+  WrongTangent(std::unique_ptr<Engine> inner, Which which) : inner_(std::move(inner)), which_(which) {}
+  const char* name() const override { return inner_->name(); }
+  int state_size() const override { return inner_->state_size(); }
+  std::string state_label(int i) const override { return inner_->state_label(i); }
+  void pack(const TreeState& s, double* x) override { inner_->pack(s, x); }
+  void rhs(double t, const double* x, double* xdot) override { inner_->rhs(t, x, xdot); }
+  void accelerations(double t, const double* x, TreeAccel& a) override { inner_->accelerations(t, x, a); }
+  const OutputLayout& layout() const override { return inner_->layout(); }
+  void output_row(double t, const double* x, double* row) override { inner_->output_row(t, x, row); }
+  bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a, TreeAccel& da) override {
+    const bool ok = inner_->accelerations_tangent(t, s, ds, a, da);
+    if (ok && which_ == Which::A) da.angle_ddot[1] *= 1 + 1e-6;
+    return ok;
+  }
+  bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row, double* drow) override {
+    const bool ok = inner_->output_row_tangent(t, s, ds, row, drow);
+    if (ok && which_ == Which::C) drow[column_] *= 1 + 1e-6;
+    return ok;
+  }
+  bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) override {
+    const bool ok = inner_->rhs_tangent(t, x, dx, xdot, dxdot);
+    if (ok && which_ == Which::Own) dxdot[state_size() - 1] *= 1 + 1e-6;
+    return ok;
+  }
+  std::size_t column_ = 0;
+
+ private:
+  std::unique_ptr<Engine> inner_;
+  Which which_;
+};
+}  // namespace
+
+// The cross-checks can fail: an engine whose A, C or own Jacobian is off by 1e-6 in one entry
+// (far below what would move an eigenvalue visibly) fails its own "jacobian" check, which names
+// the entry; the other engines and the other matrices pass.
+TEST_CASE("linearize: a wrong exact tangent (A, C or the engine's own Jacobian) fails its cross-check against its differences, naming the entry") {
+  const System s = read_scene(test::scene_path("hub_two_panels_spin"));
+  const std::vector<std::string> columns = pinned_columns(s);
+  const auto H = static_cast<std::size_t>(std::find(columns.begin(), columns.end(), "H") - columns.begin());
+  REQUIRE(H < columns.size());
+  struct Case {
+    WrongTangent::Which which;
+    const char* says;
+  };
+  const Case cases[] = {{WrongTangent::Which::A, "A exact vs its finite differences, entry d/dt hinge1.rate"},
+                        {WrongTangent::Which::C, "C exact vs its finite differences, entry d H"},
+                        {WrongTangent::Which::Own, "own-coordinate A exact vs its finite differences"}};
+  for (const std::string& engine : engine_names())
+    for (const Case& c : cases) {
+      INFO(engine << ": " << c.says);
+      LinearizeOptions o = every_engine();
+      o.point = OperatingPoint::Neutral;
+      o.outputs = {"H", "E", "hinge1.Mx"};
+      LinearEngineChoice wrong(engine + "*wrong", engine);
+      wrong.factory = [&, which = c.which](const System& sys, const EngineOptions& opt) -> std::unique_ptr<Engine> {
+        auto w = std::make_unique<WrongTangent>(make_engine(engine, sys, opt), which);
+        w->column_ = H;
+        return w;
+      };
+      o.engines.push_back(wrong);
+      const LinearizeResult r = linearize(s, o);
+      // Exactly one failed cross-check, the wrong engine's, at the wrong entry. A wrong A moves
+      // the eigenvalues too (by ~1e-6 relative: the eigenvalue checks fail as well); a wrong C or
+      // own Jacobian moves nothing else.
+      int jacobian_failed = 0, other_failed = 0;
+      for (const LinearCheck& k : r.checks) {
+        if (k.passed) continue;
+        if (k.kind != "jacobian") {
+          ++other_failed;
+          CHECK(c.which == WrongTangent::Which::A);
+          CHECK((k.engine_a == engine + "*wrong" || k.engine_b == engine + "*wrong"));
+          continue;
+        }
+        ++jacobian_failed;
+        CHECK(k.engine_a == engine + "*wrong");
+        CHECK_THAT(k.what, Catch::Contains(c.says));
+      }
+      CHECK(jacobian_failed == 1);
+      CHECK_FALSE(r.passed());
+    }
 }

@@ -446,6 +446,10 @@ TEST_CASE("errors: prescribed joints name the key and what is wrong") {
     expect_error(fast, line_of(fast, "rate: 2e5"), "rate", "at most 1e4 rad/s");
     const std::string word = edit("profile: spin-up", "profile: spin-down", with);
     expect_error(word, line_of(word, "spin-down"), "profile", "spin-up");
+    // The schema's noun keeps its article for "expected a motion profile"; "unknown" drops it.
+    expect_error(word, line_of(word, "spin-down"), "profile", "unknown motion profile 'spin-down'");
+    const std::string frame = edit("      angular_velocity: [0, 0, 1]\n", "      angular_velocity: [0, 0, 1]\n      frame: body\n");
+    expect_error(frame, line_of(frame, "frame: body"), "frame", "unknown frame 'body'");
   }
   // A joint without a parent must be prescribed (it then holds the base, replacing the free
   // joint); a missing parent on any other joint is the old error with the reason.

@@ -3,6 +3,7 @@
 #include "core/integrate.hpp"
 #include "core/scene/scene.hpp"
 #include "core/scene/schema.hpp"
+#include "core/scene/text.hpp"
 #include "tests/support/paths.hpp"
 
 #include <catch2/catch.hpp>
@@ -296,6 +297,15 @@ TEST_CASE("schema: every row is well formed") {
         k.type == Type::Name)
       CHECK(!k.noun.empty());
     CHECK((k.type == Type::Word) == !k.words.empty());
+    // A word's noun follows "unknown" in the reader's message, without its article ("unknown a
+    // motion profile" was a slip): what remains is a bare noun.
+    if (k.type == Type::Word) {
+      const std::string bare = scene::without_article(std::string(k.noun));
+      CHECK(!bare.empty());
+      CHECK(!bare.starts_with("a "));
+      CHECK(!bare.starts_with("an "));
+      CHECK(!bare.starts_with("the "));
+    }
     const bool dimensional = k.type == Type::Quantity || k.type == Type::Vector ||
                              k.type == Type::Pair || k.type == Type::Inertia;
     CHECK(dimensional == (k.dimension != units::Dimension::None));
