@@ -844,6 +844,24 @@ std::vector<std::string> keyhole_notes(const System& system, const RunResult& ru
 
 }  // namespace
 
+namespace {
+const std::string kLoadsNote =
+    "joint loads differ while the motions agree: loads follow the accelerations, in which a stiff "
+    "mode or spring multiplies an integration error by its stiffness; run compare at a tighter "
+    "--rtol and --atol: a difference that falls with them is integration, one that stays is "
+    "physics (then set the scene's `load` tolerance if the difference is below what matters)";
+
+// The failed load check with the largest normalised error, or none.
+const Check* worst_failed_load(const SceneComparison& c) {
+  const Check* worst = nullptr;
+  for (const Check& k : c.checks)
+    if (k.group == "load" && k.status == CheckStatus::Fail &&
+        (!worst || std::isnan(k.normalised) || k.normalised > worst->normalised))
+      worst = &k;
+  return worst;
+}
+}  // namespace
+
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) {
   SceneComparison out;
   out.scene = system.name;
@@ -1051,11 +1069,7 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
     });
   };
   if (failed_in({"load"}) && !failed_in({"run", "t", "w", "attitude", "rate", "angle", "position", "modal"}))
-    out.notes.push_back(
-        "joint loads differ while the motions agree: loads follow the accelerations, in which a stiff "
-        "mode or spring multiplies an integration error by its stiffness; run compare at a tighter "
-        "--rtol and --atol: a difference that falls with them is integration, one that stays is "
-        "physics (then set the scene's `load` tolerance if the difference is below what matters)");
+    out.notes.push_back(kLoadsNote);
 
   // Scene keys that match nothing are almost always typos: say so.
   for (const auto& [key, tol] : system.compare.tolerances)
@@ -1152,6 +1166,43 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   }
   SceneComparison c = compare_runs(system, std::move(runs));
   c.settings = settings;
+
+  // Loads failing while the motions agree: measure whether the difference is integration error
+  // (it falls with the tolerances) or physics (it stays), instead of only saying how to.
+  const auto note = std::find(c.notes.begin(), c.notes.end(), kLoadsNote);
+  const Check* worst = worst_failed_load(c);
+  if (options.diagnose_loads && note != c.notes.end() && worst && settings.method.value() != Integrator::Rk4) {
+    CompareOptions tight = options;
+    tight.diagnose_loads = false;
+    tight.rtol = settings.rtol / 100;
+    tight.atol = settings.atol / 100;
+    tight.integrator = settings.method;
+    const SceneComparison t = compare_scene(system, tight);
+    const Check* again = nullptr;
+    for (const Check& k : t.checks)
+      if (k.quantity == worst->quantity && k.a == worst->a && k.b == worst->b) again = &k;
+    const std::string at = "--rtol " + sci(*tight.rtol, 2) + " --atol " + sci(*tight.atol, 2);
+    const std::string what = worst->quantity + " (" + worst->a + " vs " + worst->b + ")";
+    if (!again || again->status == CheckStatus::Skipped) {
+      *note += "; at " + at + " (100 times tighter) " + what + " could not be compared: " +
+               (t.passed() ? std::string("see compare") : "that run did not pass either");
+    } else if (again->error <= 0.1 * worst->error) {
+      const bool all_pass = worst_failed_load(t) == nullptr;
+      *note = "joint loads differ by integration error, not physics: at " + at +
+              " (100 times tighter) the largest, " + what + ", falls from " + sci(worst->error, 2) + " to " +
+              sci(again->error, 2) + " (" + sci(worst->normalised, 2) + " -> " + sci(again->normalised, 2) +
+              " of its bound); loads follow the accelerations, in which a stiff mode or spring multiplies the "
+              "state's integration error by its stiffness. " +
+              (all_pass ? "Every load passes there: set the scene's run.rtol and run.atol to those values"
+                        : "Tighten the scene's run.rtol and run.atol further") +
+              ", or its `load` tolerance if the difference is below what matters";
+    } else {
+      *note = "joint loads differ and the difference does not fall with the tolerances: at " + at +
+              " (100 times tighter) " + what + " is " + sci(again->error, 2) + ", was " + sci(worst->error, 2) +
+              ": not integration error; the engines' loads disagree (physics, or a load convention) "
+              "while their motions agree";
+    }
+  }
   return c;
 }
 

@@ -104,6 +104,10 @@ struct CompareOptions {
   // engine's P and M are checked against them row by row (E.rate, H.rate). Off for converge's
   // model runs, which compare states only.
   bool rates = true;
+  // When joint loads fail while the motions agree, run the scene again at tolerances 100 times
+  // tighter (adaptive integrators) and say, with the figures, whether the difference falls with
+  // them (integration error) or stays (physics). Off for that second run.
+  bool diagnose_loads = true;
 };
 
 // The command-line options compare and verify share (harness/compare_command.cpp).

@@ -334,6 +334,13 @@ std::string format_verify_table(const VerifyResult& r, bool strict) {
       failures += "\n";
       ++lines;
     }
+    // What compare found out about the failures (loads differing by integration error, measured).
+    if (!by_quantity.empty())
+      for (const std::string& note : s.comparison->notes)
+        if (note.starts_with("joint loads differ")) {
+          failures += "    " + note + "\n";
+          ++lines;
+        }
   }
   if (left_out > 0)
     failures += "  ... " + std::to_string(left_out) +
