@@ -801,3 +801,76 @@ TEST_CASE("linearize: a wrong exact tangent (A, C or the engine's own Jacobian) 
       CHECK_FALSE(r.passed());
     }
 }
+
+// A user's scene (docs/writing-a-scene.md): a slowly turning bus, a sprung telescoping mast (a
+// prismatic joint) and a sprung two-axis gimbal with a motor. |H| cannot move under an internal
+// motor (C_H A = 0 and C_H B = 0), so its transfer functions are zero: a cancellation of terms of
+// about |C_H| |X| ~ 1, which failed against a bound of 1e-14 of the largest |G| (2.1e-12 vs
+// 3.3e-15). The bound now carries each engine's rounding and its matrices' errors per pair
+// (transfer_allowance); it stays far below what a wrong C row moves (1e-6 of C_H: ~1e-6).
+TEST_CASE("linearize: a transfer function that a conservation law makes zero passes at rounding, and a wrong output row still fails it") {
+  const System s = read_scene_text(R"(name: telescope_gimbal
+bodies:
+  - {name: bus, mass: 500 kg, inertia: [300, 350, 420]}
+  - {name: mast, mass: 8 kg, inertia: [0.05, 1.2, 1.2]}
+  - {name: head, mass: 12 kg, inertia: [0.4, 0.3, 0.35]}
+joints:
+  - {name: base, type: free, child: bus, initial: {angular_velocity: [0, 0, 0.05]}}
+  - name: slider
+    type: prismatic
+    parent: bus
+    child: mast
+    parent_point: [1.2, 0, 0]
+    child_point: [-1.0, 0, 0]
+    axis: [1, 0, 0]
+    spring: {stiffness: 400 N/m, neutral_position: 0.3 m}
+    damper: {damping: 4 N s/m}
+    initial: {position: 0.3 m, rate: 0}
+  - name: gimbal
+    type: universal
+    parent: mast
+    child: head
+    parent_point: [1.0, 0, 0]
+    child_point: [-0.2, 0, 0]
+    axis: [0, 0, 1]
+    axis2: [0, 1, 0]
+    spring: {stiffness: [25, 18]}
+    damper: {damping: [0.5, 0.4]}
+    motor: {profile: [{t: 0, value: [0, 0]}]}
+run: {duration: 60 s, output_step: 0.5 s}
+)",
+                                   "telescope_gimbal.yaml");
+  LinearizeOptions o = every_engine();
+  o.point = OperatingPoint::Spin;
+  o.outputs = {"slider.Fx", "gimbal.angle1", "H"};
+  const LinearizeResult r = linearize(s, o);
+  INFO(failed_checks(r));
+  CHECK(r.passed());
+  int zero_pairs = 0;
+  for (const LinearCheck& c : r.checks)
+    if (c.kind == "transfer" && c.what.starts_with("H <- ")) {
+      INFO(c.what << ": " << c.engine_a << " " << c.a << " vs " << c.engine_b << " " << c.b << ", bound " << c.bound);
+      CHECK(std::abs(c.a) < 1e-10);
+      CHECK(c.bound < 1e-7);
+      ++zero_pairs;
+    }
+  CHECK(zero_pairs == 2 * (static_cast<int>(r.engines.size()) - 1));
+
+  // kane's C row of H 1e-6 off: |H| <- gimbal.motor1 is then ~1e-6, and fails.
+  const std::vector<std::string> columns = pinned_columns(s);
+  const auto H = static_cast<std::size_t>(std::find(columns.begin(), columns.end(), "H") - columns.begin());
+  LinearizeOptions w = o;
+  w.engines.at(0).factory = [H](const System& sys, const EngineOptions& opt) -> std::unique_ptr<Engine> {
+    auto e = std::make_unique<WrongTangent>(make_engine("kane", sys, opt), WrongTangent::Which::C);
+    e->column_ = H;
+    return e;
+  };
+  const LinearizeResult bad = linearize(s, w);
+  int transfer_failed = 0;
+  for (const LinearCheck& c : bad.checks)
+    if (c.kind == "transfer" && !c.passed) {
+      CHECK(c.what.starts_with("H <- gimbal.motor"));
+      ++transfer_failed;
+    }
+  CHECK(transfer_failed >= 1);
+}
