@@ -3,6 +3,7 @@
 #include "harness/scene_warnings.hpp"
 
 #include "core/engine.hpp"
+#include "core/orbit.hpp"
 #include "core/errors.hpp"
 #include "core/scene/schema.hpp"
 #include "core/rotation.hpp"
@@ -378,9 +379,17 @@ std::string geometry_json(const System& system, const Configuration& initial,
     if (J.type == JointType::Free) j["initial_w_NB_B_rad_s"] = vec(J.w_NB_B0);
     joints.push_back(j);
   }
+  // On an orbit: the orbit frame O (LVLH; core/orbit.hpp) at each configuration's time, so that
+  // the picture shows where nadir and the along-track direction are (a gravity-gradient scene's
+  // attitude is set relative to them).
+  const bool orbit = system.environment.orbit();
+  const auto with_orbit = [&](json j, double t) {
+    if (orbit) j["R_NO"] = mat(orbit_frame(system.environment, t).R_NO);
+    return j;
+  };
   json frames = json::array();
-  for (const Configuration& c : motion) frames.push_back(configuration_json(c, true));
-  const json doc = {
+  for (const Configuration& c : motion) frames.push_back(with_orbit(configuration_json(c, true), c.t));
+  json doc = {
       {"format", "crossdyn scene geometry"},
       {"version", 1},
       {"scene", system.name},
@@ -398,12 +407,16 @@ std::string geometry_json(const System& system, const Configuration& initial,
       {"bodies", bodies},
       {"joints", joints},
       {"warnings", warnings_json(warnings)},
-      {"initial", configuration_json(initial, false)},
+      {"initial", with_orbit(configuration_json(initial, false), initial.t)},
       {"motion", {{"engine", source.engine},
                   {"state", source.state},
                   {"note", source.note},
                   {"duration_s", source.duration},
                   {"frames", frames}}}};
+  if (orbit)
+    doc["orbit"] = {{"what", "O: the orbit frame (LVLH): o1 along-track, o2 the negative orbit normal, "
+                             "o3 nadir; each configuration's R_NO (columns o1 o2 o3 in N), drawn at the "
+                             "base's CM"}};
   return doc.dump(1) + "\n";
 }
 

@@ -19,6 +19,8 @@ numbers, matrices lists of 3 rows; SI units; frames as in core/system.hpp:
                      bodies: [{p_NoBo_N, R_NB, nodes_N (flexible bodies: the nodes, deformed)}],
                      joints: [{p_NoJ_N_parent, p_NoJ_N_child, gap_m, axis_N_parent, axis_N_child,
                                axis_mismatch_rad, phi_J_rad}]}
+    orbit       (a scene on an orbit) {what}; every configuration then has R_NO, the orbit frame
+                O (LVLH: o1 along-track, o2 the negative orbit normal, o3 nadir) at its time
     warnings    the scene's warnings as crossdyn printed them (harness/scene_warnings.hpp):
                 [{code, subject, line (null: none), column, message}]; the picture shows these and
                 makes none of its own, so that it and the terminal always say the same
@@ -54,6 +56,7 @@ MISMATCH = "#ff0000"     # joint points or axes that should coincide but do not;
 SYMMETRY = "#b35900"     # the mirror-axes warning: mirror-image panels that do not move as such
 SPIN = "#d1007f"         # the base's initial angular velocity
 N_COLOUR = "0.35"
+ORBIT = "#0b7a75"        # the orbit frame O (LVLH): along-track, -orbit normal, nadir
 VIEW = dict(elev=22, azim=-60)
 FACES = [(0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5)]
 # The three projections drawn beside the 3-D view: (title, right axis, up axis); the viewer looks
@@ -387,6 +390,9 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
         for q in nodes:
             painter.marker(np.asarray(q, float), s=14 if detail else 8, marker="D", color=darker(cols[i]))
 
+    if "R_NO" in frame:
+        draw_orbit_axes(painter, geom, frame, half, detail, labels)
+
     for joint, js in zip(geom["joints"], frame["joints"]):
         pp = np.asarray(js["p_NoJ_N_parent"], float)
         pc = np.asarray(js["p_NoJ_N_child"], float)
@@ -454,6 +460,23 @@ def draw_configuration(painter, geom, frame, half, detail=True, labels=None, ini
                 label += ", prescribed"
             labels.add(pp, label, colour=AXIS_ARROW if joint["type"] == "revolute" else "black",
                        size=8.5 if detail else 7, priority=2)
+
+
+def draw_orbit_axes(painter, geom, frame, half, detail, labels):
+    """The orbit frame O (LVLH) at the base's CM: o1 along-track, o2 the negative orbit normal, o3
+    nadir (towards the central body), in teal, so that an attitude given relative to O can be
+    checked by eye."""
+    base = next((i for i, b in enumerate(geom["bodies"]) if b.get("is_base")), 0)
+    p = np.asarray(frame["bodies"][base]["p_NoBo_N"], float)
+    R = np.asarray(frame["R_NO"], float)
+    L = (0.75 if detail else 0.6) * half
+    for k, name in enumerate(("o1 along-track", "o2 -orbit normal", "o3 nadir")):
+        painter.arrow(p, R[:, k] * L, ORBIT, lw=1.6 if detail else 1.0, head=0.12)
+        if detail:
+            painter.text(p + R[:, k] * L * 1.08, name.split()[0], color=ORBIT, fontsize=8, weight="bold",
+                         ha="center", va="center")
+            if labels is not None:
+                labels.add(p + R[:, k] * L, name, colour=ORBIT, size=7.5, priority=1)
 
 
 def base_joint_free(geom):
@@ -564,6 +587,8 @@ def legend_handles(geom):
                   "fixed joint"))
     h.append((Line2D([], [], color=SPIN, lw=2.0), "base's initial angular velocity"))
     h.append((Line2D([], [], color=N_COLOUR, linestyle=(0, (6, 3))), "frame N's axes, at its origin"))
+    if "orbit" in geom:
+        h.append((Line2D([], [], color=ORBIT, lw=1.6), "orbit frame O (LVLH) at the base: o1 along-track, o3 nadir"))
     return h
 
 

@@ -6,6 +6,7 @@
 #include <catch2/catch.hpp>
 
 #include "core/integrate.hpp"
+#include "core/orbit.hpp"
 #include "core/rotation.hpp"
 #include "core/scene/scene.hpp"
 #include "harness/engines.hpp"
@@ -335,4 +336,41 @@ TEST_CASE("scene geometry: a joint at a flexible body's node moves and turns wit
   const double row[] = {0.5, 1, 0, 0, 0, 1, 0, 0, 0, 2.0};
   const g::Configuration r = g::configuration_from_row(s, columns, row);
   CHECK((r.bodies[1].p_NoBo_N - r.bodies[0].p_NoBo_N).isApprox(Vector3d(3, 0.2, 0), kTight));
+}
+
+// On an orbit the picture shows the orbit frame O (LVLH) at every configuration's time: boom_on_orbit's
+// boom is set along nadir (o3) relative to O, pitched by 0.001 rad, so at t = 0 the boom's axis from
+// the hub must make that angle with R_NO's third column; off an orbit there is no R_NO.
+TEST_CASE("scene geometry: a scene on an orbit carries the orbit frame O at each configuration's time") {
+  const System s = crossdyn::read_scene(scene("scenarios/boom_on_orbit.yaml"));
+  REQUIRE(s.environment.orbit());
+  g::MotionSource source;
+  source.engine = "kane";
+  source.state = "ok";
+  source.duration = s.run.duration;
+  const g::Configuration c0 = g::initial_configuration(s);
+  g::Configuration later = c0;
+  later.t = 1500;
+  const nlohmann::json j = nlohmann::json::parse(g::geometry_json(s, c0, {later}, source, {}));
+  REQUIRE(j.contains("orbit"));
+  const auto R = [](const nlohmann::json& m) {
+    Eigen::Matrix3d r;
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) r(a, b) = m[static_cast<std::size_t>(a)][static_cast<std::size_t>(b)];
+    return r;
+  };
+  for (const auto& [frame, t] : {std::pair{j["initial"], 0.0}, std::pair{j["motion"]["frames"][0], 1500.0}}) {
+    INFO("t = " << t);
+    REQUIRE(frame.contains("R_NO"));
+    CHECK(R(frame["R_NO"]).isApprox(crossdyn::orbit_frame(s.environment, t).R_NO, 1e-15));
+  }
+  // The boom (body 1) hangs from the hub along nadir at t = 0, pitched by the scene's 0.001 rad.
+  const Vector3d down = c0.bodies[1].p_NoBo_N - c0.bodies[0].p_NoBo_N;
+  CHECK(std::acos(down.normalized().dot(R(j["initial"]["R_NO"]).col(2))) == Approx(0.001).epsilon(1e-6));
+  // Off an orbit: none.
+  const System flat = crossdyn::read_scene(scene("tests/harness/scenes/hinged_panels.yaml"));
+  const nlohmann::json k = nlohmann::json::parse(
+      g::geometry_json(flat, g::initial_configuration(flat), {}, source, {}));
+  CHECK_FALSE(k.contains("orbit"));
+  CHECK_FALSE(k["initial"].contains("R_NO"));
 }
