@@ -997,6 +997,379 @@ struct TangentTwin {
         u[v0 + i].d = -P(static_cast<Eigen::Index>(i)).d / e.total_mass_;
     }
   }
+
+  // ---------------------------------------------------------------------------------------------
+  // The output row (output_row(): diagnostics.cpp, rigid_fast_path.cpp, loads.cpp, gravity.cpp,
+  // the units' output verbs; RowWriter::body of core/output_layout.cpp for the orbit columns) of a
+  // rigid tree, from the twin's kinematics and full accelerations at x, every column in layout()
+  // order (the time column a constant).  The same equations as the run's, in the same terms:
+  //   attitudes q_NC = q_NP q_PJ0 q_J (q_J = (cos a/2, sin a/2 k) per axis; a spherical joint's
+  //     and a free base's quaternions normalised), written with qw >= 0 (the sign by value);
+  //   w_NB_B = R^T w;  the joint coordinates and rates from x (a prescribed joint: its profile,
+  //     and its drive tau = -W . M_sub - V . F_sub);
+  //   T = sum 1/2 m v.v + 1/2 w.I w,  P = sum m v,  H = sum I w + p_Bo x m v - cm x P;
+  //   V = hinge springs (1/2 k d^2; a ball's 1/2 k |phi(q)|^2) + gravity's potential;
+  //   joint loads: F_N = -F_sub, M_J_N = -M_sub, the sums over S(k) about Ok of R_B = -m a + F_g,
+  //     T_B = T_ext - I alpha - s_g w x I w + tau_g (the full accelerations; loads.cpp);
+  //   power, external moment (body torques, a prescribed base's reaction, gravity's moment about
+  //     the CM), roll/pitch/yaw of R_OB = R_NO^T R_NB, w_OB_B = w_B - R^T w_NO, J = E - w_NO .
+  //     (H + (p_cm - p_O) x P), and kane's extras (T, V, H_N, P_N, the quaternions' |q| - 1).
+  struct Quat {
+    Dual w, x, y, z;
+    Quat operator*(const Quat& b) const {
+      return {w * b.w - x * b.x - y * b.y - z * b.z, w * b.x + x * b.w + y * b.z - z * b.y,
+              w * b.y - x * b.z + y * b.w + z * b.x, w * b.z + x * b.y - y * b.x + z * b.w};
+    }
+    Dual norm() const { return sqrt(w * w + x * x + y * y + z * z); }
+    Quat normalized() const {
+      const Dual n = norm();
+      return {w / n, x / n, y / n, z / n};
+    }
+  };
+  static Quat quat(const Quaterniond& q) { return {q.w(), q.x(), q.y(), q.z()}; }
+  static Quat quat(const Dual* q) { return {q[0], q[1], q[2], q[3]}; }
+  static Quat axis_quat(const Vector3d& k, const Dual& angle) {
+    const Dual h = 0.5 * angle, s = sin(h);
+    return {cos(h), s * k.x(), s * k.y(), s * k.z()};
+  }
+  static Dual asin_clamped(const Dual& a) {  // asin of a clamped to [-1, 1] (roll_pitch_yaw)
+    if (a.v >= 1.0) return Dual(std::asin(1.0));
+    if (a.v <= -1.0) return Dual(std::asin(-1.0));
+    return {std::asin(a.v), a.d / std::sqrt(1.0 - a.v * a.v)};
+  }
+
+  static void output(const KaneEngine& e, double t, const Dual* x, std::vector<Dual>& row) {
+    std::vector<TwinWork<Dual>> w;
+    std::vector<Dual> udot;
+    dynamics<Dual>(e, t, x, w, udot);
+    const std::size_t nn = e.nodes_.size();
+    const Dual* u = x + e.n_q_;
+    const OutputLayout& L = e.layout_;
+    row.assign(L.size(), Dual(std::numeric_limits<double>::quiet_NaN()));
+    row[0] = t;
+    V3<Dual> p0 = V3<Dual>::Zero();  // the base's body-frame origin from No (base_origin)
+    if (e.nodes_[0].shape == JointShape::Base6)
+      p0 = V3<Dual>(x[e.nodes_[0].q0], x[e.nodes_[0].q0 + 1], x[e.nodes_[0].q0 + 2]);
+
+    // The environment's loads per body (gravity_pass): F_g at Bo, tau_g about Bo.
+    OrbitFrame o;
+    M3<Dual> T_N = M3<Dual>::Zero();
+    V3<Dual> z_N = V3<Dual>::Zero();
+    double n2 = 0;
+    if (e.orbit_) {
+      o = orbit_frame(e.system_.environment, t);
+      n2 = o.n * o.n;
+      z_N = cst<Dual>(o.zenith_N);
+      Matrix3d T = (3.0 * n2) * o.zenith_N * o.zenith_N.transpose();
+      T.diagonal().array() -= n2;
+      T_N = cst<Dual>(T);
+    }
+    std::vector<V3<Dual>> Fg(nn, V3<Dual>::Zero()), tg(nn, V3<Dual>::Zero());
+    if (e.gravity_)
+      for (std::size_t k = 0; k < nn; ++k) {
+        const Node& n = e.nodes_[k];
+        if (!e.orbit_) {
+          Fg[k] = n.mass * cst<Dual>(e.g_N_);
+          continue;
+        }
+        const V3<Dual> r_c = p0 + w[k].p_Bo - cst<Dual>(e.p_NoO_N_);
+        Fg[k] = n.mass * (T_N * r_c);
+        if (n.inertia == Node::Inertia::Isotropic) continue;
+        const V3<Dual> z_B = w[k].R.transpose() * z_N;
+        tg[k] = (3.0 * n2) * z_N.cross(V3<Dual>(w[k].R * (cst<Dual>(n.I_BBo_B) * z_B)));
+      }
+
+    // Joint loads (loads.cpp): S(k)'s sums of the residual loads about Ok, full accelerations.
+    std::vector<V3<Dual>> F_sub(nn, V3<Dual>::Zero()), M_sub(nn, V3<Dual>::Zero());
+    std::vector<V3<Dual>> T_ext(nn, V3<Dual>::Zero());  // the body torque, N components
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const TwinWork<Dual>& W = w[k];
+      V3<Dual> R_B = -n.mass * W.a, T_B;
+      if (n.inertia == Node::Inertia::Isotropic)
+        T_B = -(n.I_BBo_B(0, 0) * W.alpha);
+      else
+        T_B = -(W.I_N * W.alpha) - e.gyro_sign_ * W.w.cross(W.I_N * W.w);
+      if (n.body_torque) {
+        const Body& body = e.system_.bodies[static_cast<std::size_t>(n.body)];
+        const V3<Dual> Tq = cst<Dual>(body.torque.value(t));
+        T_ext[k] = body.torque_frame == Body::Frame::Body ? V3<Dual>(W.R * Tq) : Tq;
+        T_B += T_ext[k];
+      }
+      R_B += Fg[k];
+      T_B += tg[k];
+      for (int a = static_cast<int>(k); a >= 0; a = e.nodes_[static_cast<std::size_t>(a)].parent) {
+        const std::size_t ai = static_cast<std::size_t>(a);
+        F_sub[ai] += R_B;
+        M_sub[ai] += T_B + V3<Dual>(W.p_Bo - w[ai].p_Ok).cross(R_B);
+      }
+    }
+    std::vector<Dual> pres_torque(nn, Dual(0.0));
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      if (!n.prescribed) continue;
+      pres_torque[k] = -w[k].W.col(0).dot(M_sub[k]);
+      if (n.slides) pres_torque[k] -= w[k].V.col(0).dot(F_sub[k]);
+    }
+
+    // Attitudes, body columns (and the orbit's), momenta and energies.
+    std::vector<Quat> qN(nn);
+    Dual quat_err = 0.0, T2 = 0.0;
+    V3<Dual> P = V3<Dual>::Zero(), H = V3<Dual>::Zero(), first_moment = V3<Dual>::Zero();
+    auto track = [&quat_err](const Quat& q) {
+      const Dual err = abs(q.norm() - 1.0);
+      if (err.v > quat_err.v) quat_err = err;
+    };
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const TwinWork<Dual>& W = w[k];
+      if (n.shape == JointShape::Base6) {
+        const Quat q = quat(x + n.q0 + 3);
+        track(q);
+        qN[k] = q.normalized();
+      } else {
+        Quat qJ{1.0, 0.0, 0.0, 0.0};
+        switch (n.shape) {
+          case JointShape::Axis1:
+            qJ = axis_quat(n.axis_J, n.prescribed ? Dual(W.pres_angle) : x[n.q0]);
+            break;
+          case JointShape::Rotation3: {
+            const Quat q = quat(x + n.q0);
+            track(q);
+            qJ = q.normalized();
+          } break;
+          case JointShape::Gimbal2:
+            qJ = axis_quat(n.axis_J, x[n.q0]) * axis_quat(n.axis2_J, x[n.q0 + 1]);
+            break;
+          default:
+            break;
+        }
+        const Quat qNJp = n.parent >= 0 ? qN[static_cast<std::size_t>(n.parent)] : Quat{1.0, 0.0, 0.0, 0.0};
+        qN[k] = (n.has_offset ? qNJp * quat(n.q_PJ0) * qJ : qNJp * qJ).normalized();
+      }
+      const V3<Dual> w_B = W.R.transpose() * W.w;
+      const int b = n.body;
+      const int cw = L.body_w(b);
+      for (int i = 0; i < 3; ++i) row[static_cast<std::size_t>(cw + i)] = w_B(i);
+      const double sg = qN[k].w.v < 0 ? -1.0 : 1.0;
+      const Quat qc{sg * qN[k].w, sg * qN[k].x, sg * qN[k].y, sg * qN[k].z};
+      row[static_cast<std::size_t>(cw + 3)] = qc.w;
+      row[static_cast<std::size_t>(cw + 4)] = qc.x;
+      row[static_cast<std::size_t>(cw + 5)] = qc.y;
+      row[static_cast<std::size_t>(cw + 6)] = qc.z;
+      if (L.lvlh(b) >= 0) {
+        const Dual qa[4] = {qc.w, qc.x, qc.y, qc.z};
+        const M3<Dual> R_NB = quat_matrix(qa);
+        const M3<Dual> R = cst<Dual>(Matrix3d(o.R_NO.transpose())) * R_NB;
+        const Dual sp = -R(2, 0);
+        const Dual pitch = asin_clamped(sp);
+        Dual roll = 0.0, yaw;
+        if (std::abs(sp.v) > 1.0 - 1e-12)
+          yaw = atan2(-R(0, 1), R(1, 1));
+        else {
+          roll = atan2(R(2, 1), R(2, 2));
+          yaw = atan2(R(1, 0), R(0, 0));
+        }
+        const V3<Dual> w_OB = w_B - R_NB.transpose() * cst<Dual>(o.w_NO_N);
+        const std::size_t c0 = static_cast<std::size_t>(L.lvlh(b));
+        row[c0] = roll;
+        row[c0 + 1] = pitch;
+        row[c0 + 2] = yaw;
+        for (std::size_t i = 0; i < 3; ++i) row[c0 + 3 + i] = w_OB(static_cast<Eigen::Index>(i));
+      }
+      const V3<Dual> P_B = n.mass * W.v;
+      const V3<Dual> h_Bo = W.I_N * W.w;
+      T2 += P_B.dot(W.v) + h_Bo.dot(W.w);
+      P += P_B;
+      first_moment += n.mass * W.p_Bo;
+      H += h_Bo + W.p_Bo.cross(P_B);
+    }
+    const Dual T = 0.5 * T2;
+    const V3<Dual> cm = first_moment / e.total_mass_;
+    H -= cm.cross(P);
+    const V3<Dual> p_cm = p0 + cm;
+
+    // Potential energy: hinge springs (the units' spring_energy), gravity (gravity_potential).
+    Dual V = 0.0;
+    for (const Node& n : e.nodes_) {
+      if (!n.hinge_load) continue;
+      const Joint& J = e.system_.joints[static_cast<std::size_t>(n.joint)];
+      if (J.stiffness == 0 && J.stiffness2 == 0) continue;
+      switch (n.shape) {
+        case JointShape::Axis1:
+        case JointShape::Slide1: {
+          const Dual d = x[n.q0] - J.neutral_angle;
+          V += 0.5 * J.stiffness * d * d;
+        } break;
+        case JointShape::Gimbal2: {
+          const Dual d1 = x[n.q0] - J.neutral_angle, d2 = x[n.q0 + 1] - J.neutral_angle2;
+          V += 0.5 * J.stiffness * d1 * d1 + 0.5 * J.stiffness2 * d2 * d2;
+        } break;
+        case JointShape::Rotation3:
+          V += 0.5 * J.stiffness * rotation_vector(x + n.q0).squaredNorm();
+          break;
+        default:
+          break;
+      }
+    }
+    if (e.gravity_)
+      for (std::size_t k = 0; k < nn; ++k) {
+        const Node& n = e.nodes_[k];
+        if (!e.orbit_) {
+          V -= cst<Dual>(e.g_N_).dot(V3<Dual>(n.mass * (p0 + w[k].p_Bo)));
+          continue;
+        }
+        const V3<Dual> r_c = p0 + w[k].p_Bo - cst<Dual>(e.p_NoO_N_);
+        const Dual zr = z_N.dot(r_c);
+        V -= 0.5 * n.mass * n2 * (3.0 * zr * zr - r_c.squaredNorm());
+        const V3<Dual> z_B = w[k].R.transpose() * z_N;
+        V += 1.5 * n2 * z_B.dot(cst<Dual>(n.I_BBo_B) * z_B) - 0.5 * n2 * n.I_BBo_B.trace();
+      }
+
+    // The joints' columns (the units' output verbs).
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const std::size_t c0 = static_cast<std::size_t>(L.joint_first(n.joint));
+      switch (n.shape) {
+        case JointShape::Axis1:
+        case JointShape::Slide1:
+          if (n.prescribed) {
+            row[c0] = w[k].pres_angle;
+            row[c0 + 1] = w[k].pres_rate;
+            row[c0 + 2] = pres_torque[k];
+          } else {
+            row[c0] = x[n.q0];
+            row[c0 + 1] = u[n.u0];
+          }
+          break;
+        case JointShape::Rotation3:
+          for (std::size_t i = 0; i < 3; ++i) row[c0 + i] = u[n.u0 + static_cast<int>(i)];
+          break;
+        case JointShape::Gimbal2:
+          row[c0] = x[n.q0];
+          row[c0 + 1] = x[n.q0 + 1];
+          row[c0 + 2] = u[n.u0];
+          row[c0 + 3] = u[n.u0 + 1];
+          break;
+        default:
+          break;
+      }
+    }
+    for (std::size_t i = 0; i < 3; ++i) row[static_cast<std::size_t>(L.H_vector()) + i] = H(static_cast<Eigen::Index>(i));
+    row[static_cast<std::size_t>(L.H())] = H.norm();
+    row[static_cast<std::size_t>(L.E())] = T + V;
+
+    // Issue 26's columns (write_issue26_columns).
+    Dual Pw = 0.0;
+    V3<Dual> M_ext = V3<Dual>::Zero();
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const TwinWork<Dual>& W = w[k];
+      const Joint& J = e.system_.joints[k];
+      const std::size_t cp = static_cast<std::size_t>(L.body_position(n.body));
+      for (std::size_t i = 0; i < 3; ++i) row[cp + i] = p0(static_cast<Eigen::Index>(i)) + W.p_Bo(static_cast<Eigen::Index>(i));
+      if (n.shape != JointShape::Base6) {
+        const V3<Dual> F_C = W.R.transpose() * V3<Dual>(-F_sub[k]),
+                       M_C = W.R.transpose() * V3<Dual>(-M_sub[k]);
+        const std::size_t cl = static_cast<std::size_t>(L.joint_load(n.joint));
+        for (std::size_t i = 0; i < 3; ++i) {
+          row[cl + i] = F_C(static_cast<Eigen::Index>(i));
+          row[cl + 3 + i] = M_C(static_cast<Eigen::Index>(i));
+        }
+      }
+      if (n.prescribed) {
+        Pw += pres_torque[k] * W.pres_rate;
+      } else {
+        switch (n.shape) {
+          case JointShape::Axis1:
+          case JointShape::Slide1: {
+            const Dual rate = u[n.u0];
+            const double motor = J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0);
+            Pw += (motor - n.damping_P * rate) * rate;
+          } break;
+          case JointShape::Gimbal2: {
+            Eigen::Vector2d motor = Eigen::Vector2d::Zero();
+            if (!J.motor_universal.empty()) motor = J.motor_universal.value(t);
+            const Dual r1 = u[n.u0], r2 = u[n.u0 + 1];
+            Pw += (motor(0) - n.damping_P * r1) * r1 + (motor(1) - n.damping2_P * r2) * r2;
+          } break;
+          case JointShape::Rotation3: {
+            const V3<Dual> w_PC_C(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]);
+            Vector3d motor = Vector3d::Zero();
+            if (!J.motor_spherical.empty()) motor = J.motor_spherical.value(t);
+            Pw += V3<Dual>(cst<Dual>(motor) - n.damping_P * w_PC_C).dot(w_PC_C);
+          } break;
+          default:
+            break;
+        }
+      }
+      if (n.body_torque) {  // T . w (T_ext in N components: T_N . w_N either way)
+        Pw += T_ext[k].dot(W.w);
+        M_ext += T_ext[k];
+      }
+    }
+    if (e.nodes_[0].shape != JointShape::Base6)  // a prescribed base: N's load, moved to the CM
+      M_ext += V3<Dual>(-M_sub[0]) + V3<Dual>(p0 + w[0].p_Ok - p_cm).cross(V3<Dual>(-F_sub[0]));
+    if (e.gravity_)
+      for (std::size_t k = 0; k < nn; ++k) M_ext += V3<Dual>(p0 + w[k].p_Bo - p_cm).cross(Fg[k]) + tg[k];
+    for (std::size_t i = 0; i < 3; ++i) {
+      const Eigen::Index ii = static_cast<Eigen::Index>(i);
+      row[static_cast<std::size_t>(L.cm()) + i] = p_cm(ii);
+      row[static_cast<std::size_t>(L.external_moment()) + i] = M_ext(ii);
+    }
+    row[static_cast<std::size_t>(L.P())] = Pw;
+    if (e.orbit_) {
+      const V3<Dual> H_O = H + V3<Dual>(p_cm - cst<Dual>(e.p_NoO_N_)).cross(P);
+      row[static_cast<std::size_t>(L.J())] = T + V - cst<Dual>(o.w_NO_N).dot(H_O);
+    }
+    std::size_t c = static_cast<std::size_t>(e.extra0_);
+    row[c++] = T;
+    row[c++] = V;
+    for (Eigen::Index i = 0; i < 3; ++i) row[c++] = H(i);
+    for (Eigen::Index i = 0; i < 3; ++i) row[c++] = P(i);
+    row[c++] = quat_err;
+  }
+
+  // rhs() at x + e dx with dual x: the kinematical equations (the units' q_rates: q' = 1/2 q (x)
+  // (0, w) with q as stored, not normalised; q' = u for the scalar joints and the modal
+  // coordinates) and u' from the rigid or the flexible twin.
+  static void rhs(const KaneEngine& e, double t, const Dual* x, Dual* xdot) {
+    std::vector<TwinWork<Dual>> w;
+    std::vector<Dual> udot;
+    if (e.flex_.empty())
+      dynamics<Dual>(e, t, x, w, udot);
+    else
+      flex_dynamics(e, t, x, w, udot);
+    const Dual* u = x + e.n_q_;
+    auto quat_rate = [&](int q0, int u0) {  // rot::quat_rate_body
+      const Dual *q = x + q0, *wb = u + u0;
+      xdot[q0] = 0.5 * (-(q[1] * wb[0]) - q[2] * wb[1] - q[3] * wb[2]);
+      xdot[q0 + 1] = 0.5 * (q[0] * wb[0] + q[2] * wb[2] - q[3] * wb[1]);
+      xdot[q0 + 2] = 0.5 * (q[0] * wb[1] + q[3] * wb[0] - q[1] * wb[2]);
+      xdot[q0 + 3] = 0.5 * (q[0] * wb[2] + q[1] * wb[1] - q[2] * wb[0]);
+    };
+    for (const Node& n : e.nodes_) {
+      switch (n.shape) {
+        case JointShape::Base6:
+          for (int i = 0; i < 3; ++i) xdot[n.q0 + i] = u[n.u0 + 3 + i];
+          quat_rate(n.q0 + 3, n.u0);
+          break;
+        case JointShape::Rotation3:
+          quat_rate(n.q0, n.u0);
+          break;
+        case JointShape::Axis1:
+        case JointShape::Slide1:
+        case JointShape::Gimbal2:
+          if (n.prescribed) break;
+          for (int i = 0; i < n.nuj; ++i) xdot[n.q0 + i] = u[n.u0 + i];
+          break;
+        default:
+          break;
+      }
+      for (int l = 0; l < n.nm; ++l) xdot[n.q0 + n.nqj + l] = u[n.u0 + n.nuj + l];
+    }
+    for (int r = 0; r < e.n_u_; ++r) xdot[e.n_q_ + r] = udot[static_cast<std::size_t>(r)];
+  }
 };
 
 bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
@@ -1066,6 +1439,50 @@ bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeT
   }
   a = std::move(ra);
   da = std::move(rd);
+  return true;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Issue 27's output and rhs tangents (Engine::output_row_tangent, rhs_tangent), by the same dual
+// numbers through the same twin.
+
+bool KaneEngine::output_row_twin(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                                 double* drow) {
+  if (!output_tangent_) return false;
+  std::vector<Dual> x, r;
+  TangentTwin::pack(*this, s, ds, x);
+  TangentTwin::output(*this, t, x.data(), r);
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    row[i] = r[i].v;
+    drow[i] = r[i].d;
+  }
+  drow[0] = 0.0;  // the time column
+  return true;
+}
+
+bool KaneEngine::output_row_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                    double* row, double* drow) {
+  if (!output_tangent_) return false;
+  std::vector<double> twin_row(layout_.size());
+  output_row_twin(t, s, ds, twin_row.data(), drow);
+  // The row itself is output_row()'s at pack(s), to the last bit (the twin's value part agrees
+  // with it to rounding: tests/kane/test_kane_tangent.cpp).
+  std::vector<double> x(static_cast<std::size_t>(n_q_ + n_u_));
+  pack(s, x.data());
+  output_row(t, x.data(), row);
+  return true;
+}
+
+bool KaneEngine::rhs_tangent(double t, const double* x, const double* dx, double* xdot,
+                             double* dxdot) {
+  if (!tangent_) return false;
+  const std::size_t size = static_cast<std::size_t>(n_q_ + n_u_);
+  std::vector<Dual> xd(size), xdotd(size);
+  for (std::size_t i = 0; i < size; ++i) xd[i] = Dual(x[i], dx[i]);
+  TangentTwin::rhs(*this, t, xd.data(), xdotd.data());
+  for (std::size_t i = 0; i < size; ++i) dxdot[i] = xdotd[i].d;
+  // xdot is rhs()'s own (the twin's value part agrees with it to rounding).
+  rhs(t, x, xdot);
   return true;
 }
 
