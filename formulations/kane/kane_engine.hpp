@@ -291,7 +291,7 @@ struct KaneModel {
   // accelerations_tangent covers this System (tangent.cpp): decided once by the constructor
   // (rigid trees: no flexible body).
   bool tangent_ = false;
-  // output_row_tangent covers this System (rigid trees; decided once by the constructor).
+  // output_row_tangent covers this System (as tangent_; decided once by the constructor).
   bool output_tangent_ = false;
   std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
@@ -364,9 +364,9 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
   // The exact tangent of output_row() (Engine::output_row_tangent; tangent.cpp): the twin's
-  // kinematics and accelerations fed to a dual-number copy of the row's equations (every column;
-  // the row itself is output_row()'s); false (row and drow untouched) for a System with a flexible
-  // body.
+  // u' and its positions as Taylor polynomials in time fed to a dual-number copy of the row's
+  // equations (every column; the row itself is output_row()'s); false (row and drow untouched)
+  // where accelerations_tangent is.
   bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
                           double* drow) override;
   // The exact tangent of rhs() in x (Engine::rhs_tangent; tangent.cpp): the kinematical equations

@@ -516,6 +516,10 @@ struct TangentTwin {
     M3<Jet> R;
     V3<Jet> p;            // the body-frame origin Bo (absolute, from No)
     std::vector<V3<Jet>> pts;  // a flexible body's nodes
+    // The joint point Ok (absolute) and the parent-side joint frame R_NJp (output_jet; a free
+    // base: Bo and the identity).
+    V3<Jet> p_Ok;
+    M3<Jet> R_NJp = M3<Jet>::Identity();
   };
 
   // exp([psi x]) (NodeRotation): R = 1 + (1 - x b) S + a S^2, x = |psi|^2, by the series below
@@ -585,6 +589,7 @@ struct TangentTwin {
         W.R = quat_matrix(q.data() + n.q0 + 3);
         W.p = V3<Jet>(q[static_cast<std::size_t>(n.q0)], q[static_cast<std::size_t>(n.q0) + 1],
                       q[static_cast<std::size_t>(n.q0) + 2]);
+        W.p_Ok = W.p;
       } else {
         const JetFrame& P = n.parent >= 0 ? F[static_cast<std::size_t>(n.parent)] : ground;
         V3<Jet> r_Pj = cst<Jet>(n.p_PoJ_P);
@@ -621,6 +626,8 @@ struct TangentTwin {
             break;
         }
         const V3<Jet> p_Ok = P.p + P.R * r_Pj;
+        W.p_Ok = p_Ok;
+        W.R_NJp = R_NJp;
         V3<Jet> r_Cj = cst<Jet>(n.p_CoJ_C);
         W.R = R_NJc;
         if (n.child_attach) {
@@ -1000,20 +1007,9 @@ struct TangentTwin {
 
   // ---------------------------------------------------------------------------------------------
   // The output row (output_row(): diagnostics.cpp, rigid_fast_path.cpp, loads.cpp, gravity.cpp,
-  // the units' output verbs; RowWriter::body of core/output_layout.cpp for the orbit columns) of a
-  // rigid tree, from the twin's kinematics and full accelerations at x, every column in layout()
-  // order (the time column a constant).  The same equations as the run's, in the same terms:
-  //   attitudes q_NC = q_NP q_PJ0 q_J (q_J = (cos a/2, sin a/2 k) per axis; a spherical joint's
-  //     and a free base's quaternions normalised), written with qw >= 0 (the sign by value);
-  //   w_NB_B = R^T w;  the joint coordinates and rates from x (a prescribed joint: its profile,
-  //     and its drive tau = -W . M_sub - V . F_sub);
-  //   T = sum 1/2 m v.v + 1/2 w.I w,  P = sum m v,  H = sum I w + p_Bo x m v - cm x P;
-  //   V = hinge springs (1/2 k d^2; a ball's 1/2 k |phi(q)|^2) + gravity's potential;
-  //   joint loads: F_N = -F_sub, M_J_N = -M_sub, the sums over S(k) about Ok of R_B = -m a + F_g,
-  //     T_B = T_ext - I alpha - s_g w x I w + tau_g (the full accelerations; loads.cpp);
-  //   power, external moment (body torques, a prescribed base's reaction, gravity's moment about
-  //     the CM), roll/pitch/yaw of R_OB = R_NO^T R_NB, w_OB_B = w_B - R^T w_NO, J = E - w_NO .
-  //     (H + (p_cm - p_O) x P), and kane's extras (T, V, H_N, P_N, the quaternions' |q| - 1).
+  // the units' output verbs; RowWriter::body of core/output_layout.cpp for the orbit columns),
+  // every column in layout() order, in dual numbers: output_jet below.  A quaternion in duals
+  // (Hamilton's product) for the attitudes.
   struct Quat {
     Dual w, x, y, z;
     Quat operator*(const Quat& b) const {
@@ -1038,20 +1034,65 @@ struct TangentTwin {
     return {std::asin(a.v), a.d / std::sqrt(1.0 - a.v * a.v)};
   }
 
-  static void output(const KaneEngine& e, double t, const Dual* x, std::vector<Dual>& row) {
-    std::vector<TwinWork<Dual>> w;
-    std::vector<Dual> udot;
-    dynamics<Dual>(e, t, x, w, udot);
+  // The unit quaternion of a rotation vector (rot::from_rotation_vector): (cos t/2, sin(t/2)/t
+  // psi), t = |psi|, by the series in t^2 below t = 1e-2 (errors below 1e-20; the derivative
+  // stays finite at psi = 0).
+  static Quat quat_of_rotation_vector(const V3<Dual>& psi) {
+    const Dual t2 = psi.squaredNorm();
+    Dual c, f;
+    if (t2.v < 1e-4) {
+      c = 1.0 - t2 * (1.0 / 8.0 - t2 * (1.0 / 384.0 - t2 / 46080.0));
+      f = 0.5 - t2 * (1.0 / 48.0 - t2 * (1.0 / 3840.0 - t2 / 645120.0));
+    } else {
+      const Dual th = sqrt(t2);
+      c = cos(0.5 * th);
+      f = sin(0.5 * th) / th;
+    }
+    return {c, f * psi(0), f * psi(1), f * psi(2)};
+  }
+
+  // The output row of any covered System (rigid trees and flexible bodies) from the positions of
+  // Pass 1 as Taylor polynomials in time (jet_positions) along q' = q'(u), u' = the twin's u':
+  // every mass point's position, velocity and acceleration (a rigid body's CM, a flexible body's
+  // nodes, their masses m_i) and every frame's R, w, alpha, with the rotational inertia that
+  // turns with it (a rigid body's I_BBo_B, a flexible body's node inertias J_i: frame_inertia).
+  // The run's modal integrals (FlexModel, FlexWork) are these node sums (README.md "Flexible
+  // bodies"), so its columns are, per body B (I_N = R J_B R^T):
+  //   T = sum 1/2 m_i v_i.v_i + 1/2 w.I_N w,  P = sum m_i v_i,  H = sum m_i (x_i - cm) x v_i + I_N w;
+  //   V = springs + 1/2 eta^T K eta + gravity (uniform -g . sum m_i x_i; orbit sum -1/2 m_i r_i^T
+  //     T r_i + 3/2 n^2 z.I_N z - 1/2 n^2 tr J_B, r_i = x_i - p_O);
+  //   joint loads: F_N = -F_sub, M_J_N = -M_sub, S(k)'s sums about Ok of R_i = -m_i a_i + F_g,i
+  //     and T_B = T_ext - I_N alpha - s_g w x I_N w + 3 n^2 z x I_N z (orbit);
+  //   a prescribed joint's drive -W . M_sub - V . F_sub, W (revolute) or V (prismatic) R_NJp
+  //     axis_P;  attitudes q_NC = q_NJp q(psi_P) q_PJ0 q_J q(psi_C)^-1 (q(psi): quat_of_rotation_
+  //     vector of the node rotations Psi eta);
+  //   w_NB_B = R^T w;  the joint coordinates and rates from x (a prescribed joint: its profile);
+  //   the quaternions written with qw >= 0 (the sign by value: RowWriter::body);
+  //   power (motors and dampers with the scene's dampers, drives, body torques, the modal
+  //   damping -eta'^T D eta' with the scene's D), the external moment (body torques, a
+  //   prescribed base's reaction moved to the CM, gravity's moment about the CM), roll/pitch/yaw
+  //   of R_OB = R_NO^T R_NB and w_OB_B = w_B - R^T w_NO (orbit), J = E - w_NO . (H + (p_cm -
+  //   p_O) x P), kane's extras (T, V, H_N, P_N, the largest |q| - 1 of the stored quaternions).
+  static void output_jet(const KaneEngine& e, double t, const Dual* x, std::vector<Dual>& row) {
     const std::size_t nn = e.nodes_.size();
     const Dual* u = x + e.n_q_;
+    std::vector<Dual> udot;
+    {
+      std::vector<TwinWork<Dual>> w;
+      if (e.flex_.empty())
+        dynamics<Dual>(e, t, x, w, udot);
+      else
+        flex_dynamics(e, t, x, w, udot);
+    }
+    std::vector<Jet> q, pres;
+    std::vector<JetFrame> F;
+    jet_state(e, t, x, u, udot.empty() ? nullptr : udot.data(), false, q, pres);
+    jet_positions(e, q, pres, F);
     const OutputLayout& L = e.layout_;
     row.assign(L.size(), Dual(std::numeric_limits<double>::quiet_NaN()));
     row[0] = t;
-    V3<Dual> p0 = V3<Dual>::Zero();  // the base's body-frame origin from No (base_origin)
-    if (e.nodes_[0].shape == JointShape::Base6)
-      p0 = V3<Dual>(x[e.nodes_[0].q0], x[e.nodes_[0].q0 + 1], x[e.nodes_[0].q0 + 2]);
+    auto val = [](const V3<Jet>& p) { return V3<Dual>(p(0).a, p(1).a, p(2).a); };
 
-    // The environment's loads per body (gravity_pass): F_g at Bo, tau_g about Bo.
     OrbitFrame o;
     M3<Dual> T_N = M3<Dual>::Zero();
     V3<Dual> z_N = V3<Dual>::Zero();
@@ -1064,79 +1105,150 @@ struct TangentTwin {
       T.diagonal().array() -= n2;
       T_N = cst<Dual>(T);
     }
-    std::vector<V3<Dual>> Fg(nn, V3<Dual>::Zero()), tg(nn, V3<Dual>::Zero());
-    if (e.gravity_)
-      for (std::size_t k = 0; k < nn; ++k) {
-        const Node& n = e.nodes_[k];
-        if (!e.orbit_) {
-          Fg[k] = n.mass * cst<Dual>(e.g_N_);
-          continue;
-        }
-        const V3<Dual> r_c = p0 + w[k].p_Bo - cst<Dual>(e.p_NoO_N_);
-        Fg[k] = n.mass * (T_N * r_c);
-        if (n.inertia == Node::Inertia::Isotropic) continue;
-        const V3<Dual> z_B = w[k].R.transpose() * z_N;
-        tg[k] = (3.0 * n2) * z_N.cross(V3<Dual>(w[k].R * (cst<Dual>(n.I_BBo_B) * z_B)));
-      }
+    const V3<Dual> p_O = cst<Dual>(e.p_NoO_N_);
 
-    // Joint loads (loads.cpp): S(k)'s sums of the residual loads about Ok, full accelerations.
-    std::vector<V3<Dual>> F_sub(nn, V3<Dual>::Zero()), M_sub(nn, V3<Dual>::Zero());
-    std::vector<V3<Dual>> T_ext(nn, V3<Dual>::Zero());  // the body torque, N components
+    // Per body: frame, mass points, loads.
+    struct Pt {
+      double m;
+      V3<Dual> x, v, a, Fg;
+    };
+    std::vector<std::vector<Pt>> pts(nn);
+    std::vector<M3<Dual>> R(nn), I_N(nn);
+    std::vector<V3<Dual>> om(nn), al(nn), T_ext(nn, V3<Dual>::Zero()), tg(nn, V3<Dual>::Zero());
+    std::vector<Matrix3d> J_B(nn);
+    Dual M_total = 0.0;
     for (std::size_t k = 0; k < nn; ++k) {
       const Node& n = e.nodes_[k];
-      const TwinWork<Dual>& W = w[k];
-      V3<Dual> R_B = -n.mass * W.a, T_B;
-      if (n.inertia == Node::Inertia::Isotropic)
-        T_B = -(n.I_BBo_B(0, 0) * W.alpha);
-      else
-        T_B = -(W.I_N * W.alpha) - e.gyro_sign_ * W.w.cross(W.I_N * W.w);
+      R[k] = part(F[k].R, 0);
+      om[k] = ang_rate(F[k].R);
+      al[k] = ang_accel(F[k].R);
+      J_B[k] = frame_inertia(e, n);
+      I_N[k] = R[k] * cst<Dual>(J_B[k]) * R[k].transpose();
+      auto add = [&](double m, const V3<Jet>& p) {
+        Pt pt{m, val(p), rate(p), accel(p), V3<Dual>::Zero()};
+        if (e.gravity_) pt.Fg = e.orbit_ ? V3<Dual>(m * (T_N * V3<Dual>(pt.x - p_O))) : V3<Dual>(m * cst<Dual>(e.g_N_));
+        pts[k].push_back(pt);
+      };
+      if (n.flex < 0) {
+        add(n.mass, F[k].p);
+      } else {
+        const FlexBody& fb = *e.system_.bodies[static_cast<std::size_t>(n.body)].flex;
+        for (std::size_t i = 0; i < F[k].pts.size(); ++i) add(fb.nodes[i].mass, F[k].pts[i]);
+      }
       if (n.body_torque) {
         const Body& body = e.system_.bodies[static_cast<std::size_t>(n.body)];
         const V3<Dual> Tq = cst<Dual>(body.torque.value(t));
-        T_ext[k] = body.torque_frame == Body::Frame::Body ? V3<Dual>(W.R * Tq) : Tq;
-        T_B += T_ext[k];
+        T_ext[k] = body.torque_frame == Body::Frame::Body ? V3<Dual>(R[k] * Tq) : Tq;
       }
-      R_B += Fg[k];
-      T_B += tg[k];
+      if (e.orbit_) tg[k] = (3.0 * n2) * z_N.cross(V3<Dual>(I_N[k] * z_N));
+      for (const Pt& pt : pts[k]) M_total += pt.m;
+    }
+
+    // Joint loads: S(k)'s sums about Ok with the full accelerations.
+    std::vector<V3<Dual>> F_sub(nn, V3<Dual>::Zero()), M_sub(nn, V3<Dual>::Zero());
+    for (std::size_t k = 0; k < nn; ++k) {
+      const V3<Dual> T_B = -(I_N[k] * al[k]) - e.gyro_sign_ * om[k].cross(V3<Dual>(I_N[k] * om[k])) +
+                           T_ext[k] + tg[k];
       for (int a = static_cast<int>(k); a >= 0; a = e.nodes_[static_cast<std::size_t>(a)].parent) {
         const std::size_t ai = static_cast<std::size_t>(a);
-        F_sub[ai] += R_B;
-        M_sub[ai] += T_B + V3<Dual>(W.p_Bo - w[ai].p_Ok).cross(R_B);
+        const V3<Dual> pOk = val(F[ai].p_Ok);
+        M_sub[ai] += T_B;
+        for (const Pt& pt : pts[k]) {
+          const V3<Dual> Ri = -pt.m * pt.a + pt.Fg;
+          F_sub[ai] += Ri;
+          M_sub[ai] += V3<Dual>(pt.x - pOk).cross(Ri);
+        }
       }
     }
     std::vector<Dual> pres_torque(nn, Dual(0.0));
     for (std::size_t k = 0; k < nn; ++k) {
       const Node& n = e.nodes_[k];
       if (!n.prescribed) continue;
-      pres_torque[k] = -w[k].W.col(0).dot(M_sub[k]);
-      if (n.slides) pres_torque[k] -= w[k].V.col(0).dot(F_sub[k]);
+      const V3<Dual> ax = part(F[k].R_NJp, 0) * cst<Dual>(n.axis_P);
+      pres_torque[k] = n.slides ? Dual(-ax.dot(F_sub[k])) : Dual(-ax.dot(M_sub[k]));
     }
 
-    // Attitudes, body columns (and the orbit's), momenta and energies.
+    // Momenta and energies.
+    Dual T2 = 0.0;
+    V3<Dual> P = V3<Dual>::Zero(), first_moment = V3<Dual>::Zero(), H = V3<Dual>::Zero();
+    for (std::size_t k = 0; k < nn; ++k) {
+      for (const Pt& pt : pts[k]) {
+        T2 += pt.m * pt.v.dot(pt.v);
+        P += pt.m * pt.v;
+        first_moment += pt.m * pt.x;
+      }
+      const V3<Dual> h = I_N[k] * om[k];
+      T2 += om[k].dot(h);
+      H += h;
+    }
+    const V3<Dual> p_cm = first_moment / M_total;
+    for (std::size_t k = 0; k < nn; ++k)
+      for (const Pt& pt : pts[k]) H += V3<Dual>(pt.x - p_cm).cross(V3<Dual>(pt.m * pt.v));
+    const Dual T = 0.5 * T2;
+    Dual V = 0.0;
+    for (const Node& n : e.nodes_) {
+      if (n.hinge_load) {
+        const Joint& J = e.system_.joints[static_cast<std::size_t>(n.joint)];
+        if (J.stiffness != 0 || J.stiffness2 != 0) switch (n.shape) {
+            case JointShape::Axis1:
+            case JointShape::Slide1: {
+              const Dual d = x[n.q0] - J.neutral_angle;
+              V += 0.5 * J.stiffness * d * d;
+            } break;
+            case JointShape::Gimbal2: {
+              const Dual d1 = x[n.q0] - J.neutral_angle, d2 = x[n.q0 + 1] - J.neutral_angle2;
+              V += 0.5 * J.stiffness * d1 * d1 + 0.5 * J.stiffness2 * d2 * d2;
+            } break;
+            case JointShape::Rotation3:
+              V += 0.5 * J.stiffness * rotation_vector(x + n.q0).squaredNorm();
+              break;
+            default:
+              break;
+          }
+      }
+      if (n.nm > 0) {  // strain energy 1/2 eta^T K eta
+        const Eigen::MatrixXd& K = e.flex_[static_cast<std::size_t>(n.flex)].K;
+        for (int l = 0; l < n.nm; ++l)
+          for (int m = 0; m < n.nm; ++m) V += 0.5 * K(l, m) * x[n.q0 + n.nqj + l] * x[n.q0 + n.nqj + m];
+      }
+    }
+    if (e.gravity_)
+      for (std::size_t k = 0; k < nn; ++k) {
+        for (const Pt& pt : pts[k]) {
+          if (!e.orbit_) {
+            V -= cst<Dual>(e.g_N_).dot(V3<Dual>(pt.m * pt.x));
+          } else {
+            const V3<Dual> r = pt.x - p_O;
+            const Dual zr = z_N.dot(r);
+            V -= 0.5 * pt.m * n2 * (3.0 * zr * zr - r.squaredNorm());
+          }
+        }
+        if (e.orbit_) V += 1.5 * n2 * z_N.dot(V3<Dual>(I_N[k] * z_N)) - 0.5 * n2 * J_B[k].trace();
+      }
+
+    // Attitudes and body columns.
     std::vector<Quat> qN(nn);
-    Dual quat_err = 0.0, T2 = 0.0;
-    V3<Dual> P = V3<Dual>::Zero(), H = V3<Dual>::Zero(), first_moment = V3<Dual>::Zero();
-    auto track = [&quat_err](const Quat& q) {
-      const Dual err = abs(q.norm() - 1.0);
+    Dual quat_err = 0.0;
+    auto track = [&quat_err](const Quat& qq) {
+      const Dual err = abs(qq.norm() - 1.0);
       if (err.v > quat_err.v) quat_err = err;
     };
     for (std::size_t k = 0; k < nn; ++k) {
       const Node& n = e.nodes_[k];
-      const TwinWork<Dual>& W = w[k];
       if (n.shape == JointShape::Base6) {
-        const Quat q = quat(x + n.q0 + 3);
-        track(q);
-        qN[k] = q.normalized();
+        const Quat qq = quat(x + n.q0 + 3);
+        track(qq);
+        qN[k] = qq.normalized();
       } else {
         Quat qJ{1.0, 0.0, 0.0, 0.0};
         switch (n.shape) {
           case JointShape::Axis1:
-            qJ = axis_quat(n.axis_J, n.prescribed ? Dual(W.pres_angle) : x[n.q0]);
+            qJ = axis_quat(n.axis_J, n.prescribed ? pres[k].a : x[n.q0]);
             break;
           case JointShape::Rotation3: {
-            const Quat q = quat(x + n.q0);
-            track(q);
-            qJ = q.normalized();
+            const Quat qq = quat(x + n.q0);
+            track(qq);
+            qJ = qq.normalized();
           } break;
           case JointShape::Gimbal2:
             qJ = axis_quat(n.axis_J, x[n.q0]) * axis_quat(n.axis2_J, x[n.q0 + 1]);
@@ -1144,31 +1256,45 @@ struct TangentTwin {
           default:
             break;
         }
-        const Quat qNJp = n.parent >= 0 ? qN[static_cast<std::size_t>(n.parent)] : Quat{1.0, 0.0, 0.0, 0.0};
-        qN[k] = (n.has_offset ? qNJp * quat(n.q_PJ0) * qJ : qNJp * qJ).normalized();
+        Quat qNJp = n.parent >= 0 ? qN[static_cast<std::size_t>(n.parent)] : Quat{1.0, 0.0, 0.0, 0.0};
+        if (n.parent_attach) {
+          const Node& pn = e.nodes_[static_cast<std::size_t>(n.parent)];
+          V3<Dual> psi = V3<Dual>::Zero();
+          for (int l = 0; l < std::min<int>(pn.nm, static_cast<int>(n.Psi_Pj.cols())); ++l)
+            psi += cst<Dual>(Vector3d(n.Psi_Pj.col(l))) * x[pn.q0 + pn.nqj + l];
+          qNJp = qNJp * quat_of_rotation_vector(psi);
+        }
+        Quat qq = n.has_offset ? qNJp * quat(n.q_PJ0) * qJ : qNJp * qJ;
+        if (n.child_attach) {
+          V3<Dual> psi = V3<Dual>::Zero();
+          for (int l = 0; l < std::min<int>(n.nm, static_cast<int>(n.Psi_Cj.cols())); ++l)
+            psi -= cst<Dual>(Vector3d(n.Psi_Cj.col(l))) * x[n.q0 + n.nqj + l];
+          qq = qq * quat_of_rotation_vector(psi);  // q(psi_C)^-1 = q(-psi_C)
+        }
+        qN[k] = qq.normalized();
       }
-      const V3<Dual> w_B = W.R.transpose() * W.w;
+      const V3<Dual> w_B = R[k].transpose() * om[k];
       const int b = n.body;
-      const int cw = L.body_w(b);
-      for (int i = 0; i < 3; ++i) row[static_cast<std::size_t>(cw + i)] = w_B(i);
+      const std::size_t cw = static_cast<std::size_t>(L.body_w(b));
+      for (std::size_t i = 0; i < 3; ++i) row[cw + i] = w_B(static_cast<Eigen::Index>(i));
       const double sg = qN[k].w.v < 0 ? -1.0 : 1.0;
       const Quat qc{sg * qN[k].w, sg * qN[k].x, sg * qN[k].y, sg * qN[k].z};
-      row[static_cast<std::size_t>(cw + 3)] = qc.w;
-      row[static_cast<std::size_t>(cw + 4)] = qc.x;
-      row[static_cast<std::size_t>(cw + 5)] = qc.y;
-      row[static_cast<std::size_t>(cw + 6)] = qc.z;
+      row[cw + 3] = qc.w;
+      row[cw + 4] = qc.x;
+      row[cw + 5] = qc.y;
+      row[cw + 6] = qc.z;
       if (L.lvlh(b) >= 0) {
         const Dual qa[4] = {qc.w, qc.x, qc.y, qc.z};
         const M3<Dual> R_NB = quat_matrix(qa);
-        const M3<Dual> R = cst<Dual>(Matrix3d(o.R_NO.transpose())) * R_NB;
-        const Dual sp = -R(2, 0);
+        const M3<Dual> Ro = cst<Dual>(Matrix3d(o.R_NO.transpose())) * R_NB;
+        const Dual sp = -Ro(2, 0);
         const Dual pitch = asin_clamped(sp);
         Dual roll = 0.0, yaw;
-        if (std::abs(sp.v) > 1.0 - 1e-12)
-          yaw = atan2(-R(0, 1), R(1, 1));
-        else {
-          roll = atan2(R(2, 1), R(2, 2));
-          yaw = atan2(R(1, 0), R(0, 0));
+        if (std::abs(sp.v) > 1.0 - 1e-12) {
+          yaw = atan2(-Ro(0, 1), Ro(1, 1));
+        } else {
+          roll = atan2(Ro(2, 1), Ro(2, 2));
+          yaw = atan2(Ro(1, 0), Ro(0, 0));
         }
         const V3<Dual> w_OB = w_B - R_NB.transpose() * cst<Dual>(o.w_NO_N);
         const std::size_t c0 = static_cast<std::size_t>(L.lvlh(b));
@@ -1177,65 +1303,21 @@ struct TangentTwin {
         row[c0 + 2] = yaw;
         for (std::size_t i = 0; i < 3; ++i) row[c0 + 3 + i] = w_OB(static_cast<Eigen::Index>(i));
       }
-      const V3<Dual> P_B = n.mass * W.v;
-      const V3<Dual> h_Bo = W.I_N * W.w;
-      T2 += P_B.dot(W.v) + h_Bo.dot(W.w);
-      P += P_B;
-      first_moment += n.mass * W.p_Bo;
-      H += h_Bo + W.p_Bo.cross(P_B);
     }
-    const Dual T = 0.5 * T2;
-    const V3<Dual> cm = first_moment / e.total_mass_;
-    H -= cm.cross(P);
-    const V3<Dual> p_cm = p0 + cm;
 
-    // Potential energy: hinge springs (the units' spring_energy), gravity (gravity_potential).
-    Dual V = 0.0;
-    for (const Node& n : e.nodes_) {
-      if (!n.hinge_load) continue;
-      const Joint& J = e.system_.joints[static_cast<std::size_t>(n.joint)];
-      if (J.stiffness == 0 && J.stiffness2 == 0) continue;
-      switch (n.shape) {
-        case JointShape::Axis1:
-        case JointShape::Slide1: {
-          const Dual d = x[n.q0] - J.neutral_angle;
-          V += 0.5 * J.stiffness * d * d;
-        } break;
-        case JointShape::Gimbal2: {
-          const Dual d1 = x[n.q0] - J.neutral_angle, d2 = x[n.q0 + 1] - J.neutral_angle2;
-          V += 0.5 * J.stiffness * d1 * d1 + 0.5 * J.stiffness2 * d2 * d2;
-        } break;
-        case JointShape::Rotation3:
-          V += 0.5 * J.stiffness * rotation_vector(x + n.q0).squaredNorm();
-          break;
-        default:
-          break;
-      }
-    }
-    if (e.gravity_)
-      for (std::size_t k = 0; k < nn; ++k) {
-        const Node& n = e.nodes_[k];
-        if (!e.orbit_) {
-          V -= cst<Dual>(e.g_N_).dot(V3<Dual>(n.mass * (p0 + w[k].p_Bo)));
-          continue;
-        }
-        const V3<Dual> r_c = p0 + w[k].p_Bo - cst<Dual>(e.p_NoO_N_);
-        const Dual zr = z_N.dot(r_c);
-        V -= 0.5 * n.mass * n2 * (3.0 * zr * zr - r_c.squaredNorm());
-        const V3<Dual> z_B = w[k].R.transpose() * z_N;
-        V += 1.5 * n2 * z_B.dot(cst<Dual>(n.I_BBo_B) * z_B) - 0.5 * n2 * n.I_BBo_B.trace();
-      }
-
-    // The joints' columns (the units' output verbs).
+    // Joints, modal coordinates, positions, loads, power, external moment.
+    Dual Pw = 0.0;
+    V3<Dual> M_ext = V3<Dual>::Zero();
     for (std::size_t k = 0; k < nn; ++k) {
       const Node& n = e.nodes_[k];
+      const Joint& J = e.system_.joints[k];
       const std::size_t c0 = static_cast<std::size_t>(L.joint_first(n.joint));
       switch (n.shape) {
         case JointShape::Axis1:
         case JointShape::Slide1:
           if (n.prescribed) {
-            row[c0] = w[k].pres_angle;
-            row[c0 + 1] = w[k].pres_rate;
+            row[c0] = pres[k].a;
+            row[c0 + 1] = pres[k].b;
             row[c0 + 2] = pres_torque[k];
           } else {
             row[c0] = x[n.q0];
@@ -1254,23 +1336,23 @@ struct TangentTwin {
         default:
           break;
       }
-    }
-    for (std::size_t i = 0; i < 3; ++i) row[static_cast<std::size_t>(L.H_vector()) + i] = H(static_cast<Eigen::Index>(i));
-    row[static_cast<std::size_t>(L.H())] = H.norm();
-    row[static_cast<std::size_t>(L.E())] = T + V;
-
-    // Issue 26's columns (write_issue26_columns).
-    Dual Pw = 0.0;
-    V3<Dual> M_ext = V3<Dual>::Zero();
-    for (std::size_t k = 0; k < nn; ++k) {
-      const Node& n = e.nodes_[k];
-      const TwinWork<Dual>& W = w[k];
-      const Joint& J = e.system_.joints[k];
+      if (n.nm > 0) {
+        const std::size_t cm0 = static_cast<std::size_t>(L.modal_first(n.body));
+        const std::size_t nm = static_cast<std::size_t>(n.nm);
+        for (std::size_t l = 0; l < nm; ++l) {
+          row[cm0 + l] = x[static_cast<std::size_t>(n.q0 + n.nqj) + l];
+          row[cm0 + nm + l] = u[static_cast<std::size_t>(n.u0 + n.nuj) + l];
+        }
+        const Eigen::MatrixXd& D = e.flex_[static_cast<std::size_t>(n.flex)].D_P;
+        for (int l = 0; l < n.nm; ++l)
+          for (int m = 0; m < n.nm; ++m) Pw -= u[n.u0 + n.nuj + l] * D(l, m) * u[n.u0 + n.nuj + m];
+      }
       const std::size_t cp = static_cast<std::size_t>(L.body_position(n.body));
-      for (std::size_t i = 0; i < 3; ++i) row[cp + i] = p0(static_cast<Eigen::Index>(i)) + W.p_Bo(static_cast<Eigen::Index>(i));
+      const V3<Dual> pBo = val(F[k].p);
+      for (std::size_t i = 0; i < 3; ++i) row[cp + i] = pBo(static_cast<Eigen::Index>(i));
       if (n.shape != JointShape::Base6) {
-        const V3<Dual> F_C = W.R.transpose() * V3<Dual>(-F_sub[k]),
-                       M_C = W.R.transpose() * V3<Dual>(-M_sub[k]);
+        const V3<Dual> F_C = R[k].transpose() * V3<Dual>(-F_sub[k]),
+                       M_C = R[k].transpose() * V3<Dual>(-M_sub[k]);
         const std::size_t cl = static_cast<std::size_t>(L.joint_load(n.joint));
         for (std::size_t i = 0; i < 3; ++i) {
           row[cl + i] = F_C(static_cast<Eigen::Index>(i));
@@ -1278,14 +1360,14 @@ struct TangentTwin {
         }
       }
       if (n.prescribed) {
-        Pw += pres_torque[k] * W.pres_rate;
+        Pw += pres_torque[k] * pres[k].b;
       } else {
         switch (n.shape) {
           case JointShape::Axis1:
           case JointShape::Slide1: {
-            const Dual rate = u[n.u0];
+            const Dual r = u[n.u0];
             const double motor = J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0);
-            Pw += (motor - n.damping_P * rate) * rate;
+            Pw += (motor - n.damping_P * r) * r;
           } break;
           case JointShape::Gimbal2: {
             Eigen::Vector2d motor = Eigen::Vector2d::Zero();
@@ -1303,23 +1385,28 @@ struct TangentTwin {
             break;
         }
       }
-      if (n.body_torque) {  // T . w (T_ext in N components: T_N . w_N either way)
-        Pw += T_ext[k].dot(W.w);
+      if (n.body_torque) {
+        Pw += T_ext[k].dot(om[k]);
         M_ext += T_ext[k];
+      }
+      if (e.gravity_) {
+        for (const Pt& pt : pts[k]) M_ext += V3<Dual>(pt.x - p_cm).cross(pt.Fg);
+        M_ext += tg[k];
       }
     }
     if (e.nodes_[0].shape != JointShape::Base6)  // a prescribed base: N's load, moved to the CM
-      M_ext += V3<Dual>(-M_sub[0]) + V3<Dual>(p0 + w[0].p_Ok - p_cm).cross(V3<Dual>(-F_sub[0]));
-    if (e.gravity_)
-      for (std::size_t k = 0; k < nn; ++k) M_ext += V3<Dual>(p0 + w[k].p_Bo - p_cm).cross(Fg[k]) + tg[k];
+      M_ext += V3<Dual>(-M_sub[0]) + V3<Dual>(val(F[0].p_Ok) - p_cm).cross(V3<Dual>(-F_sub[0]));
     for (std::size_t i = 0; i < 3; ++i) {
       const Eigen::Index ii = static_cast<Eigen::Index>(i);
+      row[static_cast<std::size_t>(L.H_vector()) + i] = H(ii);
       row[static_cast<std::size_t>(L.cm()) + i] = p_cm(ii);
       row[static_cast<std::size_t>(L.external_moment()) + i] = M_ext(ii);
     }
+    row[static_cast<std::size_t>(L.H())] = H.norm();
+    row[static_cast<std::size_t>(L.E())] = T + V;
     row[static_cast<std::size_t>(L.P())] = Pw;
     if (e.orbit_) {
-      const V3<Dual> H_O = H + V3<Dual>(p_cm - cst<Dual>(e.p_NoO_N_)).cross(P);
+      const V3<Dual> H_O = H + V3<Dual>(p_cm - p_O).cross(P);
       row[static_cast<std::size_t>(L.J())] = T + V - cst<Dual>(o.w_NO_N).dot(H_O);
     }
     std::size_t c = static_cast<std::size_t>(e.extra0_);
@@ -1451,7 +1538,7 @@ bool KaneEngine::output_row_twin(double t, const TreeState& s, const TreeTangent
   if (!output_tangent_) return false;
   std::vector<Dual> x, r;
   TangentTwin::pack(*this, s, ds, x);
-  TangentTwin::output(*this, t, x.data(), r);
+  TangentTwin::output_jet(*this, t, x.data(), r);
   for (std::size_t i = 0; i < r.size(); ++i) {
     row[i] = r[i].v;
     drow[i] = r[i].d;
