@@ -36,6 +36,12 @@
 // false: the caller differentiates numerically): a flexible body with test_inertia_scale != 1
 // (the scaled inertia is no longer the node sums) or a flipped test_gyroscopic_sign (a prismatic
 // joint at a node of a flexible body is refused by the engine itself).
+//
+// Issue 27's output matrix C and own Jacobian (session 39): output_row_tangent differentiates
+// the row's equations in duals (TangentTwin::output_jet: the twin's u' and Pass 1's positions as
+// Jets, every body a set of mass points with a rotational inertia; the row itself is
+// output_row()'s), rhs_tangent the kinematical equations and the twin's u' at x + e dx (any dx:
+// the twins normalise quaternions where rhs() does).  Same coverage as accelerations_tangent.
 #include "formulations/kane/dual.hpp"
 #include "formulations/kane/kane_internal.hpp"
 
