@@ -672,6 +672,7 @@ double check_output(const System& system, double t, int trials, unsigned seed,
     const VectorXd ref = row_at(e, t, s);
     REQUIRE(row.allFinite());
     REQUIRE(drow.allFinite());
+    REQUIRE(trow.allFinite());  // every column written by the twin
     CHECK((row - ref).cwiseAbs().maxCoeff() == 0.0);
     CHECK((drow - tdrow).cwiseAbs().maxCoeff() == 0.0);
     CHECK(drow(0) == 0.0);
