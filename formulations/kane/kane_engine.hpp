@@ -291,6 +291,8 @@ struct KaneModel {
   // accelerations_tangent covers this System (tangent.cpp): decided once by the constructor
   // (rigid trees: no flexible body).
   bool tangent_ = false;
+  // output_row_tangent covers this System (as tangent_; decided once by the constructor).
+  bool output_tangent_ = false;
   std::vector<int> lambda_;  // parent speed of each speed ([Feath] lambda(i)), -1 for none
   // The inertial frame N as the parent of a prescribed base (at rest, R = 1, origin No).
   NodeWork ground_;
@@ -361,6 +363,21 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   // body.
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
+  // The exact tangent of output_row() (Engine::output_row_tangent; tangent.cpp): the twin's
+  // u' and its positions as Taylor polynomials in time fed to a dual-number copy of the row's
+  // equations (every column; the row itself is output_row()'s); false (row and drow untouched)
+  // where accelerations_tangent is.
+  bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                          double* drow) override;
+  // The exact tangent of rhs() in x (Engine::rhs_tangent; tangent.cpp): the kinematical equations
+  // and the rigid or flexible twin at x + e dx (quaternions as stored: the twin normalises where
+  // rhs() does); xdot is rhs()'s.  False (untouched) where accelerations_tangent is.
+  bool rhs_tangent(double t, const double* x, const double* dx, double* xdot,
+                   double* dxdot) override;
+  // For tests: the twin's own row (its value part, to compare with output_row()) and drow, as
+  // output_row_tangent computes them.
+  bool output_row_twin(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                       double* drow);
 
   // Introspection for tests (allocate; not for the hot path).  Prescribed joints take their
   // angle, rate and acceleration at the time of the last set_time() (rhs, accelerations,
@@ -392,6 +409,7 @@ class KaneEngine final : public Engine, private KaneModel, private KaneWorkspace
   double jacobi_integral(double t, const double* x);
   int max_speed_depth() const { return max_speed_depth_; }  // speeds on the deepest path
   bool has_tangent() const { return tangent_; }  // accelerations_tangent covers the System
+  bool has_output_tangent() const { return output_tangent_; }  // output_row_tangent covers it
 
   friend struct TangentTwin;  // tangent.cpp
 

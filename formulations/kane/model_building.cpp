@@ -67,6 +67,8 @@ KaneEngine::KaneEngine(const System& system, const EngineOptions& options, KaneS
   // and inertias, which a scaled inertia no longer is) and test_gyroscopic_sign 1.
   tangent_ = flex_.empty() ||
              (options.test_inertia_scale == 1.0 && options.test_gyroscopic_sign == 1.0);
+  // Its output row (output_row_tangent) covers the same Systems.
+  output_tangent_ = tangent_;
 
   nodes_.resize(nj);
   std::vector<int> node_of_body(nb, -1);

@@ -36,6 +36,12 @@
 // false: the caller differentiates numerically): a flexible body with test_inertia_scale != 1
 // (the scaled inertia is no longer the node sums) or a flipped test_gyroscopic_sign (a prismatic
 // joint at a node of a flexible body is refused by the engine itself).
+//
+// Issue 27's output matrix C and own Jacobian (session 39): output_row_tangent differentiates
+// the row's equations in duals (TangentTwin::output_jet: the twin's u' and Pass 1's positions as
+// Jets, every body a set of mass points with a rotational inertia; the row itself is
+// output_row()'s), rhs_tangent the kinematical equations and the twin's u' at x + e dx (any dx:
+// the twins normalise quaternions where rhs() does).  Same coverage as accelerations_tangent.
 #include "formulations/kane/dual.hpp"
 #include "formulations/kane/kane_internal.hpp"
 
@@ -516,6 +522,10 @@ struct TangentTwin {
     M3<Jet> R;
     V3<Jet> p;            // the body-frame origin Bo (absolute, from No)
     std::vector<V3<Jet>> pts;  // a flexible body's nodes
+    // The joint point Ok (absolute) and the parent-side joint frame R_NJp (output_jet; a free
+    // base: Bo and the identity).
+    V3<Jet> p_Ok;
+    M3<Jet> R_NJp = M3<Jet>::Identity();
   };
 
   // exp([psi x]) (NodeRotation): R = 1 + (1 - x b) S + a S^2, x = |psi|^2, by the series below
@@ -585,6 +595,7 @@ struct TangentTwin {
         W.R = quat_matrix(q.data() + n.q0 + 3);
         W.p = V3<Jet>(q[static_cast<std::size_t>(n.q0)], q[static_cast<std::size_t>(n.q0) + 1],
                       q[static_cast<std::size_t>(n.q0) + 2]);
+        W.p_Ok = W.p;
       } else {
         const JetFrame& P = n.parent >= 0 ? F[static_cast<std::size_t>(n.parent)] : ground;
         V3<Jet> r_Pj = cst<Jet>(n.p_PoJ_P);
@@ -621,6 +632,8 @@ struct TangentTwin {
             break;
         }
         const V3<Jet> p_Ok = P.p + P.R * r_Pj;
+        W.p_Ok = p_Ok;
+        W.R_NJp = R_NJp;
         V3<Jet> r_Cj = cst<Jet>(n.p_CoJ_C);
         W.R = R_NJc;
         if (n.child_attach) {
@@ -997,6 +1010,459 @@ struct TangentTwin {
         u[v0 + i].d = -P(static_cast<Eigen::Index>(i)).d / e.total_mass_;
     }
   }
+
+  // ---------------------------------------------------------------------------------------------
+  // The output row (output_row(): diagnostics.cpp, rigid_fast_path.cpp, loads.cpp, gravity.cpp,
+  // the units' output verbs; RowWriter::body of core/output_layout.cpp for the orbit columns),
+  // every column in layout() order, in dual numbers: output_jet below.  A quaternion in duals
+  // (Hamilton's product) for the attitudes.
+  struct Quat {
+    Dual w, x, y, z;
+    Quat operator*(const Quat& b) const {
+      return {w * b.w - x * b.x - y * b.y - z * b.z, w * b.x + x * b.w + y * b.z - z * b.y,
+              w * b.y - x * b.z + y * b.w + z * b.x, w * b.z + x * b.y - y * b.x + z * b.w};
+    }
+    Dual norm() const { return sqrt(w * w + x * x + y * y + z * z); }
+    Quat normalized() const {
+      const Dual n = norm();
+      return {w / n, x / n, y / n, z / n};
+    }
+  };
+  static Quat quat(const Quaterniond& q) { return {q.w(), q.x(), q.y(), q.z()}; }
+  static Quat quat(const Dual* q) { return {q[0], q[1], q[2], q[3]}; }
+  static Quat axis_quat(const Vector3d& k, const Dual& angle) {
+    const Dual h = 0.5 * angle, s = sin(h);
+    return {cos(h), s * k.x(), s * k.y(), s * k.z()};
+  }
+  static Dual asin_clamped(const Dual& a) {  // asin of a clamped to [-1, 1] (roll_pitch_yaw)
+    if (a.v >= 1.0) return Dual(std::asin(1.0));
+    if (a.v <= -1.0) return Dual(std::asin(-1.0));
+    return {std::asin(a.v), a.d / std::sqrt(1.0 - a.v * a.v)};
+  }
+
+  // The unit quaternion of a rotation vector (rot::from_rotation_vector): (cos t/2, sin(t/2)/t
+  // psi), t = |psi|, by the series in t^2 below t = 1e-2 (errors below 1e-20; the derivative
+  // stays finite at psi = 0).
+  static Quat quat_of_rotation_vector(const V3<Dual>& psi) {
+    const Dual t2 = psi.squaredNorm();
+    Dual c, f;
+    if (t2.v < 1e-4) {
+      c = 1.0 - t2 * (1.0 / 8.0 - t2 * (1.0 / 384.0 - t2 / 46080.0));
+      f = 0.5 - t2 * (1.0 / 48.0 - t2 * (1.0 / 3840.0 - t2 / 645120.0));
+    } else {
+      const Dual th = sqrt(t2);
+      c = cos(0.5 * th);
+      f = sin(0.5 * th) / th;
+    }
+    return {c, f * psi(0), f * psi(1), f * psi(2)};
+  }
+
+  // The output row of any covered System (rigid trees and flexible bodies) from the positions of
+  // Pass 1 as Taylor polynomials in time (jet_positions) along q' = q'(u), u' = the twin's u':
+  // every mass point's position, velocity and acceleration (a rigid body's CM, a flexible body's
+  // nodes, their masses m_i) and every frame's R, w, alpha, with the rotational inertia that
+  // turns with it (a rigid body's I_BBo_B, a flexible body's node inertias J_i: frame_inertia).
+  // The run's modal integrals (FlexModel, FlexWork) are these node sums (README.md "Flexible
+  // bodies"), so its columns are, per body B (I_N = R J_B R^T):
+  //   T = sum 1/2 m_i v_i.v_i + 1/2 w.I_N w,  P = sum m_i v_i,  H = sum m_i (x_i - cm) x v_i + I_N w;
+  //   V = springs + 1/2 eta^T K eta + gravity (uniform -g . sum m_i x_i; orbit sum -1/2 m_i r_i^T
+  //     T r_i + 3/2 n^2 z.I_N z - 1/2 n^2 tr J_B, r_i = x_i - p_O);
+  //   joint loads: F_N = -F_sub, M_J_N = -M_sub, S(k)'s sums about Ok of R_i = -m_i a_i + F_g,i
+  //     and T_B = T_ext - I_N alpha - s_g w x I_N w + 3 n^2 z x I_N z (orbit);
+  //   a prescribed joint's drive -W . M_sub - V . F_sub, W (revolute) or V (prismatic) R_NJp
+  //     axis_P;  attitudes q_NC = q_NJp q(psi_P) q_PJ0 q_J q(psi_C)^-1 (q(psi): quat_of_rotation_
+  //     vector of the node rotations Psi eta);
+  //   w_NB_B = R^T w;  the joint coordinates and rates from x (a prescribed joint: its profile);
+  //   the quaternions written with qw >= 0 (the sign by value: RowWriter::body);
+  //   power (motors and dampers with the scene's dampers, drives, body torques, the modal
+  //   damping -eta'^T D eta' with the scene's D), the external moment (body torques, a
+  //   prescribed base's reaction moved to the CM, gravity's moment about the CM), roll/pitch/yaw
+  //   of R_OB = R_NO^T R_NB and w_OB_B = w_B - R^T w_NO (orbit), J = E - w_NO . (H + (p_cm -
+  //   p_O) x P), kane's extras (T, V, H_N, P_N, the largest |q| - 1 of the stored quaternions).
+  static void output_jet(const KaneEngine& e, double t, const Dual* x, std::vector<Dual>& row) {
+    const std::size_t nn = e.nodes_.size();
+    const Dual* u = x + e.n_q_;
+    std::vector<Dual> udot;
+    {
+      std::vector<TwinWork<Dual>> w;
+      if (e.flex_.empty())
+        dynamics<Dual>(e, t, x, w, udot);
+      else
+        flex_dynamics(e, t, x, w, udot);
+    }
+    std::vector<Jet> q, pres;
+    std::vector<JetFrame> F;
+    jet_state(e, t, x, u, udot.empty() ? nullptr : udot.data(), false, q, pres);
+    jet_positions(e, q, pres, F);
+    const OutputLayout& L = e.layout_;
+    row.assign(L.size(), Dual(std::numeric_limits<double>::quiet_NaN()));
+    row[0] = t;
+    auto val = [](const V3<Jet>& p) { return V3<Dual>(p(0).a, p(1).a, p(2).a); };
+
+    OrbitFrame o;
+    M3<Dual> T_N = M3<Dual>::Zero();
+    V3<Dual> z_N = V3<Dual>::Zero();
+    double n2 = 0;
+    if (e.orbit_) {
+      o = orbit_frame(e.system_.environment, t);
+      n2 = o.n * o.n;
+      z_N = cst<Dual>(o.zenith_N);
+      Matrix3d T = (3.0 * n2) * o.zenith_N * o.zenith_N.transpose();
+      T.diagonal().array() -= n2;
+      T_N = cst<Dual>(T);
+    }
+    const V3<Dual> p_O = cst<Dual>(e.p_NoO_N_);
+
+    // Per body: frame, mass points, loads.
+    struct Pt {
+      double m;
+      V3<Dual> x, v, a, Fg;
+    };
+    std::vector<std::vector<Pt>> pts(nn);
+    std::vector<M3<Dual>> R(nn), I_N(nn);
+    std::vector<V3<Dual>> om(nn), al(nn), T_ext(nn, V3<Dual>::Zero()), tg(nn, V3<Dual>::Zero());
+    std::vector<Matrix3d> J_B(nn);
+    Dual M_total = 0.0;
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      R[k] = part(F[k].R, 0);
+      om[k] = ang_rate(F[k].R);
+      al[k] = ang_accel(F[k].R);
+      J_B[k] = frame_inertia(e, n);
+      I_N[k] = R[k] * cst<Dual>(J_B[k]) * R[k].transpose();
+      auto add = [&](double m, const V3<Jet>& p) {
+        Pt pt{m, val(p), rate(p), accel(p), V3<Dual>::Zero()};
+        if (e.gravity_) pt.Fg = e.orbit_ ? V3<Dual>(m * (T_N * V3<Dual>(pt.x - p_O))) : V3<Dual>(m * cst<Dual>(e.g_N_));
+        pts[k].push_back(pt);
+      };
+      if (n.flex < 0) {
+        add(n.mass, F[k].p);
+      } else {
+        const FlexBody& fb = *e.system_.bodies[static_cast<std::size_t>(n.body)].flex;
+        for (std::size_t i = 0; i < F[k].pts.size(); ++i) add(fb.nodes[i].mass, F[k].pts[i]);
+      }
+      if (n.body_torque) {
+        const Body& body = e.system_.bodies[static_cast<std::size_t>(n.body)];
+        const V3<Dual> Tq = cst<Dual>(body.torque.value(t));
+        T_ext[k] = body.torque_frame == Body::Frame::Body ? V3<Dual>(R[k] * Tq) : Tq;
+      }
+      if (e.orbit_) tg[k] = (3.0 * n2) * z_N.cross(V3<Dual>(I_N[k] * z_N));
+      for (const Pt& pt : pts[k]) M_total += pt.m;
+    }
+
+    // Joint loads: S(k)'s sums about Ok with the full accelerations.
+    std::vector<V3<Dual>> F_sub(nn, V3<Dual>::Zero()), M_sub(nn, V3<Dual>::Zero());
+    for (std::size_t k = 0; k < nn; ++k) {
+      const V3<Dual> T_B = -(I_N[k] * al[k]) - e.gyro_sign_ * om[k].cross(V3<Dual>(I_N[k] * om[k])) +
+                           T_ext[k] + tg[k];
+      for (int a = static_cast<int>(k); a >= 0; a = e.nodes_[static_cast<std::size_t>(a)].parent) {
+        const std::size_t ai = static_cast<std::size_t>(a);
+        const V3<Dual> pOk = val(F[ai].p_Ok);
+        M_sub[ai] += T_B;
+        for (const Pt& pt : pts[k]) {
+          const V3<Dual> Ri = -pt.m * pt.a + pt.Fg;
+          F_sub[ai] += Ri;
+          M_sub[ai] += V3<Dual>(pt.x - pOk).cross(Ri);
+        }
+      }
+    }
+    std::vector<Dual> pres_torque(nn, Dual(0.0));
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      if (!n.prescribed) continue;
+      const V3<Dual> ax = part(F[k].R_NJp, 0) * cst<Dual>(n.axis_P);
+      pres_torque[k] = n.slides ? Dual(-ax.dot(F_sub[k])) : Dual(-ax.dot(M_sub[k]));
+    }
+
+    // Momenta and energies.
+    Dual T2 = 0.0;
+    V3<Dual> P = V3<Dual>::Zero(), first_moment = V3<Dual>::Zero(), H = V3<Dual>::Zero();
+    for (std::size_t k = 0; k < nn; ++k) {
+      for (const Pt& pt : pts[k]) {
+        T2 += pt.m * pt.v.dot(pt.v);
+        P += pt.m * pt.v;
+        first_moment += pt.m * pt.x;
+      }
+      const V3<Dual> h = I_N[k] * om[k];
+      T2 += om[k].dot(h);
+      H += h;
+    }
+    const V3<Dual> p_cm = first_moment / M_total;
+    for (std::size_t k = 0; k < nn; ++k)
+      for (const Pt& pt : pts[k]) H += V3<Dual>(pt.x - p_cm).cross(V3<Dual>(pt.m * pt.v));
+    const Dual T = 0.5 * T2;
+    Dual V = 0.0;
+    for (const Node& n : e.nodes_) {
+      if (n.hinge_load) {
+        const Joint& J = e.system_.joints[static_cast<std::size_t>(n.joint)];
+        if (J.stiffness != 0 || J.stiffness2 != 0) switch (n.shape) {
+            case JointShape::Axis1:
+            case JointShape::Slide1: {
+              const Dual d = x[n.q0] - J.neutral_angle;
+              V += 0.5 * J.stiffness * d * d;
+            } break;
+            case JointShape::Gimbal2: {
+              const Dual d1 = x[n.q0] - J.neutral_angle, d2 = x[n.q0 + 1] - J.neutral_angle2;
+              V += 0.5 * J.stiffness * d1 * d1 + 0.5 * J.stiffness2 * d2 * d2;
+            } break;
+            case JointShape::Rotation3:
+              V += 0.5 * J.stiffness * rotation_vector(x + n.q0).squaredNorm();
+              break;
+            default:
+              break;
+          }
+      }
+      if (n.nm > 0) {  // strain energy 1/2 eta^T K eta
+        const Eigen::MatrixXd& K = e.flex_[static_cast<std::size_t>(n.flex)].K;
+        for (int l = 0; l < n.nm; ++l)
+          for (int m = 0; m < n.nm; ++m) V += 0.5 * K(l, m) * x[n.q0 + n.nqj + l] * x[n.q0 + n.nqj + m];
+      }
+    }
+    if (e.gravity_)
+      for (std::size_t k = 0; k < nn; ++k) {
+        for (const Pt& pt : pts[k]) {
+          if (!e.orbit_) {
+            V -= cst<Dual>(e.g_N_).dot(V3<Dual>(pt.m * pt.x));
+          } else {
+            const V3<Dual> r = pt.x - p_O;
+            const Dual zr = z_N.dot(r);
+            V -= 0.5 * pt.m * n2 * (3.0 * zr * zr - r.squaredNorm());
+          }
+        }
+        if (e.orbit_) V += 1.5 * n2 * z_N.dot(V3<Dual>(I_N[k] * z_N)) - 0.5 * n2 * J_B[k].trace();
+      }
+
+    // Attitudes and body columns.
+    std::vector<Quat> qN(nn);
+    Dual quat_err = 0.0;
+    auto track = [&quat_err](const Quat& qq) {
+      const Dual err = abs(qq.norm() - 1.0);
+      if (err.v > quat_err.v) quat_err = err;
+    };
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      if (n.shape == JointShape::Base6) {
+        const Quat qq = quat(x + n.q0 + 3);
+        track(qq);
+        qN[k] = qq.normalized();
+      } else {
+        Quat qJ{1.0, 0.0, 0.0, 0.0};
+        switch (n.shape) {
+          case JointShape::Axis1:
+            qJ = axis_quat(n.axis_J, n.prescribed ? pres[k].a : x[n.q0]);
+            break;
+          case JointShape::Rotation3: {
+            const Quat qq = quat(x + n.q0);
+            track(qq);
+            qJ = qq.normalized();
+          } break;
+          case JointShape::Gimbal2:
+            qJ = axis_quat(n.axis_J, x[n.q0]) * axis_quat(n.axis2_J, x[n.q0 + 1]);
+            break;
+          default:
+            break;
+        }
+        Quat qNJp = n.parent >= 0 ? qN[static_cast<std::size_t>(n.parent)] : Quat{1.0, 0.0, 0.0, 0.0};
+        if (n.parent_attach) {
+          const Node& pn = e.nodes_[static_cast<std::size_t>(n.parent)];
+          V3<Dual> psi = V3<Dual>::Zero();
+          for (int l = 0; l < std::min<int>(pn.nm, static_cast<int>(n.Psi_Pj.cols())); ++l)
+            psi += cst<Dual>(Vector3d(n.Psi_Pj.col(l))) * x[pn.q0 + pn.nqj + l];
+          qNJp = qNJp * quat_of_rotation_vector(psi);
+        }
+        Quat qq = n.has_offset ? qNJp * quat(n.q_PJ0) * qJ : qNJp * qJ;
+        if (n.child_attach) {
+          V3<Dual> psi = V3<Dual>::Zero();
+          for (int l = 0; l < std::min<int>(n.nm, static_cast<int>(n.Psi_Cj.cols())); ++l)
+            psi -= cst<Dual>(Vector3d(n.Psi_Cj.col(l))) * x[n.q0 + n.nqj + l];
+          qq = qq * quat_of_rotation_vector(psi);  // q(psi_C)^-1 = q(-psi_C)
+        }
+        qN[k] = qq.normalized();
+      }
+      const V3<Dual> w_B = R[k].transpose() * om[k];
+      const int b = n.body;
+      const std::size_t cw = static_cast<std::size_t>(L.body_w(b));
+      for (std::size_t i = 0; i < 3; ++i) row[cw + i] = w_B(static_cast<Eigen::Index>(i));
+      const double sg = qN[k].w.v < 0 ? -1.0 : 1.0;
+      const Quat qc{sg * qN[k].w, sg * qN[k].x, sg * qN[k].y, sg * qN[k].z};
+      row[cw + 3] = qc.w;
+      row[cw + 4] = qc.x;
+      row[cw + 5] = qc.y;
+      row[cw + 6] = qc.z;
+      if (L.lvlh(b) >= 0) {
+        const Dual qa[4] = {qc.w, qc.x, qc.y, qc.z};
+        const M3<Dual> R_NB = quat_matrix(qa);
+        const M3<Dual> Ro = cst<Dual>(Matrix3d(o.R_NO.transpose())) * R_NB;
+        const Dual sp = -Ro(2, 0);
+        const Dual pitch = asin_clamped(sp);
+        Dual roll = 0.0, yaw;
+        if (std::abs(sp.v) > 1.0 - 1e-12) {
+          yaw = atan2(-Ro(0, 1), Ro(1, 1));
+        } else {
+          roll = atan2(Ro(2, 1), Ro(2, 2));
+          yaw = atan2(Ro(1, 0), Ro(0, 0));
+        }
+        const V3<Dual> w_OB = w_B - R_NB.transpose() * cst<Dual>(o.w_NO_N);
+        const std::size_t c0 = static_cast<std::size_t>(L.lvlh(b));
+        row[c0] = roll;
+        row[c0 + 1] = pitch;
+        row[c0 + 2] = yaw;
+        for (std::size_t i = 0; i < 3; ++i) row[c0 + 3 + i] = w_OB(static_cast<Eigen::Index>(i));
+      }
+    }
+
+    // Joints, modal coordinates, positions, loads, power, external moment.
+    Dual Pw = 0.0;
+    V3<Dual> M_ext = V3<Dual>::Zero();
+    for (std::size_t k = 0; k < nn; ++k) {
+      const Node& n = e.nodes_[k];
+      const Joint& J = e.system_.joints[k];
+      const std::size_t c0 = static_cast<std::size_t>(L.joint_first(n.joint));
+      switch (n.shape) {
+        case JointShape::Axis1:
+        case JointShape::Slide1:
+          if (n.prescribed) {
+            row[c0] = pres[k].a;
+            row[c0 + 1] = pres[k].b;
+            row[c0 + 2] = pres_torque[k];
+          } else {
+            row[c0] = x[n.q0];
+            row[c0 + 1] = u[n.u0];
+          }
+          break;
+        case JointShape::Rotation3:
+          for (std::size_t i = 0; i < 3; ++i) row[c0 + i] = u[n.u0 + static_cast<int>(i)];
+          break;
+        case JointShape::Gimbal2:
+          row[c0] = x[n.q0];
+          row[c0 + 1] = x[n.q0 + 1];
+          row[c0 + 2] = u[n.u0];
+          row[c0 + 3] = u[n.u0 + 1];
+          break;
+        default:
+          break;
+      }
+      if (n.nm > 0) {
+        const std::size_t cm0 = static_cast<std::size_t>(L.modal_first(n.body));
+        const std::size_t nm = static_cast<std::size_t>(n.nm);
+        for (std::size_t l = 0; l < nm; ++l) {
+          row[cm0 + l] = x[static_cast<std::size_t>(n.q0 + n.nqj) + l];
+          row[cm0 + nm + l] = u[static_cast<std::size_t>(n.u0 + n.nuj) + l];
+        }
+        const Eigen::MatrixXd& D = e.flex_[static_cast<std::size_t>(n.flex)].D_P;
+        for (int l = 0; l < n.nm; ++l)
+          for (int m = 0; m < n.nm; ++m) Pw -= u[n.u0 + n.nuj + l] * D(l, m) * u[n.u0 + n.nuj + m];
+      }
+      const std::size_t cp = static_cast<std::size_t>(L.body_position(n.body));
+      const V3<Dual> pBo = val(F[k].p);
+      for (std::size_t i = 0; i < 3; ++i) row[cp + i] = pBo(static_cast<Eigen::Index>(i));
+      if (n.shape != JointShape::Base6) {
+        const V3<Dual> F_C = R[k].transpose() * V3<Dual>(-F_sub[k]),
+                       M_C = R[k].transpose() * V3<Dual>(-M_sub[k]);
+        const std::size_t cl = static_cast<std::size_t>(L.joint_load(n.joint));
+        for (std::size_t i = 0; i < 3; ++i) {
+          row[cl + i] = F_C(static_cast<Eigen::Index>(i));
+          row[cl + 3 + i] = M_C(static_cast<Eigen::Index>(i));
+        }
+      }
+      if (n.prescribed) {
+        Pw += pres_torque[k] * pres[k].b;
+      } else {
+        switch (n.shape) {
+          case JointShape::Axis1:
+          case JointShape::Slide1: {
+            const Dual r = u[n.u0];
+            const double motor = J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0);
+            Pw += (motor - n.damping_P * r) * r;
+          } break;
+          case JointShape::Gimbal2: {
+            Eigen::Vector2d motor = Eigen::Vector2d::Zero();
+            if (!J.motor_universal.empty()) motor = J.motor_universal.value(t);
+            const Dual r1 = u[n.u0], r2 = u[n.u0 + 1];
+            Pw += (motor(0) - n.damping_P * r1) * r1 + (motor(1) - n.damping2_P * r2) * r2;
+          } break;
+          case JointShape::Rotation3: {
+            const V3<Dual> w_PC_C(u[n.u0], u[n.u0 + 1], u[n.u0 + 2]);
+            Vector3d motor = Vector3d::Zero();
+            if (!J.motor_spherical.empty()) motor = J.motor_spherical.value(t);
+            Pw += V3<Dual>(cst<Dual>(motor) - n.damping_P * w_PC_C).dot(w_PC_C);
+          } break;
+          default:
+            break;
+        }
+      }
+      if (n.body_torque) {
+        Pw += T_ext[k].dot(om[k]);
+        M_ext += T_ext[k];
+      }
+      if (e.gravity_) {
+        for (const Pt& pt : pts[k]) M_ext += V3<Dual>(pt.x - p_cm).cross(pt.Fg);
+        M_ext += tg[k];
+      }
+    }
+    if (e.nodes_[0].shape != JointShape::Base6)  // a prescribed base: N's load, moved to the CM
+      M_ext += V3<Dual>(-M_sub[0]) + V3<Dual>(val(F[0].p_Ok) - p_cm).cross(V3<Dual>(-F_sub[0]));
+    for (std::size_t i = 0; i < 3; ++i) {
+      const Eigen::Index ii = static_cast<Eigen::Index>(i);
+      row[static_cast<std::size_t>(L.H_vector()) + i] = H(ii);
+      row[static_cast<std::size_t>(L.cm()) + i] = p_cm(ii);
+      row[static_cast<std::size_t>(L.external_moment()) + i] = M_ext(ii);
+    }
+    row[static_cast<std::size_t>(L.H())] = H.norm();
+    row[static_cast<std::size_t>(L.E())] = T + V;
+    row[static_cast<std::size_t>(L.P())] = Pw;
+    if (e.orbit_) {
+      const V3<Dual> H_O = H + V3<Dual>(p_cm - p_O).cross(P);
+      row[static_cast<std::size_t>(L.J())] = T + V - cst<Dual>(o.w_NO_N).dot(H_O);
+    }
+    std::size_t c = static_cast<std::size_t>(e.extra0_);
+    row[c++] = T;
+    row[c++] = V;
+    for (Eigen::Index i = 0; i < 3; ++i) row[c++] = H(i);
+    for (Eigen::Index i = 0; i < 3; ++i) row[c++] = P(i);
+    row[c++] = quat_err;
+  }
+
+  // rhs() at x + e dx with dual x: the kinematical equations (the units' q_rates: q' = 1/2 q (x)
+  // (0, w) with q as stored, not normalised; q' = u for the scalar joints and the modal
+  // coordinates) and u' from the rigid or the flexible twin.
+  static void rhs(const KaneEngine& e, double t, const Dual* x, Dual* xdot) {
+    std::vector<TwinWork<Dual>> w;
+    std::vector<Dual> udot;
+    if (e.flex_.empty())
+      dynamics<Dual>(e, t, x, w, udot);
+    else
+      flex_dynamics(e, t, x, w, udot);
+    const Dual* u = x + e.n_q_;
+    auto quat_rate = [&](int q0, int u0) {  // rot::quat_rate_body
+      const Dual *q = x + q0, *wb = u + u0;
+      xdot[q0] = 0.5 * (-(q[1] * wb[0]) - q[2] * wb[1] - q[3] * wb[2]);
+      xdot[q0 + 1] = 0.5 * (q[0] * wb[0] + q[2] * wb[2] - q[3] * wb[1]);
+      xdot[q0 + 2] = 0.5 * (q[0] * wb[1] + q[3] * wb[0] - q[1] * wb[2]);
+      xdot[q0 + 3] = 0.5 * (q[0] * wb[2] + q[1] * wb[1] - q[2] * wb[0]);
+    };
+    for (const Node& n : e.nodes_) {
+      switch (n.shape) {
+        case JointShape::Base6:
+          for (int i = 0; i < 3; ++i) xdot[n.q0 + i] = u[n.u0 + 3 + i];
+          quat_rate(n.q0 + 3, n.u0);
+          break;
+        case JointShape::Rotation3:
+          quat_rate(n.q0, n.u0);
+          break;
+        case JointShape::Axis1:
+        case JointShape::Slide1:
+        case JointShape::Gimbal2:
+          if (n.prescribed) break;
+          for (int i = 0; i < n.nuj; ++i) xdot[n.q0 + i] = u[n.u0 + i];
+          break;
+        default:
+          break;
+      }
+      for (int l = 0; l < n.nm; ++l) xdot[n.q0 + n.nqj + l] = u[n.u0 + n.nuj + l];
+    }
+    for (int r = 0; r < e.n_u_; ++r) xdot[e.n_q_ + r] = udot[static_cast<std::size_t>(r)];
+  }
 };
 
 bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
@@ -1066,6 +1532,50 @@ bool KaneEngine::accelerations_tangent(double t, const TreeState& s, const TreeT
   }
   a = std::move(ra);
   da = std::move(rd);
+  return true;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Issue 27's output and rhs tangents (Engine::output_row_tangent, rhs_tangent), by the same dual
+// numbers through the same twin.
+
+bool KaneEngine::output_row_twin(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                                 double* drow) {
+  if (!output_tangent_) return false;
+  std::vector<Dual> x, r;
+  TangentTwin::pack(*this, s, ds, x);
+  TangentTwin::output_jet(*this, t, x.data(), r);
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    row[i] = r[i].v;
+    drow[i] = r[i].d;
+  }
+  drow[0] = 0.0;  // the time column
+  return true;
+}
+
+bool KaneEngine::output_row_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                    double* row, double* drow) {
+  if (!output_tangent_) return false;
+  std::vector<double> twin_row(layout_.size());
+  output_row_twin(t, s, ds, twin_row.data(), drow);
+  // The row itself is output_row()'s at pack(s), to the last bit (the twin's value part agrees
+  // with it to rounding: tests/kane/test_kane_tangent.cpp).
+  std::vector<double> x(static_cast<std::size_t>(n_q_ + n_u_));
+  pack(s, x.data());
+  output_row(t, x.data(), row);
+  return true;
+}
+
+bool KaneEngine::rhs_tangent(double t, const double* x, const double* dx, double* xdot,
+                             double* dxdot) {
+  if (!tangent_) return false;
+  const std::size_t size = static_cast<std::size_t>(n_q_ + n_u_);
+  std::vector<Dual> xd(size), xdotd(size);
+  for (std::size_t i = 0; i < size; ++i) xd[i] = Dual(x[i], dx[i]);
+  TangentTwin::rhs(*this, t, xd.data(), xdotd.data());
+  for (std::size_t i = 0; i < size; ++i) dxdot[i] = xdotd[i].d;
+  // xdot is rhs()'s own (the twin's value part agrees with it to rounding).
+  rhs(t, x, xdot);
   return true;
 }
 

@@ -557,3 +557,446 @@ TEST_CASE("kane tangent: not covered (a flexible body with test_inertia_scale !=
     CHECK(da.wdot_NB_B.empty());
   }
 }
+
+// ------------------------------------------------------------------------------------------------
+// Issue 27, session 39: output_row_tangent (the output matrix C) and rhs_tangent (own_A).
+
+namespace {
+
+const char* kind_name(ColumnKind k) {
+  switch (k) {
+    case ColumnKind::Time: return "t";
+    case ColumnKind::BodyW: return "body w";
+    case ColumnKind::BodyQ: return "body q";
+    case ColumnKind::JointCoordinate: return "joint coordinate";
+    case ColumnKind::JointRate: return "joint rate";
+    case ColumnKind::JointTorque: return "joint torque";
+    case ColumnKind::SphericalW: return "spherical w";
+    case ColumnKind::Modal: return "modal";
+    case ColumnKind::ModalRate: return "modal rate";
+    case ColumnKind::MomentumH: return "H";
+    case ColumnKind::EnergyE: return "E";
+    case ColumnKind::BodyPosition: return "body position";
+    case ColumnKind::SystemCM: return "CM";
+    case ColumnKind::MomentumVector: return "Hx/Hy/Hz";
+    case ColumnKind::JointForce: return "joint F";
+    case ColumnKind::JointMoment: return "joint M";
+    case ColumnKind::Power: return "P";
+    case ColumnKind::ExternalMoment: return "Mx/My/Mz";
+    case ColumnKind::LvlhAngle: return "roll/pitch/yaw";
+    case ColumnKind::LvlhRate: return "wox/woy/woz";
+    case ColumnKind::Jacobi: return "J";
+    case ColumnKind::Extra: return "extra";
+  }
+  return "?";
+}
+
+VectorXd row_at(KaneEngine& e, double t, const TreeState& s) {
+  const std::vector<double> x = packed(e, s);
+  VectorXd r(static_cast<Eigen::Index>(e.layout().size()));
+  e.output_row(t, x.data(), r.data());
+  return r;
+}
+
+VectorXd row_richardson(KaneEngine& e, double t, const TreeState& s, const TreeTangent& ds, double h) {
+  auto c = [&](double hh) {
+    return VectorXd((row_at(e, t, moved_along(s, ds, hh)) - row_at(e, t, moved_along(s, ds, -hh))) / (2 * hh));
+  };
+  const VectorXd d1 = c(h), d2 = c(h / 2), d4 = c(h / 4);
+  const VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d4 - d2) / 3;
+  return (16 * r2 - r1) / 15;
+}
+
+// Per column group (ColumnKind): max |a - b| / max |scale| over the group's columns; the worst
+// group's ratio, its name and its worst column.  A group whose values are zero but for rounding
+// (the moments of free spherical joints, chain(6)) is measured against 1e-3 max |scale| over
+// every column instead.
+struct GroupErr {
+  double err = 0;
+  std::string group, column;
+};
+GroupErr group_error(const OutputLayout& L, const VectorXd& a, const VectorXd& b, const VectorXd& scale) {
+  GroupErr worst;
+  const double floor = 1e-3 * scale.cwiseAbs().maxCoeff();
+  std::vector<double> smax(static_cast<std::size_t>(ColumnKind::Extra) + 1, floor);
+  for (std::size_t i = 0; i < L.size(); ++i) {
+    const std::size_t g = static_cast<std::size_t>(L.columns()[i].kind);
+    smax[g] = std::max(smax[g], std::abs(scale(static_cast<Eigen::Index>(i))));
+  }
+  for (std::size_t i = 0; i < L.size(); ++i) {
+    const Eigen::Index ii = static_cast<Eigen::Index>(i);
+    const std::size_t g = static_cast<std::size_t>(L.columns()[i].kind);
+    const double d = std::abs(a(ii) - b(ii));
+    const double r = d == 0 ? 0.0 : d / smax[g];
+    if (r > worst.err) {
+      worst.err = r;
+      worst.group = kind_name(L.columns()[i].kind);
+      worst.column = L.columns()[i].name;
+    }
+  }
+  return worst;
+}
+
+// output_row_tangent on `trials` random states and tangents: row is output_row() to the last
+// bit; the twin's own row agrees with it per group to 1e-12; drow agrees per group with a twice
+// Richardson-extrapolated central difference of output_row(pack(s +- h ds)) to 1e-10 of the
+// group's max |drow| (h = 4e-3: at 2e-3 and below the extrapolation's rounding floor reaches
+// 1e-10 in the groups that cancel, E and the external moment in uniform gravity; measured).
+// Returns the worst Richardson ratio.
+double check_output(const System& system, double t, int trials, unsigned seed,
+                    const EngineOptions& options = {}, double rich_h = 4e-3,
+                    double rich_tol = 1e-10, double twin_tol = 1e-12) {
+  std::mt19937 rng(seed);
+  KaneEngine e(system, options);
+  REQUIRE(e.has_output_tangent());
+  const OutputLayout& L = e.layout();
+  const Eigen::Index nc = static_cast<Eigen::Index>(L.size());
+  GroupErr worst_rich, worst_twin;
+  for (int trial = 0; trial < trials; ++trial) {
+    // A state whose attitudes are clear of qw = 0, where the written sign (qw >= 0) flips: the
+    // differences across it would not be a derivative (measured: a body at qw = 2.7e-4 gave
+    // central differences 1e3 off at h = 1e-3, agreeing with drow at h = 1e-4).
+    TreeState s;
+    for (;;) {
+      s = random_new_state(system, rng);
+      const VectorXd r0 = row_at(e, t, s);
+      double qw_min = 1;
+      for (std::size_t b = 0; b < system.bodies.size(); ++b)
+        qw_min = std::min(qw_min, std::abs(r0(L.body_q(static_cast<int>(b)))));
+      if (qw_min > 0.05) break;
+    }
+    const TreeTangent ds = random_tangent(system, rng);
+    VectorXd row(nc), drow(nc), trow(nc), tdrow(nc);
+    REQUIRE(e.output_row_tangent(t, s, ds, row.data(), drow.data()));
+    REQUIRE(e.output_row_twin(t, s, ds, trow.data(), tdrow.data()));
+    const VectorXd ref = row_at(e, t, s);
+    REQUIRE(row.allFinite());
+    REQUIRE(drow.allFinite());
+    REQUIRE(trow.allFinite());  // every column written by the twin
+    CHECK((row - ref).cwiseAbs().maxCoeff() == 0.0);
+    CHECK((drow - tdrow).cwiseAbs().maxCoeff() == 0.0);
+    CHECK(drow(0) == 0.0);
+    const GroupErr twin = group_error(L, trow, ref, ref);
+    const GroupErr rich = group_error(L, drow, row_richardson(e, t, s, ds, rich_h), drow);
+    INFO(system.name << " trial " << trial << ": twin row vs output_row() " << twin.err << " ("
+                     << twin.group << ", " << twin.column << "); drow vs Richardson " << rich.err
+                     << " (" << rich.group << ", " << rich.column << ")");
+    CHECK(twin.err <= twin_tol);
+    CHECK(rich.err <= rich_tol);
+    if (twin.err > worst_twin.err) worst_twin = twin;
+    if (rich.err > worst_rich.err) worst_rich = rich;
+  }
+  WARN(system.name << ": output_row_tangent worst |drow - Richardson| / group max|drow| "
+                   << worst_rich.err << " (group " << worst_rich.group << ", column "
+                   << worst_rich.column << "); twin row vs output_row() " << worst_twin.err << " ("
+                   << worst_twin.column << ")");
+  return worst_rich.err;
+}
+
+}  // namespace
+
+TEST_CASE("kane output tangent: drow is the derivative of output_row(pack(s + e ds)) in every "
+          "column group (Richardson), row is output_row()",
+          "[kane][tangent][output]") {
+  SECTION("mixed_tree (revolute, spherical, fixed; springs; zero linear momentum)") {
+    check_output(mixed_tree(), 0.4, 3, 101);
+  }
+  SECTION("loaded_tree (prismatic, universal, revolute, spherical, fixed; dampers, motors, body "
+          "torques: P)") {
+    check_output(loaded_tree(), 0.4, 3, 102);
+  }
+  SECTION("loaded_tree without zero linear momentum") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_no_zlm";
+    s.zero_linear_momentum = false;
+    check_output(s, 0.4, 2, 103);
+  }
+  SECTION("chain of 6 spherical links (cond(M) ~ 4e4 to 8e4; its joint moments are zero but for "
+          "rounding, which the conditioning amplifies: 1e-8 and 1e-11)") {
+    check_output(chain(6), 0.0, 2, 104, {}, 4e-3, 1e-8, 1e-11);
+  }
+  SECTION("prescribed base (revolute spin-up to N; .torque) with a prescribed slider (.force)") {
+    check_output(prescribed_base_tree(), 0.7, 3, 105);
+  }
+  SECTION("internal prescribed hinge on a free base") {
+    check_output(internal_prescribed_tree(), 1.1, 2, 106);
+  }
+  SECTION("uniform gravity") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_uniform_gravity";
+    s.environment = uniform_field();
+    check_output(s, 0.3, 2, 107);
+  }
+  // In orbit the loads vary fast along ds (measured: the Richardson value at h = 1e-2 and 2e-3
+  // off by 1e2 relative in the joint loads, at 1e-3 and 1e-4 within 1e-6): h = 5e-4 there.
+  SECTION("orbit (roll/pitch/yaw, wox/woy/woz, J)") {
+    System s = loaded_tree();
+    s.name = "loaded_tree_orbit";
+    s.environment = orbit_field();
+    check_output(s, 0.9, 3, 108, {}, 5e-4);
+  }
+  SECTION("orbit, prescribed base") {
+    System s = prescribed_base_tree();
+    s.name = "prescribed_base_tree_orbit";
+    s.environment = orbit_field();
+    check_output(s, 0.5, 2, 109, {}, 5e-4);
+  }
+  SECTION("test_gyroscopic_sign -1, test_damper_scale 3, test_inertia_scale 1.2") {
+    EngineOptions o;
+    o.test_gyroscopic_sign = -1.0;
+    o.test_damper_scale = 3.0;
+    o.test_inertia_scale = 1.2;
+    System s = loaded_tree();
+    s.name = "loaded_tree_test_hooks";
+    check_output(s, 0.2, 2, 110, o);
+  }
+}
+
+TEST_CASE("kane output tangent: drow is linear in ds", "[kane][tangent][output]") {
+  for (const System& s : {loaded_tree(), prescribed_base_tree()}) {
+    std::mt19937 rng(120);
+    KaneEngine e(s, {});
+    const TreeState st = random_new_state(s, rng);
+    const TreeTangent d1 = random_tangent(s, rng), d2 = random_tangent(s, rng);
+    const Eigen::Index nc = static_cast<Eigen::Index>(e.layout().size());
+    VectorXd row(nc), r1(nc), r2(nc), r12(nc);
+    REQUIRE(e.output_row_tangent(0.6, st, d1, row.data(), r1.data()));
+    REQUIRE(e.output_row_tangent(0.6, st, d2, row.data(), r2.data()));
+    REQUIRE(e.output_row_tangent(0.6, st, combined(d1, 2.0, d2), row.data(), r12.data()));
+    const VectorXd sum = r1 + 2.0 * r2;
+    const double err = (r12 - sum).cwiseAbs().maxCoeff() / sum.cwiseAbs().maxCoeff();
+    INFO(s.name << ": relative |drow(ds1 + 2 ds2) - drow(ds1) - 2 drow(ds2)| " << err);
+    CHECK(err <= 1e-14);
+  }
+}
+
+TEST_CASE("kane output tangent: flexible bodies (modal columns, node attachments, modal "
+          "damping's power, gravity, orbit) and geometric stiffening",
+          "[kane][tangent][output][flex]") {
+  SECTION("flex_tree") { check_output(flex_named(flex_tree(), "flex_tree"), 0.3, 2, 131); }
+  SECTION("flex_tree loaded (dampers, motors, modal damping, body torques)") {
+    check_output(flex_named(flex_tree(true), "flex_tree_loaded"), 0.3, 2, 132);
+  }
+  SECTION("flex_tree loaded, without zero linear momentum, test_damper_scale 3") {
+    System s = flex_named(flex_tree(true), "flex_tree_loaded_no_zlm_damper_scaled");
+    s.zero_linear_momentum = false;
+    EngineOptions damped;
+    damped.test_damper_scale = 3.0;
+    check_output(s, 0.3, 2, 133, damped);
+  }
+  SECTION("flex_tree loaded, uniform gravity") {
+    System s = flex_named(flex_tree(true), "flex_tree_uniform_gravity");
+    s.environment = uniform_field();
+    check_output(s, 0.3, 2, 134);
+  }
+  SECTION("flex_tree loaded, orbit") {
+    System s = flex_named(flex_tree(true), "flex_tree_orbit");
+    s.environment = orbit_field();
+    check_output(s, 0.8, 2, 135, {}, 5e-4);
+  }
+  SECTION("stiffened flex_tree (h = 1e-3: at 4e-3 a state's joint moments were 1e2 off, at 1e-3 "
+          "and 2e-4 within 6e-11; measured)") {
+    check_output(flex_named(stiffened(flex_tree(true)), "flex_tree_stiffened"), 0.3, 2, 136, {}, 1e-3);
+  }
+}
+
+TEST_CASE("kane output tangent: the committed flexible scenes", "[kane][tangent][output][flex][scenes]") {
+  unsigned seed = 140;
+  for (const char* name : {"pointing_flex", "spinup_beam", "hub_nodal_panel", "free_beam_payload"}) {
+    const std::string path = crossdyn::test::scene_path(name);
+    if (!std::filesystem::exists(path)) {
+      WARN("no scene " << path);
+      continue;
+    }
+    System s = read_scene(path);
+    s.name = name;
+    check_output(s, 0.7, 1, seed++);
+  }
+}
+
+TEST_CASE("kane output tangent: not covered (a flexible body with test_inertia_scale != 1): "
+          "false, row and drow untouched",
+          "[kane][tangent][output][flex]") {
+  EngineOptions scaled;
+  scaled.test_inertia_scale = 1.1;
+  const System s = flex_tree(true);
+  KaneEngine e(s, scaled);
+  CHECK_FALSE(e.has_output_tangent());
+  std::vector<double> row(e.layout().size(), 42.0), drow(e.layout().size(), -42.0);
+  CHECK_FALSE(e.output_row_tangent(0.0, TreeState::initial(s), TreeTangent::zero(s), row.data(), drow.data()));
+  CHECK(row == std::vector<double>(e.layout().size(), 42.0));
+  CHECK(drow == std::vector<double>(e.layout().size(), -42.0));
+}
+
+namespace {
+
+VectorXd rhs_at(KaneEngine& e, double t, const VectorXd& x) {
+  VectorXd xdot(x.size());
+  e.rhs(t, x.data(), xdot.data());
+  return xdot;
+}
+
+// rhs_tangent at random x (packed random states; with `off_sphere`, every quaternion scaled off
+// the unit sphere) and random dx: xdot is rhs() to the last bit, dxdot a twice Richardson-
+// extrapolated central difference of rhs(x +- h dx) to `tol` of max |dxdot|.
+double check_rhs(const System& system, double t, int trials, unsigned seed, bool off_sphere,
+                 double tol, const EngineOptions& options = {}) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> nd;
+  KaneEngine e(system, options);
+  const Eigen::Index n = e.state_size();
+  double worst = 0;
+  std::string worst_label;
+  for (int trial = 0; trial < trials; ++trial) {
+    const std::vector<double> xs = packed(e, random_new_state(system, rng));
+    VectorXd x = Eigen::Map<const VectorXd>(xs.data(), n), dx(n);
+    for (Eigen::Index i = 0; i < n; ++i) dx(i) = nd(rng);
+    if (off_sphere)
+      for (const kane::Node& nod : e.nodes())
+        if (nod.unit != nullptr && (nod.shape == kane::JointShape::Base6 || nod.shape == kane::JointShape::Rotation3)) {
+          const int q0 = nod.q0 + (nod.shape == kane::JointShape::Base6 ? 3 : 0);
+          for (int i = 0; i < 4; ++i) x(q0 + i) *= 1.3;
+        }
+    VectorXd xdot(n), dxdot(n);
+    REQUIRE(e.rhs_tangent(t, x.data(), dx.data(), xdot.data(), dxdot.data()));
+    CHECK((xdot - rhs_at(e, t, x)).cwiseAbs().maxCoeff() == 0.0);
+    REQUIRE(dxdot.allFinite());
+    auto c = [&](double h) { return VectorXd((rhs_at(e, t, x + h * dx) - rhs_at(e, t, x - h * dx)) / (2 * h)); };
+    const double h = 2e-3;
+    const VectorXd d1 = c(h), d2 = c(h / 2), d4 = c(h / 4);
+    const VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d4 - d2) / 3, rich = (16 * r2 - r1) / 15;
+    Eigen::Index at = 0;
+    const double err = (dxdot - rich).cwiseAbs().maxCoeff(&at) / dxdot.cwiseAbs().maxCoeff();
+    INFO(system.name << " trial " << trial << (off_sphere ? " (quaternions off the unit sphere)" : "")
+                     << ": |dxdot - Richardson| / max|dxdot| " << err << " at " << e.state_label(static_cast<int>(at)));
+    CHECK(err <= tol);
+    if (err > worst) {
+      worst = err;
+      worst_label = e.state_label(static_cast<int>(at));
+    }
+  }
+  WARN(system.name << (off_sphere ? " (off the unit sphere)" : "")
+                   << ": rhs_tangent worst |dxdot - Richardson| / max|dxdot| " << worst << " ("
+                   << worst_label << ")");
+  return worst;
+}
+
+}  // namespace
+
+TEST_CASE("kane rhs tangent: dxdot is the derivative of rhs(x + e dx), on and off the unit "
+          "sphere, and xdot is rhs()",
+          "[kane][tangent][rhs]") {
+  SECTION("mixed_tree") {
+    check_rhs(mixed_tree(), 0.4, 2, 201, false, 1e-10);
+    check_rhs(mixed_tree(), 0.4, 2, 202, true, 1e-10);
+  }
+  SECTION("loaded_tree") {
+    check_rhs(loaded_tree(), 0.4, 2, 203, false, 1e-10);
+    check_rhs(loaded_tree(), 0.4, 2, 204, true, 1e-10);
+  }
+  SECTION("chain of 6 spherical links (the run's order-N solver)") {
+    check_rhs(chain(6), 0.0, 2, 205, true, 1e-10);
+  }
+  SECTION("prescribed base with a prescribed slider") {
+    check_rhs(prescribed_base_tree(), 0.7, 2, 206, true, 1e-10);
+  }
+  SECTION("uniform gravity, orbit") {
+    System g = loaded_tree();
+    g.name = "loaded_tree_uniform_gravity";
+    g.environment = uniform_field();
+    check_rhs(g, 0.3, 2, 207, true, 1e-10);
+    System o = loaded_tree();
+    o.name = "loaded_tree_orbit";
+    o.environment = orbit_field();
+    check_rhs(o, 0.9, 2, 208, true, 1e-10);
+  }
+  SECTION("test hooks: gyroscopic sign -1, damper scale 3") {
+    EngineOptions opt;
+    opt.test_gyroscopic_sign = -1.0;
+    opt.test_damper_scale = 3.0;
+    check_rhs(loaded_tree(), 0.2, 2, 209, true, 1e-10, opt);
+  }
+  SECTION("flexible: flex_tree loaded, stiffened, in orbit") {
+    check_rhs(flex_named(flex_tree(true), "flex_tree_loaded"), 0.3, 2, 210, true, 3e-10);
+    check_rhs(flex_named(stiffened(flex_tree(true)), "flex_tree_stiffened"), 0.3, 2, 211, true, 3e-10);
+    System o = flex_named(flex_tree(true), "flex_tree_orbit");
+    o.environment = orbit_field();
+    check_rhs(o, 0.8, 2, 212, true, 3e-10);
+  }
+}
+
+TEST_CASE("kane rhs tangent: not covered (a flexible body with test_inertia_scale != 1): false, "
+          "untouched",
+          "[kane][tangent][rhs]") {
+  EngineOptions scaled;
+  scaled.test_inertia_scale = 1.1;
+  const System s = flex_tree();
+  KaneEngine e(s, scaled);
+  const std::vector<double> x = packed(e, TreeState::initial(s));
+  std::vector<double> dx(x.size(), 1.0), xdot(x.size(), 42.0), dxdot(x.size(), -42.0);
+  CHECK_FALSE(e.rhs_tangent(0.0, x.data(), dx.data(), xdot.data(), dxdot.data()));
+  CHECK(xdot == std::vector<double>(x.size(), 42.0));
+  CHECK(dxdot == std::vector<double>(x.size(), -42.0));
+}
+
+
+
+
+TEST_CASE("kane rhs tangent: along dx = d pack(s + e ds)/de its speed rows are "
+          "accelerations_tangent's da",
+          "[kane][tangent][rhs]") {
+  for (const System& s : {loaded_tree(), prescribed_base_tree(), flex_tree(true)}) {
+    std::mt19937 rng(230);
+    KaneEngine e(s, {});
+    const TreeState st = random_new_state(s, rng);
+    const TreeTangent ds = random_tangent(s, rng);
+    const Eigen::Index n = e.state_size();
+    // dx by a twice Richardson-extrapolated difference of pack() (smooth in e).
+    auto pk = [&](double h) { return VectorXd(Eigen::Map<const VectorXd>(packed(e, moved_along(st, ds, h)).data(), n)); };
+    auto c = [&](double h) { return VectorXd((pk(h) - pk(-h)) / (2 * h)); };
+    const double h = 1e-3;
+    const VectorXd r1 = (4 * c(h / 2) - c(h)) / 3, r2 = (4 * c(h / 4) - c(h / 2)) / 3;
+    const VectorXd dx = (16 * r2 - r1) / 15;
+    const VectorXd x = pk(0.0);
+    VectorXd xdot(n), dxdot(n);
+    REQUIRE(e.rhs_tangent(0.4, x.data(), dx.data(), xdot.data(), dxdot.data()));
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.4, st, ds, a, da));
+    // The speed rows as TreeAccel fields (a free base: w_NB_B' and v_NBo_N').
+    double err = 0, scale = 0;
+    auto cmp = [&](double mine, double theirs) {
+      err = std::max(err, std::abs(mine - theirs));
+      scale = std::max(scale, std::abs(theirs));
+    };
+    const int nq = e.position_size();
+    for (const kane::Node& nd : e.nodes()) {
+      const double* du = dxdot.data() + nq + nd.u0;
+      const std::size_t j = static_cast<std::size_t>(nd.joint), b = static_cast<std::size_t>(nd.body);
+      switch (nd.shape) {
+        case kane::JointShape::Base6:
+          for (int i = 0; i < 3; ++i) {
+            cmp(du[i], da.wdot_NB_B[b](i));
+            cmp(du[3 + i], da.a_NBo_N[b](i));
+          }
+          break;
+        case kane::JointShape::Axis1:
+        case kane::JointShape::Slide1:
+          if (!nd.prescribed) cmp(du[0], da.angle_ddot[j]);
+          break;
+        case kane::JointShape::Gimbal2:
+          cmp(du[0], da.angle_ddot[j]);
+          cmp(du[1], da.angle2_ddot[j]);
+          break;
+        case kane::JointShape::Rotation3:
+          for (int i = 0; i < 3; ++i) cmp(du[i], da.wdot_PC_C[j](i));
+          break;
+        default:
+          break;
+      }
+      for (int l = 0; l < nd.nm; ++l) cmp(du[nd.nuj + l], da.eta_ddot[b](l));
+    }
+    REQUIRE(scale > 0);
+    INFO(s.name << ": max |speed rows of dxdot - da| / max |da| " << err / scale);
+    CHECK(err / scale <= 1e-11);  // measured 1.4e-13 to 3.2e-13 (dx differenced)
+  }
+}
