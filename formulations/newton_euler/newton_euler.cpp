@@ -213,11 +213,11 @@ class NewtonEulerEngine final : public Engine {
   };
   GravityField gravity_field(double t) const;
   void gravity_on_body(int b, const GravityField& gf);
-  // gravity_on_body()'s flexible branch on the complex step (accelerations_tangent()): the force
-  // and moment returned, the modal generalised forces added to f.
-  void flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
-                           ModalTermsT<Cx>& mt, Eigen::VectorXcd& f, V3<Cx>& F_grav_N,
-                           V3<Cx>& M_grav_B) const;
+  // gravity_on_body()'s flexible branch on S (the run's, and the tangents' complex step): the
+  // force and moment returned, the modal generalised forces added to f.
+  template <class S>
+  void flexible_gravity(int b, const GravityField& gf, const BodyKinematicsT<S>& k, ModalTermsT<S>& mt,
+                        Eigen::Matrix<S, Eigen::Dynamic, 1>& f, V3<S>& F_grav_N, V3<S>& M_grav_B) const;
   template <class S> S gravity_potential(double t, const OutputState<S>& st) const;  // V of every mass
   void load_kkt();  // J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
@@ -739,96 +739,60 @@ NewtonEulerEngine::GravityField NewtonEulerEngine::gravity_field(double t) const
 void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
   const BodyKinematics& k = bk_[at(b)];
   const int fi = flex_[at(b)];
-  const double m = mass_[at(b)];
-  const int n = modes(b);
   Vector3d F_grav_N, M_grav_B;
-  if (fi < 0) {
-    rigid_gravity(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
-  } else if (env_.uniform()) {
-    F_grav_N = m * env_.g_N;
-    const ModalTerms& mt = terms_[at(fi)];
-    M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
-    if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
-  } else {
-    const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
-    const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
-    const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);  // T d
-    F_grav_N = m * Td_N;
-    {
-      ModalTerms& mt = terms_[at(fi)];
-      const Vector3d S_N = k.R_NB * mt.S;
-      F_grav_N += gf.n2 * (3.0 * gf.zhat_N.dot(S_N) * gf.zhat_N - S_N);
-      M_grav_B = mt.S.cross(k.R_NB.transpose() * Td_N) + 3.0 * gf.n2 * z_B.cross(mt.I * z_B);
-      if (n > 0) {
-        auto f_modal = f_.segment(nu(b) + 6, n);
-        f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
-        const ModalInvariants& inv = inv_[at(fi)];
-        if (!inv.stiffening) {
-          for (int c = 0; c < n; ++c) {
-            const Matrix3d& Bk = mt.B[at(c)];
-            f_modal(c) += gf.n2 * (3.0 * z_B.dot(Bk * z_B) - Bk.trace());
-          }
-        } else {  // node by node (mt.g, mt.Phit: mass_pass's scratch, free again)
-          const VectorXd& eta = k.eta;
-          for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
-            mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
-            Vector3d r = inv.node_p[i] + 0.5 * eta.dot(mt.g) * inv.node_e[i];
-            r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
-            mt.Phit = inv.node_Phi[i];
-            mt.Phit.noalias() += inv.node_e[i] * mt.g.transpose();  // Phi~_i
-            const Vector3d TBr = gf.n2 * (3.0 * z_B.dot(r) * z_B - r);
-            f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
-          }
-        }
-      }
-    }
-  }
+  if (fi < 0)
+    rigid_gravity(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
+  else
+    flexible_gravity<double>(b, gf, k, terms_[at(fi)], f_, F_grav_N, M_grav_B);
   f_.segment<3>(nu(b)) += F_grav_N;
   f_.segment<3>(nu(b) + 3) += M_grav_B;
   F_grav_N_[at(b)] = F_grav_N;
   M_grav_B_[at(b)] = M_grav_B;
 }
 
-// gravity_on_body()'s flexible branch, the same equations on Cx (scalar.hpp: tdot, tcross; the
-// node-by-node sum of a stiffened body with its own scratch).
-void NewtonEulerEngine::flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
-                                            ModalTermsT<Cx>& mt, Eigen::VectorXcd& f,
-                                            V3<Cx>& F_grav_N, V3<Cx>& M_grav_B) const {
+// gravity_on_body()'s flexible branch on S (double for the run, Cx for the tangents' complex
+// step: scalar.hpp's tdot, tcross; a stiffened body's node-by-node sum in the modal terms' scratch
+// g, Phit, free again after mass_pass): the force and moment returned, the modal generalised
+// forces added to f (KKT order).
+template <class S>
+void NewtonEulerEngine::flexible_gravity(int b, const GravityField& gf, const BodyKinematicsT<S>& k,
+                                         ModalTermsT<S>& mt, Eigen::Matrix<S, Eigen::Dynamic, 1>& f,
+                                         V3<S>& F_grav_N, V3<S>& M_grav_B) const {
   const double m = mass_[at(b)];
   const int n = modes(b);
   if (env_.uniform()) {
-    F_grav_N = (m * env_.g_N).cast<Cx>();
-    M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * env_.g_N));
+    F_grav_N = (m * env_.g_N).template cast<S>();
+    M_grav_B = tcross<S>(mt.S, V3<S>(k.R_NB.transpose() * env_.g_N));
     if (n > 0) f.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
     return;
   }
-  const V3<Cx> d_N = k.p_NoBo_N - p_NoO_N_;
-  const V3<Cx> z_B = k.R_NB.transpose() * gf.zhat_N;
-  const V3<Cx> Td_N = gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, d_N) * gf.zhat_N - d_N);  // T d
+  const V3<S> d_N = k.p_NoBo_N - p_NoO_N_;
+  const V3<S> z_B = k.R_NB.transpose() * gf.zhat_N;
+  const V3<S> Td_N = gf.n2 * (3.0 * tdot<S>(gf.zhat_N, d_N) * gf.zhat_N - d_N);  // T d
   F_grav_N = m * Td_N;
-  const V3<Cx> S_N = k.R_NB * mt.S;
-  F_grav_N += gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, S_N) * gf.zhat_N - S_N);
-  M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * Td_N)) +
-             3.0 * gf.n2 * tcross<Cx>(z_B, V3<Cx>(mt.I * z_B));
+  const V3<S> S_N = k.R_NB * mt.S;
+  F_grav_N += gf.n2 * (3.0 * tdot<S>(gf.zhat_N, S_N) * gf.zhat_N - S_N);
+  M_grav_B = tcross<S>(mt.S, V3<S>(k.R_NB.transpose() * Td_N)) +
+             3.0 * gf.n2 * tcross<S>(z_B, V3<S>(mt.I * z_B));
   if (n == 0) return;
   auto f_modal = f.segment(nu(b) + 6, n);
   f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
   const ModalInvariants& inv = inv_[at(flex_[at(b)])];
   if (!inv.stiffening) {
     for (int c = 0; c < n; ++c) {
-      const Mat3<Cx>& Bk = mt.B[at(c)];
-      f_modal(c) += gf.n2 * (3.0 * tdot<Cx>(z_B, V3<Cx>(Bk * z_B)) - Bk.trace());
+      const M3<S>& Bk = mt.B[at(c)];
+      f_modal(c) += gf.n2 * (3.0 * tdot<S>(z_B, V3<S>(Bk * z_B)) - Bk.trace());
     }
     return;
   }
-  const Eigen::VectorXcd& eta = k.eta;
+  const Eigen::Matrix<S, Eigen::Dynamic, 1>& eta = k.eta;
   for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
     mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
-    V3<Cx> r = inv.node_p[i].cast<Cx>() + 0.5 * tdot<Cx>(eta, mt.g) * inv.node_e[i].cast<Cx>();
+    V3<S> r = inv.node_p[i].template cast<S>() + 0.5 * tdot<S>(eta, mt.g) * inv.node_e[i].template cast<S>();
     r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
-    mt.Phit = inv.node_Phi[i].cast<Cx>();
-    mt.Phit.noalias() += inv.node_e[i].cast<Cx>() * mt.g.transpose();  // Phi~_i
-    const V3<Cx> TBr = gf.n2 * (3.0 * tdot<Cx>(z_B, r) * z_B - r);
+    mt.Phit = inv.node_Phi[i].template cast<S>();
+    mt.Phit.noalias() += inv.node_e[i].template cast<S>() * mt.g.transpose();  // Phi~_i
+    const V3<S> TBr = gf.n2 * (3.0 * tdot<S>(z_B, r) * z_B - r);
     f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
   }
 }
@@ -1260,7 +1224,7 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // rigid body's moment and gravity and the placement of pack(), above; a flexible body's mass
 // matrix and velocity terms, modal_body.hpp's modal_terms_t; the node frames' so3 maps on Cx,
 // so3.hpp), with the passes below mirroring body_pass, mass_pass, joint_pass, force_pass
-// (gravity on a flexible body's nodes: flexible_gravity_cx), load_kkt, solve_pass and
+// (gravity on a flexible body's nodes: flexible_gravity, templated), load_kkt, solve_pass and
 // accelerations() (a node frame's angular acceleration as frame_angular_acceleration()). da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
 // Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent), normalised by
 // sqrt(w^2 + x^2 + y^2 + z^2) (analytic, never |.|). A prescribed joint has no tangent (its
@@ -1449,7 +1413,7 @@ void NewtonEulerEngine::dynamics_cx(double t, CxPass& w) {
         rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
                           k.p_NoBo_N, F_grav_N, M_grav_B);
       } else {
-        flexible_gravity_cx(b, gf, k, w.terms[at(fi)], f, F_grav_N, M_grav_B);
+        flexible_gravity<Cx>(b, gf, k, w.terms[at(fi)], f, F_grav_N, M_grav_B);
       }
       f.segment<3>(nu(b)) += F_grav_N;
       f.segment<3>(nu(b) + 3) += M_grav_B;
