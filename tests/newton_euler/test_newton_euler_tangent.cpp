@@ -11,6 +11,10 @@
 // and: a is accelerations(pack(s)); da is linear in ds; for a torque-free rigid body d(wdot)/dw
 // is the Jacobian of Euler's equations, I^-1 ([I w x] - [w x] I); what is not covered returns
 // false and writes nothing.
+// Then output_row_tangent() and rhs_tangent() (the output matrix C and the engine's own Jacobian):
+// per column group against Richardson differences of output_row(pack(s +- h ds)), row bit-equal,
+// linear; rhs_tangent() against Richardson differences of rhs(x +- h dx) on and off the
+// manifold, xdot bit-equal, linear, its speed rows equal to accelerations_tangent()'s.
 #include "core/orbit.hpp"
 #include "core/rotation.hpp"
 #include "core/scene/scene.hpp"
