@@ -22,6 +22,7 @@
 #include "core/orbit.hpp"
 #include "core/scene/topology.hpp"
 #include "core/rotation.hpp"
+#include "formulations/newton_euler/cx_row_writer.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
 #include "formulations/newton_euler/joints/joint_unit.hpp"
 #include "formulations/newton_euler/modal_body.hpp"
@@ -138,6 +139,23 @@ void place_child(const JointModel& m, const BodyKinematicsT<S>& P, const NodeFra
               C.R_NB * (tcross<S>(C.w_NB_B, G.s_B) + G.sdot_B);
 }
 
+// What the output columns read at one state, on S (output_row(): the run's workspace after
+// dynamics(); output_row_tangent(): the complex step's passes, CxPass below): the bodies, each
+// flexible body's modal terms, the joints' kinematics, rows and coordinates, the multipliers
+// y = -lambda per KKT link and of a prescribed base's root rows, and the environment's load per body.
+template <class S>
+struct OutputState {
+  const std::vector<BodyKinematicsT<S>>& bk;
+  const std::vector<ModalTermsT<S>>& terms;
+  const std::vector<JointKinematicsT<S>>& jk;
+  const std::vector<ConstraintRowsT<S>>& cr;
+  const std::vector<JointCoordsT<S>>& coords;
+  const std::vector<Vec6<S>>& y;
+  const Vec6<S>& y_root;
+  const std::vector<V3<S>>& F_grav_N;
+  const std::vector<V3<S>>& M_grav_B;
+};
+
 class NewtonEulerEngine final : public Engine {
  public:
   NewtonEulerEngine(const System& system, const EngineOptions& options);
@@ -161,6 +179,9 @@ class NewtonEulerEngine final : public Engine {
   LinearSystem linear_system(double t, const double* x) override;
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
+  bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                          double* drow) override;
+  bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) override;
 
  private:
   // State layout (newton_euler.hpp): body b's positions at pos(b), its velocities at vel(b); the
@@ -181,7 +202,8 @@ class NewtonEulerEngine final : public Engine {
     const int p = joints_[at(j)].parent;
     return p < 0 ? ground_ : bk_[at(p)];
   }
-  double torque(int j) const;  // a prescribed joint's torque about its axis on the child
+  // A prescribed joint's torque about its axis on the child (its row 5's multiplier).
+  template <class S> S torque(const OutputState<S>& st, int j) const;
   void force_pass(double t);
   // The environment's loads on body b (issue 28; core/system.hpp "Environment"): added to f_ and
   // kept in F_grav_N_, M_grav_B_ (force_pass(); equations at gravity_on_body()).
@@ -191,12 +213,12 @@ class NewtonEulerEngine final : public Engine {
   };
   GravityField gravity_field(double t) const;
   void gravity_on_body(int b, const GravityField& gf);
-  // gravity_on_body()'s flexible branch on the complex step (accelerations_tangent()): the force
-  // and moment returned, the modal generalised forces added to f.
-  void flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
-                           ModalTermsT<Cx>& mt, Eigen::VectorXcd& f, V3<Cx>& F_grav_N,
-                           V3<Cx>& M_grav_B) const;
-  double gravity_potential(double t) const;          // V of every mass (valid after mass_pass)
+  // gravity_on_body()'s flexible branch on S (the run's, and the tangents' complex step): the
+  // force and moment returned, the modal generalised forces added to f.
+  template <class S>
+  void flexible_gravity(int b, const GravityField& gf, const BodyKinematicsT<S>& k, ModalTermsT<S>& mt,
+                        Eigen::Matrix<S, Eigen::Dynamic, 1>& f, V3<S>& F_grav_N, V3<S>& M_grav_B) const;
+  template <class S> S gravity_potential(double t, const OutputState<S>& st) const;  // V of every mass
   void load_kkt();  // J and gamma_s into kkt_ (M is set by mass_pass)
   void solve_pass(double t);
   // (t, x) => the KKT system in kkt_ and f_: the passes up to the solve (dynamics(),
@@ -214,12 +236,46 @@ class NewtonEulerEngine final : public Engine {
   Vector3d first_moment() const;     // sum over elements of m x (from bk_)
   Vector3d linear_momentum() const;  // sum over elements of m v (from bk_)
   void shift_all(const Vector3d& dp, const Vector3d& dv);
-  Vector3d system_cm() const;  // p_NoScm_N (deformed bodies; terms_ after mass_pass)
-  Vector3d angular_momentum(const Vector3d& p_NoScm_N) const;  // H_Scm_N
-  double energy() const;
+  // The output quantities on S (newton_euler.hpp "Outputs"), from an OutputState: the run's
+  // (run_state(), valid after dynamics(); terms_ after mass_pass) or the complex step's.
+  OutputState<double> run_state() const {
+    return {bk_, terms_, jk_, cr_, coords_, y_, kkt_.y_root(), F_grav_N_, M_grav_B_};
+  }
+  Vector3d system_cm() const { return system_cm(run_state()); }
+  template <class S> V3<S> system_cm(const OutputState<S>& st) const;  // p_NoScm_N (deformed bodies)
+  template <class S> V3<S> angular_momentum(const OutputState<S>& st, const V3<S>& p_NoScm_N) const;
+  template <class S> V3<S> linear_momentum(const OutputState<S>& st) const;
+  template <class S> S energy(const OutputState<S>& st) const;
   // Joint j's load on its child (constraint + its spring, damper, motor), child frame, about the
-  // joint point; valid after dynamics() (newton_euler.hpp "Joint loads").
-  void joint_load(int j, double t, Vector3d& F_C, Vector3d& M_J_C) const;
+  // joint point (newton_euler.hpp "Joint loads").
+  template <class S>
+  void joint_load(int j, double t, const OutputState<S>& st, V3<S>& F_C, V3<S>& M_J_C) const;
+  // Every pinned column but the engine's extras, through out (RowWriter on double, CxRowWriter on
+  // Cx): output_row()'s equations, written once.
+  template <class S, class W> void write_outputs(double t, const OutputState<S>& st, W& out) const;
+
+  // ---- the passes on Cx (issue 27; the complex step of the tangents, below) ----
+  struct CxPass {
+    std::vector<BodyKinematicsT<Cx>> bk;
+    BodyKinematicsT<Cx> ground;  // N: identity attitude, at rest (ground_)
+    std::vector<ModalTermsT<Cx>> terms;
+    std::vector<JointKinematicsT<Cx>> jk;
+    std::vector<ConstraintRowsT<Cx>> cr;
+    std::vector<JointCoordsT<Cx>> coords;
+    std::vector<V3<Cx>> F_grav_N, M_grav_B;
+    Eigen::VectorXcd nu_dot;      // nu' (KKT order)
+    std::vector<Vec6<Cx>> y;      // y = -lambda per link
+    Vec6<Cx> y_root = Vec6<Cx>::Zero();
+    OutputState<Cx> view() const { return {bk, terms, jk, cr, coords, y, y_root, F_grav_N, M_grav_B}; }
+  };
+  CxPass cx_pass() const;  // sized for this system
+  // pack() on Cx: s + i h ds placed into w.bk (the attitudes normalised, zero_linear_momentum's shift).
+  void pack_cx(double t, const TreeState& s, const TreeTangent& ds, double h, CxPass& w) const;
+  // body_pass() on Cx: x (nx_ complex numbers) into w.bk.
+  void body_pass_cx(double t, const Cx* x, CxPass& w) const;
+  // mass_pass, joint_pass, force_pass, load_kkt and solve_pass on Cx, from w.bk: the real parts
+  // solved by the engine's factorisation, then the imaginary parts (K_r z_i = b_i - K_i z_r).
+  void dynamics_cx(double t, CxPass& w);
   [[noreturn]] void fail(double t, const std::string& quantity, const std::string& reason) const;
 
   // ---- model (constant after construction) ----
@@ -683,120 +739,85 @@ NewtonEulerEngine::GravityField NewtonEulerEngine::gravity_field(double t) const
 void NewtonEulerEngine::gravity_on_body(int b, const GravityField& gf) {
   const BodyKinematics& k = bk_[at(b)];
   const int fi = flex_[at(b)];
-  const double m = mass_[at(b)];
-  const int n = modes(b);
   Vector3d F_grav_N, M_grav_B;
-  if (fi < 0) {
-    rigid_gravity(env_, m, I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
-  } else if (env_.uniform()) {
-    F_grav_N = m * env_.g_N;
-    const ModalTerms& mt = terms_[at(fi)];
-    M_grav_B = mt.S.cross(k.R_NB.transpose() * env_.g_N);
-    if (n > 0) f_.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
-  } else {
-    const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
-    const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
-    const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);  // T d
-    F_grav_N = m * Td_N;
-    {
-      ModalTerms& mt = terms_[at(fi)];
-      const Vector3d S_N = k.R_NB * mt.S;
-      F_grav_N += gf.n2 * (3.0 * gf.zhat_N.dot(S_N) * gf.zhat_N - S_N);
-      M_grav_B = mt.S.cross(k.R_NB.transpose() * Td_N) + 3.0 * gf.n2 * z_B.cross(mt.I * z_B);
-      if (n > 0) {
-        auto f_modal = f_.segment(nu(b) + 6, n);
-        f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
-        const ModalInvariants& inv = inv_[at(fi)];
-        if (!inv.stiffening) {
-          for (int c = 0; c < n; ++c) {
-            const Matrix3d& Bk = mt.B[at(c)];
-            f_modal(c) += gf.n2 * (3.0 * z_B.dot(Bk * z_B) - Bk.trace());
-          }
-        } else {  // node by node (mt.g, mt.Phit: mass_pass's scratch, free again)
-          const VectorXd& eta = k.eta;
-          for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
-            mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
-            Vector3d r = inv.node_p[i] + 0.5 * eta.dot(mt.g) * inv.node_e[i];
-            r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
-            mt.Phit = inv.node_Phi[i];
-            mt.Phit.noalias() += inv.node_e[i] * mt.g.transpose();  // Phi~_i
-            const Vector3d TBr = gf.n2 * (3.0 * z_B.dot(r) * z_B - r);
-            f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
-          }
-        }
-      }
-    }
-  }
+  if (fi < 0)
+    rigid_gravity(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB, k.p_NoBo_N, F_grav_N, M_grav_B);
+  else
+    flexible_gravity<double>(b, gf, k, terms_[at(fi)], f_, F_grav_N, M_grav_B);
   f_.segment<3>(nu(b)) += F_grav_N;
   f_.segment<3>(nu(b) + 3) += M_grav_B;
   F_grav_N_[at(b)] = F_grav_N;
   M_grav_B_[at(b)] = M_grav_B;
 }
 
-// gravity_on_body()'s flexible branch, the same equations on Cx (scalar.hpp: tdot, tcross; the
-// node-by-node sum of a stiffened body with its own scratch).
-void NewtonEulerEngine::flexible_gravity_cx(int b, const GravityField& gf, const BodyKinematicsT<Cx>& k,
-                                            ModalTermsT<Cx>& mt, Eigen::VectorXcd& f,
-                                            V3<Cx>& F_grav_N, V3<Cx>& M_grav_B) const {
+// gravity_on_body()'s flexible branch on S (double for the run, Cx for the tangents' complex
+// step: scalar.hpp's tdot, tcross; a stiffened body's node-by-node sum in the modal terms' scratch
+// g, Phit, free again after mass_pass): the force and moment returned, the modal generalised
+// forces added to f (KKT order).
+template <class S>
+void NewtonEulerEngine::flexible_gravity(int b, const GravityField& gf, const BodyKinematicsT<S>& k,
+                                         ModalTermsT<S>& mt, Eigen::Matrix<S, Eigen::Dynamic, 1>& f,
+                                         V3<S>& F_grav_N, V3<S>& M_grav_B) const {
   const double m = mass_[at(b)];
   const int n = modes(b);
   if (env_.uniform()) {
-    F_grav_N = (m * env_.g_N).cast<Cx>();
-    M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * env_.g_N));
+    F_grav_N = (m * env_.g_N).template cast<S>();
+    M_grav_B = tcross<S>(mt.S, V3<S>(k.R_NB.transpose() * env_.g_N));
     if (n > 0) f.segment(nu(b) + 6, n).noalias() += mt.M.block(0, 6, 3, n).transpose() * env_.g_N;
     return;
   }
-  const V3<Cx> d_N = k.p_NoBo_N - p_NoO_N_;
-  const V3<Cx> z_B = k.R_NB.transpose() * gf.zhat_N;
-  const V3<Cx> Td_N = gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, d_N) * gf.zhat_N - d_N);  // T d
+  const V3<S> d_N = k.p_NoBo_N - p_NoO_N_;
+  const V3<S> z_B = k.R_NB.transpose() * gf.zhat_N;
+  const V3<S> Td_N = gf.n2 * (3.0 * tdot<S>(gf.zhat_N, d_N) * gf.zhat_N - d_N);  // T d
   F_grav_N = m * Td_N;
-  const V3<Cx> S_N = k.R_NB * mt.S;
-  F_grav_N += gf.n2 * (3.0 * tdot<Cx>(gf.zhat_N, S_N) * gf.zhat_N - S_N);
-  M_grav_B = tcross<Cx>(mt.S, V3<Cx>(k.R_NB.transpose() * Td_N)) +
-             3.0 * gf.n2 * tcross<Cx>(z_B, V3<Cx>(mt.I * z_B));
+  const V3<S> S_N = k.R_NB * mt.S;
+  F_grav_N += gf.n2 * (3.0 * tdot<S>(gf.zhat_N, S_N) * gf.zhat_N - S_N);
+  M_grav_B = tcross<S>(mt.S, V3<S>(k.R_NB.transpose() * Td_N)) +
+             3.0 * gf.n2 * tcross<S>(z_B, V3<S>(mt.I * z_B));
   if (n == 0) return;
   auto f_modal = f.segment(nu(b) + 6, n);
   f_modal.noalias() += mt.M.block(0, 6, 3, n).transpose() * Td_N;
   const ModalInvariants& inv = inv_[at(flex_[at(b)])];
   if (!inv.stiffening) {
     for (int c = 0; c < n; ++c) {
-      const Mat3<Cx>& Bk = mt.B[at(c)];
-      f_modal(c) += gf.n2 * (3.0 * tdot<Cx>(z_B, V3<Cx>(Bk * z_B)) - Bk.trace());
+      const M3<S>& Bk = mt.B[at(c)];
+      f_modal(c) += gf.n2 * (3.0 * tdot<S>(z_B, V3<S>(Bk * z_B)) - Bk.trace());
     }
     return;
   }
-  const Eigen::VectorXcd& eta = k.eta;
+  const Eigen::Matrix<S, Eigen::Dynamic, 1>& eta = k.eta;
   for (std::size_t i = 0; i < inv.node_m.size(); ++i) {
     mt.g.noalias() = inv.node_G[i] * eta;  // G_i eta
-    V3<Cx> r = inv.node_p[i].cast<Cx>() + 0.5 * tdot<Cx>(eta, mt.g) * inv.node_e[i].cast<Cx>();
+    V3<S> r = inv.node_p[i].template cast<S>() + 0.5 * tdot<S>(eta, mt.g) * inv.node_e[i].template cast<S>();
     r.noalias() += inv.node_Phi[i] * eta;  // r_i = p_i + u_i
-    mt.Phit = inv.node_Phi[i].cast<Cx>();
-    mt.Phit.noalias() += inv.node_e[i].cast<Cx>() * mt.g.transpose();  // Phi~_i
-    const V3<Cx> TBr = gf.n2 * (3.0 * tdot<Cx>(z_B, r) * z_B - r);
+    mt.Phit = inv.node_Phi[i].template cast<S>();
+    mt.Phit.noalias() += inv.node_e[i].template cast<S>() * mt.g.transpose();  // Phi~_i
+    const V3<S> TBr = gf.n2 * (3.0 * tdot<S>(z_B, r) * z_B - r);
     f_modal.noalias() += mt.Phit.transpose() * (inv.node_m[i] * TBr);
   }
 }
 
-// The environment's potential V (equations above gravity_field()); 0 without one. Valid after
-// mass_pass (a flexible body's S and I(eta) in terms_).
-double NewtonEulerEngine::gravity_potential(double t) const {
-  if (env_.none()) return 0.0;
+// The environment's potential V (equations above gravity_field()); 0 without one. A flexible
+// body's S and I(eta) from st.terms (valid after mass_pass).
+template <class S>
+S NewtonEulerEngine::gravity_potential(double t, const OutputState<S>& st) const {
+  if (env_.none()) return S(0.0);
   const GravityField gf = gravity_field(t);
-  double V = 0;
+  S V = 0;
   for (int b = 0; b < nb_; ++b) {
-    const BodyKinematics& k = bk_[at(b)];
+    const BodyKinematicsT<S>& k = st.bk[at(b)];
     const int fi = flex_[at(b)];
     const double m = mass_[at(b)];
-    const Vector3d S_N = fi < 0 ? Vector3d::Zero() : Vector3d(k.R_NB * terms_[at(fi)].S);
+    const V3<S> S_N = fi < 0 ? V3<S>::Zero() : V3<S>(k.R_NB * st.terms[at(fi)].S);
     if (env_.uniform()) {
-      V -= env_.g_N.dot(m * k.p_NoBo_N + S_N);
+      V -= tdot<S>(env_.g_N, m * k.p_NoBo_N + S_N);
       continue;
     }
-    const Matrix3d& I_B = fi < 0 ? I_B_[at(b)] : terms_[at(fi)].I;
-    const Vector3d d_N = k.p_NoBo_N - p_NoO_N_;
-    const Vector3d z_B = k.R_NB.transpose() * gf.zhat_N;
-    const Vector3d Td_N = gf.n2 * (3.0 * gf.zhat_N.dot(d_N) * gf.zhat_N - d_N);
-    V += -0.5 * m * d_N.dot(Td_N) - Td_N.dot(S_N) + 1.5 * gf.n2 * z_B.dot(I_B * z_B) -
+    const M3<S> I_B = fi < 0 ? M3<S>(I_B_[at(b)].template cast<S>()) : st.terms[at(fi)].I;
+    const V3<S> d_N = k.p_NoBo_N - p_NoO_N_;
+    const V3<S> z_B = k.R_NB.transpose() * gf.zhat_N;
+    const V3<S> Td_N = gf.n2 * (3.0 * tdot<S>(gf.zhat_N, d_N) * gf.zhat_N - d_N);
+    V += -0.5 * m * tdot<S>(d_N, Td_N) - tdot<S>(Td_N, S_N) + 1.5 * gf.n2 * tdot<S>(z_B, I_B * z_B) -
          0.5 * gf.n2 * I_B.trace();
   }
   return V;
@@ -1203,7 +1224,7 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // rigid body's moment and gravity and the placement of pack(), above; a flexible body's mass
 // matrix and velocity terms, modal_body.hpp's modal_terms_t; the node frames' so3 maps on Cx,
 // so3.hpp), with the passes below mirroring body_pass, mass_pass, joint_pass, force_pass
-// (gravity on a flexible body's nodes: flexible_gravity_cx), load_kkt, solve_pass and
+// (gravity on a flexible body's nodes: flexible_gravity, templated), load_kkt, solve_pass and
 // accelerations() (a node frame's angular acceleration as frame_angular_acceleration()). da = Im(a(s + i h ds)) / h, exact to rounding (no subtraction; the error is O(h^2)).
 // Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent), normalised by
 // sqrt(w^2 + x^2 + y^2 + z^2) (analytic, never |.|). A prescribed joint has no tangent (its
@@ -1221,40 +1242,35 @@ void NewtonEulerEngine::accelerations(double t, const double* x, TreeAccel& a) {
 // dampers, motors, modal stiffness and damping, prescribed joints, any stabilisation. A joint
 // type whose unit had no Cx verbs would return false before writing anything (the caller then
 // differentiates numerically and says so); every type this engine has now has them.
-bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
-                                              TreeAccel& a, TreeAccel& da) {
-  if (!tangent_covered_) return false;
-  // pack() resets the joints' continuous-angle references: the run's are restored on the way out.
-  struct Restore {
-    NewtonEulerEngine& e;
-    std::vector<JointCoords> coords, coords_ref;
-    ~Restore() {
-      e.coords_ = coords;
-      e.coords_ref_ = coords_ref;
-    }
-  } restore{*this, coords_, coords_ref_};
+NewtonEulerEngine::CxPass NewtonEulerEngine::cx_pass() const {
+  CxPass w;
+  w.bk.resize(at(nb_));
+  w.terms.reserve(inv_.size());
+  for (const ModalInvariants& inv : inv_) w.terms.emplace_back(inv.n);
+  for (const JointModel& m : joints_) {
+    w.jk.emplace_back(m);
+    w.cr.emplace_back(m);
+  }
+  w.coords.assign(at(nj_), JointCoordsT<Cx>::Zero());
+  w.F_grav_N.assign(at(nb_), V3<Cx>::Zero());
+  w.M_grav_B.assign(at(nb_), V3<Cx>::Zero());
+  w.nu_dot = Eigen::VectorXcd::Zero(nv_);
+  w.y.assign(at(nj_ - 1), Vec6<Cx>::Zero());
+  return w;
+}
 
-  // a: the run's own path, at x(0) = pack(s).
-  std::vector<double> x0(at(nx_));
-  pack(s, x0.data());
-  accelerations(t, x0.data(), a);
-
-  constexpr double h = 1e-30;
+// pack() on Cx: the base, then every child from its parent (place_child), the attitudes normalised
+// as body_pass() does, then zero_linear_momentum's rigid shift (shift_all(0, -linear_momentum() /
+// total_mass())). Rotations turn on the right, q (1, i h dtheta / 2) (TreeTangent).
+void NewtonEulerEngine::pack_cx(double t, const TreeState& s, const TreeTangent& ds, double h,
+                                CxPass& w) const {
   const Cx ih(0.0, h);
   auto turned = [&](const Quaterniond& q, const Vector3d& dtheta) {  // q (1, i h dtheta / 2)
     const Quat<Cx> dq(Cx(1.0), 0.5 * ih * dtheta.x(), 0.5 * ih * dtheta.y(), 0.5 * ih * dtheta.z());
     return Quat<Cx>(q.cast<Cx>() * dq);
   };
-  std::vector<BodyKinematicsT<Cx>> bk(at(nb_));
-  std::vector<JointKinematicsT<Cx>> jk;
-  std::vector<ConstraintRowsT<Cx>> cr;
-  for (const JointModel& m : joints_) {
-    jk.emplace_back(m);
-    cr.emplace_back(m);
-  }
+  std::vector<BodyKinematicsT<Cx>>& bk = w.bk;
   Cx norm;
-  // pack(): the base, then every child from its parent (place_child), then zero_linear_momentum's
-  // rigid shift (shift_all(0, -linear_momentum() / total_mass())).
   // Flexible bodies' modal coordinates and rates, eta + i h d eta (read by the node frames).
   for (int b = 0; b < nb_; ++b) {
     if (modes(b) == 0) continue;
@@ -1272,7 +1288,6 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   }
   // A prescribed base: placed from N by joint 0 below (its profile at t: no tangent), as pack()
   // does; the TreeState's base pose is then not read.
-  BodyKinematicsT<Cx> ground;  // N: identity attitude, at rest (ground_)
   {
     BodyKinematicsT<Cx>& B = bk[at(joints_[0].child)];
     B.q_NB = unit_quaternion(turned(s.q_NB, ds.dtheta_B), norm);
@@ -1281,6 +1296,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     B.v_NBo_N = s.v_NBo_N.cast<Cx>() + ih * ds.dv_NBo_N.cast<Cx>();
     B.w_NB_B = s.w_NB_B.cast<Cx>() + ih * ds.dw_NB_B.cast<Cx>();
   }
+  std::vector<JointKinematicsT<Cx>> jk = w.jk;  // node frames for the placement only
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     const TreeState::JointState& js = s.joints[at(j)];
@@ -1288,7 +1304,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     const JointStateT<Cx> jc{js.angle + ih * dj.angle, js.rate + ih * dj.rate,
                              js.angle2 + ih * dj.angle2, js.rate2 + ih * dj.rate2,
                              turned(js.q_J, dj.dtheta_J), js.w_PC_C.cast<Cx>() + ih * dj.w_PC_C.cast<Cx>()};
-    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? w.ground : bk[at(m.parent)];
     BodyKinematicsT<Cx>& C = bk[at(m.child)];
     NodeFrameT<Cx>& F = jk[at(j)].F;
     NodeFrameT<Cx>& G = jk[at(j)].G;
@@ -1307,41 +1323,67 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     if (!(real_part(norm) > 1e-6)) fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
     k.R_NB = k.q_NB.toRotationMatrix();
   }
-  // mass_pass(): each flexible body's mass matrix and velocity terms (modal_body.hpp) on Cx; they
-  // depend on R, w, eta, eta' (not on v: the momentum shift below leaves them as they are).
-  std::vector<ModalTermsT<Cx>> mtc;
-  mtc.reserve(inv_.size());
-  for (const ModalInvariants& inv : inv_) mtc.emplace_back(inv.n);
-  for (int b = 0; b < nb_; ++b) {
-    const int fi = flex_[at(b)];
-    if (fi < 0) continue;
-    const BodyKinematicsT<Cx>& k = bk[at(b)];
-    modal_terms_t<Cx>(inv_[at(fi)], k.R_NB, k.w_NB_B, k.eta, k.eta_dot, mtc[at(fi)]);
-    if (!kkt_.set_mass(b, mtc[at(fi)].M.real()))
-      fail(t, system_.bodies[at(b)].name, "flexible body's mass matrix is not positive definite");
-  }
   if (system_.zero_linear_momentum && !prescribed_base_) {
-    // linear_momentum(): m v + R (w x S + p_rel) per body (modal_body.hpp), then shift_all.
+    // linear_momentum(): m v + R (w x S + p_rel) per body (modal_body.hpp; S and p_rel depend on
+    // R, w, eta, eta', not on v), then shift_all.
+    std::vector<ModalTermsT<Cx>> terms = w.terms;
     V3<Cx> L = V3<Cx>::Zero();
     for (int b = 0; b < nb_; ++b) {
       const BodyKinematicsT<Cx>& k = bk[at(b)];
       L += mass_[at(b)] * k.v_NBo_N;
       const int fi = flex_[at(b)];
-      if (fi >= 0) L += k.R_NB * (tcross<Cx>(k.w_NB_B, mtc[at(fi)].S) + mtc[at(fi)].p_rel);
+      if (fi < 0) continue;
+      modal_terms_t<Cx>(inv_[at(fi)], k.R_NB, k.w_NB_B, k.eta, k.eta_dot, terms[at(fi)]);
+      L += k.R_NB * (tcross<Cx>(k.w_NB_B, terms[at(fi)].S) + terms[at(fi)].p_rel);
     }
     const V3<Cx> dv = -L / total_mass();
     for (BodyKinematicsT<Cx>& k : bk) k.v_NBo_N += dv;
   }
-  // joint_pass(): relative kinematics, rows, coordinates (unwrapped against this pack()'s).
-  std::vector<JointCoordsT<Cx>> coords(at(nj_), JointCoordsT<Cx>::Zero());
+}
+
+// body_pass() on Cx (rhs_tangent()): the stored attitude normalised by sqrt(w^2 + x^2 + y^2 + z^2)
+// (analytic: a tangent off the unit sphere varies it), positions, velocities, modal coordinates.
+void NewtonEulerEngine::body_pass_cx(double t, const Cx* x, CxPass& w) const {
+  for (int b = 0; b < nb_; ++b) {
+    BodyKinematicsT<Cx>& k = w.bk[at(b)];
+    const Cx* xp = x + pos(b);
+    const Cx* xv = x + vel(b);
+    Cx n;
+    k.q_NB = unit_quaternion(Quat<Cx>(xp[3], xp[4], xp[5], xp[6]), n);
+    if (!(n.real() > 1e-6) || !std::isfinite(n.real()))
+      fail(t, labels_[at(pos(b) + 3)], "degenerate attitude quaternion");
+    k.R_NB = k.q_NB.toRotationMatrix();
+    k.p_NoBo_N = V3<Cx>(xp[0], xp[1], xp[2]);
+    k.v_NBo_N = V3<Cx>(xv[0], xv[1], xv[2]);
+    k.w_NB_B = V3<Cx>(xv[3], xv[4], xv[5]);
+    if (modes(b) > 0) {
+      k.eta = Eigen::Map<const Eigen::VectorXcd>(xp + 7, modes(b));
+      k.eta_dot = Eigen::Map<const Eigen::VectorXcd>(xv + 6, modes(b));
+    }
+  }
+}
+
+void NewtonEulerEngine::dynamics_cx(double t, CxPass& w) {
+  const std::vector<BodyKinematicsT<Cx>>& bk = w.bk;
+  // mass_pass(): each flexible body's mass matrix and velocity terms (modal_body.hpp) on Cx.
+  for (int b = 0; b < nb_; ++b) {
+    const int fi = flex_[at(b)];
+    if (fi < 0) continue;
+    const BodyKinematicsT<Cx>& k = bk[at(b)];
+    modal_terms_t<Cx>(inv_[at(fi)], k.R_NB, k.w_NB_B, k.eta, k.eta_dot, w.terms[at(fi)]);
+    if (!kkt_.set_mass(b, w.terms[at(fi)].M.real()))
+      fail(t, system_.bodies[at(b)].name, "flexible body's mass matrix is not positive definite");
+  }
+  // joint_pass(): relative kinematics, rows, coordinates (unwrapped against coords_ref_).
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const BodyKinematicsT<Cx>& P = m.parent < 0 ? ground : bk[at(m.parent)];
+    const BodyKinematicsT<Cx>& P = m.parent < 0 ? w.ground : bk[at(m.parent)];
     const BodyKinematicsT<Cx>& C = bk[at(m.child)];
-    joint_kinematics(m, P, C, jk[at(j)]);
-    constraint_rows(m, P, C, jk[at(j)], cr[at(j)]);
+    joint_kinematics(m, P, C, w.jk[at(j)]);
+    constraint_rows(m, P, C, w.jk[at(j)], w.cr[at(j)]);
     if (m.unit->cx->track)
-      m.unit->cx->track(system_.joints[at(j)], m, t, jk[at(j)], cr[at(j)], coords[at(j)], coords_ref_[at(j)]);
+      m.unit->cx->track(system_.joints[at(j)], m, t, w.jk[at(j)], w.cr[at(j)], w.coords[at(j)],
+                        coords_ref_[at(j)]);
   }
   // force_pass(): every body's moment row, the environment's loads, the joints' loads.
   Eigen::VectorXcd f = Eigen::VectorXcd::Zero(nv_);
@@ -1353,7 +1395,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
       f.segment<3>(nu(b) + 3) = rigid_moment<Cx>(body, I_B_[at(b)], t, k.R_NB, k.w_NB_B);
       continue;
     }
-    f.segment(nu(b), 6 + modes(b)) = mtc[at(fi)].f;
+    f.segment(nu(b), 6 + modes(b)) = w.terms[at(fi)].f;
     if (!body.torque.empty()) {  // on the body frame: no work on eta
       const Vector3d T = body.torque.value(t);
       if (body.torque_frame == Body::Frame::Body) f.segment<3>(nu(b) + 3) += T.cast<Cx>();
@@ -1364,13 +1406,14 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     const GravityField gf = gravity_field(t);
     for (int b = 0; b < nb_; ++b) {
       const BodyKinematicsT<Cx>& k = bk[at(b)];
-      V3<Cx> F_grav_N, M_grav_B;
+      V3<Cx>& F_grav_N = w.F_grav_N[at(b)];
+      V3<Cx>& M_grav_B = w.M_grav_B[at(b)];
       const int fi = flex_[at(b)];
       if (fi < 0) {
         rigid_gravity<Cx>(env_, mass_[at(b)], I_B_[at(b)], p_NoO_N_, gf.n2, gf.zhat_N, k.R_NB,
                           k.p_NoBo_N, F_grav_N, M_grav_B);
       } else {
-        flexible_gravity_cx(b, gf, k, mtc[at(fi)], f, F_grav_N, M_grav_B);
+        flexible_gravity<Cx>(b, gf, k, w.terms[at(fi)], f, F_grav_N, M_grav_B);
       }
       f.segment<3>(nu(b)) += F_grav_N;
       f.segment<3>(nu(b) + 3) += M_grav_B;
@@ -1378,9 +1421,9 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   }
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    const JointKinematicsT<Cx>& k = jk[at(j)];
+    const JointKinematicsT<Cx>& k = w.jk[at(j)];
     V3<Cx> T_P, F_P;
-    if (!m.unit->cx->load || !m.unit->cx->load(system_.joints[at(j)], m, k, coords[at(j)], t, T_P, F_P))
+    if (!m.unit->cx->load || !m.unit->cx->load(system_.joints[at(j)], m, k, w.coords[at(j)], t, T_P, F_P))
       continue;
     // torque_on_frame(): on the body and, through a node frame, on eta ((Jl Psi)^T T_B).
     const V3<Cx> T_C = k.R_PC.transpose() * T_P;
@@ -1400,7 +1443,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   std::vector<Eigen::MatrixXd> JiP(at(links)), JiC(at(links));  // 6 x dofs(parent), 6 x dofs(child)
   std::vector<Vector6d> gamma_r(at(links)), gamma_i(at(links));
   for (int j = 1; j < nj_; ++j) {
-    const ConstraintRowsT<Cx>& c = cr[at(j)];
+    const ConstraintRowsT<Cx>& c = w.cr[at(j)];
     const int k = j - 1;
     Vec6<Cx> gamma_s = c.gamma;
     if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
@@ -1425,7 +1468,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   Eigen::MatrixXd JiR = Eigen::MatrixXd::Zero(6, 6 + modes(joints_[0].child));  // a prescribed base's root rows
   Vector6d gamma_root_i = Vector6d::Zero();
   if (prescribed_base_) {
-    const ConstraintRowsT<Cx>& c = cr[0];
+    const ConstraintRowsT<Cx>& c = w.cr[0];
     Vec6<Cx> gamma_s = c.gamma;
     if (stabilization_ == Stabilization::Baumgarte) gamma_s -= alpha_ * c.gdot + beta_ * c.g;  // [Baum72]
     kkt_.J_root().leftCols<6>() = c.J_C.real();
@@ -1443,10 +1486,11 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   VectorXd nu_r = VectorXd::Zero(nv_), nu_i = VectorXd::Zero(nv_);
   std::vector<Vector6d> y_r(at(links), Vector6d::Zero()), y_i(at(links), Vector6d::Zero());
   kkt_.solve(f.real(), gamma_r, nu_r, y_r);
+  const Vector6d y_root_r = kkt_.y_root();
   VectorXd f_i = f.imag();
   if (prescribed_base_) {
     const int ob = nu(joints_[0].child), db = static_cast<int>(JiR.cols());
-    f_i.segment(ob, db).noalias() -= JiR.transpose() * kkt_.y_root();
+    f_i.segment(ob, db).noalias() -= JiR.transpose() * y_root_r;
     gamma_root_i.noalias() -= JiR * nu_r.segment(ob, db);
     kkt_.gamma_root() = gamma_root_i;
   }
@@ -1454,7 +1498,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     const int fi = flex_[at(b)];
     if (fi < 0) continue;
     const int d = 6 + modes(b);
-    f_i.segment(nu(b), d).noalias() -= mtc[at(fi)].M.imag() * nu_r.segment(nu(b), d);
+    f_i.segment(nu(b), d).noalias() -= w.terms[at(fi)].M.imag() * nu_r.segment(nu(b), d);
   }
   for (int k = 0; k < links; ++k) {
     const KktLink& l = kkt_.link(k);
@@ -1466,7 +1510,41 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     gamma_i[at(k)].noalias() -= JiP[at(k)] * nu_r.segment(op, dp) + JiC[at(k)] * nu_r.segment(oc, dc);
   }
   kkt_.solve(f_i, gamma_i, nu_i, y_i);
-  if (!nu_i.allFinite()) fail(t, "accelerations_tangent", "non-finite acceleration tangent");
+  if (!nu_i.allFinite()) fail(t, "tangent", "non-finite acceleration tangent");
+  w.nu_dot.real() = nu_r;
+  w.nu_dot.imag() = nu_i;
+  for (int k = 0; k < links; ++k) {
+    w.y[at(k)].real() = y_r[at(k)];
+    w.y[at(k)].imag() = y_i[at(k)];
+  }
+  w.y_root.real() = y_root_r;
+  w.y_root.imag() = kkt_.y_root();
+}
+
+bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                              TreeAccel& a, TreeAccel& da) {
+  if (!tangent_covered_) return false;
+  // pack() resets the joints' continuous-angle references: the run's are restored on the way out.
+  struct Restore {
+    NewtonEulerEngine& e;
+    std::vector<JointCoords> coords, coords_ref;
+    ~Restore() {
+      e.coords_ = coords;
+      e.coords_ref_ = coords_ref;
+    }
+  } restore{*this, coords_, coords_ref_};
+
+  // a: the run's own path, at x(0) = pack(s).
+  std::vector<double> x0(at(nx_));
+  pack(s, x0.data());
+  accelerations(t, x0.data(), a);
+
+  constexpr double h = 1e-30;
+  CxPass w = cx_pass();
+  pack_cx(t, s, ds, h, w);
+  dynamics_cx(t, w);
+  const std::vector<BodyKinematicsT<Cx>>& bk = w.bk;
+  const Eigen::VectorXcd& nu_dot = w.nu_dot;
   // accelerations(): the bodies' entries, then the joints' from the complex body accelerations.
   da.wdot_NB_B.assign(at(nb_), Vector3d::Zero());
   da.a_NBo_N.assign(at(nb_), Vector3d::Zero());
@@ -1475,13 +1553,10 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   da.wdot_PC_C.assign(at(nj_), Vector3d::Zero());
   da.eta_ddot.assign(at(nb_), VectorXd());
   for (int b = 0; b < nb_; ++b) {
-    da.a_NBo_N[at(b)] = nu_i.segment<3>(nu(b)) / h;
-    da.wdot_NB_B[at(b)] = nu_i.segment<3>(nu(b) + 3) / h;
-    if (modes(b) > 0) da.eta_ddot[at(b)] = nu_i.segment(nu(b) + 6, modes(b)) / h;
+    da.a_NBo_N[at(b)] = nu_dot.segment<3>(nu(b)).imag() / h;
+    da.wdot_NB_B[at(b)] = nu_dot.segment<3>(nu(b) + 3).imag() / h;
+    if (modes(b) > 0) da.eta_ddot[at(b)] = nu_dot.segment(nu(b) + 6, modes(b)).imag() / h;
   }
-  Eigen::VectorXcd nu_dot(nv_);
-  nu_dot.real() = nu_r;
-  nu_dot.imag() = nu_i;
   for (int j = 1; j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
     if (!m.unit->cx->accelerations) continue;
@@ -1494,9 +1569,9 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
     };
     const JointAccelInputsT<Cx> in{bk[at(m.parent)],
                                    bk[at(m.child)],
-                                   jk[at(j)],
-                                   frame_alpha(m.P, jk[at(j)].F, m.parent),
-                                   frame_alpha(m.C, jk[at(j)].G, m.child),
+                                   w.jk[at(j)],
+                                   frame_alpha(m.P, w.jk[at(j)].F, m.parent),
+                                   frame_alpha(m.C, w.jk[at(j)].G, m.child),
                                    nu_dot.segment<6>(nu(m.parent)),
                                    nu_dot.segment<6>(nu(m.child))};
     JointAccelT<Cx> aj;
@@ -1508,15 +1583,85 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
   return true;
 }
 
+// The exact tangent of output_row() (core/engine.hpp; issue 27): the complex step of the same
+// equations, written once (write_outputs(), templated on the scalar and the writer), on the state
+// pack(s + i h ds) (pack_cx) and its solve (dynamics_cx: the joint loads' multipliers
+// y = y_r + i y_i from the two real solves, so their variation carries the accelerations'). row is
+// output_row(t, pack(s)) itself. The extra columns (constraint.pos, .vel, .ang, .angvel) have
+// derivative zero: pack(s + e ds) places every child by its joint's own coordinates, so each
+// joint's rows g and g' vanish for every e (a prescribed joint's and a prescribed base's rows are
+// functions of their coordinates, which have no tangent: constant), and so does their largest norm;
+// their |.| and max() are not differentiated at round-off (Griewank & Walther 2008, Ch. 3:
+// nonsmooth elementaries have no tangent there).
+bool NewtonEulerEngine::output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                                           double* drow) {
+  if (!tangent_covered_) return false;
+  struct Restore {
+    NewtonEulerEngine& e;
+    std::vector<JointCoords> coords, coords_ref;
+    ~Restore() {
+      e.coords_ = coords;
+      e.coords_ref_ = coords_ref;
+    }
+  } restore{*this, coords_, coords_ref_};
+  std::vector<double> x0(at(nx_));
+  pack(s, x0.data());
+  output_row(t, x0.data(), row);
+
+  constexpr double h = 1e-30;
+  CxPass w = cx_pass();
+  pack_cx(t, s, ds, h, w);
+  dynamics_cx(t, w);
+  CxRowWriter out(layout_, row, drow, h);
+  write_outputs<Cx>(t, w.view(), out);
+  for (int c = violation0_; c < violation0_ + 4; ++c) drow[c] = 0.0;
+  return true;
+}
+
+// The exact Jacobian-vector product of rhs() in this engine's own coordinates (core/engine.hpp;
+// issue 27): the complex step through body_pass (the attitude's normalisation included: dx may
+// leave the unit sphere; the stored, unnormalised q in q' = 1/2 q (x) (0, w), as rhs() has it),
+// mass_pass, joint_pass (the coordinates unwrapped against the run's references, as rhs() finds
+// them), force_pass, load_kkt (Baumgarte's terms alpha g' + beta g included: dx may leave the
+// constraint manifold) and the solve (dynamics_cx). xdot is rhs(t, x) itself.
+bool NewtonEulerEngine::rhs_tangent(double t, const double* x, const double* dx, double* xdot,
+                                    double* dxdot) {
+  if (!tangent_covered_) return false;
+  rhs(t, x, xdot);
+  constexpr double h = 1e-30;
+  std::vector<Cx> xc(at(nx_));
+  for (int i = 0; i < nx_; ++i) xc[at(i)] = Cx(x[i], h * dx[i]);
+  CxPass w = cx_pass();
+  body_pass_cx(t, xc.data(), w);
+  dynamics_cx(t, w);
+  for (int b = 0; b < nb_; ++b) {
+    const BodyKinematicsT<Cx>& k = w.bk[at(b)];
+    const Cx* xp = xc.data() + pos(b);
+    double* dp = dxdot + pos(b);
+    for (int i = 0; i < 3; ++i) dp[i] = k.v_NBo_N(i).imag() / h;
+    // rot::quat_rate_body on Cx: 1/2 q (x) (0, w_B), q the stored quaternion.
+    const Cx qw = xp[3], qx = xp[4], qy = xp[5], qz = xp[6];
+    const V3<Cx>& wb = k.w_NB_B;
+    const Cx qd[4] = {0.5 * (-qx * wb.x() - qy * wb.y() - qz * wb.z()),
+                      0.5 * (qw * wb.x() + qy * wb.z() - qz * wb.y()),
+                      0.5 * (qw * wb.y() + qz * wb.x() - qx * wb.z()),
+                      0.5 * (qw * wb.z() + qx * wb.y() - qy * wb.x())};
+    for (int i = 0; i < 4; ++i) dp[3 + i] = qd[i].imag() / h;
+    for (int i = 0; i < modes(b); ++i) dp[7 + i] = k.eta_dot(i).imag() / h;
+  }
+  for (int i = 0; i < nv_; ++i) dxdot[vel_[0] + i] = w.nu_dot(i).imag() / h;
+  return true;
+}
+
 // The system's CM x_c = sum_i m_i x_i / sum_i m_i over every mass element, deformed [KLL83
 // Sec. 4.5]: per body m p_NoBo_N + R_NB S (S = sum m_i r_i, modal_body.hpp; zero for a rigid body).
-// Valid after mass_pass (terms_).
-Vector3d NewtonEulerEngine::system_cm() const {
-  Vector3d first_moment = Vector3d::Zero();
+template <class S>
+V3<S> NewtonEulerEngine::system_cm(const OutputState<S>& st) const {
+  V3<S> first_moment = V3<S>::Zero();
   double total = 0;
   for (int b = 0; b < nb_; ++b) {
-    first_moment += mass_[at(b)] * bk_[at(b)].p_NoBo_N;
-    if (flex_[at(b)] >= 0) first_moment += bk_[at(b)].R_NB * terms_[at(flex_[at(b)])].S;
+    first_moment += mass_[at(b)] * st.bk[at(b)].p_NoBo_N;
+    if (flex_[at(b)] >= 0) first_moment += st.bk[at(b)].R_NB * st.terms[at(flex_[at(b)])].S;
     total += mass_[at(b)];
   }
   return first_moment / total;
@@ -1527,50 +1672,74 @@ Vector3d NewtonEulerEngine::system_cm() const {
 // m v + R (w x S + Phi_bar eta'), angular momentum about its origin h_b = (R S) x v + R (I w +
 // Lambda eta'); then H = sum_b h_b + (p_b - x_c) x L_b (the sum of m_i (x_i - x_c) over all
 // elements is zero). The column H is its norm (RowWriter::momentum).
-Vector3d NewtonEulerEngine::angular_momentum(const Vector3d& x_c) const {
-  Vector3d h = Vector3d::Zero();
+template <class S>
+V3<S> NewtonEulerEngine::angular_momentum(const OutputState<S>& st, const V3<S>& x_c) const {
+  V3<S> h = V3<S>::Zero();
   for (int b = 0; b < nb_; ++b) {
-    const BodyKinematics& k = bk_[at(b)];
+    const BodyKinematicsT<S>& k = st.bk[at(b)];
     const int fi = flex_[at(b)];
-    Vector3d L = mass_[at(b)] * k.v_NBo_N;
+    V3<S> L = mass_[at(b)] * k.v_NBo_N;
     if (fi < 0) {
       h += k.R_NB * (I_B_[at(b)] * k.w_NB_B);
     } else {
-      const ModalTerms& mt = terms_[at(fi)];
-      const Vector3d S_N = k.R_NB * mt.S;
-      L += k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel);
-      h += S_N.cross(k.v_NBo_N) + k.R_NB * (mt.I * k.w_NB_B + mt.h_rel);
+      const ModalTermsT<S>& mt = st.terms[at(fi)];
+      const V3<S> S_N = k.R_NB * mt.S;
+      L += k.R_NB * (tcross<S>(k.w_NB_B, mt.S) + mt.p_rel);
+      h += tcross<S>(S_N, k.v_NBo_N) + k.R_NB * (mt.I * k.w_NB_B + mt.h_rel);
     }
-    h += (k.p_NoBo_N - x_c).cross(L);
+    h += tcross<S>(k.p_NoBo_N - x_c, L);
   }
   return h;
 }
 
+// The linear momentum sum_b m v + R (w x S + p_rel) (linear_momentum(); on Cx from the modal
+// terms' S and p_rel, the same sums as modal_first_moments()).
+template <class S>
+V3<S> NewtonEulerEngine::linear_momentum(const OutputState<S>& st) const {
+  if constexpr (kIsReal<S>) {
+    (void)st;
+    return linear_momentum();  // the run's: st is run_state() (bk_)
+  } else {
+    V3<S> sum = V3<S>::Zero();
+    for (int b = 0; b < nb_; ++b) {
+      const BodyKinematicsT<S>& k = st.bk[at(b)];
+      sum += mass_[at(b)] * k.v_NBo_N;
+      const int fi = flex_[at(b)];
+      if (fi < 0) continue;
+      sum += k.R_NB * (tcross<S>(k.w_NB_B, st.terms[at(fi)].S) + st.terms[at(fi)].p_rel);
+    }
+    return sum;
+  }
+}
+
 // Kinetic energy 1/2 nu^T M nu of every body (modal_body.hpp), plus the modal strain energy
 // 1/2 eta^T K eta and the joint springs' potential (core/system.hpp).
-double NewtonEulerEngine::energy() const {
-  double e = 0;
+template <class S>
+S NewtonEulerEngine::energy(const OutputState<S>& st) const {
+  using MX = Eigen::Matrix<S, Eigen::Dynamic, Eigen::Dynamic>;
+  S e = 0;
   for (int b = 0; b < nb_; ++b) {
-    const BodyKinematics& k = bk_[at(b)];
+    const BodyKinematicsT<S>& k = st.bk[at(b)];
     const int fi = flex_[at(b)];
-    e += 0.5 * mass_[at(b)] * k.v_NBo_N.squaredNorm();
+    e += 0.5 * mass_[at(b)] * tsquared_norm<S>(k.v_NBo_N);
     if (fi < 0) {
-      e += 0.5 * k.w_NB_B.dot(I_B_[at(b)] * k.w_NB_B);
+      e += 0.5 * tdot<S>(k.w_NB_B, I_B_[at(b)] * k.w_NB_B);
       continue;
     }
-    const ModalTerms& mt = terms_[at(fi)];
+    const ModalTermsT<S>& mt = st.terms[at(fi)];
     const ModalInvariants& inv = inv_[at(fi)];
-    e += k.v_NBo_N.dot(k.R_NB * (k.w_NB_B.cross(mt.S) + mt.p_rel)) +
-         0.5 * k.w_NB_B.dot(mt.I * k.w_NB_B) + k.w_NB_B.dot(mt.h_rel) +
-         0.5 * k.eta_dot.dot((inv.stiffening ? Eigen::MatrixXd(mt.M.bottomRightCorner(inv.n, inv.n))
-                                             : inv.M_ee) * k.eta_dot) +
-         0.5 * k.eta.dot(inv.K * k.eta);
+    const S modal_kinetic = inv.stiffening ? tdot<S>(k.eta_dot, MX(mt.M.bottomRightCorner(inv.n, inv.n)) * k.eta_dot)
+                                           : tdot<S>(k.eta_dot, inv.M_ee * k.eta_dot);
+    e += tdot<S>(k.v_NBo_N, k.R_NB * (tcross<S>(k.w_NB_B, mt.S) + mt.p_rel)) +
+         0.5 * tdot<S>(k.w_NB_B, mt.I * k.w_NB_B) + tdot<S>(k.w_NB_B, mt.h_rel) + 0.5 * modal_kinetic +
+         0.5 * tdot<S>(k.eta, inv.K * k.eta);
   }
   for (int j = 1; j < nj_; ++j) {
     const Joint& J = system_.joints[at(j)];
     const JointModel& m = joints_[at(j)];
-    if ((J.stiffness == 0 && J.stiffness2 == 0) || !m.unit->potential) continue;
-    m.unit->potential(J, m, jk_[at(j)], coords_[at(j)], e);
+    const auto potential = potential_verb<S>(*m.unit);
+    if ((J.stiffness == 0 && J.stiffness2 == 0) || !potential) continue;
+    potential(J, m, st.jk[at(j)], st.coords[at(j)], e);
   }
   return e;
 }
@@ -1581,10 +1750,11 @@ double NewtonEulerEngine::energy() const {
 // the child (docs/prescribed-motion.md "State, output, accelerations"; rows 3-4 act about
 // c_k = u x b_k, normal to the axis). A prescribed prismatic joint's row 5 is its position along
 // the axis (joints/prismatic.cpp): J_C^T lambda_5 is the force lambda_5 R_NP a_P at the child's
-// joint point, so -y_5 is its force along the axis on the child. Valid after dynamics().
-double NewtonEulerEngine::torque(int j) const {
-  if (j == 0) return -kkt_.y_root()(5);
-  return -y_[at(j - 1)](5);
+// joint point, so -y_5 is its force along the axis on the child.
+template <class S>
+S NewtonEulerEngine::torque(const OutputState<S>& st, int j) const {
+  if (j == 0) return -st.y_root(5);
+  return -st.y[at(j - 1)](5);
 }
 
 // Joint j's load on its child: everything that passes from the parent to the child through the
@@ -1602,83 +1772,86 @@ double NewtonEulerEngine::torque(int j) const {
 //   Applied part (core/system.hpp "Loads", the unit's load verb, as force_pass() applies it): the
 //   torque T_P on the child-side frame (P components) and, along a translation, the force F_P at
 //   the child's joint point: F_C += R_CP F_P (at J: no moment about J), M_J_C += R_CP T_P.
-void NewtonEulerEngine::joint_load(int j, double t, Vector3d& F_C, Vector3d& M_J_C) const {
+template <class S>
+void NewtonEulerEngine::joint_load(int j, double t, const OutputState<S>& st, V3<S>& F_C,
+                                   V3<S>& M_J_C) const {
   const JointModel& m = joints_[at(j)];
-  const JointKinematics& jk = jk_[at(j)];
-  const Vector6d& y = j == 0 ? kkt_.y_root() : y_[at(j - 1)];
-  const Vector6d wrench = -(cr_[at(j)].J_C.transpose() * y);  // [F_N; M_Co_C]
-  F_C.noalias() = bk_[at(m.child)].R_NB.transpose() * wrench.head<3>();
-  M_J_C = wrench.tail<3>() - jk.G.s_B.cross(F_C);
-  Vector3d T_P, F_P;
-  if (m.unit->load && m.unit->load(system_.joints[at(j)], m, jk, coords_[at(j)], t, T_P, F_P)) {
+  const JointKinematicsT<S>& jk = st.jk[at(j)];
+  const Vec6<S>& y = j == 0 ? st.y_root : st.y[at(j - 1)];
+  const Vec6<S> wrench = -(st.cr[at(j)].J_C.transpose() * y);  // [F_N; M_Co_C]
+  F_C.noalias() = st.bk[at(m.child)].R_NB.transpose() * wrench.template head<3>();
+  M_J_C = wrench.template tail<3>() - tcross<S>(jk.G.s_B, F_C);
+  V3<S> T_P, F_P;
+  const auto load = load_verb<S>(*m.unit);
+  if (load && load(system_.joints[at(j)], m, jk, st.coords[at(j)], t, T_P, F_P)) {
     M_J_C.noalias() += jk.R_PC.transpose() * T_P;
     if (m.translates) F_C.noalias() += jk.R_PC.transpose() * F_P;
   }
 }
 
-// One output row at (t, x) (core/output_layout.hpp; equations in newton_euler.hpp "Outputs").
-void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
-  dynamics(t, x);  // the joint loads need this state's accelerations and multipliers
-  RowWriter out(layout_, row);
+// The pinned columns at one state (core/output_layout.hpp; equations in newton_euler.hpp
+// "Outputs"), on S through the writer W.
+template <class S, class W>
+void NewtonEulerEngine::write_outputs(double t, const OutputState<S>& st, W& out) const {
   out.time(t);
   for (int b = 0; b < nb_; ++b) {
-    out.body(b, bk_[at(b)].w_NB_B, bk_[at(b)].q_NB);
-    if (modes(b) > 0) out.modal(b, bk_[at(b)].eta, bk_[at(b)].eta_dot);
+    out.body(b, st.bk[at(b)].w_NB_B, st.bk[at(b)].q_NB);
+    if (modes(b) > 0) out.modal(b, st.bk[at(b)].eta, st.bk[at(b)].eta_dot);
   }
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    if (m.unit->output)  // the pinned joint columns (core/output_layout.hpp)
-      m.unit->output(out, j, system_.joints[at(j)], m, jk_[at(j)], coords_[at(j)],
-                     m.prescribed ? torque(j) : 0.0, t);
+    if (const auto output = output_verb<S>(*m.unit))  // the pinned joint columns (core/output_layout.hpp)
+      output(out, j, system_.joints[at(j)], m, st.jk[at(j)], st.coords[at(j)],
+             m.prescribed ? torque(st, j) : S(0.0), t);
   }
-  const Vector3d p_NoScm_N = system_cm();
-  const Vector3d H_Scm_N = angular_momentum(p_NoScm_N);
+  const V3<S> p_NoScm_N = system_cm(st);
+  const V3<S> H_Scm_N = angular_momentum(st, p_NoScm_N);
   out.momentum(H_Scm_N);
-  const double E = energy() + gravity_potential(t);  // kinetic, strain, springs; gravity's V
+  const S E = energy(st) + gravity_potential(t, st);  // kinetic, strain, springs; gravity's V
   out.energy(E);
   if (env_.orbit()) {
     // The Jacobi integral J = E - w_NO_N . H_O_N (core/system.hpp "Environment"; Schaub &
     // Junkins 2018, Sec. 4.3), H about O: H_O_N = H_Scm_N + M (p_cm - p_NoO_N) x v_cm
     // [KLL83 Sec. 4.5], v_cm the system CM's velocity (linear momentum / M).
     const double M = total_mass();
-    const Vector3d v_cm_N = linear_momentum() / M;
-    const Vector3d H_O_N = H_Scm_N + M * (p_NoScm_N - p_NoO_N_).cross(v_cm_N);
-    out.jacobi(E - orbit_frame(env_, t).w_NO_N.dot(H_O_N));
+    const V3<S> v_cm_N = linear_momentum(st) / M;
+    const V3<S> H_O_N = H_Scm_N + M * tcross<S>(p_NoScm_N - p_NoO_N_, v_cm_N);
+    out.jacobi(E - tdot<S>(orbit_frame(env_, t).w_NO_N, H_O_N));
   }
-  for (int b = 0; b < nb_; ++b) out.body_position(b, bk_[at(b)].p_NoBo_N);
+  for (int b = 0; b < nb_; ++b) out.body_position(b, st.bk[at(b)].p_NoBo_N);
   out.system_cm(p_NoScm_N);
 
   // Joint loads; the power P of the non-conservative loads and the external moment about the
   // system CM, M_Scm_N (docs/conventions.md "Power and external moment"; newton_euler.hpp).
-  double P = 0;
-  Vector3d M_Scm_N = Vector3d::Zero();
+  S P = 0;
+  V3<S> M_Scm_N = V3<S>::Zero();
   for (int j = first_joint(); j < nj_; ++j) {
     const JointModel& m = joints_[at(j)];
-    Vector3d F_C, M_J_C;
-    joint_load(j, t, F_C, M_J_C);
+    V3<S> F_C, M_J_C;
+    joint_load(j, t, st, F_C, M_J_C);
     out.joint_load(j, F_C, M_J_C);
-    if (m.unit->power)  // motors, dampers (the scene's), a prescribed joint's drive
-      P += m.unit->power(system_.joints[at(j)], m, jk_[at(j)], m.prescribed ? torque(j) : 0.0, t);
+    if (const auto power = power_verb<S>(*m.unit))  // motors, dampers (the scene's), a drive
+      P += power(system_.joints[at(j)], m, st.jk[at(j)], m.prescribed ? torque(st, j) : S(0.0), t);
     if (j == 0) {  // a prescribed base: N's load on it is external, moved to the CM [Feath08 2.26]
-      const BodyKinematics& B = bk_[at(m.child)];
-      const Vector3d F_N = B.R_NB * F_C;
-      const Vector3d p_NoJ_N = B.p_NoBo_N + B.R_NB * jk_[0].G.s_B;
-      M_Scm_N += B.R_NB * M_J_C + (p_NoJ_N - p_NoScm_N).cross(F_N);
+      const BodyKinematicsT<S>& B = st.bk[at(m.child)];
+      const V3<S> F_N = B.R_NB * F_C;
+      const V3<S> p_NoJ_N = B.p_NoBo_N + B.R_NB * st.jk[0].G.s_B;
+      M_Scm_N += B.R_NB * M_J_C + tcross<S>(p_NoJ_N - p_NoScm_N, F_N);
     }
   }
   for (int b = 0; b < nb_; ++b) {
     const Body& body = system_.bodies[at(b)];
-    const BodyKinematics& k = bk_[at(b)];
-    // Gravity (force_pass() of this dynamics() call): its resultant F_grav_N through Bo and its
+    const BodyKinematicsT<S>& k = st.bk[at(b)];
+    // Gravity (force_pass() of this state's solve): its resultant F_grav_N through Bo and its
     // moment about Bo, moved to the system CM [Feath08 Eq. 2.26]. Conservative: not in P.
     if (!env_.none())
-      M_Scm_N += (k.p_NoBo_N - p_NoScm_N).cross(F_grav_N_[at(b)]) + k.R_NB * M_grav_B_[at(b)];
+      M_Scm_N += tcross<S>(k.p_NoBo_N - p_NoScm_N, st.F_grav_N[at(b)]) + k.R_NB * st.M_grav_B[at(b)];
     if (!body.torque.empty()) {  // external torque: power T . w_NB (on the body frame), moment T
       const Vector3d T = body.torque.value(t);
       const bool in_B = body.torque_frame == Body::Frame::Body;
-      const Vector3d T_B = in_B ? T : Vector3d(k.R_NB.transpose() * T);
-      P += T_B.dot(k.w_NB_B);
-      M_Scm_N += in_B ? Vector3d(k.R_NB * T) : T;
+      const V3<S> T_B = in_B ? V3<S>(T.template cast<S>()) : V3<S>(k.R_NB.transpose() * T);
+      P += tdot<S>(T_B, k.w_NB_B);
+      M_Scm_N += in_B ? V3<S>(k.R_NB * T) : V3<S>(T.template cast<S>());
     }
     // Modal damping, the scene's D (core/system.hpp "FlexBody"): power -eta'^T D eta'.
     if (!body.flex || body.flex->D.size() == 0) continue;
@@ -1688,6 +1861,13 @@ void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
   }
   out.power(P);
   out.external_moment(M_Scm_N);
+}
+
+// One output row at (t, x) (core/output_layout.hpp; equations in newton_euler.hpp "Outputs").
+void NewtonEulerEngine::output_row(double t, const double* x, double* row) {
+  dynamics(t, x);  // the joint loads need this state's accelerations and multipliers
+  RowWriter out(layout_, row);
+  write_outputs(t, run_state(), out);
 
   double pos_violation = 0, vel_violation = 0, ang_violation = 0, angvel_violation = 0;
   for (int j = 1; j < nj_; ++j) {

@@ -139,6 +139,13 @@
 // torques, uniform gravity and the orbit, every stabilisation. Returns false (decided by the
 // constructor) only for a joint whose unit has no Cx verbs: none of this engine's types.
 //
+// Exact tangents of output_row() and rhs() (issue 27; core/engine.hpp, output_row_tangent(),
+// rhs_tangent()): the same complex step through the same passes (pack_cx or body_pass_cx, then
+// dynamics_cx in newton_euler.cpp), the output columns written once on the scalar
+// (write_outputs<S, W>: RowWriter on double, CxRowWriter on Cx, cx_row_writer.hpp); README.md
+// "Exact tangents of the output row and of the right-hand side". Covered exactly where
+// accelerations_tangent() is.
+//
 // Readings of the flexible model (docs/flexible-bodies.md) chosen here:
 //   - a joint on a flexible body without a node (Joint::parent_node / child_node = -1) is attached
 //     to the body frame: its point and frame do not move with the deformation;

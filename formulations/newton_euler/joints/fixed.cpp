@@ -63,8 +63,8 @@ namespace {
 // Every fixed joint is covered by the tangent.
 bool covers(const Joint& /*J*/) { return true; }
 
-const JointVerbsCx kCx{covers,  nullptr, nullptr, rotation_rows<Cx>,
-                       nullptr, nullptr, nullptr, nullptr};
+const JointVerbsCx kCx{covers,  nullptr, nullptr, rotation_rows<Cx>, nullptr, nullptr,
+                       nullptr, nullptr, nullptr, nullptr,           nullptr};
 
 }  // namespace
 

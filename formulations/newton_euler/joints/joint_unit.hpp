@@ -57,6 +57,7 @@
 #include "core/engine.hpp"
 #include "core/output_layout.hpp"
 #include "core/system.hpp"
+#include "formulations/newton_euler/cx_row_writer.hpp"
 #include "formulations/newton_euler/joint_constraints.hpp"
 
 #include <Eigen/Geometry>
@@ -109,6 +110,14 @@ struct JointVerbsCx {
                Vec3<Cx>& r_F, Vec3<Cx>& v_F);
   void (*accelerations)(const Joint& joint, const JointModel& m, const JointAccelInputsT<Cx>& in,
                         double t, JointAccelT<Cx>& a);
+  // The output verbs on Cx (output_row_tangent(); the same templates as the double verbs):
+  // the spring's energy, the pinned joint columns (through CxRowWriter), the power.
+  void (*potential)(const Joint& joint, const JointModel& m, const JointKinematicsT<Cx>& jk,
+                    const JointCoordsT<Cx>& coords, Cx& e);
+  void (*output)(CxRowWriter& out, int j, const Joint& joint, const JointModel& m,
+                 const JointKinematicsT<Cx>& jk, const JointCoordsT<Cx>& coords, Cx torque, double t);
+  Cx (*power)(const Joint& joint, const JointModel& m, const JointKinematicsT<Cx>& jk, Cx torque,
+              double t);
 };
 
 struct JointUnit {
@@ -157,6 +166,28 @@ auto rotation_rows_verb(const JointUnit& u) {
   else return u.cx ? u.cx->rotation_rows : nullptr;
 }
 
+// The verbs the output code (newton_euler.cpp, write_outputs()) calls, on S.
+template <class S>
+auto load_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.load;
+  else return u.cx ? u.cx->load : nullptr;
+}
+template <class S>
+auto potential_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.potential;
+  else return u.cx ? u.cx->potential : nullptr;
+}
+template <class S>
+auto output_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.output;
+  else return u.cx ? u.cx->output : nullptr;
+}
+template <class S>
+auto power_verb(const JointUnit& u) {
+  if constexpr (kIsReal<S>) return u.power;
+  else return u.cx ? u.cx->power : nullptr;
+}
+
 // The units (one file each) and the choice among them (joints/dispatch.cpp).
 extern const JointUnit kFreeJoint;
 extern const JointUnit kRevoluteJoint;
@@ -179,6 +210,18 @@ double one_coordinate_power(const Joint& joint, const JointModel& m, const Joint
 void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
                            const Joint& joint, const JointModel& m, const JointKinematics& jk,
                            const JointCoords& coords, double torque, double t);
+// The three above on the scalar S with the writer W (RowWriter on double, CxRowWriter on Cx),
+// instantiated in joints/revolute.cpp; the double functions call them.
+template <class S>
+void one_coordinate_potential_t(const Joint& joint, const JointModel& m, const JointKinematicsT<S>& jk,
+                                const JointCoordsT<S>& coords, S& e);
+template <class S>
+S one_coordinate_power_t(const Joint& joint, const JointModel& m, const JointKinematicsT<S>& jk,
+                         S torque, double t);
+template <class W, class S>
+void one_coordinate_output_t(void (W::*write)(int, S, S), W& out, int j, const Joint& joint,
+                             const JointModel& m, const JointKinematicsT<S>& jk,
+                             const JointCoordsT<S>& coords, S torque, double t);
 
 // The fixed joint's relative attitude lock (joint_constraints.hpp, "fixed") in rows row0..row0+2
 // (fixed: 3; prismatic: 2), joints/fixed.cpp. The revolute row shared with the universal joint is

@@ -155,8 +155,22 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
 // Every prismatic joint is covered by the tangent.
 bool covers(const Joint& /*J*/) { return true; }
 
-const JointVerbsCx kCx{covers,    relative<Cx>, point_rows<Cx>, rotation_rows<Cx>,
-                       track<Cx>, load<Cx>,     pack_t<Cx>,     accelerations_t<Cx>};
+void output_cx(CxRowWriter& out, int j, const Joint& J, const JointModel& m,
+               const JointKinematicsT<Cx>& jk, const JointCoordsT<Cx>& coords, Cx force, double t) {
+  one_coordinate_output_t(&CxRowWriter::prismatic, out, j, J, m, jk, coords, force, t);
+}
+
+const JointVerbsCx kCx{covers,
+                       relative<Cx>,
+                       point_rows<Cx>,
+                       rotation_rows<Cx>,
+                       track<Cx>,
+                       load<Cx>,
+                       pack_t<Cx>,
+                       accelerations_t<Cx>,
+                       one_coordinate_potential_t<Cx>,
+                       output_cx,
+                       one_coordinate_power_t<Cx>};
 
 // Position and rate (a prescribed joint's from its profile, then its force: row 5's multiplier).
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,

@@ -132,8 +132,22 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
 // Every revolute joint (spring, damper, motor, prescribed) is covered by the tangent.
 bool covers(const Joint& /*J*/) { return true; }
 
-const JointVerbsCx kCx{covers,    relative<Cx>, nullptr,    rotation_rows<Cx>,
-                       track<Cx>, load<Cx>,     pack_t<Cx>, accelerations_t<Cx>};
+void output_cx(CxRowWriter& out, int j, const Joint& J, const JointModel& m,
+               const JointKinematicsT<Cx>& jk, const JointCoordsT<Cx>& coords, Cx torque, double t) {
+  one_coordinate_output_t(&CxRowWriter::revolute, out, j, J, m, jk, coords, torque, t);
+}
+
+const JointVerbsCx kCx{covers,
+                       relative<Cx>,
+                       nullptr,
+                       rotation_rows<Cx>,
+                       track<Cx>,
+                       load<Cx>,
+                       pack_t<Cx>,
+                       accelerations_t<Cx>,
+                       one_coordinate_potential_t<Cx>,
+                       output_cx,
+                       one_coordinate_power_t<Cx>};
 
 void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
             const JointCoords& coords, double torque, double t) {
@@ -156,22 +170,45 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 
 }  // namespace
 
-void one_coordinate_potential(const Joint& J, const JointModel& /*m*/,
-                              const JointKinematics& /*jk*/, const JointCoords& coords, double& e) {
-  const double d = coords(0) - J.neutral_angle;
+template <class S>
+void one_coordinate_potential_t(const Joint& J, const JointModel& /*m*/, const JointKinematicsT<S>& /*jk*/,
+                                const JointCoordsT<S>& coords, S& e) {
+  const S d = coords(0) - J.neutral_angle;
   e += 0.5 * J.stiffness * d * d;
 }
+template void one_coordinate_potential_t(const Joint&, const JointModel&, const JointKinematicsT<double>&,
+                                         const JointCoordsT<double>&, double&);
+template void one_coordinate_potential_t(const Joint&, const JointModel&, const JointKinematicsT<Cx>&,
+                                         const JointCoordsT<Cx>&, Cx&);
 
-void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
-                           const Joint& J, const JointModel& m, const JointKinematics& jk,
-                           const JointCoords& coords, double torque, double t) {
+void one_coordinate_potential(const Joint& J, const JointModel& m, const JointKinematics& jk,
+                              const JointCoords& coords, double& e) {
+  one_coordinate_potential_t<double>(J, m, jk, coords, e);
+}
+
+template <class W, class S>
+void one_coordinate_output_t(void (W::*write)(int, S, S), W& out, int j, const Joint& J,
+                             const JointModel& m, const JointKinematicsT<S>& jk,
+                             const JointCoordsT<S>& coords, S torque, double t) {
   if (m.prescribed) {  // docs/prescribed-motion.md: angle and rate from the profile
     const PrescribedMotion& pm = *J.prescribed;
-    (out.*write)(j, J.angle0 + pm.angle(t), pm.velocity(t));
+    (out.*write)(j, S(J.angle0 + pm.angle(t)), S(pm.velocity(t)));
     out.joint_torque(j, torque);
   } else {
     (out.*write)(j, coords(0), jk.rate);
   }
+}
+template void one_coordinate_output_t(void (RowWriter::*)(int, double, double), RowWriter&, int,
+                                      const Joint&, const JointModel&, const JointKinematicsT<double>&,
+                                      const JointCoordsT<double>&, double, double);
+template void one_coordinate_output_t(void (CxRowWriter::*)(int, Cx, Cx), CxRowWriter&, int,
+                                      const Joint&, const JointModel&, const JointKinematicsT<Cx>&,
+                                      const JointCoordsT<Cx>&, Cx, double);
+
+void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWriter& out, int j,
+                           const Joint& J, const JointModel& m, const JointKinematics& jk,
+                           const JointCoords& coords, double torque, double t) {
+  one_coordinate_output_t<RowWriter, double>(write, out, j, J, m, jk, coords, torque, t);
 }
 
 // Power (docs/conventions.md "Power and external moment"): the load tau = -k (angle - neutral) -
@@ -183,11 +220,21 @@ void one_coordinate_output(void (RowWriter::*write)(int, double, double), RowWri
 // (lambda^T J nu = lambda_5 rate; Haug 1989, Sec. 6.3). Prismatic likewise, with a force along the
 // axis at the child's joint point and the reaction at the same point: F . (relative velocity of
 // the point) = F s'.
-double one_coordinate_power(const Joint& J, const JointModel& m, const JointKinematics& jk,
-                            double torque, double t) {
+template <class S>
+S one_coordinate_power_t(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk, S torque,
+                         double t) {
   if (m.prescribed) return torque * J.prescribed->velocity(t);
   const double motor = J.motor_revolute.empty() ? 0.0 : J.motor_revolute.value(t)(0);
   return (motor - J.damping * jk.rate) * jk.rate;
+}
+template double one_coordinate_power_t(const Joint&, const JointModel&, const JointKinematicsT<double>&,
+                                       double, double);
+template Cx one_coordinate_power_t(const Joint&, const JointModel&, const JointKinematicsT<Cx>&, Cx,
+                                   double);
+
+double one_coordinate_power(const Joint& J, const JointModel& m, const JointKinematics& jk,
+                            double torque, double t) {
+  return one_coordinate_power_t<double>(J, m, jk, torque, t);
 }
 
 const JointUnit kRevoluteJoint{"revolute",

@@ -78,30 +78,46 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
 // Every spherical joint is covered by the tangent.
 bool covers(const Joint& /*J*/) { return true; }
 
-const JointVerbsCx kCx{covers,  nullptr,  nullptr,    nullptr,
-                       nullptr, load<Cx>, pack_t<Cx>, accelerations_t<Cx>};
-
-void potential(const Joint& J, const JointModel& m, const JointKinematics& jk,
-               const JointCoords& /*coords*/, double& e) {
-  const Vector3d phi = rot::rotation_vector(m.q_PJ0.conjugate() * jk.q_FG);
-  e += 0.5 * J.stiffness * phi.squaredNorm();
+template <class S>
+void potential_t(const Joint& J, const JointModel& m, const JointKinematicsT<S>& jk,
+                 const JointCoordsT<S>& /*coords*/, S& e) {
+  const Vec3<S> phi = rotation_vector<S>(Quat<S>(m.q_PJ0.template cast<S>().conjugate() * jk.q_FG));
+  e += 0.5 * J.stiffness * tsquared_norm<S>(phi);
 }
 
-void output(RowWriter& out, int j, const Joint& /*J*/, const JointModel& /*m*/,
-            const JointKinematics& jk, const JointCoords& /*coords*/, double /*torque*/,
-            double /*t*/) {
+void potential(const Joint& J, const JointModel& m, const JointKinematics& jk,
+               const JointCoords& coords, double& e) {
+  potential_t<double>(J, m, jk, coords, e);
+}
+
+template <class W, class S>
+void output_t(W& out, int j, const Joint& /*J*/, const JointModel& /*m*/, const JointKinematicsT<S>& jk,
+              const JointCoordsT<S>& /*coords*/, S /*torque*/, double /*t*/) {
   out.spherical(j, jk.w_FG_G);
+}
+
+void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
+            const JointCoords& coords, double torque, double t) {
+  output_t<RowWriter, double>(out, j, J, m, jk, coords, torque, t);
 }
 
 // Power of the motor and damper (the scene's values): the torque tau_G on the child-side frame G
 // and its reaction on F work at w_FG_G (= the output w_PC_C): (motor - damping w_PC_C) . w_PC_C;
 // the spring's part is -dV/dt (in E).
-double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk, double /*torque*/,
-             double t) {
-  Vector3d tau_G = -J.damping * jk.w_FG_G;
+template <class S>
+S power_t(const Joint& J, const JointModel& /*m*/, const JointKinematicsT<S>& jk, S /*torque*/, double t) {
+  Vec3<S> tau_G = -J.damping * jk.w_FG_G;
   if (!J.motor_spherical.empty()) tau_G += J.motor_spherical.value(t);
-  return tau_G.dot(jk.w_FG_G);
+  return tdot<S>(tau_G, jk.w_FG_G);
 }
+
+double power(const Joint& J, const JointModel& m, const JointKinematics& jk, double torque, double t) {
+  return power_t<double>(J, m, jk, torque, t);
+}
+
+const JointVerbsCx kCx{covers,           nullptr,  nullptr,    nullptr,
+                       nullptr,          load<Cx>, pack_t<Cx>, accelerations_t<Cx>,
+                       potential_t<Cx>,  output_t<CxRowWriter, Cx>, power_t<Cx>};
 
 }  // namespace
 

@@ -157,18 +157,27 @@ void accelerations(const Joint& J, const JointModel& m, const JointAccelInputs& 
 // Every universal joint is covered by the tangent.
 bool covers(const Joint& /*J*/) { return true; }
 
-const JointVerbsCx kCx{covers,    relative<Cx>, nullptr,    rotation_rows<Cx>,
-                       track<Cx>, load<Cx>,     pack_t<Cx>, accelerations_t<Cx>};
-
-void potential(const Joint& J, const JointModel& /*m*/, const JointKinematics& /*jk*/,
-               const JointCoords& coords, double& e) {
-  const double d1 = coords(0) - J.neutral_angle, d2 = coords(1) - J.neutral_angle2;
+template <class S>
+void potential_t(const Joint& J, const JointModel& /*m*/, const JointKinematicsT<S>& /*jk*/,
+                 const JointCoordsT<S>& coords, S& e) {
+  const S d1 = coords(0) - J.neutral_angle, d2 = coords(1) - J.neutral_angle2;
   e += 0.5 * J.stiffness * d1 * d1 + 0.5 * J.stiffness2 * d2 * d2;
 }
 
-void output(RowWriter& out, int j, const Joint& /*J*/, const JointModel& /*m*/,
-            const JointKinematics& jk, const JointCoords& coords, double /*torque*/, double /*t*/) {
+void potential(const Joint& J, const JointModel& m, const JointKinematics& jk, const JointCoords& coords,
+               double& e) {
+  potential_t<double>(J, m, jk, coords, e);
+}
+
+template <class W, class S>
+void output_t(W& out, int j, const Joint& /*J*/, const JointModel& /*m*/, const JointKinematicsT<S>& jk,
+              const JointCoordsT<S>& coords, S /*torque*/, double /*t*/) {
   out.universal(j, coords(0), coords(1), jk.rate, jk.rate2);
+}
+
+void output(RowWriter& out, int j, const Joint& J, const JointModel& m, const JointKinematics& jk,
+            const JointCoords& coords, double torque, double t) {
+  output_t<RowWriter, double>(out, j, J, m, jk, coords, torque, t);
 }
 
 // The change of the angle between the axes (row 3 over |n1 x n2|, ~ rad) and the forbidden
@@ -184,11 +193,27 @@ void violation(const JointModel& m, const JointKinematics& jk, const ConstraintR
 // Power of the motors and dampers (the scene's values): T . w_FG_F = tau_1 a1' + tau_2 a2' (the
 // dual basis, header), of which the springs' parts are -dV/dt (in E): sum_k (motor_k - damping_k
 // rate_k) rate_k.
-double power(const Joint& J, const JointModel& /*m*/, const JointKinematics& jk, double /*torque*/,
-             double t) {
+template <class S>
+S power_t(const Joint& J, const JointModel& /*m*/, const JointKinematicsT<S>& jk, S /*torque*/, double t) {
   const Vector2d motor = J.motor_universal.empty() ? Vector2d::Zero() : J.motor_universal.value(t);
   return (motor(0) - J.damping * jk.rate) * jk.rate + (motor(1) - J.damping2 * jk.rate2) * jk.rate2;
 }
+
+double power(const Joint& J, const JointModel& m, const JointKinematics& jk, double torque, double t) {
+  return power_t<double>(J, m, jk, torque, t);
+}
+
+const JointVerbsCx kCx{covers,
+                       relative<Cx>,
+                       nullptr,
+                       rotation_rows<Cx>,
+                       track<Cx>,
+                       load<Cx>,
+                       pack_t<Cx>,
+                       accelerations_t<Cx>,
+                       potential_t<Cx>,
+                       output_t<CxRowWriter, Cx>,
+                       power_t<Cx>};
 
 }  // namespace
 
