@@ -714,8 +714,10 @@ TEST_CASE("linearize: every engine's A, C and own Jacobian are its own exact tan
 }
 
 namespace {
-// A test double: a real engine whose exact tangents are wrong by one part in 1e6 in one entry (A:
-// joint 1's acceleration; C: one output column; own A: the last state's rate), every other call passed
+// A test double: a real engine whose exact tangents are wrong in one place (A: joint 1's acceleration
+// by one part in 1e6; C: one output column's derivative along joint 1's coordinate and rate by 1e-4,
+// 6e-8 of C's largest entry (d|H|/d hub.wz = 1567 on hub_two_panels_spin); own A: the last
+// state's rate along the first state by 1e-4), every other call passed
 // through. Each cross-check must catch its own.
 class WrongTangent final : public Engine {
  public:
@@ -736,15 +738,18 @@ class WrongTangent final : public Engine {
   }
   bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row, double* drow) override {
     const bool ok = inner_->output_row_tangent(t, s, ds, row, drow);
-    if (ok && which_ == Which::C) drow[column_] *= 1 + 1e-6;
+    // Along joint 1's coordinate and rate only: a whole row scaled would keep a zero transfer
+    // function zero.
+    if (ok && which_ == Which::C) drow[column_] += c_offset_ * (ds.joints[1].angle + ds.joints[1].rate);
     return ok;
   }
   bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) override {
     const bool ok = inner_->rhs_tangent(t, x, dx, xdot, dxdot);
-    if (ok && which_ == Which::Own) dxdot[state_size() - 1] *= 1 + 1e-6;
+    if (ok && which_ == Which::Own) dxdot[state_size() - 1] += 1e-4 * dx[0];
     return ok;
   }
   std::size_t column_ = 0;
+  double c_offset_ = 1e-4;
 
  private:
   std::unique_ptr<Engine> inner_;
@@ -856,7 +861,8 @@ run: {duration: 60 s, output_step: 0.5 s}
     }
   CHECK(zero_pairs == 2 * (static_cast<int>(r.engines.size()) - 1));
 
-  // kane's C row of H 1e-6 off: |H| <- gimbal.motor1 is then ~1e-6, and fails.
+  // kane's C row of H off by 1e-4 along the slider's position and rate (a few 1e-6 of the row's
+  // largest entry): |H| <- gimbal.motor1 is then no longer zero, and fails.
   const std::vector<std::string> columns = pinned_columns(s);
   const auto H = static_cast<std::size_t>(std::find(columns.begin(), columns.end(), "H") - columns.begin());
   LinearizeOptions w = o;
