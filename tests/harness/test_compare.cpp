@@ -507,36 +507,7 @@ TEST_CASE("compare: joint loads that fail while the motions agree get a note on 
 // compare runs the scene again 100 times tighter and says, with the figures, that the difference
 // falls (integration error), and that every load passes there.
 TEST_CASE("compare: loads that differ by integration error are measured as such, at tolerances 100 times tighter") {
-  const System s = crossdyn::read_scene_text(R"(name: telescope_gimbal
-bodies:
-  - {name: bus, mass: 500 kg, inertia: [300, 350, 420]}
-  - {name: mast, mass: 8 kg, inertia: [0.05, 1.2, 1.2]}
-  - {name: head, mass: 12 kg, inertia: [0.4, 0.3, 0.35]}
-joints:
-  - {name: base, type: free, child: bus, initial: {angular_velocity: [0, 0, 0.05]}}
-  - name: slider
-    type: prismatic
-    parent: bus
-    child: mast
-    parent_point: [1.2, 0, 0]
-    child_point: [-1.0, 0, 0]
-    axis: [1, 0, 0]
-    spring: {stiffness: 400 N/m, neutral_position: 0.3 m}
-    damper: {damping: 4 N s/m}
-    initial: {position: 0.3 m, rate: 0}
-  - name: gimbal
-    type: universal
-    parent: mast
-    child: head
-    parent_point: [1.0, 0, 0]
-    child_point: [-0.2, 0, 0]
-    axis: [0, 0, 1]
-    axis2: [0, 1, 0]
-    spring: {stiffness: [25, 18]}
-    damper: {damping: [0.5, 0.4]}
-run: {duration: 60 s, output_step: 0.5 s}
-)",
-                                             "telescope_gimbal.yaml");
+  const System s = crossdyn::read_scene(crossdyn::test::source_dir() + "/tests/harness/scenes/telescope_gimbal.yaml");
   const SceneComparison c = compare_scene(s, {});
   CHECK_FALSE(c.passed());
   for (const Check& k : c.checks)
