@@ -306,29 +306,32 @@ const char* kind_name(ColumnKind k) {
   return names[static_cast<int>(k)];
 }
 
-// Per column kind: max |d - ref| / max |d| over the kind's columns, the worst kind's; names the
-// worst column in `worst`. A kind whose variation is below 1e-3 of the row's largest is measured
-// against that instead (a joint that carries no moment: its moments and their variations are
-// rounding, ~1e-13, relative to nothing).
-double worst_by_kind(const OutputLayout& L, const Eigen::VectorXd& d, const Eigen::VectorXd& ref,
-                     std::string& worst) {
+// Per column kind (ColumnKind): max |d - ref| / max |d| over the kind's columns, and its worst
+// column. A kind whose variation is below 1e-3 of the row's largest is measured against that
+// instead (a joint that carries no moment: its moments and their variations are rounding, ~1e-13,
+// relative to nothing).
+struct KindError {
+  double error = 0;
+  std::string column;
+};
+std::map<int, KindError> errors_by_kind(const OutputLayout& L, const Eigen::VectorXd& d,
+                                        const Eigen::VectorXd& ref) {
   std::map<int, double> scale;
   const double floor = 1e-3 * d.cwiseAbs().maxCoeff();
   for (std::size_t i = 0; i < L.size(); ++i) {
     double& sc = scale[static_cast<int>(L.columns()[i].kind)];
     sc = std::max({sc, floor, std::abs(d(static_cast<Eigen::Index>(i)))});
   }
-  double w = 0;
+  std::map<int, KindError> r;
   for (std::size_t i = 0; i < L.size(); ++i) {
-    const double sc = scale[static_cast<int>(L.columns()[i].kind)];
-    const double r = std::abs(d(static_cast<Eigen::Index>(i)) - ref(static_cast<Eigen::Index>(i))) /
+    const int kind = static_cast<int>(L.columns()[i].kind);
+    const double sc = scale[kind];
+    const double e = std::abs(d(static_cast<Eigen::Index>(i)) - ref(static_cast<Eigen::Index>(i))) /
                      (sc > 0 ? sc : 1.0);
-    if (r >= w) {
-      w = r;
-      worst = L.columns()[i].name + " (" + kind_name(L.columns()[i].kind) + ")";
-    }
+    KindError& k = r[kind];
+    if (e >= k.error) k = {e, L.columns()[i].name + " (" + kind_name(L.columns()[i].kind) + ")"};
   }
-  return w;
+  return r;
 }
 
 }  // namespace
@@ -468,27 +471,25 @@ TEST_CASE("lagrange output tangent: drow against Richardson differences per colu
       worst_row = std::max(worst_row, (row - r0).cwiseAbs().maxCoeff());
       CHECK(drow(0) == 0.0);  // the time column
       const VecFn f = [&](double h) { return row_at(e, t, moved_along(s, ds, h)); };
-      // The extrapolation at its best first step (as for da above).
-      double best = 1e300;
-      std::string best_col;
-      for (double h : {3.2e-2, 1.6e-2, 8e-3}) {
-        std::string col;
-        const double r = worst_by_kind(L, drow, richardson_of(f, h), col);
-        if (r < best) {
-          best = r;
-          best_col = col;
+      // Per column kind, the extrapolation at its best first step (as for da above; the kinds'
+      // truncation and rounding differ).
+      std::map<int, KindError> best;
+      for (double h : {6.4e-2, 3.2e-2, 1.6e-2, 8e-3})
+        for (const auto& [kind, ke] : errors_by_kind(L, drow, richardson_of(f, h)))
+          if (!best.count(kind) || ke.error < best[kind].error) best[kind] = ke;
+      for (const auto& [kind, ke] : best)
+        if (ke.error >= worst) {
+          worst = ke.error;
+          worst_col = ke.column;
         }
-      }
-      if (best >= worst) {
-        worst = best;
-        worst_col = best_col;
-      }
     }
     INFO(c.name << ": row against output_row() " << worst_row
                 << ", drow against Richardson (per column kind) " << worst << ", worst column "
                 << worst_col);
     CHECK(worst_row == 0.0);
-    CHECK(worst < 1e-9);
+    // ~1e-12 on most systems; the five-link chain ~1e-10 (its joints carry no moment: the moments'
+    // rounding over h).
+    CHECK(worst < 5e-10);
     WARN(c.name << ": output drow vs Richardson " << worst << " (" << worst_col << ")");
   }
 }
@@ -580,7 +581,8 @@ TEST_CASE("lagrange rhs tangent: dxdot against Richardson differences, on and of
     INFO(c.name << ": xdot against rhs() " << worst_f << ", dxdot against Richardson " << worst
                 << " (worst " << worst_label << ")");
     CHECK(worst_f == 0.0);
-    CHECK(worst < 1e-9);
+    // ~1e-12; the five-link chain ~2e-10 (the rounding of its rhs(), as for da above).
+    CHECK(worst < 5e-10);
     WARN(c.name << ": rhs dxdot vs Richardson " << worst << " (" << worst_label << ")");
   }
 }
