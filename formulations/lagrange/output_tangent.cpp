@@ -25,9 +25,10 @@
 //                                          & Levinson 1983, Sec. 1.13), with the sign it takes;
 //   roll, pitch, yaw; wox, woy, woz       R_OB = R_NO^T R_NB turns by the same dtheta, so the
 //                                          3-2-1 angles vary by the inverse of their body-rate
-//                                          matrix (Diebel 2006, "Representing Attitude", Eq.
-//                                          (290)) times dtheta; w_OB_B = w_NB_B - R_NB^T w_NO_N
-//                                          by dw + dtheta x (R_NB^T w_NO_N).
+//                                          matrix times dtheta (written out below; Diebel 2006,
+//                                          "Representing Attitude", the 3-2-1 sequence);
+//                                          w_OB_B = w_NB_B - R_NB^T w_NO_N by
+//                                          dw + dtheta x (R_NB^T w_NO_N).
 // The values of every column so computed are compared with output_row()'s (a guard, as in
 // accelerations_tangent(): a formula here that is not output_row()'s returns false, never a wrong
 // variation); row is output_row()'s own. Allocates; never the hot path.
