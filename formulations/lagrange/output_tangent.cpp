@@ -47,6 +47,7 @@
 #include "formulations/lagrange/kinematics.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/passes.hpp"
 #include "formulations/lagrange/tangent_core.hpp"
 #include "formulations/lagrange/workspace.hpp"
 
@@ -161,9 +162,7 @@ bool LagrangeEngine::output_row_tangent(double t, const TreeState& s, const Tree
     }
     P[b] = R * hv;
     h[b] = R * hw;
-    dP[b] = R * Vec3<E>(hvd + wb.cross(hv));
-    dK[b] = R * Vec3<E>(hwd + wb.cross(hw));
-    if (B.flex >= 0) dK[b] += Vec3<E>(R * vb).cross(P[b]);
+    momentum_rates(B, R, wb, vb, hw, hv, hwd, hvd, dP[b], dK[b]);  // loads.cpp's
     T_N[b] = Vec3<E>::Zero();
     if (!B.torque.empty()) {
       const Eigen::Vector3d tau = B.torque.value(t);
@@ -290,29 +289,16 @@ bool LagrangeEngine::output_row_tangent(double t, const TreeState& s, const Tree
     put(L.J(), energy - constant(of.w_NO_N).dot(H_O));
   }
 
-  // Joint loads (loads.cpp), in the child body frame; per joint its point r_J, F and M about it.
+  // Joint loads, in the child body frame: loads.cpp's momentum balance of each child subtree.
   std::vector<Vec3<E>> F_N(nj), M_J(nj), r_J(nj);
+  subtree_loads(m, c.p, c.R, c.r_C, dP, dK, T_N, c.F_g, c.M_g, F_N, M_J, r_J);
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];
-    const auto ch = static_cast<std::size_t>(J.child);
-    r_J[j] = c.p[ch] + c.R[ch] * c.r_C[ch];
-    Vec3<E> F = Vec3<E>::Zero(), M = Vec3<E>::Zero();
-    for (int jj : J.subtree) {
-      const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(jj)].child);
-      const Vec3<E> arm = c.p[b] - r_J[j];
-      F += dP[b];
-      M += arm.cross(dP[b]) + dK[b] - T_N[b];
-      if (m.gravity) {
-        F -= c.F_g[b];
-        M -= arm.cross(c.F_g[b]) + c.M_g[b];
-      }
-    }
-    F_N[j] = F;
-    M_J[j] = M;
     if (J.absolute) continue;  // the free joint carries nothing
+    const auto ch = static_cast<std::size_t>(J.child);
     const int col = L.joint_load(static_cast<int>(j));
-    put3(col, transpose_times(c.R[ch], F));
-    put3(col + 3, transpose_times(c.R[ch], M));
+    put3(col, transpose_times(c.R[ch], F_N[j]));
+    put3(col + 3, transpose_times(c.R[ch], M_J[j]));
   }
 
   // P (outputs.cpp): motors and dampers on their quasi-velocities (the scene's damping), external
