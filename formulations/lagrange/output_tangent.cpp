@@ -301,39 +301,10 @@ bool LagrangeEngine::output_row_tangent(double t, const TreeState& s, const Tree
     put3(col + 3, transpose_times(c.R[ch], M_J[j]));
   }
 
-  // P (outputs.cpp): motors and dampers on their quasi-velocities (the scene's damping), external
-  // torques T . w_NB, modal dampers, prescribed drives.
-  E power(0.0);
-  for (const Model::JointM& J : m.joints) {
-    if (J.loaded == 0) continue;
-    const Eigen::Vector3d motor = J.motor.value(t);
-    for (int a = 0; a < J.loaded; ++a) {
-      const E& rate = c.u[static_cast<std::size_t>(J.i0 + a)];
-      power += (motor(a) - J.damping_scene[static_cast<std::size_t>(a)] * rate) * rate;
-    }
-  }
-  for (std::size_t b = 0; b < nb; ++b) {
-    const Model::BodyM& B = m.bodies[b];
-    power += T_N[b].dot(Vec3<E>(c.R[b] * c.w[b]));
-    if (B.flex < 0) continue;
-    for (int r = 0; r < B.nm; ++r)
-      for (int cc = 0; cc < B.nm; ++cc)
-        power -= c.u[static_cast<std::size_t>(B.e0 + r)] * B.D_scene(r, cc) *
-                 c.u[static_cast<std::size_t>(B.e0 + cc)];
-  }
-  for (std::size_t kp = 0; kp < m.prescribed_joints.size(); ++kp) {
-    const Model::JointM& J = m.joints[static_cast<std::size_t>(m.prescribed_joints[kp])];
-    power += c.torque[kp] * c.u[static_cast<std::size_t>(J.i0)];
-  }
-  put(L.P(), power);
-
-  // The external moment about the system CM (outputs.cpp).
-  Vec3<E> M_ext = Vec3<E>::Zero();
-  for (std::size_t b = 0; b < nb; ++b) M_ext += T_N[b];
-  if (!m.base_free) M_ext += M_J[0] + Vec3<E>(r_J[0] - p_cm).cross(F_N[0]);
-  if (m.gravity)
-    for (std::size_t b = 0; b < nb; ++b) M_ext += Vec3<E>(c.p[b] - p_cm).cross(c.F_g[b]) + c.M_g[b];
-  put3(L.external_moment(), M_ext);
+  // P and the external moment about the system CM: outputs.cpp's power_of, external_moment_of.
+  put(L.P(), power_of(m, t, c.u.data(), T_N, c.R, c.w, c.torque.data()));
+  put3(L.external_moment(),
+       external_moment_of(m, T_N, F_N, M_J, r_J, p_cm, c.p, c.F_g, c.M_g));
 
   // The engine's extra column (charts switched): no variation.
   vrow[static_cast<std::size_t>(m.recharts_column)] = r0[static_cast<std::size_t>(m.recharts_column)];

@@ -64,4 +64,17 @@ void subtree_loads(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
                    const std::vector<Vec3<S>>& M_g_N, std::vector<Vec3<S>>& F_N,
                    std::vector<Vec3<S>>& M_J_N, std::vector<Vec3<S>>& r_J_N);
 
+// outputs.cpp, on the scalar S like the two above (double: output_row(); Dual<1>:
+// output_row_tangent()): the power P of the non-conservative loads (u: pi', full; torque: per
+// Model::prescribed_joints) and the external moment about the system CM, N components.
+template <class S>
+S power_of(const Model& m, double t, const S* u, const std::vector<Vec3<S>>& T_N,
+           const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& w_NB_B, const S* torque);
+template <class S>
+Vec3<S> external_moment_of(const Model& m, const std::vector<Vec3<S>>& T_N,
+                           const std::vector<Vec3<S>>& F_N, const std::vector<Vec3<S>>& M_J_N,
+                           const std::vector<Vec3<S>>& r_J_N, const Vec3<S>& p_NoScm_N,
+                           const std::vector<Vec3<S>>& p_NoBo_N, const std::vector<Vec3<S>>& F_g_N,
+                           const std::vector<Vec3<S>>& M_g_N);
+
 }  // namespace crossdyn::lagrange
