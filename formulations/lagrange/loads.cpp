@@ -23,8 +23,8 @@
 // for double, the run's output_row(), and Dual<1>, output_row_tangent() (output_tangent.cpp), whose
 // joint loads are thus this code on values carrying their variation (issue 27). The double
 // instantiation does the operations of the code it replaced, in the same order: output rows are
-// bit-identical (every column of the tangent tests' 48 states). outputs.cpp's power_of and
-// external_moment_of likewise.
+// bit-identical (every column of the tangent tests' 48 states). outputs.cpp's system_momenta,
+// power_of and external_moment_of likewise.
 #include <Eigen/Core>
 #include <cstddef>
 #include <vector>

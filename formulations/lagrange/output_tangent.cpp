@@ -239,16 +239,10 @@ bool LagrangeEngine::output_row_tangent(double t, const TreeState& s, const Tree
   for (std::size_t kp = 0; kp < m.prescribed_joints.size(); ++kp)
     put(L.joint_first(m.prescribed_joints[kp]) + 2, c.torque[kp]);
 
-  // H about the system CM, the CM, positions.
-  Vec3<E> Hs = Vec3<E>::Zero(), Ptot = Vec3<E>::Zero(), stot = Vec3<E>::Zero();
-  for (std::size_t b = 0; b < nb; ++b) {
-    Hs += c.p[b].cross(P[b]) + h[b];
-    Ptot += P[b];
-    stot += sm[b];
-    put3(L.body_position(static_cast<int>(b)), c.p[b]);
-  }
-  const Vec3<E> p_cm = stot / m.total_mass;
-  const Vec3<E> H_Scm = Hs - p_cm.cross(Ptot);
+  // H about the system CM, the CM (outputs.cpp's system_momenta), positions.
+  for (std::size_t b = 0; b < nb; ++b) put3(L.body_position(static_cast<int>(b)), c.p[b]);
+  Vec3<E> Ptot, p_cm;
+  const Vec3<E> H_Scm = system_momenta(m, c.p, P, h, sm, Ptot, p_cm);
   put3(L.H_vector(), H_Scm);
   {
     using std::sqrt;

@@ -99,21 +99,37 @@ Eigen::Vector3d LagrangeEngine::linear_momentum_full(const double* x) {
   return P;
 }
 
-// H about the system CM c: sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the
-// angular momentum about the origin, moved to the CM).
+// The system's momenta from its bodies' (N components; body_momenta): H about the system CM c,
+// sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the angular momentum about the
+// origin, moved to the CM), the linear momentum P = sum_b P_b and x_c (P_N, p_NoScm_N).
+template <class S>
+Vec3<S> system_momenta(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                       const std::vector<Vec3<S>>& P_b, const std::vector<Vec3<S>>& h_b,
+                       const std::vector<Vec3<S>>& s_b, Vec3<S>& P_N, Vec3<S>& p_NoScm_N) {
+  Vec3<S> H = Vec3<S>::Zero(), P = Vec3<S>::Zero(), s = Vec3<S>::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    H += p_NoBo_N[b].cross(P_b[b]) + h_b[b];
+    P += P_b[b];
+    s += s_b[b];
+  }
+  P_N = P;
+  p_NoScm_N = s / m.total_mass;
+  return H - (s / m.total_mass).cross(P);
+}
+
+// H about the system CM (system_momenta); leaves the bodies' and the system's momenta and CM in
+// the workspace (w.P_b, w.h_b, w.s_b, w.P_sys, w.p_cm) and the pose and twist passes in k0.
 Eigen::Vector3d LagrangeEngine::angular_momentum_full(const double* x) {
   kinetic_energy_full(x);
   const Model& m = *model_;
-  Kin<double>& k = ws_->k0;
-  Eigen::Vector3d H = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
-                  s = Eigen::Vector3d::Zero();
+  Workspace& w = *ws_;
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    const BodyMomenta bm = body_momenta(m, k, x + m.n, b);
-    H += k.p_NoBo_N[b].cross(bm.P) + bm.h;
-    P += bm.P;
-    s += bm.s;
+    const BodyMomenta bm = body_momenta(m, w.k0, x + m.n, b);
+    w.P_b[b] = bm.P;
+    w.h_b[b] = bm.h;
+    w.s_b[b] = bm.s;
   }
-  return H - (s / m.total_mass).cross(P);
+  return system_momenta(m, w.k0.p_NoBo_N, w.P_b, w.h_b, w.s_b, w.P_sys, w.p_cm);
 }
 
 // P, the power of the non-conservative loads, from the scene's loads and the velocities
@@ -170,6 +186,16 @@ Vec3<S> external_moment_of(const Model& m, const std::vector<Vec3<S>>& T_N,
 }
 
 // output_row() (double) and output_row_tangent() (Dual<1>, output_tangent.cpp) run this code.
+template Vec3<double> system_momenta<double>(const Model&, const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&, Vec3<double>&,
+                                             Vec3<double>&);
+template Vec3<Dual<1>> system_momenta<Dual<1>>(const Model&, const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&, Vec3<Dual<1>>&,
+                                               Vec3<Dual<1>>&);
 template double power_of<double>(const Model&, double, const double*,
                                  const std::vector<Vec3<double>>&,
                                  const std::vector<Mat3<double>>&,
@@ -253,14 +279,9 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   // Body frame origins p_NoBo_N (a flexible body's undeformed CM) and the system CM
   // p_NoScm_N = sum_b s_b / m_total, s_b the first mass moment (deformed nodes; body_momenta).
   const Kin<double>& k = w.k0;
-  Eigen::Vector3d s = Eigen::Vector3d::Zero();
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
     out.body_position(static_cast<int>(b), k.p_NoBo_N[b]);
-    s += m.bodies[b].flex < 0 ? Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b])
-                              : Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b] +
-                                                k.R_NB[b] * k.fi[b].s);
-  }
-  const Eigen::Vector3d p_NoScm_N = s / m.total_mass;
+  const Eigen::Vector3d p_NoScm_N = w.p_cm;  // system_momenta (angular_momentum_full above)
   out.system_cm(p_NoScm_N);
 
   // On an orbit, the Jacobi integral J = E - w_NO_N . H_O_N (core/system.hpp, Environment), with
@@ -268,8 +289,7 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   // (Greenwood 2003, Ch. 1, the angular momentum about another point), M v_cm the total linear
   // momentum.
   if (m.orbit) {
-    Eigen::Vector3d P_N = Eigen::Vector3d::Zero();
-    for (std::size_t b = 0; b < m.bodies.size(); ++b) P_N += body_momenta(m, w.k0, u, b).P;
+    const Eigen::Vector3d& P_N = w.P_sys;
     const Eigen::Vector3d H_O_N = H_Scm_N + (p_NoScm_N - m.p_NoO_N).cross(P_N);
     out.jacobi(E - orbit_frame(m.environment, t).w_NO_N.dot(H_O_N));
   }

@@ -65,8 +65,14 @@ void subtree_loads(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
                    std::vector<Vec3<S>>& M_J_N, std::vector<Vec3<S>>& r_J_N);
 
 // outputs.cpp, on the scalar S like the two above (double: output_row(); Dual<1>:
-// output_row_tangent()): the power P of the non-conservative loads (u: pi', full; torque: per
-// Model::prescribed_joints) and the external moment about the system CM, N components.
+// output_row_tangent()): the system's momenta from its bodies' (returns H about the system CM;
+// P_N, p_NoScm_N: the linear momentum and the CM), the power P of the non-conservative loads (u:
+// pi', full; torque: per Model::prescribed_joints) and the external moment about the system CM,
+// N components.
+template <class S>
+Vec3<S> system_momenta(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                       const std::vector<Vec3<S>>& P_b, const std::vector<Vec3<S>>& h_b,
+                       const std::vector<Vec3<S>>& s_b, Vec3<S>& P_N, Vec3<S>& p_NoScm_N);
 template <class S>
 S power_of(const Model& m, double t, const S* u, const std::vector<Vec3<S>>& T_N,
            const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& w_NB_B, const S* torque);
