@@ -270,7 +270,7 @@ LagrangeEngine::LagrangeEngine(const System& system, const EngineOptions& option
   w->he0 = Eigen::VectorXd::Zero(m->max_modes);
   w->unit = Eigen::VectorXd::Zero(m->max_modes);
   w->q_NB.assign(static_cast<std::size_t>(nb), Eigen::Quaterniond::Identity());
-  for (auto* v : {&w->dP_N, &w->dK_N, &w->T_N})
+  for (auto* v : {&w->dP_N, &w->dK_N, &w->T_N, &w->P_b, &w->h_b, &w->s_b})
     v->assign(static_cast<std::size_t>(nb), Eigen::Vector3d::Zero());
   for (auto* v : {&w->F_N, &w->M_J_N, &w->r_J_N})
     v->assign(m->joints.size(), Eigen::Vector3d::Zero());

@@ -306,10 +306,12 @@ void flex_inertia(const FlexInvariants& f, const S* eta, FlexInertia<S>& out) {
     }
 }
 
-// h = M_B(eta) xi for xi = (w, v, ed): h_w, h_v and, when he is not null, h_e (n values).
-template <class S>
+// h = M_B(eta) xi for xi = (w, v, ed): h_w, h_v and, when he is not null, h_e (n values). The
+// modal rates ed are double on the run's path (D deduced: the same code as with double alone), or S
+// when they carry a variation too (tangent.cpp, output_tangent.cpp).
+template <class S, class D>
 void flex_momentum(const FlexInvariants& f, const FlexInertia<S>& fi, const Vec3<S>& w,
-                   const Vec3<S>& v, const double* ed, Vec3<S>& hw, Vec3<S>& hv, S* he) {
+                   const Vec3<S>& v, const D* ed, Vec3<S>& hw, Vec3<S>& hv, S* he) {
   const int n = f.n;
   const Vec3<S>& s = fi.s;
   for (int a = 0; a < 3; ++a) {

@@ -41,8 +41,13 @@ class LagrangeEngine final : public Engine {
   // every system (false only if its values disagreed with accelerations()).
   bool accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds, TreeAccel& a,
                              TreeAccel& da) override;
+  // Exact, by the same means (tangent.cpp, output_tangent.cpp; README.md "Exact linearisation"):
+  // every system, every column; false only if its values disagreed with rhs() or output_row().
+  bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) override;
   const OutputLayout& layout() const override;
   void output_row(double t, const double* x, double* row) override;
+  bool output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
+                          double* drow) override;
   // The system the solve pass factors at (t, x), in the chart x is in (the workspace's current
   // charts; nothing is re-charted): A = M (d2T/dpi'2, symmetric), b = N + B^T dL/dq* - (dM/dt) pi'
   // - B^T W^T p (paper Eq. 23; Whittaker 1944, Ch. II; Meirovitch 1970, Ch. 4), z = pi'', i.e.
@@ -94,6 +99,10 @@ class LagrangeEngine final : public Engine {
   void evaluate(double t, const double* xf);  // (t, xf) => every term and pi'' in the workspace
   void prepare_charts(double t, const double* xf);
   std::string full_label(int i) const;  // label of index i of xf
+  // tangent.cpp: pack(s) into xs and the full (q*, pi')'s variation along ds (2n values); throws
+  // InputError naming `caller` for a malformed tangent, before anything is written.
+  void pack_tangent(const TreeState& s, const TreeTangent& ds, const char* caller, double* xs,
+                    std::vector<double>& dxf);
   double kinetic_energy_full(const double* xf);
   double potential_energy_full(const double* xf);
   Eigen::Vector3d angular_momentum_full(const double* xf);

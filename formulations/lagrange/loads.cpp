@@ -18,8 +18,16 @@
 //
 // with P_b the body's linear momentum and dK_b = sum_i (r_i - p_Bo) x m_i a_i + d/dt(R_NB J_i w)
 // its moment of the mass-acceleration about its origin Bo.
+//
+// momentum_rates and subtree_loads are templated on the scalar (passes.hpp) and instantiated here
+// for double, the run's output_row(), and Dual<1>, output_row_tangent() (output_tangent.cpp), whose
+// joint loads are thus this code on values carrying their variation (issue 27). The double
+// instantiation does the operations of the code it replaced, in the same order: output rows are
+// bit-identical (every column of the tangent tests' 48 states). outputs.cpp's system_momenta,
+// power_of and external_moment_of likewise.
 #include <Eigen/Core>
 #include <cstddef>
+#include <vector>
 
 #include "formulations/lagrange/autodiff.hpp"
 #include "formulations/lagrange/flex_body.hpp"
@@ -29,6 +37,83 @@
 #include "formulations/lagrange/workspace.hpp"
 
 namespace crossdyn::lagrange {
+
+// Body b's momentum rates in N from its momenta h_w, h_v in body components and their component
+// rates: d/dt (R_NB h) = R_NB (h' + w x h) (Kane & Levinson 1985, Sec. 2.3, differentiation in
+// two reference frames); dK_N = sum_i (r_i - p_Bo) x m_i a_i + spin rates = d/dt h_Bo + v_Bo x P
+// (the moment of the mass-accelerations about the moving point Bo; Greenwood 2003, Ch. 1, Eqs.
+// (1.103)-(1.110)); for a rigid body P = m v_Bo and the second term is zero.
+template <class S>
+void momentum_rates(const Model::BodyM& B, const Mat3<S>& R_NB, const Vec3<S>& w_B,
+                    const Vec3<S>& v_B, const Vec3<S>& hw, const Vec3<S>& hv, const Vec3<S>& hwd,
+                    const Vec3<S>& hvd, Vec3<S>& dP_N, Vec3<S>& dK_N) {
+  dP_N = R_NB * (hvd + w_B.cross(hv));
+  dK_N = R_NB * (hwd + w_B.cross(hw));
+  if (B.flex >= 0) dK_N += (R_NB * v_B).cross(R_NB * hv);
+}
+
+// Each joint's load from its child subtree's momentum balance (header comment).
+template <class S>
+void subtree_loads(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                   const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& r_C_node,
+                   const std::vector<Vec3<S>>& dP_N, const std::vector<Vec3<S>>& dK_N,
+                   const std::vector<Vec3<S>>& T_N, const std::vector<Vec3<S>>& F_g_N,
+                   const std::vector<Vec3<S>>& M_g_N, std::vector<Vec3<S>>& F_N,
+                   std::vector<Vec3<S>>& M_J_N, std::vector<Vec3<S>>& r_J_N) {
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    const auto c = static_cast<std::size_t>(J.child);
+    // The joint point J on the child: p_CoJ_C, or the child node's displaced point r_C (pose
+    // pass); a prismatic joint's point on the child, which slides on the parent (system.hpp).
+    const Vec3<S> r_C = J.child_node >= 0 ? r_C_node[c] : Vec3<S>(J.p_CoJ_C.cast<S>());
+    const Vec3<S> r_J = p_NoBo_N[c] + R_NB[c] * r_C;
+    Vec3<S> F = Vec3<S>::Zero(), M = Vec3<S>::Zero();
+    for (int jj : J.subtree) {
+      const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(jj)].child);
+      F += dP_N[b];
+      M += (p_NoBo_N[b] - r_J).cross(dP_N[b]) + dK_N[b] - T_N[b];
+      if (m.gravity) {
+        // Gravity on the subtree (gravity.cpp, evaluate() at this state): the resultant F_g at
+        // Bo and its moment M_g about Bo are external loads too, so the joint carries the rest.
+        F -= F_g_N[b];
+        M -= (p_NoBo_N[b] - r_J).cross(F_g_N[b]) + M_g_N[b];
+      }
+    }
+    F_N[j] = F;
+    M_J_N[j] = M;
+    r_J_N[j] = r_J;
+  }
+}
+
+// The run's output_row() (double) and output_row_tangent() (Dual<1>: output_tangent.cpp).
+template void momentum_rates<double>(const Model::BodyM&, const Mat3<double>&, const Vec3<double>&,
+                                     const Vec3<double>&, const Vec3<double>&, const Vec3<double>&,
+                                     const Vec3<double>&, const Vec3<double>&, Vec3<double>&,
+                                     Vec3<double>&);
+template void momentum_rates<Dual<1>>(const Model::BodyM&, const Mat3<Dual<1>>&,
+                                      const Vec3<Dual<1>>&, const Vec3<Dual<1>>&,
+                                      const Vec3<Dual<1>>&, const Vec3<Dual<1>>&,
+                                      const Vec3<Dual<1>>&, const Vec3<Dual<1>>&, Vec3<Dual<1>>&,
+                                      Vec3<Dual<1>>&);
+template void subtree_loads<double>(const Model&, const std::vector<Vec3<double>>&,
+                                    const std::vector<Mat3<double>>&,
+                                    const std::vector<Vec3<double>>&,
+                                    const std::vector<Vec3<double>>&,
+                                    const std::vector<Vec3<double>>&,
+                                    const std::vector<Vec3<double>>&,
+                                    const std::vector<Vec3<double>>&,
+                                    const std::vector<Vec3<double>>&, std::vector<Vec3<double>>&,
+                                    std::vector<Vec3<double>>&, std::vector<Vec3<double>>&);
+template void subtree_loads<Dual<1>>(const Model&, const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Mat3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     const std::vector<Vec3<Dual<1>>>&,
+                                     std::vector<Vec3<Dual<1>>>&, std::vector<Vec3<Dual<1>>>&,
+                                     std::vector<Vec3<Dual<1>>>&);
 
 void joint_loads(const Model& m, Workspace& w, double t) {
   const Kin<double>& k = w.k0;
@@ -75,14 +160,7 @@ void joint_loads(const Model& m, Workspace& w, double t) {
         hvd(a) = hv1(a).d[0] + hve(a);
       }
     }
-    // N components: d/dt (R_NB h) = R_NB (h' + w x h) (Kane & Levinson 1985, Sec. 2.3,
-    // differentiation in two reference frames).
-    w.dP_N[b] = R_NB * (hvd + w_B.cross(hv));
-    // sum_i (r_i - p_Bo) x m_i a_i + spin rates = d/dt h_Bo + v_Bo x P (the moment of the
-    // mass-accelerations about the moving point Bo; Greenwood 2003, Ch. 1, Eqs. (1.103)-(1.110));
-    // for a rigid body P = m v_Bo and the second term is zero.
-    w.dK_N[b] = R_NB * (hwd + w_B.cross(hw));
-    if (B.flex >= 0) w.dK_N[b] += (R_NB * v_B).cross(R_NB * hv);
+    momentum_rates(B, R_NB, w_B, v_B, hw, hv, hwd, hvd, w.dP_N[b], w.dK_N[b]);
     // External torque (system.hpp "Loads": body frame or N).
     w.T_N[b].setZero();
     if (!B.torque.empty()) {
@@ -90,29 +168,8 @@ void joint_loads(const Model& m, Workspace& w, double t) {
       w.T_N[b] = B.torque_frame == Body::Frame::Inertial ? tau : Eigen::Vector3d(R_NB * tau);
     }
   }
-  for (std::size_t j = 0; j < m.joints.size(); ++j) {
-    const Model::JointM& J = m.joints[j];
-    const auto c = static_cast<std::size_t>(J.child);
-    // The joint point J on the child: p_CoJ_C, or the child node's displaced point r_C (pose
-    // pass); a prismatic joint's point on the child, which slides on the parent (system.hpp).
-    const Eigen::Vector3d r_C = J.child_node >= 0 ? k.r_C[c] : J.p_CoJ_C;
-    const Eigen::Vector3d r_J = k.p_NoBo_N[c] + k.R_NB[c] * r_C;
-    Eigen::Vector3d F = Eigen::Vector3d::Zero(), M = Eigen::Vector3d::Zero();
-    for (int jj : J.subtree) {
-      const auto b = static_cast<std::size_t>(m.joints[static_cast<std::size_t>(jj)].child);
-      F += w.dP_N[b];
-      M += (k.p_NoBo_N[b] - r_J).cross(w.dP_N[b]) + w.dK_N[b] - w.T_N[b];
-      if (m.gravity) {
-        // Gravity on the subtree (gravity.cpp, evaluate() at this state): the resultant F_g at
-        // Bo and its moment M_g about Bo are external loads too, so the joint carries the rest.
-        F -= w.F_g_N[b];
-        M -= (k.p_NoBo_N[b] - r_J).cross(w.F_g_N[b]) + w.M_g_N[b];
-      }
-    }
-    w.F_N[j] = F;
-    w.M_J_N[j] = M;
-    w.r_J_N[j] = r_J;
-  }
+  subtree_loads(m, k.p_NoBo_N, k.R_NB, k.r_C, w.dP_N, w.dK_N, w.T_N, w.F_g_N, w.M_g_N, w.F_N,
+                w.M_J_N, w.r_J_N);
 }
 
 }  // namespace crossdyn::lagrange

@@ -99,22 +99,121 @@ Eigen::Vector3d LagrangeEngine::linear_momentum_full(const double* x) {
   return P;
 }
 
-// H about the system CM c: sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the
-// angular momentum about the origin, moved to the CM).
+// The system's momenta from its bodies' (N components; body_momenta): H about the system CM c,
+// sum_b (p_Bo x P_b + h_b) - x_c x P, x_c = sum_b s_b / m_total (the angular momentum about the
+// origin, moved to the CM), the linear momentum P = sum_b P_b and x_c (P_N, p_NoScm_N).
+template <class S>
+Vec3<S> system_momenta(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                       const std::vector<Vec3<S>>& P_b, const std::vector<Vec3<S>>& h_b,
+                       const std::vector<Vec3<S>>& s_b, Vec3<S>& P_N, Vec3<S>& p_NoScm_N) {
+  Vec3<S> H = Vec3<S>::Zero(), P = Vec3<S>::Zero(), s = Vec3<S>::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    H += p_NoBo_N[b].cross(P_b[b]) + h_b[b];
+    P += P_b[b];
+    s += s_b[b];
+  }
+  P_N = P;
+  p_NoScm_N = s / m.total_mass;
+  return H - (s / m.total_mass).cross(P);
+}
+
+// H about the system CM (system_momenta); leaves the bodies' and the system's momenta and CM in
+// the workspace (w.P_b, w.h_b, w.s_b, w.P_sys, w.p_cm) and the pose and twist passes in k0.
 Eigen::Vector3d LagrangeEngine::angular_momentum_full(const double* x) {
   kinetic_energy_full(x);
   const Model& m = *model_;
-  Kin<double>& k = ws_->k0;
-  Eigen::Vector3d H = Eigen::Vector3d::Zero(), P = Eigen::Vector3d::Zero(),
-                  s = Eigen::Vector3d::Zero();
+  Workspace& w = *ws_;
   for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    const BodyMomenta bm = body_momenta(m, k, x + m.n, b);
-    H += k.p_NoBo_N[b].cross(bm.P) + bm.h;
-    P += bm.P;
-    s += bm.s;
+    const BodyMomenta bm = body_momenta(m, w.k0, x + m.n, b);
+    w.P_b[b] = bm.P;
+    w.h_b[b] = bm.h;
+    w.s_b[b] = bm.s;
   }
-  return H - (s / m.total_mass).cross(P);
+  return system_momenta(m, w.k0.p_NoBo_N, w.P_b, w.h_b, w.s_b, w.P_sys, w.p_cm);
 }
+
+// P, the power of the non-conservative loads, from the scene's loads and the velocities
+// (docs/conventions.md "Power and external moment"; the rate of work of a torque on a body is
+// T . w, of a force on a point F . v: Greenwood 2003, Ch. 1, work and power): joint motors and
+// dampers on their own quasi-velocities (revolute and prismatic rate, universal a1' and a2',
+// spherical w_PC_C: (motor - damping rate) rate per component, the scene's damping), modal
+// dampers -eta'^T D eta', prescribed drives (torque times rate) and external torques T . w_NB.
+// u: pi' (full); torque: per Model::prescribed_joints.
+template <class S>
+S power_of(const Model& m, double t, const S* u, const std::vector<Vec3<S>>& T_N,
+           const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& w_NB_B, const S* torque) {
+  S P(0.0);
+  for (const Model::JointM& J : m.joints) {
+    if (J.loaded == 0) continue;
+    const Eigen::Vector3d motor = J.motor.value(t);
+    for (int a = 0; a < J.loaded; ++a) {
+      const S rate = u[J.i0 + a];
+      P += (motor(a) - J.damping_scene[static_cast<std::size_t>(a)] * rate) * rate;
+    }
+  }
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& B = m.bodies[b];
+    P += T_N[b].dot(R_NB[b] * w_NB_B[b]);
+    if (B.flex < 0) continue;
+    const S* ed = u + B.e0;
+    for (int r = 0; r < B.nm; ++r)
+      for (int c = 0; c < B.nm; ++c) P -= ed[r] * B.D_scene(r, c) * ed[c];
+  }
+  for (std::size_t i = 0; i < m.prescribed_joints.size(); ++i) {
+    const Model::JointM& J = m.joints[static_cast<std::size_t>(m.prescribed_joints[i])];
+    P += torque[i] * u[J.i0];
+  }
+  return P;
+}
+
+// External moment about the system CM in N: the external torques, gravity's and, for a
+// prescribed base, its joint's load on the base moved to the CM, M_J + (r_J - r_cm) x F (the
+// moment of a force about another point; Greenwood 2003, Ch. 1); gravity's per body its resultant
+// at Bo and moment about Bo (gravity.cpp), sum (p_Bo - p_cm) x F_g + M_g.
+template <class S>
+Vec3<S> external_moment_of(const Model& m, const std::vector<Vec3<S>>& T_N,
+                           const std::vector<Vec3<S>>& F_N, const std::vector<Vec3<S>>& M_J_N,
+                           const std::vector<Vec3<S>>& r_J_N, const Vec3<S>& p_NoScm_N,
+                           const std::vector<Vec3<S>>& p_NoBo_N, const std::vector<Vec3<S>>& F_g_N,
+                           const std::vector<Vec3<S>>& M_g_N) {
+  Vec3<S> M_Scm_N = Vec3<S>::Zero();
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) M_Scm_N += T_N[b];
+  if (!m.base_free) M_Scm_N += M_J_N[0] + (r_J_N[0] - p_NoScm_N).cross(F_N[0]);
+  if (m.gravity)
+    for (std::size_t b = 0; b < m.bodies.size(); ++b)
+      M_Scm_N += (p_NoBo_N[b] - p_NoScm_N).cross(F_g_N[b]) + M_g_N[b];
+  return M_Scm_N;
+}
+
+// output_row() (double) and output_row_tangent() (Dual<1>, output_tangent.cpp) run this code.
+template Vec3<double> system_momenta<double>(const Model&, const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&,
+                                             const std::vector<Vec3<double>>&, Vec3<double>&,
+                                             Vec3<double>&);
+template Vec3<Dual<1>> system_momenta<Dual<1>>(const Model&, const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&,
+                                               const std::vector<Vec3<Dual<1>>>&, Vec3<Dual<1>>&,
+                                               Vec3<Dual<1>>&);
+template double power_of<double>(const Model&, double, const double*,
+                                 const std::vector<Vec3<double>>&,
+                                 const std::vector<Mat3<double>>&,
+                                 const std::vector<Vec3<double>>&, const double*);
+template Dual<1> power_of<Dual<1>>(const Model&, double, const Dual<1>*,
+                                   const std::vector<Vec3<Dual<1>>>&,
+                                   const std::vector<Mat3<Dual<1>>>&,
+                                   const std::vector<Vec3<Dual<1>>>&, const Dual<1>*);
+template Vec3<double> external_moment_of<double>(
+    const Model&, const std::vector<Vec3<double>>&, const std::vector<Vec3<double>>&,
+    const std::vector<Vec3<double>>&, const std::vector<Vec3<double>>&, const Vec3<double>&,
+    const std::vector<Vec3<double>>&, const std::vector<Vec3<double>>&,
+    const std::vector<Vec3<double>>&);
+template Vec3<Dual<1>> external_moment_of<Dual<1>>(
+    const Model&, const std::vector<Vec3<Dual<1>>>&, const std::vector<Vec3<Dual<1>>>&,
+    const std::vector<Vec3<Dual<1>>>&, const std::vector<Vec3<Dual<1>>>&, const Vec3<Dual<1>>&,
+    const std::vector<Vec3<Dual<1>>>&, const std::vector<Vec3<Dual<1>>>&,
+    const std::vector<Vec3<Dual<1>>>&);
 
 void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   const Model& m = *model_;
@@ -180,14 +279,9 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   // Body frame origins p_NoBo_N (a flexible body's undeformed CM) and the system CM
   // p_NoScm_N = sum_b s_b / m_total, s_b the first mass moment (deformed nodes; body_momenta).
   const Kin<double>& k = w.k0;
-  Eigen::Vector3d s = Eigen::Vector3d::Zero();
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+  for (std::size_t b = 0; b < m.bodies.size(); ++b)
     out.body_position(static_cast<int>(b), k.p_NoBo_N[b]);
-    s += m.bodies[b].flex < 0 ? Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b])
-                              : Eigen::Vector3d(m.bodies[b].mass * k.p_NoBo_N[b] +
-                                                k.R_NB[b] * k.fi[b].s);
-  }
-  const Eigen::Vector3d p_NoScm_N = s / m.total_mass;
+  const Eigen::Vector3d p_NoScm_N = w.p_cm;  // system_momenta (angular_momentum_full above)
   out.system_cm(p_NoScm_N);
 
   // On an orbit, the Jacobi integral J = E - w_NO_N . H_O_N (core/system.hpp, Environment), with
@@ -195,8 +289,7 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
   // (Greenwood 2003, Ch. 1, the angular momentum about another point), M v_cm the total linear
   // momentum.
   if (m.orbit) {
-    Eigen::Vector3d P_N = Eigen::Vector3d::Zero();
-    for (std::size_t b = 0; b < m.bodies.size(); ++b) P_N += body_momenta(m, w.k0, u, b).P;
+    const Eigen::Vector3d& P_N = w.P_sys;
     const Eigen::Vector3d H_O_N = H_Scm_N + (p_NoScm_N - m.p_NoO_N).cross(P_N);
     out.jacobi(E - orbit_frame(m.environment, t).w_NO_N.dot(H_O_N));
   }
@@ -211,47 +304,10 @@ void LagrangeEngine::output_row(double t, const double* xs, double* row) {
                    R_NC.transpose() * w.M_J_N[j]);
   }
 
-  // P, the power of the non-conservative loads, from the scene's loads and the velocities
-  // (docs/conventions.md "Power and external moment"; the rate of work of a torque on a body is
-  // T . w, of a force on a point F . v: Greenwood 2003, Ch. 1, work and power): joint motors and
-  // dampers on their own quasi-velocities (revolute and prismatic rate, universal a1' and a2',
-  // spherical w_PC_C: (motor - damping rate) rate per component, the scene's damping), modal
-  // dampers -eta'^T D eta', prescribed drives (torque times rate) and external torques T . w_NB.
-  double P = 0;
-  for (const Model::JointM& J : m.joints) {
-    if (J.loaded == 0) continue;
-    const Eigen::Vector3d motor = J.motor.value(t);
-    for (int a = 0; a < J.loaded; ++a) {
-      const double rate = u[J.i0 + a];
-      P += (motor(a) - J.damping_scene[static_cast<std::size_t>(a)] * rate) * rate;
-    }
-  }
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
-    const Model::BodyM& B = m.bodies[b];
-    P += w.T_N[b].dot(k.R_NB[b] * k.w_NB_B[b]);
-    if (B.flex < 0) continue;
-    const double* ed = u + B.e0;
-    for (int r = 0; r < B.nm; ++r)
-      for (int c = 0; c < B.nm; ++c) P -= ed[r] * B.D_scene(r, c) * ed[c];
-  }
-  for (std::size_t i = 0; i < m.prescribed_joints.size(); ++i) {
-    const Model::JointM& J = m.joints[static_cast<std::size_t>(m.prescribed_joints[i])];
-    P += w.torque(static_cast<Eigen::Index>(i)) * u[J.i0];
-  }
-  out.power(P);
-
-  // External moment about the system CM in N: the external torques, gravity's and, for a
-  // prescribed base, its joint's load on the base moved to the CM, M_J + (r_J - r_cm) x F (the
-  // moment of a force about another point; Greenwood 2003, Ch. 1).
-  Eigen::Vector3d M_Scm_N = Eigen::Vector3d::Zero();
-  for (std::size_t b = 0; b < m.bodies.size(); ++b) M_Scm_N += w.T_N[b];
-  if (!m.base_free) M_Scm_N += w.M_J_N[0] + (w.r_J_N[0] - p_NoScm_N).cross(w.F_N[0]);
-  // Gravity's moment about the system CM: per body its resultant at Bo and moment about Bo
-  // (gravity.cpp), sum (p_Bo - p_cm) x F_g + M_g.
-  if (m.gravity)
-    for (std::size_t b = 0; b < m.bodies.size(); ++b)
-      M_Scm_N += (k.p_NoBo_N[b] - p_NoScm_N).cross(w.F_g_N[b]) + w.M_g_N[b];
-  out.external_moment(M_Scm_N);
+  // P and the external moment about the system CM (power_of, external_moment_of below).
+  out.power(power_of(m, t, u, w.T_N, k.R_NB, k.w_NB_B, w.torque.data()));
+  out.external_moment(external_moment_of(m, w.T_N, w.F_N, w.M_J_N, w.r_J_N, p_NoScm_N,
+                                         k.p_NoBo_N, w.F_g_N, w.M_g_N));
 
   out.extra(m.recharts_column, static_cast<double>(w.recharts));
 }

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "formulations/lagrange/model.hpp"
 
@@ -45,5 +46,41 @@ void solve(const Model& m, Workspace& w, double t);
 // the state (w.Xi, w.Xi_dot, w.u, w.udot, w.k1.fi, w.fi0) and the double pose and twist passes
 // into w.k0 at the same state.
 void joint_loads(const Model& m, Workspace& w, double t);
+// loads.cpp, the parts of joint_loads() on the scalar S, instantiated for double (output_row()) and
+// Dual<1> (output_row_tangent(), output_tangent.cpp), so both run the same code: a body's momentum
+// rates in N (dP_N, dK_N) from its momenta in body components and their rates, and every joint's
+// load (F_N, M_J_N about its point r_J_N, all N) from its child subtree's momentum balance. r_C_node
+// per body: its joint's point at a child node (read only for a joint at a node); F_g_N, M_g_N read
+// only when Model::gravity.
+template <class S>
+void momentum_rates(const Model::BodyM& B, const Mat3<S>& R_NB, const Vec3<S>& w_B,
+                    const Vec3<S>& v_B, const Vec3<S>& hw, const Vec3<S>& hv, const Vec3<S>& hwd,
+                    const Vec3<S>& hvd, Vec3<S>& dP_N, Vec3<S>& dK_N);
+template <class S>
+void subtree_loads(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                   const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& r_C_node,
+                   const std::vector<Vec3<S>>& dP_N, const std::vector<Vec3<S>>& dK_N,
+                   const std::vector<Vec3<S>>& T_N, const std::vector<Vec3<S>>& F_g_N,
+                   const std::vector<Vec3<S>>& M_g_N, std::vector<Vec3<S>>& F_N,
+                   std::vector<Vec3<S>>& M_J_N, std::vector<Vec3<S>>& r_J_N);
+
+// outputs.cpp, on the scalar S like the two above (double: output_row(); Dual<1>:
+// output_row_tangent()): the system's momenta from its bodies' (returns H about the system CM;
+// P_N, p_NoScm_N: the linear momentum and the CM), the power P of the non-conservative loads (u:
+// pi', full; torque: per Model::prescribed_joints) and the external moment about the system CM,
+// N components.
+template <class S>
+Vec3<S> system_momenta(const Model& m, const std::vector<Vec3<S>>& p_NoBo_N,
+                       const std::vector<Vec3<S>>& P_b, const std::vector<Vec3<S>>& h_b,
+                       const std::vector<Vec3<S>>& s_b, Vec3<S>& P_N, Vec3<S>& p_NoScm_N);
+template <class S>
+S power_of(const Model& m, double t, const S* u, const std::vector<Vec3<S>>& T_N,
+           const std::vector<Mat3<S>>& R_NB, const std::vector<Vec3<S>>& w_NB_B, const S* torque);
+template <class S>
+Vec3<S> external_moment_of(const Model& m, const std::vector<Vec3<S>>& T_N,
+                           const std::vector<Vec3<S>>& F_N, const std::vector<Vec3<S>>& M_J_N,
+                           const std::vector<Vec3<S>>& r_J_N, const Vec3<S>& p_NoScm_N,
+                           const std::vector<Vec3<S>>& p_NoBo_N, const std::vector<Vec3<S>>& F_g_N,
+                           const std::vector<Vec3<S>>& M_g_N);
 
 }  // namespace crossdyn::lagrange

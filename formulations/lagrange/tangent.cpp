@@ -47,14 +47,16 @@
 #include "formulations/lagrange/kinematics.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "formulations/lagrange/model.hpp"
+#include "formulations/lagrange/tangent_core.hpp"
 #include "formulations/lagrange/workspace.hpp"
 
 namespace crossdyn::lagrange {
 
+namespace tangent {
+
 namespace {
 
-using E = Dual<1>;     // a value and its variation along the tangent ds
-using S = Dual<1, E>;  // ... and one derivative along a coordinate q*_k
+using S = Dual<1, E>;  // a value with its variation (E), and one derivative along a coordinate q*_k
 
 // Dense n x n matrix of E, row-major.
 struct MatE {
@@ -106,111 +108,14 @@ struct FlexB {
   }
 };
 
-E seeded(double value, double variation) {
-  E e(value);
-  e.d[0] = variation;
-  return e;
-}
-
 }  // namespace
 
-bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
-                                           TreeAccel& a, TreeAccel& da) {
-  const Model& m = *model_;
-  if (!m.tangent) return false;
-  if (ds.joints.size() != m.joints.size())
-    throw InputError("engine lagrange: accelerations_tangent() got a tangent with " +
-                     std::to_string(ds.joints.size()) + " joints for a system with " +
-                     std::to_string(m.joints.size()));
-  Workspace& w = *ws_;
-  // pack() chooses the charts and records the last accepted state (after_step()): both are put
-  // back on the way out, so a run's engine is left as it was.
-  struct Restore {
-    Workspace& w;
-    std::vector<int> chart;
-    std::vector<double> last_a2;
-    double last_t;
-    bool have_last;
-    ~Restore() {
-      w.chart = chart;
-      w.last_a2 = last_a2;
-      w.last_t = last_t;
-      w.have_last = have_last;
-    }
-  } restore{w, w.chart, w.last_a2, w.last_t, w.have_last};
-
+// The variation of one evaluation (tangent_core.hpp; the method: the header comment above).
+bool evaluate(const Model& m, double t, const int* chart, std::vector<E> qE, std::vector<E> uE,
+              Core& out) {
   const int n = m.n;
   const auto un = static_cast<std::size_t>(n);
-  std::vector<double> xs(static_cast<std::size_t>(state_size()));
-  pack(s, xs.data());
-  TreeAccel a0;
-  accelerations(t, xs.data(), a0);
-  // The full (q*, pi'), prescribed coordinates at their profile's t (expand).
-  const double* xf = expand(t, xs.data());
-  const std::vector<double> x(xf, xf + 2 * n);
-  const int* chart = w.chart.data();
-  const std::size_t nb = m.bodies.size(), nj = m.joints.size(), ns = m.euler_sets.size();
-
-  // The state's variation, pack()'s (header comment).
-  std::vector<double> dq(un, 0.0), du(un, 0.0);
-  auto B_of = [&](int set) {
-    const int i0 = m.euler_sets[static_cast<std::size_t>(set)].i0;
-    const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[set])];
-    return Eigen::Matrix3d(euler_rate_matrix(seq, x[static_cast<std::size_t>(i0 + 1)],
-                                             x[static_cast<std::size_t>(i0 + 2)])
-                               .inverse());
-  };
-  for (std::size_t j = 0; j < nj; ++j) {
-    const Model::JointM& J = m.joints[j];
-    const TreeTangent::JointTangent& jt = ds.joints[j];
-    if (J.prescribed) continue;  // it follows its profile: no variation
-    double* q = dq.data() + J.i0;
-    double* u = du.data() + J.i0;
-    if (J.absolute) {
-      const Eigen::Vector3d da_set = B_of(J.euler_set) * ds.dtheta_B;
-      for (int i = 0; i < 3; ++i) {
-        q[i] = ds.dp_NoBo_N(i);
-        q[3 + i] = da_set(i);
-        u[i] = ds.dv_NBo_N(i);
-        u[3 + i] = ds.dw_NB_B(i);
-      }
-    } else if (J.relative_euler) {
-      const Eigen::Vector3d da_set = B_of(J.euler_set) * jt.dtheta_J;
-      for (int i = 0; i < 3; ++i) {
-        q[i] = da_set(i);
-        u[i] = jt.w_PC_C(i);
-      }
-    } else {
-      // Scalar coordinates (revolute, prismatic: angle; universal: angle, angle2; fixed: none).
-      if (J.dof > 0) {
-        q[0] = jt.angle;
-        u[0] = jt.rate;
-      }
-      if (J.dof > 1) {
-        q[1] = jt.angle2;
-        u[1] = jt.rate2;
-      }
-    }
-  }
-  for (std::size_t b = 0; b < nb; ++b) {  // modal coordinates and rates
-    const Model::BodyM& Bm = m.bodies[b];
-    if (Bm.flex < 0) continue;
-    if (b >= ds.eta.size() || b >= ds.eta_rate.size() || ds.eta[b].size() != Bm.nm ||
-        ds.eta_rate[b].size() != Bm.nm)
-      throw InputError("engine lagrange: accelerations_tangent() got a tangent without the " +
-                       std::to_string(Bm.nm) + " modal variations of flexible body '" + Bm.name +
-                       "'");
-    for (int c = 0; c < Bm.nm; ++c) {
-      dq[static_cast<std::size_t>(Bm.e0 + c)] = ds.eta[b](c);
-      du[static_cast<std::size_t>(Bm.e0 + c)] = ds.eta_rate[b](c);
-    }
-  }
-  std::vector<E> qE(un), uE(un);
-  for (std::size_t i = 0; i < un; ++i) {
-    qE[i] = seeded(x[i], dq[i]);
-    uE[i] = seeded(x[un + i], du[i]);
-  }
-
+  const std::size_t nb = m.bodies.size(), ns = m.euler_sets.size();
   // Inner directions k: with q* + eps e_k, the unit-seed twists Xi (6 x n per body), Mbar, V and
   // the charts' A on S. Kept: values (E) and d/dq*_k (E).
   std::vector<std::vector<Vec3<E>>> Xw(nb, std::vector<Vec3<E>>(un)), Xv = Xw;  // Xi value
@@ -351,34 +256,6 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     dV[kd] = potential_energy_of(m, chart, k.q.data()).d[0];
   }
 
-  // Zero linear momentum (pack()): the base velocity's variation is that of -P_rest / m_total,
-  // P_rest = sum over bodies m R_NB v(other quasi-velocities) (the base translation seeds give
-  // every body v_NBo_N = e_a, m_total e_a in all).
-  const Model::JointM& J0 = m.joints[0];
-  if (m.zero_linear_momentum) {
-    Vec3<E> P = Vec3<E>::Zero();
-    for (std::size_t b = 0; b < nb; ++b) {
-      Vec3<E> v = Vec3<E>::Zero();
-      for (std::size_t i = 0; i < un; ++i) {
-        const int ii = static_cast<int>(i);
-        if (ii >= J0.i0 && ii < J0.i0 + J0.translations) continue;
-        v += Xv[b][i] * uE[i];
-      }
-      Vec3<E> h = m.bodies[b].mass * v;
-      if (m.bodies[b].flex >= 0) {
-        // + w x s + S1 eta' (flex_body.hpp flex_momentum's h_v)
-        Vec3<E> wb = Vec3<E>::Zero();
-        for (std::size_t i = 0; i < un; ++i) wb += Xw[b][i] * uE[i];
-        h += wb.cross(flexB[b].s);
-        const auto e0 = static_cast<std::size_t>(m.bodies[b].e0);
-        for (std::size_t c = 0; c < flexB[b].S1.size(); ++c) h += flexB[b].S1[c] * uE[e0 + c];
-      }
-      P += Vec3<E>(R[b] * h);
-    }
-    for (int i = 0; i < J0.translations; ++i)
-      uE[static_cast<std::size_t>(J0.i0 + i)].d[0] = -P(i).d[0] / m.total_mass;
-  }
-
   // q*' = B pi' (A on each Euler set solved in E), 1 elsewhere.
   std::vector<E> qd = uE;
   for (std::size_t set = 0; set < ns; ++set) {
@@ -425,25 +302,26 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   // The environment's loads (gravity.cpp), F at Bo and M about it: N_i += F . v(e_i) + M . w(e_i).
   // Uniform: F = m g, M = 0. Orbit: F = m T (p_Bo - O), M = gg_sign 3 n^2 zhat x (I_N zhat), with
   // the body origins from the pose pass's position formula (kinematics.hpp) on E.
+  std::vector<Vec3<E>> p(nb);
+  for (const Model::JointM& J : m.joints) {
+    const auto c = static_cast<std::size_t>(J.child);
+    if (J.absolute) {
+      for (int r = 0; r < 3; ++r) p[c](r) = qE[static_cast<std::size_t>(J.i0 + r)];
+      continue;
+    }
+    const Vec3<E> r_C = J.child_node >= 0 ? rC[c] : Vec3<E>(J.p_CoJ_C.cast<E>());
+    if (J.parent < 0) {  // a prescribed base: its joint point is fixed in N
+      p[c] = Vec3<E>(J.p_PoJ_P.cast<E>()) - R[c] * r_C;
+      continue;
+    }
+    const auto P = static_cast<std::size_t>(J.parent);
+    const Vec3<E> r_P =
+        J.parent_node >= 0 || J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
+    p[c] = p[P] + R[P] * r_P - R[c] * r_C;
+  }
+  std::vector<Vec3<E>> F_g(nb, Vec3<E>::Zero()), M_g(nb, Vec3<E>::Zero());
   if (m.gravity) {
     const Environment& env = m.environment;
-    std::vector<Vec3<E>> p(nb);
-    for (const Model::JointM& J : m.joints) {
-      const auto c = static_cast<std::size_t>(J.child);
-      if (J.absolute) {
-        for (int r = 0; r < 3; ++r) p[c](r) = qE[static_cast<std::size_t>(J.i0 + r)];
-        continue;
-      }
-      const Vec3<E> r_C = J.child_node >= 0 ? rC[c] : Vec3<E>(J.p_CoJ_C.cast<E>());
-      if (J.parent < 0) {  // a prescribed base: its joint point is fixed in N
-        p[c] = Vec3<E>(J.p_PoJ_P.cast<E>()) - R[c] * r_C;
-        continue;
-      }
-      const auto P = static_cast<std::size_t>(J.parent);
-      const Vec3<E> r_P =
-          J.parent_node >= 0 || J.slides > 0 ? rP[c] : Vec3<E>(J.p_PoJ_P.cast<E>());
-      p[c] = p[P] + R[P] * r_P - R[c] * r_C;
-    }
     OrbitFrame of;
     double n2 = 0;
     if (m.orbit) {
@@ -491,6 +369,8 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
       } else {
         F = Bm.mass * env.g_N.cast<E>();
       }
+      F_g[b] = F;
+      M_g[b] = M;
       const Vec3<E> F_B = transpose_times(R[b], F), M_B = transpose_times(R[b], M);
       for (std::size_t i = 0; i < un; ++i) N[i] += Xw[b][i].dot(M_B) + Xv[b][i].dot(F_B);
     }
@@ -562,11 +442,9 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
     }
   }
 
-  // The accelerations (outputs.cpp): per body xi = Xi pi', xi' = Xi pi'' + (dXi/dt) pi',
-  // wdot = xi'_w, a_NBo_N = R_NB (xi'_v + w x v); per joint its unit's share of pi''.
-  TreeAccel av = a0, dav = a0;
-  const auto variation = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).d[0], v(1).d[0], v(2).d[0]); };
-  const auto value = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).v, v(1).v, v(2).v); };
+  // Per body the twist xi = Xi pi' and its rate xi' = Xi pi'' + (dXi/dt) pi' (outputs.cpp).
+  out.w.assign(nb, Vec3<E>::Zero());
+  out.v = out.wd = out.vd = out.w;
   for (std::size_t b = 0; b < nb; ++b) {
     Vec3<E> xw = Vec3<E>::Zero(), xv = xw, xwd = xw, xvd = xw;
     for (std::size_t i = 0; i < un; ++i) {
@@ -580,25 +458,214 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
         xvd += dXv[l][b][i] * rate;
       }
     }
-    const Vec3<E> acc = R[b] * Vec3<E>(xvd + xw.cross(xv));
-    av.wdot_NB_B[b] = value(xwd);
-    dav.wdot_NB_B[b] = variation(xwd);
+    out.w[b] = xw;
+    out.v[b] = xv;
+    out.wd[b] = xwd;
+    out.vd[b] = xvd;
+  }
+  // A prescribed coordinate c's torque: its row of Lagrange's equations in q* (Abar is 1 there, so
+  // the row is the Boltzmann-Hamel form's, solve.cpp), tau_c = Mbar_c. q*'' - rhs_c.
+  out.torque.assign(m.prescribed_joints.size(), E(0.0));
+  for (std::size_t kp = 0; kp < m.prescribed_joints.size(); ++kp) {
+    const int c = m.joints[static_cast<std::size_t>(m.prescribed_joints[kp])].i0;
+    E tau = -rhs[static_cast<std::size_t>(c)];
+    for (int i = 0; i < n; ++i) tau += Mbar(c, i) * qdd[static_cast<std::size_t>(i)];
+    out.torque[kp] = tau;
+  }
+  // T = 1/2 pi'^T M pi' = 1/2 q*'^T Mbar q*'; V the springs' and elastic potential (energy.hpp).
+  E T(0.0);
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j)
+      T += qd[static_cast<std::size_t>(i)] * Mbar(i, j) * qd[static_cast<std::size_t>(j)];
+  out.T = 0.5 * T;
+  out.V = potential_energy_of(m, chart, qE.data());
+  std::vector<Vec3<E>> r_C(nb);
+  for (const Model::JointM& J : m.joints) {
+    const auto c = static_cast<std::size_t>(J.child);
+    r_C[c] = J.child_node >= 0 ? rC[c] : Vec3<E>(J.p_CoJ_C.cast<E>());
+  }
+  out.q = std::move(qE);
+  out.u = std::move(uE);
+  out.qd = std::move(qd);
+  out.qdd = std::move(qdd);
+  out.ud = std::move(ud);
+  out.R = std::move(R);
+  out.p = std::move(p);
+  out.r_C = std::move(r_C);
+  out.F_g = std::move(F_g);
+  out.M_g = std::move(M_g);
+  return true;
+}
+
+}  // namespace tangent
+
+// pack(s) into xs, and the variation of the full (q*, pi') along ds that pack() gives (the header
+// comment): dxf, 2n values (the zero-linear-momentum base velocity's variation excepted: Core's).
+// Leaves the charts pack() chose in the workspace.
+void LagrangeEngine::pack_tangent(const TreeState& s, const TreeTangent& ds, const char* caller,
+                                  double* xs, std::vector<double>& dxf) {
+  const Model& m = *model_;
+  if (ds.joints.size() != m.joints.size())
+    throw InputError(std::string("engine lagrange: ") + caller + "() got a tangent with " +
+                     std::to_string(ds.joints.size()) + " joints for a system with " +
+                     std::to_string(m.joints.size()));
+  for (std::size_t b = 0; b < m.bodies.size(); ++b) {
+    const Model::BodyM& Bm = m.bodies[b];
+    if (Bm.flex < 0) continue;
+    if (b >= ds.eta.size() || b >= ds.eta_rate.size() || ds.eta[b].size() != Bm.nm ||
+        ds.eta_rate[b].size() != Bm.nm)
+      throw InputError(std::string("engine lagrange: ") + caller + "() got a tangent without the " +
+                       std::to_string(Bm.nm) + " modal variations of flexible body '" + Bm.name +
+                       "'");
+  }
+  pack(s, xs);
+  const int n = m.n;
+  const auto un = static_cast<std::size_t>(n);
+  // pack()'s full (q*, pi'): a prescribed joint at its profile's t = 0 (pack() is at t = 0).
+  const double* x = expand(0.0, xs);
+  const int* chart = ws_->chart.data();
+  dxf.assign(2 * un, 0.0);
+  double* dq = dxf.data();
+  double* du = dxf.data() + n;
+  auto B_of = [&](int set) {
+    const int i0 = m.euler_sets[static_cast<std::size_t>(set)].i0;
+    const EulerSequence& seq = kSequences[static_cast<std::size_t>(chart[set])];
+    return Eigen::Matrix3d(euler_rate_matrix(seq, x[i0 + 1], x[i0 + 2]).inverse());
+  };
+  for (std::size_t j = 0; j < m.joints.size(); ++j) {
+    const Model::JointM& J = m.joints[j];
+    const TreeTangent::JointTangent& jt = ds.joints[j];
+    if (J.prescribed) continue;  // it follows its profile: no variation
+    double* q = dq + J.i0;
+    double* u = du + J.i0;
+    if (J.absolute) {
+      const Eigen::Vector3d da_set = B_of(J.euler_set) * ds.dtheta_B;
+      for (int i = 0; i < 3; ++i) {
+        q[i] = ds.dp_NoBo_N(i);
+        q[3 + i] = da_set(i);
+        u[i] = ds.dv_NBo_N(i);
+        u[3 + i] = ds.dw_NB_B(i);
+      }
+    } else if (J.relative_euler) {
+      const Eigen::Vector3d da_set = B_of(J.euler_set) * jt.dtheta_J;
+      for (int i = 0; i < 3; ++i) {
+        q[i] = da_set(i);
+        u[i] = jt.w_PC_C(i);
+      }
+    } else {
+      // Scalar coordinates (revolute, prismatic: angle; universal: angle, angle2; fixed: none).
+      if (J.dof > 0) {
+        q[0] = jt.angle;
+        u[0] = jt.rate;
+      }
+      if (J.dof > 1) {
+        q[1] = jt.angle2;
+        u[1] = jt.rate2;
+      }
+    }
+  }
+  for (const Model::BodyM& Bm : m.bodies) {  // modal coordinates and rates
+    if (Bm.flex < 0) continue;
+    const auto b = static_cast<std::size_t>(&Bm - m.bodies.data());
+    for (int c = 0; c < Bm.nm; ++c) {
+      dq[Bm.e0 + c] = ds.eta[b](c);
+      du[Bm.e0 + c] = ds.eta_rate[b](c);
+    }
+  }
+  const Model::JointM& J0 = m.joints[0];
+  if (!m.zero_linear_momentum || J0.translations == 0) return;
+  // Zero linear momentum: pack()'s base velocity is -P_rest / m_total, P_rest the linear momentum
+  // of the other quasi-velocities (outputs.cpp body_momenta: R_NB h_v per body) at pack()'s own
+  // state (a prescribed joint at its profile's t = 0), so its variation is that of -P_rest /
+  // m_total along (dq, du): the pose pass on E and the twists of the unit seeds (P_rest is linear
+  // in pi'), the flexible bodies' h_v = m v + w x s + S1 eta' by flex_momentum on E.
+  using tangent::E;
+  const std::size_t nb = m.bodies.size();
+  Kin<E> k;
+  k.resize(m);
+  std::vector<E> uE(un);
+  for (std::size_t i = 0; i < un; ++i) {
+    k.q[i] = tangent::seeded(x[i], dq[i]);
+    uE[i] = tangent::seeded(x[un + i], du[i]);
+  }
+  pose_pass(m, chart, k, true);
+  std::vector<Vec3<E>> wb(nb, Vec3<E>::Zero()), vb(nb, Vec3<E>::Zero());
+  std::vector<double> seed(un, 0.0);
+  for (int i = 0; i < n; ++i) {
+    if (i >= J0.i0 && i < J0.i0 + J0.translations) continue;
+    const auto ui = static_cast<std::size_t>(i);
+    seed[ui] = 1.0;
+    twist_pass(m, k, seed.data(), m.all_joints);
+    seed[ui] = 0.0;
+    for (std::size_t b = 0; b < nb; ++b) {
+      wb[b] += k.w_NB_B[b] * uE[ui];
+      vb[b] += k.v_NBo_B[b] * uE[ui];
+    }
+  }
+  Vec3<E> P = Vec3<E>::Zero();
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Model::BodyM& Bm = m.bodies[b];
+    Vec3<E> hv = Bm.mass * vb[b];
+    if (Bm.flex >= 0) {
+      Vec3<E> hw;
+      flex_momentum(m.flex[static_cast<std::size_t>(Bm.flex)], k.fi[b], wb[b], vb[b],
+                    uE.data() + Bm.e0, hw, hv, static_cast<E*>(nullptr));
+    }
+    P += Vec3<E>(k.R_NB[b] * hv);
+  }
+  for (int a = 0; a < J0.translations; ++a) du[J0.i0 + a] = -P(a).d[0] / m.total_mass;
+}
+
+bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
+                                           TreeAccel& a, TreeAccel& da) {
+  using tangent::E;
+  const Model& m = *model_;
+  if (!m.tangent) return false;
+  // pack() chooses the charts and records the last accepted state (after_step()): both are put
+  // back on the way out, so a run's engine is left as it was.
+  const tangent::Restore<Workspace> restore(*ws_);
+  const int n = m.n;
+  const auto un = static_cast<std::size_t>(n);
+  std::vector<double> xs(static_cast<std::size_t>(state_size())), dxf;
+  pack_tangent(s, ds, "accelerations_tangent", xs.data(), dxf);
+  TreeAccel a0;
+  accelerations(t, xs.data(), a0);
+  const double* xf = expand(t, xs.data());
+  std::vector<E> qE(un), uE(un);
+  for (std::size_t i = 0; i < un; ++i) {
+    qE[i] = tangent::seeded(xf[i], dxf[i]);
+    uE[i] = tangent::seeded(xf[un + i], dxf[un + i]);
+  }
+  tangent::Core c;
+  if (!tangent::evaluate(m, t, ws_->chart.data(), std::move(qE), std::move(uE), c))
+    return false;
+
+  // The accelerations (outputs.cpp): per body wdot = xi'_w, a_NBo_N = R_NB (xi'_v + w x v); per
+  // joint its unit's share of pi''.
+  const std::size_t nb = m.bodies.size(), nj = m.joints.size();
+  TreeAccel av = a0, dav = a0;
+  const auto variation = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).d[0], v(1).d[0], v(2).d[0]); };
+  const auto value = [](const Vec3<E>& v) { return Eigen::Vector3d(v(0).v, v(1).v, v(2).v); };
+  for (std::size_t b = 0; b < nb; ++b) {
+    const Vec3<E> acc = c.R[b] * Vec3<E>(c.vd[b] + c.w[b].cross(c.v[b]));
+    av.wdot_NB_B[b] = value(c.wd[b]);
+    dav.wdot_NB_B[b] = variation(c.wd[b]);
     av.a_NBo_N[b] = value(acc);
     dav.a_NBo_N[b] = variation(acc);
     const Model::BodyM& Bm = m.bodies[b];
     if (Bm.flex >= 0) {
       av.eta_ddot[b].resize(Bm.nm);
       dav.eta_ddot[b].resize(Bm.nm);
-      for (int c = 0; c < Bm.nm; ++c) {
-        av.eta_ddot[b](c) = ud[static_cast<std::size_t>(Bm.e0 + c)].v;
-        dav.eta_ddot[b](c) = ud[static_cast<std::size_t>(Bm.e0 + c)].d[0];
+      for (int k = 0; k < Bm.nm; ++k) {
+        av.eta_ddot[b](k) = c.ud[static_cast<std::size_t>(Bm.e0 + k)].v;
+        dav.eta_ddot[b](k) = c.ud[static_cast<std::size_t>(Bm.e0 + k)].d[0];
       }
     }
   }
   Eigen::VectorXd ud_value(n), ud_variation(n);
   for (int i = 0; i < n; ++i) {
-    ud_value(i) = ud[static_cast<std::size_t>(i)].v;
-    ud_variation(i) = ud[static_cast<std::size_t>(i)].d[0];
+    ud_value(i) = c.ud[static_cast<std::size_t>(i)].v;
+    ud_variation(i) = c.ud[static_cast<std::size_t>(i)].d[0];
   }
   for (std::size_t j = 0; j < nj; ++j) {
     const Model::JointM& J = m.joints[j];
@@ -619,8 +686,8 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
       compare(a0.a_NBo_N[b](r), av.a_NBo_N[b](r));
     }
     if (a0.eta_ddot[b].size() != av.eta_ddot[b].size()) return false;
-    for (Eigen::Index c = 0; c < a0.eta_ddot[b].size(); ++c)
-      compare(a0.eta_ddot[b](c), av.eta_ddot[b](c));
+    for (Eigen::Index k = 0; k < a0.eta_ddot[b].size(); ++k)
+      compare(a0.eta_ddot[b](k), av.eta_ddot[b](k));
   }
   for (std::size_t j = 0; j < nj; ++j) {
     compare(a0.angle_ddot[j], av.angle_ddot[j]);
@@ -630,6 +697,51 @@ bool LagrangeEngine::accelerations_tangent(double t, const TreeState& s, const T
   if (!(diff <= 1e-8 * scale + 1e-12)) return false;
   a = a0;
   da = dav;
+  return true;
+}
+
+// rhs_tangent: xdot = rhs(t, x) and its variation along dx in the state's own coordinates (the
+// free q*, pi'; a prescribed joint's coordinates follow their profile, no variation), in the
+// workspace's current charts, as rhs() finds them. The Euler-angle form on E (Core) differentiates
+// the same equations rhs() solves in Boltzmann-Hamel form; q*' = B(q*) pi' on E directly. Any dx:
+// the Lagrange engine's coordinates carry no constraint and no unit norm.
+bool LagrangeEngine::rhs_tangent(double t, const double* x, const double* dx, double* xdot,
+                                 double* dxdot) {
+  using tangent::E;
+  const Model& m = *model_;
+  if (!m.tangent) return false;
+  const int n = m.n, nf = m.nf;
+  const auto un = static_cast<std::size_t>(n);
+  std::vector<double> f(static_cast<std::size_t>(2 * nf));
+  rhs(t, x, f.data());
+  const double* xf = expand(t, x);
+  std::vector<E> qE(un), uE(un);
+  for (std::size_t i = 0; i < un; ++i) {
+    qE[i] = E(xf[i]);
+    uE[i] = E(xf[un + i]);
+  }
+  for (int a = 0; a < nf; ++a) {
+    const auto i = static_cast<std::size_t>(m.free_index[static_cast<std::size_t>(a)]);
+    qE[i].d[0] = dx[a];
+    uE[i].d[0] = dx[nf + a];
+  }
+  tangent::Core c;
+  if (!tangent::evaluate(m, t, ws_->chart.data(), std::move(qE), std::move(uE), c))
+    return false;
+  std::vector<double> df(f.size());
+  double scale = 0.0, diff = 0.0;
+  for (int a = 0; a < nf; ++a) {
+    const auto i = static_cast<std::size_t>(m.free_index[static_cast<std::size_t>(a)]);
+    const auto qa = static_cast<std::size_t>(a), ua = static_cast<std::size_t>(nf + a);
+    df[qa] = c.qd[i].d[0];
+    df[ua] = c.ud[i].d[0];
+    scale = std::max({scale, std::abs(f[qa]), std::abs(f[ua])});
+    diff = std::max({diff, std::abs(f[qa] - c.qd[i].v), std::abs(f[ua] - c.ud[i].v)});
+  }
+  // The value parts are rhs()'s to rounding (as in accelerations_tangent()).
+  if (!(diff <= 1e-8 * scale + 1e-12)) return false;
+  std::copy(f.begin(), f.end(), xdot);
+  std::copy(df.begin(), df.end(), dxdot);
   return true;
 }
 

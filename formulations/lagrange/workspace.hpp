@@ -59,6 +59,11 @@ struct LagrangeEngine::Workspace {
   // the spin rates), and its external torque T_N, all N components; per joint the force F_N and
   // moment about the joint point M_J_N the parent exerts on the child, and the point r_J_N.
   std::vector<Eigen::Vector3d> dP_N, dK_N, T_N, F_N, M_J_N, r_J_N;
+  // Momenta (output_row; outputs.cpp angular_momentum_full): per body its linear momentum P_b,
+  // angular momentum about Bo h_b and first mass moment s_b (N); the system's linear momentum
+  // P_sys and CM p_cm.
+  std::vector<Eigen::Vector3d> P_b, h_b, s_b;
+  Eigen::Vector3d P_sys = Eigen::Vector3d::Zero(), p_cm = Eigen::Vector3d::Zero();
   // Gravity (gravity.cpp; sized only with an environment): per body its origin p_NoBo_N at the
   // evaluated state, the gravity force F_g_N (the resultant, N components) and its moment about
   // Bo M_g_N, as the equations of motion use them (test_gravity_gradient_sign included); per

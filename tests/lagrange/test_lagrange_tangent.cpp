@@ -9,15 +9,25 @@
 // written, for a malformed tangent. Every system is covered: rigid and flexible bodies (with
 // geometric stiffening), uniform gravity, the orbit's gravity gradient, a prescribed joint and a
 // prescribed base are among the tested systems.
+//
+// output_row_tangent (output_tangent.cpp) and rhs_tangent (tangent.cpp) on the same systems: drow
+// against Richardson differences of output_row(pack(s +- h ds)), per column kind (ColumnKind),
+// row against output_row() exactly, linearity in ds; dxdot against Richardson differences of
+// rhs(x +- h dx) for x = pack(s) and for x moved off it at random (any x is the engine's: Euler
+// angles and rates, no constraint), xdot against rhs() exactly, and the rate rows of dxdot
+// against accelerations_tangent() for the exact variation of pack().
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "tests/support/tree_accel.hpp"
 #include "core/errors.hpp"
+#include "core/output_layout.hpp"
 #include "core/rotation.hpp"
 #include "formulations/lagrange/lagrange_engine.hpp"
 #include "tests/lagrange/flex_scenes.hpp"
@@ -268,6 +278,62 @@ double rel(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
+// ---- output_row_tangent and rhs_tangent ----
+
+using VecFn = std::function<Eigen::VectorXd(double)>;  // e => f(x(e))
+
+// Richardson's extrapolation of central differences of f at h, h/2, h/4 (error O(h^6)).
+Eigen::VectorXd richardson_of(const VecFn& f, double h) {
+  auto cd = [&](double k) { return Eigen::VectorXd((f(k) - f(-k)) / (2 * k)); };
+  const Eigen::VectorXd d1 = cd(h), d2 = cd(h / 2), d3 = cd(h / 4);
+  const Eigen::VectorXd r1 = (4 * d2 - d1) / 3, r2 = (4 * d3 - d2) / 3;
+  return (16 * r2 - r1) / 15;
+}
+
+Eigen::VectorXd row_at(LagrangeEngine& e, double t, const TreeState& s) {
+  std::vector<double> x(static_cast<std::size_t>(e.state_size()));
+  e.pack(s, x.data());
+  Eigen::VectorXd row(static_cast<Eigen::Index>(e.layout().size()));
+  e.output_row(t, x.data(), row.data());
+  return row;
+}
+
+const char* kind_name(ColumnKind k) {
+  static const char* names[] = {"t", "w", "q", "joint coordinate", "joint rate", "joint torque",
+                                "spherical w", "modal", "modal rate", "H", "E", "position", "CM",
+                                "Hxyz", "joint force", "joint moment", "P", "Mxyz", "roll/pitch/yaw",
+                                "wo", "J", "extra"};
+  return names[static_cast<int>(k)];
+}
+
+// Per column kind (ColumnKind): max |d - ref| / max |d| over the kind's columns, and its worst
+// column. A kind whose variation is below 1e-3 of the row's largest is measured against that
+// instead (a joint that carries no moment: its moments and their variations are rounding, ~1e-13,
+// relative to nothing).
+struct KindError {
+  double error = 0;
+  std::string column;
+};
+std::map<int, KindError> errors_by_kind(const OutputLayout& L, const Eigen::VectorXd& d,
+                                        const Eigen::VectorXd& ref) {
+  std::map<int, double> scale;
+  const double floor = 1e-3 * d.cwiseAbs().maxCoeff();
+  for (std::size_t i = 0; i < L.size(); ++i) {
+    double& sc = scale[static_cast<int>(L.columns()[i].kind)];
+    sc = std::max({sc, floor, std::abs(d(static_cast<Eigen::Index>(i)))});
+  }
+  std::map<int, KindError> r;
+  for (std::size_t i = 0; i < L.size(); ++i) {
+    const int kind = static_cast<int>(L.columns()[i].kind);
+    const double sc = scale[kind];
+    const double e = std::abs(d(static_cast<Eigen::Index>(i)) - ref(static_cast<Eigen::Index>(i))) /
+                     (sc > 0 ? sc : 1.0);
+    KindError& k = r[kind];
+    if (e >= k.error) k = {e, L.columns()[i].name + " (" + kind_name(L.columns()[i].kind) + ")"};
+  }
+  return r;
+}
+
 }  // namespace
 
 TEST_CASE("lagrange tangent: da against central and Richardson differences on rigid and flexible trees",
@@ -385,3 +451,178 @@ TEST_CASE("lagrange tangent: the engine's run state is left as it was", "[lagran
   e.rhs(0.0, x.data(), f1.data());
   CHECK(f0 == f1);
 }
+
+TEST_CASE("lagrange output tangent: drow against Richardson differences per column kind",
+          "[lagrange][tangent][output]") {
+  std::mt19937 g(39);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    const OutputLayout& L = e.layout();
+    const auto nc = static_cast<Eigen::Index>(L.size());
+    double worst = 0, worst_row = 0;
+    std::string worst_col;
+    for (int trial = 0; trial < 3; ++trial) {
+      const TreeState s = test::random_flex_state(c.system, g);
+      const TreeTangent ds = random_tangent(c.system, g);
+      const double t = 0.3;
+      Eigen::VectorXd row(nc), drow(nc);
+      REQUIRE(e.output_row_tangent(t, s, ds, row.data(), drow.data()));
+      const Eigen::VectorXd r0 = row_at(e, t, s);
+      worst_row = std::max(worst_row, (row - r0).cwiseAbs().maxCoeff());
+      CHECK(drow(0) == 0.0);  // the time column
+      const VecFn f = [&](double h) { return row_at(e, t, moved_along(s, ds, h)); };
+      // Per column kind, the extrapolation at its best first step (as for da above; the kinds'
+      // truncation and rounding differ).
+      std::map<int, KindError> best;
+      for (double h : {6.4e-2, 3.2e-2, 1.6e-2, 8e-3})
+        for (const auto& [kind, ke] : errors_by_kind(L, drow, richardson_of(f, h)))
+          if (!best.count(kind) || ke.error < best[kind].error) best[kind] = ke;
+      for (const auto& [kind, ke] : best)
+        if (ke.error >= worst) {
+          worst = ke.error;
+          worst_col = ke.column;
+        }
+    }
+    INFO(c.name << ": row against output_row() " << worst_row
+                << ", drow against Richardson (per column kind) " << worst << ", worst column "
+                << worst_col);
+    CHECK(worst_row == 0.0);
+    // ~1e-12 on most systems; the five-link chain ~1e-10 (its joints carry no moment: the moments'
+    // rounding over h).
+    CHECK(worst < 5e-10);
+    WARN(c.name << ": output drow vs Richardson " << worst << " (" << worst_col << ")");
+  }
+}
+
+TEST_CASE("lagrange output tangent: drow is linear in ds, and the engine is left as it was",
+          "[lagrange][tangent][output]") {
+  std::mt19937 g(40);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    const auto nc = static_cast<Eigen::Index>(e.layout().size());
+    std::vector<double> x(static_cast<std::size_t>(e.state_size())), f0(x.size()), f1(x.size());
+    e.pack(test::random_flex_state(c.system, g), x.data());
+    e.rhs(0.1, x.data(), f0.data());
+    const TreeState s = test::random_flex_state(c.system, g);
+    const TreeTangent d1 = random_tangent(c.system, g), d2 = random_tangent(c.system, g);
+    Eigen::VectorXd row(nc), dr1(nc), dr2(nc), dr12(nc);
+    REQUIRE(e.output_row_tangent(0.2, s, d1, row.data(), dr1.data()));
+    REQUIRE(e.output_row_tangent(0.2, s, d2, row.data(), dr2.data()));
+    REQUIRE(e.output_row_tangent(0.2, s, combine(d1, 2.0, d2), row.data(), dr12.data()));
+    INFO(c.name);
+    CHECK(rel(dr12, dr1 + 2 * dr2) < 1e-12);
+    e.rhs(0.1, x.data(), f1.data());
+    CHECK(f0 == f1);
+  }
+}
+
+TEST_CASE("lagrange output tangent: a malformed tangent throws, with nothing written",
+          "[lagrange][tangent][output]") {
+  const System sys = test::flex_tree(true);
+  LagrangeEngine e(sys, {});
+  TreeTangent no_modes = TreeTangent::zero(sys);
+  for (Eigen::VectorXd& v : no_modes.eta) v.resize(0);
+  TreeTangent no_joints = TreeTangent::zero(sys);
+  no_joints.joints.pop_back();
+  for (const TreeTangent& ds : {no_modes, no_joints}) {
+    std::vector<double> row(e.layout().size(), 42.0), drow(e.layout().size(), 43.0);
+    CHECK_THROWS_AS(e.output_row_tangent(0.0, TreeState::initial(sys), ds, row.data(), drow.data()),
+                    InputError);
+    CHECK(std::all_of(row.begin(), row.end(), [](double v) { return v == 42.0; }));
+    CHECK(std::all_of(drow.begin(), drow.end(), [](double v) { return v == 43.0; }));
+  }
+}
+
+TEST_CASE("lagrange rhs tangent: dxdot against Richardson differences, on and off pack()'s states",
+          "[lagrange][tangent][rhs]") {
+  std::mt19937 g(41);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (const Case& c : covered_systems()) {
+    LagrangeEngine e(c.system, {});
+    const auto nx = static_cast<Eigen::Index>(e.state_size());
+    double worst = 0, worst_f = 0;
+    std::string worst_label;
+    for (int trial = 0; trial < 4; ++trial) {
+      Eigen::VectorXd x(nx), dx(nx), f(nx), df(nx), f0(nx);
+      e.pack(test::random_flex_state(c.system, g), x.data());
+      if (trial % 2 == 1)  // an arbitrary x near it (the engine's coordinates have no constraint)
+        for (Eigen::Index i = 0; i < nx; ++i) x(i) += 0.05 * u(g);
+      for (Eigen::Index i = 0; i < nx; ++i) dx(i) = u(g);
+      const double t = 0.4;
+      REQUIRE(e.rhs_tangent(t, x.data(), dx.data(), f.data(), df.data()));
+      e.rhs(t, x.data(), f0.data());
+      worst_f = std::max(worst_f, (f - f0).cwiseAbs().maxCoeff());
+      const VecFn fn = [&](double h) {
+        Eigen::VectorXd xh = x + h * dx, r(nx);
+        e.rhs(t, xh.data(), r.data());
+        return r;
+      };
+      double best = 1e300;
+      Eigen::Index at = 0;
+      for (double h : {1.6e-2, 8e-3, 4e-3}) {
+        const Eigen::VectorXd err = (richardson_of(fn, h) - df).cwiseAbs();
+        // Per block: the coordinate rates q*' and the accelerations pi'', each relative to its
+        // largest variation.
+        const Eigen::Index n = nx / 2;
+        Eigen::Index iq, iu;
+        const double eq = err.head(n).maxCoeff(&iq) / std::max(df.head(n).cwiseAbs().maxCoeff(), 1e-300);
+        const double eu = err.tail(n).maxCoeff(&iu) / std::max(df.tail(n).cwiseAbs().maxCoeff(), 1e-300);
+        const double r = std::max(eq, eu);
+        if (r < best) {
+          best = r;
+          at = eq >= eu ? iq : n + iu;
+        }
+      }
+      if (best >= worst) {
+        worst = best;
+        worst_label = e.state_label(static_cast<int>(at));
+      }
+    }
+    INFO(c.name << ": xdot against rhs() " << worst_f << ", dxdot against Richardson " << worst
+                << " (worst " << worst_label << ")");
+    CHECK(worst_f == 0.0);
+    // ~1e-12; the five-link chain ~2e-10 (the rounding of its rhs(), as for da above).
+    CHECK(worst < 5e-10);
+    WARN(c.name << ": rhs dxdot vs Richardson " << worst << " (" << worst_label << ")");
+  }
+}
+
+TEST_CASE("lagrange rhs tangent: linear in dx, its rates match accelerations_tangent()",
+          "[lagrange][tangent][rhs]") {
+  std::mt19937 g(42);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  // One free rigid body: pi' = (v_NBo_N, w_NB_B) are the TreeState's own, so the rate rows of
+  // dxdot for the variation of pack() along ds are da's wdot_NB_B and a_NBo_N (no force).
+  const System sys = one_body();
+  LagrangeEngine e(sys, {});
+  for (int trial = 0; trial < 3; ++trial) {
+    const TreeState s = test::random_state(sys, g);
+    TreeTangent ds = TreeTangent::zero(sys);
+    ds.dw_NB_B = random_vec(g, 1.0);
+    ds.dv_NBo_N = random_vec(g, 1.0);
+    ds.dp_NoBo_N = random_vec(g, 1.0);
+    std::vector<double> x(12), dx(12, 0.0), f(12), df(12), df2(12), df12(12), dx2(12), dx12(12);
+    e.pack(s, x.data());
+    for (int i = 0; i < 3; ++i) {
+      dx[static_cast<std::size_t>(i)] = ds.dp_NoBo_N(i);
+      dx[static_cast<std::size_t>(6 + i)] = ds.dv_NBo_N(i);
+      dx[static_cast<std::size_t>(9 + i)] = ds.dw_NB_B(i);
+    }
+    REQUIRE(e.rhs_tangent(0.0, x.data(), dx.data(), f.data(), df.data()));
+    TreeAccel a, da;
+    REQUIRE(e.accelerations_tangent(0.0, s, ds, a, da));
+    for (int i = 0; i < 3; ++i) {
+      CHECK(df[static_cast<std::size_t>(9 + i)] == Approx(da.wdot_NB_B[0](i)).margin(1e-13));
+      CHECK(df[static_cast<std::size_t>(6 + i)] == Approx(da.a_NBo_N[0](i)).margin(1e-13));
+    }
+    for (std::size_t i = 0; i < 12; ++i) {
+      dx2[i] = u(g);
+      dx12[i] = dx[i] + 2.0 * dx2[i];
+    }
+    REQUIRE(e.rhs_tangent(0.0, x.data(), dx2.data(), f.data(), df2.data()));
+    REQUIRE(e.rhs_tangent(0.0, x.data(), dx12.data(), f.data(), df12.data()));
+    for (std::size_t i = 0; i < 12; ++i)
+      CHECK(df12[i] == Approx(df[i] + 2.0 * df2[i]).margin(1e-12));
+  }
+}
+
