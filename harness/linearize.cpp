@@ -554,11 +554,13 @@ Derivative best_derivative(const F& eval, const VectorXd& z, int j, double fixed
 // how far they differ, at which entry, and the differences' own estimated error (how.error until
 // now); how.error becomes the exact matrix's rounding.
 void adopt_exact(MatrixXd& M_fd, const MatrixXd& exact, double rounding, MatrixMethod& how) {
+  // A tangent with a non-finite entry (an engine's 0/0) is not adopted: the differences stay, and
+  // the outputs say "by finite differences" (Eigen's maxCoeff would pass over a NaN).
+  if (!exact.allFinite()) return;
   how.fd_error = how.error;
   Eigen::Index wi = 0, wj = 0;
   how.fd_difference = exact.size() ? (exact - M_fd).cwiseAbs().maxCoeff(&wi, &wj) : 0.0;
   if (exact.size()) how.worst = {wi, wj, exact(wi, wj), M_fd(wi, wj)};
-  if (!std::isfinite(how.fd_difference)) return;  // a non-finite tangent is not adopted
   how.exact = true;
   how.error = rounding;
   M_fd = exact;

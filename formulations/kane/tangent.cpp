@@ -1408,7 +1408,11 @@ struct TangentTwin {
       row[static_cast<std::size_t>(L.cm()) + i] = p_cm(ii);
       row[static_cast<std::size_t>(L.external_moment()) + i] = M_ext(ii);
     }
-    row[static_cast<std::size_t>(L.H())] = H.norm();
+    // |H| at H = 0 (a system at rest) has no derivative: |e dH| is a cone. Its symmetric
+    // derivative, 0 (what a central difference gives), rather than sqrt's 0/0.
+    Dual H_norm = H.norm();
+    if (H_norm.v == 0) H_norm.d = 0;
+    row[static_cast<std::size_t>(L.H())] = H_norm;
     row[static_cast<std::size_t>(L.E())] = T + V;
     row[static_cast<std::size_t>(L.P())] = Pw;
     if (e.orbit_) {

@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <complex>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -675,10 +676,15 @@ TEST_CASE("linearize: every engine's A, C and own Jacobian are its own exact tan
                           {"spear1_case1_spherical", OperatingPoint::Spin},
                           {"chain5", OperatingPoint::Spin},
                           {"dual_spin", OperatingPoint::Spin},
-                          {"hub_two_panels_spin", OperatingPoint::Neutral}};
+                          {"hub_two_panels_spin", OperatingPoint::Neutral},
+                          // At rest under gravity: |H| = 0, where it has no derivative (every
+                          // engine's C must stay finite there: kane's was 0/0).
+                          {"tests/harness/scenes/hanging_gimbal.yaml", OperatingPoint::Equilibrium},
+                          {"tests/harness/scenes/telescope_gimbal.yaml", OperatingPoint::Spin}};
   for (const Point& p : points) {
     INFO(p.scene);
-    const System s = read_scene(test::scene_path(p.scene));
+    const std::string name = p.scene;
+    const System s = read_scene(name.ends_with(".yaml") ? test::source_dir() + "/" + name : test::scene_path(name));
     LinearizeOptions o = every_engine();
     o.point = p.point;
     o.time = p.t;
@@ -694,12 +700,16 @@ TEST_CASE("linearize: every engine's A, C and own Jacobian are its own exact tan
       INFO(m.label);
       for (const MatrixMethod* how : {&m.a_method, &m.c_method, &m.own_method}) {
         CHECK(how->exact);
+        CHECK(how->worst.exact == how->worst.exact);  // not NaN
         CHECK(how->fd_difference <= 100 * how->fd_error + 1e-9 * (how == &m.a_method   ? m.A
                                                                   : how == &m.c_method ? m.C
                                                                                        : m.own_A)
                                                                          .cwiseAbs()
                                                                          .maxCoeff());
       }
+      CHECK(m.A.allFinite());
+      CHECK(m.C.allFinite());
+      CHECK(m.own_A.allFinite());
       // The cross-check can fail: its bound is the differences' own error estimate (x 100), which
       // is far below |A|.
       CHECK(m.a_method.fd_error < 1e-9 * m.A.lpNorm<Eigen::Infinity>());
@@ -721,7 +731,7 @@ namespace {
 // through. Each cross-check must catch its own.
 class WrongTangent final : public Engine {
  public:
-  enum class Which { A, C, Own };
+  enum class Which { A, C, Own, CNaN };
   WrongTangent(std::unique_ptr<Engine> inner, Which which) : inner_(std::move(inner)), which_(which) {}
   const char* name() const override { return inner_->name(); }
   int state_size() const override { return inner_->state_size(); }
@@ -741,6 +751,7 @@ class WrongTangent final : public Engine {
     // Along joint 1's coordinate and rate only: a whole row scaled would keep a zero transfer
     // function zero.
     if (ok && which_ == Which::C) drow[column_] += c_offset_ * (ds.joints[1].angle + ds.joints[1].rate);
+    if (ok && which_ == Which::CNaN) drow[column_] = std::numeric_limits<double>::quiet_NaN();
     return ok;
   }
   bool rhs_tangent(double t, const double* x, const double* dx, double* xdot, double* dxdot) override {
@@ -805,6 +816,28 @@ TEST_CASE("linearize: a wrong exact tangent (A, C or the engine's own Jacobian) 
       CHECK(jacobian_failed == 1);
       CHECK_FALSE(r.passed());
     }
+  // A tangent with a NaN (an engine's 0/0) is not adopted: C stays the differences', finite, and
+  // says so; nothing fails.
+  for (const std::string& engine : engine_names()) {
+    INFO(engine);
+    LinearizeOptions o;
+    o.point = OperatingPoint::Neutral;
+    o.outputs = {"H", "E", "hinge1.Mx"};
+    LinearEngineChoice nan(engine + "*nan", engine);
+    nan.factory = [&](const System& sys, const EngineOptions& opt) -> std::unique_ptr<Engine> {
+      auto w = std::make_unique<WrongTangent>(make_engine(engine, sys, opt), WrongTangent::Which::CNaN);
+      w->column_ = H;
+      return w;
+    };
+    o.engines = {nan};
+    const LinearizeResult r = linearize(s, o);
+    REQUIRE(r.engines.size() == 1);
+    CHECK_FALSE(r.engines[0].c_method.exact);
+    CHECK(r.engines[0].a_method.exact);
+    CHECK(r.engines[0].C.allFinite());
+    CHECK(r.passed());
+    CHECK_THAT(format_linearization(r), Catch::Contains("C by finite differences"));
+  }
 }
 
 // A user's scene (docs/writing-a-scene.md): a slowly turning bus, a sprung telescoping mast (a
