@@ -1081,6 +1081,36 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   return out;
 }
 
+void diagnose_loads(SceneComparison& c, const SceneComparison& t, double rtol, double atol) {
+  const auto note = std::find(c.notes.begin(), c.notes.end(), kLoadsNote);
+  const Check* worst = worst_failed_load(c);
+  if (note == c.notes.end() || !worst) return;
+  const Check* again = nullptr;
+  for (const Check& k : t.checks)
+    if (k.quantity == worst->quantity && k.a == worst->a && k.b == worst->b) again = &k;
+  const std::string at = "--rtol " + sci(rtol, 2) + " --atol " + sci(atol, 2);
+  const std::string what = worst->quantity + " (" + worst->a + " vs " + worst->b + ")";
+  if (!again || again->status == CheckStatus::Skipped) {
+    *note += "; at " + at + " (100 times tighter) " + what + " could not be compared: " +
+             (t.passed() ? std::string("see compare") : "that run did not pass either");
+  } else if (again->error <= 0.1 * worst->error) {
+    const bool all_pass = worst_failed_load(t) == nullptr;
+    *note = "joint loads differ by integration error, not physics: at " + at +
+            " (100 times tighter) the largest, " + what + ", falls from " + sci(worst->error, 2) + " to " +
+            sci(again->error, 2) + " (" + sci(worst->normalised, 2) + " -> " + sci(again->normalised, 2) +
+            " of its bound); loads follow the accelerations, in which a stiff mode or spring multiplies the "
+            "state's integration error by its stiffness. " +
+            (all_pass ? "Every load passes there: set the scene's run.rtol and run.atol to those values"
+                      : "Tighten the scene's run.rtol and run.atol further") +
+            ", or its `load` tolerance if the difference is below what matters";
+  } else {
+    *note = "joint loads differ and the difference does not fall with the tolerances: at " + at +
+            " (100 times tighter) " + what + " is " + sci(again->error, 2) + ", was " + sci(worst->error, 2) +
+            ": not integration error; the engines' loads disagree (physics, or a load convention) "
+            "while their motions agree";
+  }
+}
+
 SceneComparison compare_scene(const System& system, const CompareOptions& options) {
   IntegratorSettings settings = IntegratorSettings::from(system.run);
   if (options.integrator) settings.method = *options.integrator;
@@ -1169,39 +1199,15 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
 
   // Loads failing while the motions agree: measure whether the difference is integration error
   // (it falls with the tolerances) or physics (it stays), instead of only saying how to.
-  const auto note = std::find(c.notes.begin(), c.notes.end(), kLoadsNote);
-  const Check* worst = worst_failed_load(c);
-  if (options.diagnose_loads && note != c.notes.end() && worst && settings.method.value() != Integrator::Rk4) {
+  if (options.diagnose_loads && worst_failed_load(c) &&
+      std::find(c.notes.begin(), c.notes.end(), kLoadsNote) != c.notes.end() &&
+      settings.method.value() != Integrator::Rk4) {
     CompareOptions tight = options;
     tight.diagnose_loads = false;
     tight.rtol = settings.rtol / 100;
     tight.atol = settings.atol / 100;
     tight.integrator = settings.method;
-    const SceneComparison t = compare_scene(system, tight);
-    const Check* again = nullptr;
-    for (const Check& k : t.checks)
-      if (k.quantity == worst->quantity && k.a == worst->a && k.b == worst->b) again = &k;
-    const std::string at = "--rtol " + sci(*tight.rtol, 2) + " --atol " + sci(*tight.atol, 2);
-    const std::string what = worst->quantity + " (" + worst->a + " vs " + worst->b + ")";
-    if (!again || again->status == CheckStatus::Skipped) {
-      *note += "; at " + at + " (100 times tighter) " + what + " could not be compared: " +
-               (t.passed() ? std::string("see compare") : "that run did not pass either");
-    } else if (again->error <= 0.1 * worst->error) {
-      const bool all_pass = worst_failed_load(t) == nullptr;
-      *note = "joint loads differ by integration error, not physics: at " + at +
-              " (100 times tighter) the largest, " + what + ", falls from " + sci(worst->error, 2) + " to " +
-              sci(again->error, 2) + " (" + sci(worst->normalised, 2) + " -> " + sci(again->normalised, 2) +
-              " of its bound); loads follow the accelerations, in which a stiff mode or spring multiplies the "
-              "state's integration error by its stiffness. " +
-              (all_pass ? "Every load passes there: set the scene's run.rtol and run.atol to those values"
-                        : "Tighten the scene's run.rtol and run.atol further") +
-              ", or its `load` tolerance if the difference is below what matters";
-    } else {
-      *note = "joint loads differ and the difference does not fall with the tolerances: at " + at +
-              " (100 times tighter) " + what + " is " + sci(again->error, 2) + ", was " + sci(worst->error, 2) +
-              ": not integration error; the engines' loads disagree (physics, or a load convention) "
-              "while their motions agree";
-    }
+    diagnose_loads(c, compare_scene(system, tight), *tight.rtol, *tight.atol);
   }
   return c;
 }

@@ -182,6 +182,12 @@ void judge_check(Check& c);
 // RunResults): pairwise checks, drift checks, run-failure checks, exclusions, notes.
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs);
 
+// When c's loads fail while its motions agree (compare_runs' note), rewrite that note from the same
+// scene compared again at rtol, atol (100 times tighter): the largest failing load's difference
+// fell at least 10-fold (integration error: say so, with both figures, and whether every load
+// passes there) or it did not (not integration error). compare_scene calls it; a test can too.
+void diagnose_loads(SceneComparison& c, const SceneComparison& tight, double rtol, double atol);
+
 // Runs the engines (and the analytic solution) on `system`, one after the other, then
 // compare_runs. Throws InputError for bad options or an engine's complaint about the scene (other
 // than "not built yet"), and cancel::Cancelled when the program is interrupted.

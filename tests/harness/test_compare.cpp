@@ -495,6 +495,27 @@ TEST_CASE("compare: joint loads that fail while the motions agree get a note on 
                        [](const std::string& n) { return n.rfind("joint loads differ while the motions agree", 0) == 0; });
   };
   CHECK(noted(c));
+  // The same comparison again at tighter tolerances (diagnose_loads: what compare_scene does with
+  // it): where the difference stays, it is not integration error; where it falls 10-fold or more,
+  // it is, with both figures.
+  const auto diagnosed = [&](double tight_off) {
+    auto tighter = [tight_off](const std::string& col, std::size_t r) {
+      return baseline(col, r) + (col == "hinge.Mx" && r == 2 ? tight_off : 0.0);
+    };
+    SceneComparison x = c;
+    crossdyn::harness::diagnose_loads(
+        x, compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, tighter))}), 1e-12, 1e-12);
+    const auto n = std::find_if(x.notes.begin(), x.notes.end(),
+                                [](const std::string& t) { return t.starts_with("joint loads differ"); });
+    REQUIRE(n != x.notes.end());
+    return *n;
+  };
+  CHECK_THAT(diagnosed(1.0), Catch::StartsWith("joint loads differ and the difference does not fall with the "
+                                               "tolerances: at --rtol 1.0e-12 --atol 1.0e-12") &&
+                                 Catch::Contains("hinge.Mx (a vs b) is 1.0e+00, was 1.0e+00"));
+  CHECK_THAT(diagnosed(0.5), Catch::StartsWith("joint loads differ and the difference does not fall"));
+  CHECK_THAT(diagnosed(1e-3), Catch::StartsWith("joint loads differ by integration error, not physics") &&
+                                  Catch::Contains("falls from 1.0e+00 to 1.0e-03"));
   // A motion that fails too: no such note (the loads are not the first thing wrong).
   auto both = [&off](const std::string& col, std::size_t r) { return off(col, r) + (col == "hinge.rate" && r == 2 ? 1.0 : 0.0); };
   const SceneComparison d = compare_runs(s, {engine_run("b", make_run(s)), engine_run("a", make_run(s, both))});
