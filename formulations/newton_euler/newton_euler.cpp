@@ -318,6 +318,20 @@ class NewtonEulerEngine final : public Engine {
   std::vector<JointCoords> coords_;      // each joint's coordinates (continuous angles, a
                                          // prismatic position) at the current state
   std::vector<JointCoords> coords_ref_;  // the continuous angles after the last step/pack
+  // pack() resets the joints' continuous-angle references: a pack() that is not the run's (the
+  // tangents', the orbit's set-up) keeps one of these, which puts the run's back on the way out.
+  struct CoordsGuard {
+    NewtonEulerEngine& e;
+    std::vector<JointCoords> coords, coords_ref;
+    explicit CoordsGuard(NewtonEulerEngine& engine)
+        : e(engine), coords(engine.coords_), coords_ref(engine.coords_ref_) {}
+    CoordsGuard(const CoordsGuard&) = delete;
+    CoordsGuard& operator=(const CoordsGuard&) = delete;
+    ~CoordsGuard() {
+      e.coords_ = coords;
+      e.coords_ref_ = coords_ref;
+    }
+  };
   VectorXd f_, nu_dot_;                  // stacked per body (KKT order)
   std::vector<Vector6d> gamma_, y_;      // per KKT link (joint j is link j - 1)
   TreeKkt kkt_;
@@ -489,14 +503,12 @@ NewtonEulerEngine::NewtonEulerEngine(const System& system, const EngineOptions& 
   F_grav_N_.assign(at(nb_), Vector3d::Zero());
   M_grav_B_.assign(at(nb_), Vector3d::Zero());
   if (env_.orbit()) {
-    const std::vector<JointCoords> coords = coords_, coords_ref = coords_ref_;
+    const CoordsGuard restore(*this);
     std::vector<double> x0(at(nx_));
     pack(TreeState::initial(system), x0.data());
     body_pass(0.0, x0.data());
     mass_pass(0.0);
     p_NoO_N_ = system_cm();
-    coords_ = coords;
-    coords_ref_ = coords_ref;
   }
 }
 
@@ -1524,15 +1536,7 @@ void NewtonEulerEngine::dynamics_cx(double t, CxPass& w) {
 bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, const TreeTangent& ds,
                                               TreeAccel& a, TreeAccel& da) {
   if (!tangent_covered_) return false;
-  // pack() resets the joints' continuous-angle references: the run's are restored on the way out.
-  struct Restore {
-    NewtonEulerEngine& e;
-    std::vector<JointCoords> coords, coords_ref;
-    ~Restore() {
-      e.coords_ = coords;
-      e.coords_ref_ = coords_ref;
-    }
-  } restore{*this, coords_, coords_ref_};
+  const CoordsGuard restore(*this);  // pack() below is not the run's
 
   // a: the run's own path, at x(0) = pack(s).
   std::vector<double> x0(at(nx_));
@@ -1596,14 +1600,7 @@ bool NewtonEulerEngine::accelerations_tangent(double t, const TreeState& s, cons
 bool NewtonEulerEngine::output_row_tangent(double t, const TreeState& s, const TreeTangent& ds, double* row,
                                            double* drow) {
   if (!tangent_covered_) return false;
-  struct Restore {
-    NewtonEulerEngine& e;
-    std::vector<JointCoords> coords, coords_ref;
-    ~Restore() {
-      e.coords_ = coords;
-      e.coords_ref_ = coords_ref;
-    }
-  } restore{*this, coords_, coords_ref_};
+  const CoordsGuard restore(*this);
   std::vector<double> x0(at(nx_));
   pack(s, x0.data());
   output_row(t, x0.data(), row);
