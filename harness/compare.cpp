@@ -850,16 +850,6 @@ const std::string kLoadsNote =
     "mode or spring multiplies an integration error by its stiffness; run compare at a tighter "
     "--rtol and --atol: a difference that falls with them is integration, one that stays is "
     "physics (then set the scene's `load` tolerance if the difference is below what matters)";
-
-// The failed load check with the largest normalised error, or none.
-const Check* worst_failed_load(const SceneComparison& c) {
-  const Check* worst = nullptr;
-  for (const Check& k : c.checks)
-    if (k.group == "load" && k.status == CheckStatus::Fail &&
-        (!worst || std::isnan(k.normalised) || k.normalised > worst->normalised))
-      worst = &k;
-  return worst;
-}
 }  // namespace
 
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) {
@@ -1081,34 +1071,73 @@ SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs) 
   return out;
 }
 
-void diagnose_loads(SceneComparison& c, const SceneComparison& t, double rtol, double atol) {
-  const auto note = std::find(c.notes.begin(), c.notes.end(), kLoadsNote);
-  const Check* worst = worst_failed_load(c);
-  if (note == c.notes.end() || !worst) return;
-  const Check* again = nullptr;
-  for (const Check& k : t.checks)
-    if (k.quantity == worst->quantity && k.a == worst->a && k.b == worst->b) again = &k;
-  const std::string at = "--rtol " + sci(rtol, 2) + " --atol " + sci(atol, 2);
-  const std::string what = worst->quantity + " (" + worst->a + " vs " + worst->b + ")";
-  if (!again || again->status == CheckStatus::Skipped) {
-    *note += "; at " + at + " (100 times tighter) " + what + " could not be compared: " +
-             (t.passed() ? std::string("see compare") : "that run did not pass either");
-  } else if (again->error <= 0.1 * worst->error) {
-    const bool all_pass = worst_failed_load(t) == nullptr;
-    *note = "joint loads differ by integration error, not physics: at " + at +
-            " (100 times tighter) the largest, " + what + ", falls from " + sci(worst->error, 2) + " to " +
-            sci(again->error, 2) + " (" + sci(worst->normalised, 2) + " -> " + sci(again->normalised, 2) +
-            " of its bound); loads follow the accelerations, in which a stiff mode or spring multiplies the "
-            "state's integration error by its stiffness. " +
-            (all_pass ? "Every load passes there: set the scene's run.rtol and run.atol to those values"
-                      : "Tighten the scene's run.rtol and run.atol further") +
-            ", or its `load` tolerance if the difference is below what matters";
-  } else {
-    *note = "joint loads differ and the difference does not fall with the tolerances: at " + at +
-            " (100 times tighter) " + what + " is " + sci(again->error, 2) + ", was " + sci(worst->error, 2) +
-            ": not integration error; the engines' loads disagree (physics, or a load convention) "
-            "while their motions agree";
+bool diagnosable(const SceneComparison& c) {
+  bool failed = false;
+  for (const Check& k : c.checks) {
+    if (k.group == "run" && k.status != CheckStatus::Pass) return false;  // a run that did not finish
+    failed = failed || k.status == CheckStatus::Fail;
   }
+  return failed;
+}
+
+void diagnose(SceneComparison& c, const SceneComparison& t, double rtol, double atol) {
+  if (!diagnosable(c)) return;
+  const std::string at = "tolerances 100 times tighter (--rtol " + sci(rtol, 2) + " --atol " + sci(atol, 2) + ")";
+  const auto describe = [](const Check& k) { return k.quantity + (k.b.empty() ? " (" + k.a + ")" : " (" + k.a + " vs " + k.b + ")"); };
+  // Each failed check and the same check there: did its difference fall at least 10-fold?
+  const Check* worst = nullptr;       // the largest failure that fell
+  const Check* worst_again = nullptr;
+  const Check* stays = nullptr;       // the largest that did not (or could not be compared)
+  const Check* stays_again = nullptr;
+  int n_stay = 0;
+  bool loads = false;
+  for (const Check& k : c.checks) {
+    if (k.status != CheckStatus::Fail) continue;
+    loads = loads || k.group == "load";
+    const Check* again = nullptr;
+    for (const Check& x : t.checks)
+      if (x.quantity == k.quantity && x.a == k.a && x.b == k.b) again = &x;
+    const bool fell = again && again->status != CheckStatus::Skipped && again->error <= 0.1 * k.error;
+    const auto larger = [](const Check* best, const Check& x) {
+      return !best || std::isnan(x.normalised) || x.normalised > best->normalised;
+    };
+    if (fell && larger(worst, k)) {
+      worst = &k;
+      worst_again = again;
+    }
+    if (!fell) {
+      ++n_stay;
+      if (larger(stays, k)) {
+        stays = &k;
+        stays_again = again;
+      }
+    }
+  }
+  std::string note;
+  if (stays) {
+    note = at + ": " + describe(*stays) + " " +
+           (stays_again && stays_again->status != CheckStatus::Skipped
+                ? "is " + sci(stays_again->error, 2) + ", was " + sci(stays->error, 2) +
+                      ": it does not fall with the tolerances, so it is not integration error; the engines "
+                      "disagree there"
+                : std::string("could not be compared there")) +
+           (n_stay > 1 ? " (and " + std::to_string(n_stay - 1) + " more failed checks that do not fall)" : "");
+  } else {
+    note = at + ": every failed check's difference falls at least 10-fold, the largest, " + describe(*worst) +
+           ", from " + sci(worst->error, 2) + " to " + sci(worst_again->error, 2) + " (" +
+           sci(worst->normalised, 2) + " -> " + sci(worst_again->normalised, 2) +
+           " of its bound): integration error, not physics" +
+           (loads ? "; joint loads follow the accelerations, in which a stiff mode or spring multiplies the "
+                    "state's integration error by its stiffness"
+                  : "") +
+           ". " +
+           (t.passed() ? "Every check passes there: set the scene's run.rtol and run.atol to those values"
+                       : "Some still fail there: tighten the scene's run.rtol and run.atol further") +
+           ", or the tolerance of what fails if the difference is below what matters";
+  }
+  // Measured, it replaces the advice to measure.
+  c.notes.erase(std::remove(c.notes.begin(), c.notes.end(), kLoadsNote), c.notes.end());
+  c.notes.push_back(note);
 }
 
 SceneComparison compare_scene(const System& system, const CompareOptions& options) {
@@ -1197,17 +1226,16 @@ SceneComparison compare_scene(const System& system, const CompareOptions& option
   SceneComparison c = compare_runs(system, std::move(runs));
   c.settings = settings;
 
-  // Loads failing while the motions agree: measure whether the difference is integration error
-  // (it falls with the tolerances) or physics (it stays), instead of only saying how to.
-  if (options.diagnose_loads && worst_failed_load(c) &&
-      std::find(c.notes.begin(), c.notes.end(), kLoadsNote) != c.notes.end() &&
-      settings.method.value() != Integrator::Rk4) {
+  // A comparison that failed with every engine's run complete: measure whether the differences are
+  // integration error (they fall with the tolerances) or physics (they stay), instead of only
+  // saying how to.
+  if (options.diagnose && diagnosable(c) && settings.method.value() != Integrator::Rk4) {
     CompareOptions tight = options;
-    tight.diagnose_loads = false;
+    tight.diagnose = false;
     tight.rtol = settings.rtol / 100;
     tight.atol = settings.atol / 100;
     tight.integrator = settings.method;
-    diagnose_loads(c, compare_scene(system, tight), *tight.rtol, *tight.atol);
+    diagnose(c, compare_scene(system, tight), *tight.rtol, *tight.atol);
   }
   return c;
 }

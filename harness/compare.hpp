@@ -104,10 +104,10 @@ struct CompareOptions {
   // engine's P and M are checked against them row by row (E.rate, H.rate). Off for converge's
   // model runs, which compare states only.
   bool rates = true;
-  // When joint loads fail while the motions agree, run the scene again at tolerances 100 times
-  // tighter (adaptive integrators) and say, with the figures, whether the difference falls with
-  // them (integration error) or stays (physics). Off for that second run.
-  bool diagnose_loads = true;
+  // When checks fail and every engine's run finished, run the scene again at tolerances 100 times
+  // tighter (adaptive integrators) and say, with the figures, whether the differences fall with
+  // them (integration error) or stay (physics): diagnose(). Off for that second run.
+  bool diagnose = true;
 };
 
 // The command-line options compare and verify share (harness/compare_command.cpp).
@@ -116,6 +116,7 @@ struct CompareCliOptions {
   std::optional<std::string> integrator;
   std::optional<double> rtol, atol, dt;
   bool no_analytic = false;
+  bool no_diagnosis = false;                // --no-diagnosis: no second run at tighter tolerances
   std::optional<long> max_steps;            // --max-steps N
   std::optional<double> timeout;            // --timeout SECONDS
   bool quiet = false;                       // --quiet: no progress line
@@ -182,11 +183,14 @@ void judge_check(Check& c);
 // RunResults): pairwise checks, drift checks, run-failure checks, exclusions, notes.
 SceneComparison compare_runs(const System& system, std::vector<EngineRun> runs);
 
-// When c's loads fail while its motions agree (compare_runs' note), rewrite that note from the same
-// scene compared again at rtol, atol (100 times tighter): the largest failing load's difference
-// fell at least 10-fold (integration error: say so, with both figures, and whether every load
-// passes there) or it did not (not integration error). compare_scene calls it; a test can too.
-void diagnose_loads(SceneComparison& c, const SceneComparison& tight, double rtol, double atol);
+// Whether c failed with every engine's run complete (what diagnose() can tell apart).
+bool diagnosable(const SceneComparison& c);
+// A note on c from the same scene compared again at rtol, atol (100 times tighter), starting
+// "tolerances 100 times tighter": either every failed check's difference fell at least 10-fold
+// (integration error, with the largest one's figures, and whether everything passes there) or one
+// did not (not integration error: the engines disagree there; the largest such). It replaces
+// compare_runs' advice on loads. compare_scene calls it; a test can too.
+void diagnose(SceneComparison& c, const SceneComparison& tight, double rtol, double atol);
 
 // Runs the engines (and the analytic solution) on `system`, one after the other, then
 // compare_runs. Throws InputError for bad options or an engine's complaint about the scene (other

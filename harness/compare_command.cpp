@@ -38,6 +38,9 @@ void add_compare_cli_options(CLI::App& sub, CompareCliOptions& o) {
   sub.add_option("--dt", o.dt, "rk4 step, and the first trial step of adaptive integrators, s (default: the scene's run.dt; adaptive integrators estimate their first step when neither gives it)");
   sub.add_flag("--no-analytic", o.no_analytic,
                "Leave out the analytic solution even where the scene has one");
+  sub.add_flag("--no-diagnosis", o.no_diagnosis,
+               "When checks fail (every run complete), do not run the scene again at tolerances 100 "
+               "times tighter to tell integration error (the differences fall) from physics (they stay)");
   sub.add_option("--max-steps", o.max_steps,
                  "Per engine run: fail the run after N steps (accepted and rejected); the other "
                  "engines and scenes go on (default 20000000)");
@@ -65,6 +68,7 @@ CompareOptions to_compare_options(const CompareCliOptions& o) {
   c.atol = o.atol;
   c.dt = o.dt;
   c.analytic = !o.no_analytic;
+  c.diagnose = !o.no_diagnosis;
   if (o.max_steps && *o.max_steps <= 0)
     throw InputError("--max-steps: must be a positive number of steps, got " +
                      std::to_string(*o.max_steps));

@@ -260,6 +260,7 @@ CompareOptions one_engine(const CompareOptions& options) {
   CompareOptions one = options;
   one.rates = false;  // the models are compared on their states, one engine each
   one.analytic = false;
+  one.diagnose = false;  // a model's run is what converge measures, not a verdict to diagnose
   if (one.engines.empty()) one.engines.push_back({"kane", "kane", {}});
   one.engines.resize(1);
   return one;

@@ -334,10 +334,11 @@ std::string format_verify_table(const VerifyResult& r, bool strict) {
       failures += "\n";
       ++lines;
     }
-    // What compare found out about the failures (loads differing by integration error, measured).
+    // What compare found out about the failures (integration error or not, measured), or its
+    // advice on loads.
     if (!by_quantity.empty())
       for (const std::string& note : s.comparison->notes)
-        if (note.starts_with("joint loads differ")) {
+        if (note.starts_with("tolerances 100 times tighter") || note.starts_with("joint loads differ")) {
           failures += "    " + note + "\n";
           ++lines;
         }

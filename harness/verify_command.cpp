@@ -153,6 +153,9 @@ int verify_shard(VerifyCommandOptions& o, const std::vector<std::string>& files)
   if (!o.verify.quiet)
     std::cerr << "verify: shard " << shard.index << "/" << shard.count << ": " << own.size()
               << " of " << files.size() << " scenes\n";
+  // A part holds what merge can check from its numbers (harness/shard.hpp): no second run at
+  // tighter tolerances (compare's diagnosis), whose figures the part does not carry.
+  o.verify.compare.diagnose = false;
   const harness::VerifyResult result = harness::run_verify(o.verify, own);
   std::cout << harness::format_verify_table(result, o.verify.strict);
   // What the outcomes depend on besides the scenes: merge refuses parts that differ in any.
