@@ -93,21 +93,22 @@ inline double value(const Dual& a) { return a.v; }
 
 namespace Eigen {
 
-// Eigen's "Using custom scalar types": a real, signed, non-integer scalar.
-template <>
-struct NumTraits<crossdyn::kane::Dual> : GenericNumTraits<double> {
-  using Real = crossdyn::kane::Dual;
-  using NonInteger = crossdyn::kane::Dual;
-  using Nested = crossdyn::kane::Dual;
+// Eigen's "Using custom scalar types": a real, signed, non-integer scalar T carried on doubles,
+// with its costs (Dual here; tangent.cpp's Jet too).
+template <class T, int Read, int Add, int Mul>
+struct KaneRealNumTraits : GenericNumTraits<double> {
+  using Real = T;
+  using NonInteger = T;
+  using Nested = T;
   using Literal = double;
   enum {
     IsComplex = 0,
     IsInteger = 0,
     IsSigned = 1,
     RequireInitialization = 1,
-    ReadCost = 2,
-    AddCost = 2,
-    MulCost = 3
+    ReadCost = Read,
+    AddCost = Add,
+    MulCost = Mul
   };
   static inline Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
   static inline Real dummy_precision() { return Real(1e-12); }
@@ -115,6 +116,9 @@ struct NumTraits<crossdyn::kane::Dual> : GenericNumTraits<double> {
   static inline Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
   static inline int digits10() { return std::numeric_limits<double>::digits10; }
 };
+
+template <>
+struct NumTraits<crossdyn::kane::Dual> : KaneRealNumTraits<crossdyn::kane::Dual, 2, 2, 3> {};
 
 // Mixed double and Dual operands (a model constant times a state quantity) give a Dual.
 template <typename BinaryOp>

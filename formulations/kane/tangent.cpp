@@ -128,26 +128,7 @@ inline double value(const Jet& x) { return x.a.v; }
 
 namespace Eigen {
 template <>
-struct NumTraits<crossdyn::kane::Jet> : GenericNumTraits<double> {
-  using Real = crossdyn::kane::Jet;
-  using NonInteger = crossdyn::kane::Jet;
-  using Nested = crossdyn::kane::Jet;
-  using Literal = double;
-  enum {
-    IsComplex = 0,
-    IsInteger = 0,
-    IsSigned = 1,
-    RequireInitialization = 1,
-    ReadCost = 6,
-    AddCost = 6,
-    MulCost = 18
-  };
-  static inline Real epsilon() { return Real(std::numeric_limits<double>::epsilon()); }
-  static inline Real dummy_precision() { return Real(1e-12); }
-  static inline Real highest() { return Real(std::numeric_limits<double>::max()); }
-  static inline Real lowest() { return Real(std::numeric_limits<double>::lowest()); }
-  static inline int digits10() { return std::numeric_limits<double>::digits10; }
-};
+struct NumTraits<crossdyn::kane::Jet> : KaneRealNumTraits<crossdyn::kane::Jet, 6, 6, 18> {};
 }  // namespace Eigen
 
 namespace crossdyn::kane {

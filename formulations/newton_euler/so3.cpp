@@ -9,31 +9,38 @@ namespace crossdyn::newton_euler::so3 {
 using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
+namespace {
+// The power series of the coefficients in x = t^2 (see so3.hpp), for t < 1: term k of each uses
+// the factorials (2k+1)!, (2k+2)!, (2k+3)!, accumulated as f1, f2, f3. One body for the run's
+// double and the complex step's std::complex<double> (the same operations in the same order).
+template <class S, class Out>
+void series(const S& x, Out& c) {
+  S xk = 1.0, xk_minus_1 = 0.0;  // x^k, x^(k-1) (for a1 and b1)
+  double f1 = 1.0, f2 = 2.0, f3 = 6.0, sign = 1.0;
+  c.s = c.a = c.b = c.a1 = c.b1 = 0.0;
+  for (int k = 0; k < 14; ++k) {
+    c.s += sign * xk / f1;
+    c.a += sign * xk / f2;
+    c.b += sign * xk / f3;
+    if (k >= 1) {
+      c.a1 += sign * 2.0 * k * xk_minus_1 / f2;
+      c.b1 += sign * 2.0 * k * xk_minus_1 / f3;
+    }
+    xk_minus_1 = xk;
+    xk *= x;
+    sign = -sign;
+    const double n = 2.0 * k;  // next factorials: (2k+3)! = (2k+1)! (2k+2)(2k+3), ...
+    f1 *= (n + 2) * (n + 3);
+    f2 *= (n + 3) * (n + 4);
+    f3 *= (n + 4) * (n + 5);
+  }
+}
+}  // namespace
+
 Coefficients coefficients(double t) {
   Coefficients c;
   if (t < 1.0) {
-    // Power series in x = t^2 (see so3.hpp); term k of each uses the factorials (2k+1)!, (2k+2)!,
-    // (2k+3)!, accumulated as f1, f2, f3.
-    const double x = t * t;
-    double xk = 1.0, f1 = 1.0, f2 = 2.0, f3 = 6.0, sign = 1.0;
-    c.s = c.a = c.b = c.a1 = c.b1 = 0.0;
-    double xk_minus_1 = 0.0;  // x^(k-1), for a1 and b1
-    for (int k = 0; k < 14; ++k) {
-      c.s += sign * xk / f1;
-      c.a += sign * xk / f2;
-      c.b += sign * xk / f3;
-      if (k >= 1) {
-        c.a1 += sign * 2.0 * k * xk_minus_1 / f2;
-        c.b1 += sign * 2.0 * k * xk_minus_1 / f3;
-      }
-      xk_minus_1 = xk;
-      xk *= x;
-      sign = -sign;
-      const double n = 2.0 * k;  // next factorials: (2k+3)! = (2k+1)! (2k+2)(2k+3), ...
-      f1 *= (n + 2) * (n + 3);
-      f2 *= (n + 3) * (n + 4);
-      f3 *= (n + 4) * (n + 5);
-    }
+    series(t * t, c);
     return c;
   }
   const double st = std::sin(t), ct = std::cos(t);
@@ -50,25 +57,7 @@ CoefficientsCx coefficients_sq(const std::complex<double>& x) {
   using C = std::complex<double>;
   CoefficientsCx c;
   if (x.real() < 1.0) {  // the series of coefficients(), in x = t^2
-    C xk = 1.0, xk_minus_1 = 0.0;
-    double f1 = 1.0, f2 = 2.0, f3 = 6.0, sign = 1.0;
-    c.s = c.a = c.b = c.a1 = c.b1 = 0.0;
-    for (int k = 0; k < 14; ++k) {
-      c.s += sign * xk / f1;
-      c.a += sign * xk / f2;
-      c.b += sign * xk / f3;
-      if (k >= 1) {
-        c.a1 += sign * 2.0 * k * xk_minus_1 / f2;
-        c.b1 += sign * 2.0 * k * xk_minus_1 / f3;
-      }
-      xk_minus_1 = xk;
-      xk *= x;
-      sign = -sign;
-      const double n = 2.0 * k;
-      f1 *= (n + 2) * (n + 3);
-      f2 *= (n + 3) * (n + 4);
-      f3 *= (n + 4) * (n + 5);
-    }
+    series(x, c);
     return c;
   }
   const C t = std::sqrt(x);
